@@ -1,0 +1,222 @@
+"""Session file (recording-format spec, section 4): the subject and vehicle of a recording.
+
+The session file holds *nominal* values. :func:`load_session` validates it strictly: unknown keys,
+missing keys, wrong types and mass fractions that do not sum to 1 are :class:`ConfigError` naming
+the file and the dotted key.
+
+Examples
+--------
+>>> s = default_session()
+>>> round(sum(seg.mass_fraction for seg in s.rider.segments.values()), 6)
+1.0
+>>> s.euc.wheel_radius
+0.2
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+import yaml
+
+from euc_ros.core.errors import ConfigError
+
+#: Rigid bodies of the rider (EUC paper, Table 2), in a fixed order.
+SEGMENT_BODIES = ("H", "CHR", "CHL", "UAR", "UAL", "LAR", "LAL", "HR", "HL", "TR", "TL", "LR", "LL")
+#: Tolerance on the sum of the mass fractions (spec section 4).
+MASS_FRACTION_TOL = 1e-3
+
+
+@dataclass(frozen=True)
+class Segment:
+    """One rider segment: mass fraction of the rider mass and CoM offset from the pivot [m, body frame]."""
+
+    mass_fraction: float
+    com_offset: tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class Rider:
+    """Rider: total mass [kg], pitch inertia about the CoG [kg m^2] and segments by body name."""
+
+    mass: float
+    inertia_pitch: float
+    segments: Mapping[str, Segment]
+
+
+@dataclass(frozen=True)
+class Euc:
+    """EUC vehicle parameters (EUC paper, Table 3), SI units."""
+
+    body: str = "E"
+    wheel_radius: float = 0.2
+    wheel_mass: float = 3.0
+    body_mass: float = 13.0
+    wheel_inertia: float = 0.12
+    body_inertia: float = 0.5
+    h0: float = 0.075
+    l0: float = 0.05
+    pivot_to_wheel_center: tuple[float, float, float] = (0.0, 0.0, -0.45)
+
+
+@dataclass(frozen=True)
+class Session:
+    """A parsed session file."""
+
+    world_up: str
+    rate_hz: float
+    rider: Rider
+    euc: Euc
+    source: str | None = field(default=None, compare=False)
+
+    def segment_arrays(self) -> tuple[list[str], np.ndarray, np.ndarray]:
+        """Return (names, mass fractions (n,), CoM offsets (n, 3)) in file order."""
+        names = list(self.rider.segments)
+        fractions = np.array([self.rider.segments[n].mass_fraction for n in names], dtype=float)
+        offsets = np.array([self.rider.segments[n].com_offset for n in names], dtype=float)
+        return names, fractions, offsets
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the plain-YAML form of the session (round-trips through :func:`parse_session`)."""
+        d = asdict(self)
+        d.pop("source")
+        d["rider"]["segments"] = {
+            k: {"mass_fraction": v.mass_fraction, "com_offset": list(v.com_offset)}
+            for k, v in self.rider.segments.items()
+        }
+        d["euc"]["pivot_to_wheel_center"] = list(self.euc.pivot_to_wheel_center)
+        return d
+
+
+_TOP_KEYS = {"world_up": str, "rate_hz": float, "rider": dict, "euc": dict}
+_RIDER_KEYS = {"mass": float, "inertia_pitch": float, "segments": dict}
+_SEGMENT_KEYS = {"mass_fraction": float, "com_offset": list}
+_EUC_KEYS = {
+    "body": str, "wheel_radius": float, "wheel_mass": float, "body_mass": float, "wheel_inertia": float,
+    "body_inertia": float, "h0": float, "l0": float, "pivot_to_wheel_center": list,
+}
+_POSITIVE = {"rate_hz", "mass", "inertia_pitch", "wheel_radius", "wheel_mass", "body_mass", "wheel_inertia",
+             "body_inertia"}
+
+
+def _check_keys(d: Any, spec: Mapping[str, type], prefix: str, src: str | None) -> None:
+    if not isinstance(d, Mapping):
+        raise ConfigError(f"expected a mapping, got {type(d).__name__}", path=src, key=prefix or None)
+    for k in d:
+        if k not in spec:
+            raise ConfigError(f"unknown key (allowed: {', '.join(spec)})", path=src,
+                              key=f"{prefix}.{k}" if prefix else str(k))
+    for k in spec:
+        if k not in d:
+            raise ConfigError("missing required key", path=src, key=f"{prefix}.{k}" if prefix else k)
+
+
+def _value(d: Mapping, k: str, typ: type, prefix: str, src: str | None) -> Any:
+    key = f"{prefix}.{k}" if prefix else k
+    v = d[k]
+    if typ is float:
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v):
+            raise ConfigError(f"expected a finite number, got {v!r}", path=src, key=key)
+        if k in _POSITIVE and v <= 0:
+            raise ConfigError(f"must be > 0, got {v!r}", path=src, key=key)
+        return float(v)
+    if typ is list:
+        if (not isinstance(v, list) or len(v) != 3
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
+            raise ConfigError(f"expected a list of 3 numbers [x, y, z], got {v!r}", path=src, key=key)
+        return tuple(float(x) for x in v)
+    if not isinstance(v, typ):
+        raise ConfigError(f"expected {typ.__name__}, got {v!r}", path=src, key=key)
+    return v
+
+
+def parse_session(data: Any, source: str | Path | None = None) -> Session:
+    """Validate a session mapping (already loaded from YAML) and return a :class:`Session`.
+
+    Raises
+    ------
+    ConfigError
+        Naming the offending key for unknown or missing keys, bad values, and mass fractions that do
+        not sum to 1 within 1e-3.
+    """
+    src = None if source is None else str(source)
+    _check_keys(data, _TOP_KEYS, "", src)
+    world_up = _value(data, "world_up", str, "", src)
+    if world_up not in ("y", "z"):
+        raise ConfigError(f"must be 'y' or 'z', got {world_up!r}", path=src, key="world_up")
+    rate_hz = _value(data, "rate_hz", float, "", src)
+
+    rd = data["rider"]
+    _check_keys(rd, _RIDER_KEYS, "rider", src)
+    segs_raw = rd["segments"]
+    if not isinstance(segs_raw, Mapping) or not segs_raw:
+        raise ConfigError("expected a non-empty mapping of body -> segment", path=src, key="rider.segments")
+    segments: dict[str, Segment] = {}
+    for name, sd in segs_raw.items():
+        prefix = f"rider.segments.{name}"
+        _check_keys(sd, _SEGMENT_KEYS, prefix, src)
+        frac = _value(sd, "mass_fraction", float, prefix, src)
+        if not 0.0 <= frac <= 1.0:
+            raise ConfigError(f"must be in [0, 1], got {frac}", path=src, key=f"{prefix}.mass_fraction")
+        segments[str(name)] = Segment(frac, _value(sd, "com_offset", list, prefix, src))
+    total = sum(s.mass_fraction for s in segments.values())
+    if abs(total - 1.0) > MASS_FRACTION_TOL:
+        raise ConfigError(f"mass fractions sum to {total:.6f}, must be 1 within {MASS_FRACTION_TOL}",
+                          path=src, key="rider.segments")
+    rider = Rider(_value(rd, "mass", float, "rider", src), _value(rd, "inertia_pitch", float, "rider", src),
+                  segments)
+
+    ed = data["euc"]
+    _check_keys(ed, _EUC_KEYS, "euc", src)
+    euc = Euc(**{k: _value(ed, k, t, "euc", src) for k, t in _EUC_KEYS.items()})
+    if euc.body in segments:
+        raise ConfigError(f"EUC body {euc.body!r} is also listed as a rider segment", path=src, key="euc.body")
+    return Session(world_up=world_up, rate_hz=rate_hz, rider=rider, euc=euc, source=src)
+
+
+def load_session(path: str | Path) -> Session:
+    """Read and validate a session YAML file (spec section 4)."""
+    p = Path(path)
+    try:
+        text = p.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read session file: {exc.strerror}", path=p) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise ConfigError(f"not valid YAML: {getattr(exc, 'problem', exc)}", path=p,
+                          line=None if mark is None else mark.line + 1,
+                          column=None if mark is None else mark.column + 1) from None
+    return parse_session(data, p)
+
+
+def save_session(session: Session, path: str | Path) -> None:
+    """Write a session file that :func:`load_session` reads back unchanged."""
+    Path(path).write_text(yaml.safe_dump(session.to_dict(), sort_keys=False), encoding="utf-8")
+
+
+#: Default segment table: mass fractions (de Leva style) and CoM offsets from each pivot in the body
+#: frame (x forward, y left, z up when standing). Pivots per EUC paper Table 2.
+DEFAULT_SEGMENTS: dict[str, Segment] = {
+    "H": Segment(0.081, (0.0, 0.0, -0.12)),     # head, from top of helmet
+    "CHR": Segment(0.216, (0.0, 0.1, -0.22)),   # chest halves, from shoulder
+    "CHL": Segment(0.216, (0.0, -0.1, -0.22)),
+    "UAR": Segment(0.028, (0.0, 0.0, 0.13)),    # upper arm, from elbow
+    "UAL": Segment(0.028, (0.0, 0.0, 0.13)),
+    "LAR": Segment(0.022, (0.0, 0.0, 0.16)),    # forearm + hand, from wrist (hand part below)
+    "LAL": Segment(0.022, (0.0, 0.0, 0.16)),
+    "HR": Segment(0.0, (0.0, 0.0, 0.0)),        # hip markers only (mass in chest/thigh)
+    "HL": Segment(0.0, (0.0, 0.0, 0.0)),
+    "TR": Segment(0.1, (0.0, 0.0, 0.19)),       # thigh, from knee
+    "TL": Segment(0.1, (0.0, 0.0, 0.19)),
+    "LR": Segment(0.0935, (0.0, 0.0, 0.18)),    # shank + foot, from ankle
+    "LL": Segment(0.0935, (0.0, 0.0, 0.18)),
+}
+
+
+def default_session(world_up: str = "y") -> Session:
+    """Return the nominal session of the EUC paper (Table 3) with :data:`DEFAULT_SEGMENTS`."""
+    return Session(world_up=world_up, rate_hz=120.0, rider=Rider(65.0, 16.6, dict(DEFAULT_SEGMENTS)), euc=Euc())
