@@ -1,0 +1,94 @@
+"""Rotations: quaternions, the EUC paper's yaw-tilt-pitch sequence, and Motive Y-up -> REP-103 Z-up.
+
+Conventions
+-----------
+* Quaternions are ``(x, y, z, w)`` (ROS and scipy order), body-to-world, last axis of the array.
+* Yaw-tilt-pitch (EUC paper, Fig. 2 and eqs (1)-(2)): ``R = Rz(psi) @ Rx(theta) @ Ry(pitch)``, i.e.
+  yaw psi about world Z (up), then tilt theta about the yawed forward axis x, then pitch about the
+  tilted lateral axis y. Positive pitch tips the body's z axis towards its x axis (forward).
+* Motive's default world is Y-up; with REP-103 axes (x, y, z) the Motive axes are (X, Y, Z) = (x, z, -y)
+  (recording-format spec, section 1).
+
+Examples
+--------
+>>> import numpy as np
+>>> q = quat_from_yaw_tilt_pitch(0.3, -0.1, 0.05)
+>>> np.round(yaw_tilt_pitch_from_quat(q), 12)
+array([ 0.3 , -0.1 ,  0.05])
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+#: scipy's name of the intrinsic yaw (Z) - tilt (X) - pitch (Y) sequence.
+YAW_TILT_PITCH_SEQ = "ZXY"
+
+
+def quat_from_yaw_tilt_pitch(psi, theta, pitch) -> np.ndarray:
+    """Return body-to-world quaternions (..., 4) for yaw psi, tilt theta, pitch [rad]."""
+    angles = np.stack(np.broadcast_arrays(np.asarray(psi, float), np.asarray(theta, float),
+                                          np.asarray(pitch, float)), axis=-1)
+    flat = angles.reshape(-1, 3)
+    q = Rotation.from_euler(YAW_TILT_PITCH_SEQ, flat).as_quat()
+    return q.reshape(angles.shape[:-1] + (4,))
+
+
+def yaw_tilt_pitch_from_quat(q) -> np.ndarray:
+    """Return ``[psi, theta, pitch]`` (..., 3) [rad] from quaternions (..., 4) (x, y, z, w).
+
+    NaN quaternions give NaN angles (untracked samples stay gaps).
+    """
+    q = np.asarray(q, dtype=float)
+    flat = q.reshape(-1, 4)
+    out = np.full((flat.shape[0], 3), np.nan)
+    ok = np.all(np.isfinite(flat), axis=1) & (np.linalg.norm(flat, axis=1) > 0)
+    if ok.any():
+        out[ok] = Rotation.from_quat(flat[ok]).as_euler(YAW_TILT_PITCH_SEQ)
+    return out.reshape(q.shape[:-1] + (3,))
+
+
+def rotation_matrices(q) -> np.ndarray:
+    """Return rotation matrices (..., 3, 3) for quaternions (..., 4); NaN where q is not finite."""
+    q = np.asarray(q, dtype=float)
+    flat = q.reshape(-1, 4)
+    out = np.full((flat.shape[0], 3, 3), np.nan)
+    ok = np.all(np.isfinite(flat), axis=1) & (np.linalg.norm(flat, axis=1) > 0)
+    if ok.any():
+        out[ok] = Rotation.from_quat(flat[ok]).as_matrix()
+    return out.reshape(q.shape[:-1] + (3, 3))
+
+
+def rotate(q, v) -> np.ndarray:
+    """Rotate body-frame vectors v (..., 3) to the world by quaternions q (..., 4) (broadcasting)."""
+    return np.einsum("...ij,...j->...i", rotation_matrices(q), np.asarray(v, dtype=float))
+
+
+def y_up_to_z_up_position(p) -> np.ndarray:
+    """Motive Y-up position (X, Y, Z) -> REP-103 Z-up (X, -Z, Y)."""
+    p = np.asarray(p, dtype=float)
+    return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
+
+
+def z_up_to_y_up_position(p) -> np.ndarray:
+    """REP-103 Z-up position (x, y, z) -> Motive Y-up (x, z, -y); inverse of :func:`y_up_to_z_up_position`."""
+    p = np.asarray(p, dtype=float)
+    return np.stack([p[..., 0], p[..., 2], -p[..., 1]], axis=-1)
+
+
+def y_up_to_z_up_quat(q) -> np.ndarray:
+    """Motive Y-up quaternion (qx, qy, qz, qw) -> REP-103 Z-up (qx, -qz, qy, qw)."""
+    q = np.asarray(q, dtype=float)
+    return np.stack([q[..., 0], -q[..., 2], q[..., 1], q[..., 3]], axis=-1)
+
+
+def z_up_to_y_up_quat(q) -> np.ndarray:
+    """REP-103 Z-up quaternion -> Motive Y-up; inverse of :func:`y_up_to_z_up_quat`."""
+    q = np.asarray(q, dtype=float)
+    return np.stack([q[..., 0], q[..., 2], -q[..., 1], q[..., 3]], axis=-1)
+
+
+def canonical_quat(q) -> np.ndarray:
+    """Return quaternions with w >= 0 (the sign of a quaternion is arbitrary)."""
+    q = np.asarray(q, dtype=float)
+    return np.where(q[..., 3:4] < 0, -q, q)
