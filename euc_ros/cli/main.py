@@ -1,0 +1,100 @@
+"""`euc-ros`: one console script carrying every subcommand.
+
+Each subcommand lives in its own module ``euc_ros.cli.<module>`` exposing ``HELP`` (one line),
+``add_arguments(parser)`` and ``main(args) -> int``. Modules are imported lazily, only for the
+command being run, so ``euc-ros --help`` stays fast and ROS-free.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from euc_ros.core.errors import EucError
+
+#: command -> (module, one-line help shown when the module cannot be imported cheaply)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "demo": ("demo", "run the main job end to end: simulate, stream live, record, identify, trace the residual"),
+    "launch": ("launch_cmd", "start nodes as separate processes from a launch YAML"),
+    "simulate-ride": ("simulate_ride", "generate synthetic OptiTrack recordings of a ridden EUC with known truth"),
+    "inspect": ("inspect", "show what a Motive CSV or a bag holds (and check bags structurally)"),
+    "play": ("play", "replay a bag onto live topics"),
+    "record": ("record", "record topics into a rosbag2 MCAP bag"),
+    "convert": ("convert", "convert Motive CSV <-> bag"),
+    "identify": ("identify", "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"),
+    "residual": ("residual", "trace the M_d1 - M_d2 residual to a missing physical effect"),
+    "unicycle": ("unicycle", "autonomous unicycle: gains, steady states, stability maps"),
+    "steer": ("steer", "run a steering maneuver in closed loop over topics"),
+    "bench": ("bench", "benchmarks against their floors"),
+}
+
+
+def _load(command: str):
+    module, _ = COMMANDS[command]
+    return importlib.import_module(f"euc_ros.cli.{module}")
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """Build the parser; only ``command``'s module is imported (all of them if None)."""
+    parser = argparse.ArgumentParser(
+        prog="euc-ros",
+        description="euc_ros: motion-capture processing and electric-unicycle monitoring (ROS 2 Jazzy).",
+        epilog="Run 'euc-ros COMMAND --help' for a command's options.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        if command is not None and name != command:
+            sub.add_parser(name, help=help_text, add_help=False)
+            continue
+        try:
+            mod = _load(name)
+        except ModuleNotFoundError as exc:
+            if exc.name and exc.name.startswith("euc_ros.cli"):
+                continue  # command not built yet
+            raise
+        p = sub.add_parser(name, help=getattr(mod, "HELP", help_text), description=getattr(mod, "HELP", help_text),
+                           formatter_class=argparse.RawDescriptionHelpFormatter)
+        mod.add_arguments(p)
+        p.set_defaults(_main=mod.main)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``euc-ros``; returns the exit code (2 for user errors, 130 on Ctrl-C)."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    if command not in COMMANDS:
+        command = None
+    parser = build_parser(command if command and "--help" not in argv[:1] and "-h" not in argv[:1] else None) \
+        if command else argparse.ArgumentParser(prog="euc-ros")
+    if command is None:
+        parser = build_parser_light()
+        parser.print_help() if not argv or argv[0] in ("-h", "--help") else parser.error(f"unknown command {argv[0]!r}")
+        return 0
+    args = parser.parse_args(argv)
+    if not hasattr(args, "_main"):
+        parser.error(f"command {command!r} is not available in this build")
+    try:
+        return int(args._main(args) or 0)
+    except EucError as exc:
+        print(f"euc-ros {command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        return 130
+
+
+def build_parser_light() -> argparse.ArgumentParser:
+    """Top-level parser listing the commands without importing any of them."""
+    parser = argparse.ArgumentParser(
+        prog="euc-ros",
+        description="euc_ros: motion-capture processing and electric-unicycle monitoring (ROS 2 Jazzy).",
+        epilog="Run 'euc-ros COMMAND --help' for a command's options.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name, (_, help_text) in COMMANDS.items():
+        sub.add_parser(name, help=help_text)
+    return parser
+
+
+if __name__ == "__main__":
+    sys.exit(main())
