@@ -1,0 +1,295 @@
+"""Launch nodes as separate OS processes (there is no ``ros2 launch`` on PyPI).
+
+Each node runs its console script with ``--ros-args`` (params file, overrides, remaps, name and
+namespace). Output lines are prefixed with the node name and streamed. SIGINT/SIGTERM to the
+launcher are forwarded; shutdown escalates SIGINT -> SIGTERM -> SIGKILL in reverse start order.
+When a ``required`` node exits, everything is shut down and the launcher returns non-zero if that
+exit was not clean.
+
+Examples
+--------
+>>> spec = NodeSpec("recorder", name="rec", parameters={"output": "/tmp/bag"})
+>>> spec.command()
+['recorder', '--ros-args', '-r', '__node:=rec', '-p', "output:='/tmp/bag'"]
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Iterable, Mapping, Sequence
+
+import yaml
+
+from euc_ros.core.errors import ConfigError
+
+#: Grace periods of the shutdown escalation [s].
+SIGINT_GRACE_S = 5.0
+SIGTERM_GRACE_S = 3.0
+
+
+def _format_value(value: Any) -> str:
+    """Format a parameter override value in ROS YAML syntax for ``-p name:=value``."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_format_value(v) for v in value) + "]"
+    if isinstance(value, str):
+        return "'" + value.replace("'", "''") + "'"
+    return repr(value)
+
+
+def resolve_executable(executable: str) -> str:
+    """Find a console script: next to this Python first (the venv's bin), then on PATH."""
+    if os.sep in executable:
+        return executable
+    candidate = Path(sys.executable).parent / executable
+    if candidate.exists():
+        return str(candidate)
+    found = shutil.which(executable)
+    if found is None:
+        raise ConfigError(f"executable {executable!r} not found in {candidate.parent} or on PATH",
+                          key="executable")
+    return found
+
+
+@dataclass
+class NodeSpec:
+    """One process to launch.
+
+    Parameters
+    ----------
+    executable : str
+        Console script (``mocap_ingest``) or path.
+    name : str, optional
+        Node name (``__node:=``) and log prefix; defaults to the executable name.
+    params_file : str, optional
+        YAML passed with ``--params-file``.
+    parameters : mapping
+        ``-p name:=value`` overrides (applied after the params file).
+    remaps : mapping
+        ``-r from:=to`` topic remaps.
+    namespace : str, optional
+    required : bool
+        If it exits, the launch ends (non-zero if its exit code was not 0).
+    env : mapping
+        Extra environment variables.
+    args : sequence of str
+        Arguments before ``--ros-args`` (for non-node programs, e.g. a test helper).
+    ros_args : bool
+        Append ``--ros-args ...`` (False for plain programs).
+    """
+
+    executable: str
+    name: str | None = None
+    params_file: str | None = None
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    remaps: Mapping[str, str] = field(default_factory=dict)
+    namespace: str | None = None
+    required: bool = True
+    env: Mapping[str, str] = field(default_factory=dict)
+    args: Sequence[str] = ()
+    ros_args: bool = True
+
+    @property
+    def label(self) -> str:
+        """Log prefix."""
+        return self.name or Path(self.executable).name
+
+    def command(self) -> list[str]:
+        """Return the argv of the process (executable unresolved)."""
+        cmd = [self.executable, *self.args]
+        if not self.ros_args:
+            return cmd
+        cmd.append("--ros-args")
+        if self.name:
+            cmd += ["-r", f"__node:={self.name}"]
+        if self.namespace:
+            cmd += ["-r", f"__ns:={self.namespace}"]
+        for src, dst in self.remaps.items():
+            cmd += ["-r", f"{src}:={dst}"]
+        if self.params_file:
+            cmd += ["--params-file", str(self.params_file)]
+        for key, value in self.parameters.items():
+            cmd += ["-p", f"{key}:={_format_value(value)}"]
+        return cmd
+
+
+class Launcher:
+    """Start, watch and stop a set of node processes.
+
+    Use as a context manager (``with Launcher(specs) as l: l.wait(...)``) so children are always
+    stopped. ``exit_codes`` maps labels to exit codes once processes end.
+    """
+
+    def __init__(self, specs: Iterable[NodeSpec], *, stream: IO[str] | None = None, prefix_logs: bool = True):
+        self.specs = list(specs)
+        labels = [s.label for s in self.specs]
+        if len(set(labels)) != len(labels):
+            raise ConfigError(f"node names must be unique, got {labels}", key="nodes")
+        self.stream = stream if stream is not None else sys.stdout
+        self.prefix_logs = prefix_logs
+        self.procs: dict[str, subprocess.Popen] = {}
+        self.exit_codes: dict[str, int] = {}
+        self._threads: list[threading.Thread] = []
+        self._lock = threading.Lock()
+        self.failed: str | None = None
+
+    # -- lifecycle -------------------------------------------------------------------------------
+    def start(self) -> "Launcher":
+        """Start every process in order."""
+        for spec in self.specs:
+            cmd = spec.command()
+            cmd[0] = resolve_executable(cmd[0])
+            env = dict(os.environ)
+            env.update({k: str(v) for k, v in spec.env.items()})
+            env.setdefault("PYTHONUNBUFFERED", "1")
+            env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")
+            proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
+                                    env=env, start_new_session=True, text=True, bufsize=1, errors="replace")
+            self.procs[spec.label] = proc
+            t = threading.Thread(target=self._pump, args=(spec.label, proc), daemon=True)
+            t.start()
+            self._threads.append(t)
+        return self
+
+    def _pump(self, label: str, proc: subprocess.Popen) -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            with self._lock:
+                self.stream.write(f"[{label}] {line}" if self.prefix_logs else line)
+                self.stream.flush()
+
+    def poll(self) -> bool:
+        """Update exit codes; return True while the launch should go on."""
+        for spec in self.specs:
+            proc = self.procs.get(spec.label)
+            if proc is None or spec.label in self.exit_codes:
+                continue
+            code = proc.poll()
+            if code is not None:
+                self.exit_codes[spec.label] = code
+                if spec.required and self.failed is None:
+                    self.failed = spec.label
+        if self.failed is not None:
+            return False
+        return any(lbl not in self.exit_codes for lbl in self.procs)
+
+    def wait(self, timeout: float | None = None, *, until=None, period: float = 0.05) -> bool:
+        """Wait until a required node exits, all exit, ``until()`` is true or ``timeout`` passes.
+
+        Returns True if ``until`` became true (or, without ``until``, if processes ended).
+        """
+        deadline = None if timeout is None else time.monotonic() + timeout
+        while True:
+            if until is not None and until():
+                return True
+            if not self.poll():
+                return until is None
+            if deadline is not None and time.monotonic() >= deadline:
+                return False
+            time.sleep(period)
+
+    def shutdown(self, sigint_grace_s: float = SIGINT_GRACE_S, sigterm_grace_s: float = SIGTERM_GRACE_S) -> None:
+        """Stop children in reverse start order: SIGINT, then SIGTERM, then SIGKILL."""
+        for sig, grace in ((signal.SIGINT, sigint_grace_s), (signal.SIGTERM, sigterm_grace_s),
+                           (signal.SIGKILL, 2.0)):
+            alive = [(lbl, p) for lbl, p in reversed(list(self.procs.items())) if p.poll() is None]
+            if not alive:
+                break
+            for _, p in alive:
+                try:
+                    os.killpg(p.pid, sig)
+                except ProcessLookupError:
+                    pass
+            deadline = time.monotonic() + grace
+            while time.monotonic() < deadline and any(p.poll() is None for _, p in alive):
+                time.sleep(0.02)
+        for lbl, p in self.procs.items():
+            try:
+                code = p.wait(timeout=2.0)
+            except subprocess.TimeoutExpired:
+                code = -9
+            self.exit_codes.setdefault(lbl, code)
+        for t in self._threads:
+            t.join(timeout=1.0)
+
+    def return_code(self) -> int:
+        """0 if every required node exited cleanly (code 0), else 1."""
+        bad = [s.label for s in self.specs if s.required and self.exit_codes.get(s.label) not in (0, None)]
+        return 1 if bad else 0
+
+    def __enter__(self) -> "Launcher":
+        return self.start()
+
+    def __exit__(self, *exc) -> None:
+        self.shutdown()
+
+
+def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[str] | None = None) -> int:
+    """Launch ``specs``, forward SIGINT/SIGTERM, run until done or ``duration``; return the exit code."""
+    launcher = Launcher(specs, stream=stream)
+    stop = threading.Event()
+
+    def _forward(signum, _frame):
+        stop.set()
+
+    old = {s: signal.signal(s, _forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        launcher.start()
+        deadline = None if duration is None else time.monotonic() + duration
+        while not stop.is_set() and launcher.poll():
+            if deadline is not None and time.monotonic() >= deadline:
+                break
+            time.sleep(0.05)
+    finally:
+        launcher.shutdown()
+        for s, h in old.items():
+            signal.signal(s, h)
+    return launcher.return_code()
+
+
+_SPEC_KEYS = {"executable", "name", "params_file", "parameters", "remaps", "namespace", "required", "env", "args"}
+
+
+def load_launch_file(path: str | Path) -> list[NodeSpec]:
+    """Read a launch YAML: ``nodes: [{executable, name, params_file, parameters, remaps, ...}]``.
+
+    Relative ``params_file`` paths are resolved against the launch file's directory.
+    """
+    p = Path(path)
+    try:
+        data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ConfigError(f"cannot read launch file: {exc.strerror}", path=p) from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise ConfigError(f"not valid YAML: {getattr(exc, 'problem', exc)}", path=p,
+                          line=None if mark is None else mark.line + 1) from None
+    if not isinstance(data, dict) or not isinstance(data.get("nodes"), list) or not data["nodes"]:
+        raise ConfigError("expected a non-empty list under 'nodes'", path=p, key="nodes")
+    specs = []
+    for i, entry in enumerate(data["nodes"]):
+        if not isinstance(entry, dict):
+            raise ConfigError("expected a mapping", path=p, key=f"nodes[{i}]")
+        unknown = set(entry) - _SPEC_KEYS
+        if unknown:
+            raise ConfigError(f"unknown key (allowed: {', '.join(sorted(_SPEC_KEYS))})", path=p,
+                              key=f"nodes[{i}].{sorted(unknown)[0]}")
+        if "executable" not in entry:
+            raise ConfigError("missing required key", path=p, key=f"nodes[{i}].executable")
+        kw = dict(entry)
+        if kw.get("params_file"):
+            pf = Path(kw["params_file"])
+            kw["params_file"] = str(pf if pf.is_absolute() else (p.parent / pf))
+            if not Path(kw["params_file"]).exists():
+                raise ConfigError(f"params file {kw['params_file']} does not exist", path=p,
+                                  key=f"nodes[{i}].params_file")
+        specs.append(NodeSpec(**kw))
+    return specs

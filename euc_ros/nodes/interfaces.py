@@ -1,0 +1,51 @@
+"""Every topic name, message type and QoS profile of the pipeline, in one place.
+
+Topics are relative so namespaces and remaps work. Data flows one way:
+``mocap/frame`` -> ``rider/state`` -> ``euc/torque`` -> diagnostics.
+"""
+from __future__ import annotations
+
+from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy,
+                       qos_profile_sensor_data)
+
+# --- topic names -------------------------------------------------------------------------------
+MOCAP_FRAME = "mocap/frame"                  # euc_msgs/MocapFrame, one per capture frame
+MOCAP_BODY_POSE = "mocap/{name}/pose"        # geometry_msgs/PoseStamped per rigid body
+RIDER_STATE = "rider/state"                  # euc_msgs/RiderState
+TORQUE = "euc/torque"                        # euc_msgs/TorqueEstimate
+DIAGNOSTICS = "/diagnostics"                 # diagnostic_msgs/DiagnosticArray (absolute, ROS convention)
+TF = "/tf"                                   # tf2_msgs/TFMessage
+CLOCK = "/clock"                             # rosgraph_msgs/Clock
+UNICYCLE_STATE = "unicycle/state"            # euc_msgs/UnicycleState
+UNICYCLE_POSE = "unicycle/pose"              # geometry_msgs/PoseStamped for viewing
+STEERING_COMMAND = "unicycle/command"        # euc_msgs/SteeringCommand
+VRPN_PREFIX = "/vrpn_mocap"                  # live input convention <prefix>/<Body>/pose (spec section 2)
+
+#: The pipeline's topics that the recorder takes by default.
+PIPELINE_TOPICS = (MOCAP_FRAME, RIDER_STATE, TORQUE, DIAGNOSTICS, TF)
+
+# --- QoS profiles ------------------------------------------------------------------------------
+#: Live mocap input: latest data matters more than every sample (sensor-data profile, best effort).
+MOCAP_INPUT_QOS = qos_profile_sensor_data
+#: Derived estimates and frames we publish: reliable so the recorder and the next stage lose nothing
+#: on a healthy host; depth covers ~2 s at 120 Hz of a slow subscriber.
+RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=256, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+#: Lockstep simulation: every message matters and late joiners must still get the first step.
+LOCKSTEP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=64, reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
+#: Diagnostics: reliable, shallow.
+DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+def sanitize(name: str) -> str:
+    """Turn a rigid-body name into a valid topic/frame token (``'RigidBody 01'`` -> ``'RigidBody_01'``)."""
+    out = "".join(c if c.isalnum() or c == "_" else "_" for c in name.strip())
+    if not out or out[0].isdigit():
+        out = "b_" + out
+    return out
+
+
+def body_pose_topic(name: str) -> str:
+    """Per-body PoseStamped topic for ``name``."""
+    return MOCAP_BODY_POSE.format(name=sanitize(name))

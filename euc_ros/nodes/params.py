@@ -1,0 +1,167 @@
+"""Declared parameters from one table per node (the generate_parameter_library idea, in a few lines).
+
+Each node lists ``ParamSpec`` entries; :func:`declare_params` declares them with a description,
+type, unit and range, reads the values (from ``--params-file`` or overrides), validates them and
+returns a plain dict. Invalid values raise :class:`ConfigError` naming the parameter.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Sequence
+
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from euc_ros.core.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """One declared parameter: name, default, description, unit, optional range or choices."""
+
+    name: str
+    default: Any
+    description: str
+    unit: str = ""
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] | None = None
+    read_only: bool = True
+
+    def descriptor(self) -> ParameterDescriptor:
+        """Return the ROS parameter descriptor (description, unit, range, read-only)."""
+        text = self.description + (f" [{self.unit}]" if self.unit else "")
+        if self.choices:
+            text += f" (one of: {', '.join(self.choices)})"
+        d = ParameterDescriptor(description=text, read_only=self.read_only)
+        d.dynamic_typing = False
+        if self.low is not None and self.high is not None:
+            if isinstance(self.default, bool):
+                pass
+            elif isinstance(self.default, int):
+                d.integer_range = [IntegerRange(from_value=int(self.low), to_value=int(self.high), step=0)]
+            elif isinstance(self.default, float):
+                d.floating_point_range = [FloatingPointRange(from_value=float(self.low), to_value=float(self.high),
+                                                             step=0.0)]
+        return d
+
+
+def _param_type(default: Any) -> Parameter.Type:
+    if isinstance(default, bool):
+        return Parameter.Type.BOOL
+    if isinstance(default, int):
+        return Parameter.Type.INTEGER
+    if isinstance(default, float):
+        return Parameter.Type.DOUBLE
+    if isinstance(default, str):
+        return Parameter.Type.STRING
+    if isinstance(default, (list, tuple)):
+        if all(isinstance(v, str) for v in default):
+            return Parameter.Type.STRING_ARRAY
+        if all(isinstance(v, bool) for v in default) and default:
+            return Parameter.Type.BOOL_ARRAY
+        if all(isinstance(v, int) and not isinstance(v, bool) for v in default) and default:
+            return Parameter.Type.INTEGER_ARRAY
+        return Parameter.Type.DOUBLE_ARRAY
+    raise TypeError(f"unsupported parameter default {default!r}")
+
+
+def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
+    """Declare every spec on ``node`` and return validated values by name.
+
+    Raises
+    ------
+    ConfigError
+        A value outside its range or choices, or of the wrong type, naming the parameter.
+    """
+    values: dict[str, Any] = {}
+    for spec in specs:
+        ptype = _param_type(spec.default)
+        try:
+            param = node.declare_parameter(spec.name, spec.default if spec.default != [] else ptype,
+                                           spec.descriptor())
+        except Exception as exc:  # rclpy raises several types for bad overrides
+            raise ConfigError(f"invalid value: {exc}", key=f"{node.get_name()}.ros__parameters.{spec.name}") from None
+        value = param.value
+        if isinstance(value, tuple):
+            value = list(value)
+        if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if spec.choices and value not in spec.choices:
+            raise ConfigError(f"must be one of {', '.join(spec.choices)}, got {value!r}",
+                              key=f"{node.get_name()}.ros__parameters.{spec.name}")
+        if isinstance(value, (int, float)) and not isinstance(value, bool):
+            if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
+                raise ConfigError(f"must be in [{spec.low}, {spec.high}], got {value!r}",
+                                  key=f"{node.get_name()}.ros__parameters.{spec.name}")
+        values[spec.name] = value
+    return values
+
+
+def validate_params_file(path: str, node_name: str, specs: Sequence[ParamSpec]) -> None:
+    """Check a ``--params-file`` YAML before rcl parses it, so errors name the file and key.
+
+    Accepts the ROS 2 layout ``{node_name or /** : {ros__parameters: {...}}}``; keys of other nodes
+    are ignored (one file may configure several nodes).
+
+    Raises
+    ------
+    ConfigError
+        Missing or unreadable file, invalid YAML, wrong layout, an unknown key for this node, or a
+        value of the wrong type.
+    """
+    import yaml
+
+    try:
+        text = open(path, encoding="utf-8").read()
+    except OSError as exc:
+        raise ConfigError(f"cannot read params file: {exc.strerror}", path=path) from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise ConfigError(f"not valid YAML: {getattr(exc, 'problem', exc)}", path=path,
+                          line=None if mark is None else mark.line + 1,
+                          column=None if mark is None else mark.column + 1) from None
+    if not isinstance(data, dict):
+        raise ConfigError("expected a mapping '<node name>: {ros__parameters: {...}}'", path=path)
+    by_name = {s.name: s for s in specs}
+    for node_key, section in data.items():
+        name = str(node_key).lstrip("/")
+        if name not in (node_name, "**") and not name.endswith("/" + node_name):
+            continue
+        if not isinstance(section, dict) or set(section) != {"ros__parameters"}:
+            raise ConfigError("expected exactly one key 'ros__parameters' under the node name", path=path,
+                              key=str(node_key))
+        params = section["ros__parameters"]
+        if not isinstance(params, dict):
+            raise ConfigError("expected a mapping of parameter names to values", path=path,
+                              key=f"{node_key}.ros__parameters")
+        for key, value in params.items():
+            full = f"{node_key}.ros__parameters.{key}"
+            if key == "use_sim_time":
+                continue
+            if key not in by_name:
+                raise ConfigError(f"unknown parameter for node '{node_name}' (known: {', '.join(by_name)})",
+                                  path=path, key=full)
+            spec = by_name[key]
+            want = _param_type(spec.default)
+            ok = {
+                Parameter.Type.BOOL: isinstance(value, bool),
+                Parameter.Type.INTEGER: isinstance(value, int) and not isinstance(value, bool),
+                Parameter.Type.DOUBLE: isinstance(value, (int, float)) and not isinstance(value, bool),
+                Parameter.Type.STRING: isinstance(value, str),
+            }.get(want, isinstance(value, list))
+            if not ok:
+                raise ConfigError(f"expected {want.name.lower()}, got {value!r}", path=path, key=full)
+            if spec.choices and value not in spec.choices:
+                raise ConfigError(f"must be one of {', '.join(spec.choices)}, got {value!r}", path=path, key=full)
+            if isinstance(value, (int, float)) and not isinstance(value, bool):
+                if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
+                    raise ConfigError(f"must be in [{spec.low}, {spec.high}], got {value!r}", path=path, key=full)
+
+
+def params_files_in(args: Sequence[str]) -> list[str]:
+    """Return the ``--params-file`` paths found in a ROS argument list."""
+    return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--params-file"]

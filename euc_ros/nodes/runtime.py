@@ -1,0 +1,63 @@
+"""The Jazzy node lifecycle, written once: init, spin, clean shutdown on SIGINT/SIGTERM.
+
+In rclpy 7.1 (Jazzy) both SIGINT and SIGTERM end ``spin`` with ``ExternalShutdownException``;
+``rclpy.init`` returns None (no context manager, unlike rolling).
+"""
+from __future__ import annotations
+
+import sys
+from typing import Callable
+
+import rclpy
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from euc_ros.core.errors import EucError
+from euc_ros.nodes.params import params_files_in, validate_params_file
+
+
+def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
+             node_name: str | None = None, specs=None) -> int:
+    """Create the node, spin it until shutdown, then destroy it; returns the process exit code.
+
+    ``--params-file`` files are validated against ``specs`` before rcl reads them. A configuration
+    error (:class:`EucError`) is printed as one line naming the file and key, and the exit code is 2.
+    """
+    argv = list(sys.argv if args is None else args)
+    if specs is not None and node_name is not None:
+        try:
+            for path in params_files_in(argv):
+                validate_params_file(path, node_name, specs)
+        except EucError as exc:
+            print(f"{node_name}: error: {exc}", file=sys.stderr)
+            return 2
+    rclpy.init(args=args)
+    node = None
+    code = 0
+    try:
+        node = node_factory()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except EucError as exc:
+        print(f"{node_name or 'node'}: error: {exc}", file=sys.stderr)
+        code = 2
+    except Exception:
+        if rclpy.ok():
+            raise
+    finally:
+        if node is not None:
+            close = getattr(node, "close", None)
+            if callable(close):
+                close()
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+def main_for(node_class: type) -> Callable[[list[str] | None], None]:
+    """Return a console-script ``main(args=None)`` for ``node_class``."""
+    def main(args: list[str] | None = None) -> None:
+        sys.exit(run_node(lambda: node_class(), args, node_name=node_class.NAME, specs=node_class.SPECS))
+    main.__doc__ = f"Run the {node_class.__name__} node (``--ros-args --params-file FILE`` to configure)."
+    return main
