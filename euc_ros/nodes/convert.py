@@ -1,0 +1,102 @@
+"""Message <-> core conversions: the only module that knows both ROS messages and core types."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from euc_msgs.msg import MocapFrame
+from geometry_msgs.msg import Pose, PoseStamped, TransformStamped
+
+from euc_ros.core.ingest import Frame
+
+NAN = float("nan")
+
+
+def stamp_to_ns(stamp: Time) -> int:
+    """builtin_interfaces/Time -> integer nanoseconds."""
+    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
+
+
+def ns_to_stamp(ns: int) -> Time:
+    """Integer nanoseconds -> builtin_interfaces/Time (negative times clamp to 0)."""
+    ns = max(int(ns), 0)
+    return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+
+
+def _pose(position, quat) -> Pose:
+    p = Pose()
+    p.position.x, p.position.y, p.position.z = (float(v) for v in position)
+    p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = (float(v) for v in quat)
+    return p
+
+
+def frame_to_msg(frame: Frame, frame_id: str, stamp_source: int) -> MocapFrame:
+    """Core :class:`Frame` -> ``euc_msgs/MocapFrame`` (untracked bodies keep NaN poses)."""
+    msg = MocapFrame()
+    msg.header.stamp = ns_to_stamp(frame.stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.stamp_source = stamp_source
+    msg.frame_number = int(frame.frame_number)
+    msg.body_names = list(frame.bodies)
+    msg.poses = [_pose(frame.position[i], frame.quat[i]) for i in range(len(frame.bodies))]
+    msg.tracked = [bool(v) for v in frame.tracked]
+    msg.mean_marker_error = [float(v) for v in frame.mean_marker_error]
+    return msg
+
+
+def msg_to_frame(msg: MocapFrame) -> Frame:
+    """``euc_msgs/MocapFrame`` -> core :class:`Frame`."""
+    pos = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses], float).reshape(-1, 3)
+    quat = np.array([[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in msg.poses],
+                    float).reshape(-1, 4)
+    tracked = np.array(msg.tracked, bool)
+    if tracked.shape[0] != pos.shape[0]:
+        tracked = np.all(np.isfinite(pos), axis=1)
+    err = np.array(msg.mean_marker_error, float)
+    if err.shape[0] != pos.shape[0]:
+        err = np.full(pos.shape[0], np.nan)
+    pos[~tracked] = np.nan
+    quat[~tracked] = np.nan
+    return Frame(stamp_to_ns(msg.header.stamp), int(msg.frame_number), list(msg.body_names), pos, quat, tracked, err)
+
+
+def pose_stamped(stamp_ns: int, frame_id: str, position, quat) -> PoseStamped:
+    """A PoseStamped at ``stamp_ns`` in ``frame_id``."""
+    msg = PoseStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    msg.pose = _pose(position, quat)
+    return msg
+
+
+def transform_stamped(stamp_ns: int, parent: str, child: str, position, quat) -> TransformStamped:
+    """A TransformStamped parent -> child."""
+    msg = TransformStamped()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = parent
+    msg.child_frame_id = child
+    t = msg.transform.translation
+    t.x, t.y, t.z = (float(v) for v in position)
+    r = msg.transform.rotation
+    r.x, r.y, r.z, r.w = (float(v) for v in quat)
+    return msg
+
+
+def pose_from_msg(msg: PoseStamped) -> tuple[int, np.ndarray, np.ndarray]:
+    """PoseStamped -> (stamp_ns, position (3,), quat (4,))."""
+    p, q = msg.pose.position, msg.pose.orientation
+    return stamp_to_ns(msg.header.stamp), np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
+
+
+def status(name: str, level: int, message: str, values: dict, hardware_id: str = "") -> DiagnosticStatus:
+    """A DiagnosticStatus with key/value pairs (floats printed with 4 significant digits)."""
+    st = DiagnosticStatus(level=bytes([level]) if isinstance(level, int) else level, name=name,
+                          message=message, hardware_id=hardware_id)
+    st.values = [KeyValue(key=k, value=(f"{v:.4g}" if isinstance(v, float) and not math.isnan(v) else str(v)))
+                 for k, v in values.items()]
+    return st
+
+
+OK, WARN, ERROR, STALE = (DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE)

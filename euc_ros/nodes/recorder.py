@@ -1,0 +1,98 @@
+"""Node ``recorder``: topics -> rosbag2 bag with MCAP storage (through rosbags), nothing lost on SIGINT.
+
+Subscribes ``raw=True`` so CDR bytes go straight into the bag without a decode/encode round trip.
+Topics are subscribed as soon as they appear in the graph (a discovery timer), with a reliability
+that matches their publishers (reliable unless a publisher is best effort).
+
+Subscribes
+    the configured ``topics`` (default: the pipeline's), or every topic with ``all_topics``.
+Publishes
+    nothing.
+Parameters
+    see :data:`SPECS` (``output``, ``topics``, ``all_topics``, ``chunk_size``, ``discovery_period``).
+"""
+from __future__ import annotations
+
+import importlib
+import time
+from pathlib import Path
+
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+from euc_ros.core.io.bags import BagWriter
+from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.params import ParamSpec, declare_params
+from euc_ros.nodes.runtime import main_for
+
+SPECS = (
+    ParamSpec("output", "", "bag directory to create (default: bags/euc_<UTC time>); must not exist"),
+    ParamSpec("topics", list(itf.PIPELINE_TOPICS), "topics to record (relative names resolve in the node's namespace)"),
+    ParamSpec("all_topics", False, "record every topic that appears (except /rosout and parameter events)"),
+    ParamSpec("chunk_size", 1 << 20, "MCAP chunk size; smaller loses less on SIGKILL, costs more overhead", "bytes",
+              4096, 1 << 28),
+    ParamSpec("discovery_period", 0.1, "how often to look for new topics", "s", 0.01, 10.0),
+    ParamSpec("queue_depth", 1000, "subscription queue depth", "messages", 1, 100000),
+)
+
+_SKIP = {"/rosout", "/parameter_events"}
+
+
+def _msg_class(type_name: str):
+    pkg, kind, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
+
+
+class Recorder(Node):
+    """Record topics into a rosbag2 MCAP bag."""
+
+    NAME = "recorder"
+    SPECS = SPECS
+
+    def __init__(self, **kwargs):
+        super().__init__(self.NAME, **kwargs)
+        self.config = declare_params(self, SPECS)
+        out = self.config["output"] or f"bags/euc_{time.strftime('%Y%m%d_%H%M%S', time.gmtime())}"
+        self.path = Path(out)
+        self.writer = BagWriter(self.path, chunk_size=self.config["chunk_size"])
+        self.counts: dict[str, int] = {}
+        self._subs = {}
+        self._wanted = {self.resolve_topic_name(t) for t in self.config["topics"]}
+        self._timer = self.create_timer(self.config["discovery_period"], self._discover)
+        self._discover()
+        self.get_logger().info(f"recording to {self.path} "
+                               f"({'all topics' if self.config['all_topics'] else ', '.join(sorted(self._wanted))})")
+
+    def _discover(self) -> None:
+        for topic, types in self.get_topic_names_and_types():
+            if topic in self._subs or topic in _SKIP:
+                continue
+            if not self.config["all_topics"] and topic not in self._wanted:
+                continue
+            try:
+                cls = _msg_class(types[0])
+            except (ImportError, AttributeError, ValueError):
+                self.get_logger().warning(f"skipping {topic}: no Python type for {types[0]}",
+                                          throttle_duration_sec=10.0)
+                continue
+            pubs = self.get_publishers_info_by_topic(topic)
+            best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs)
+            qos = QoSProfile(depth=self.config["queue_depth"],
+                             reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
+            self._subs[topic] = self.create_subscription(
+                cls, topic, lambda data, t=topic, n=types[0]: self._on_message(t, n, data), qos, raw=True)
+            self.get_logger().info(f"subscribed {topic} [{types[0]}]{' best effort' if best_effort else ''}")
+
+    def _on_message(self, topic: str, type_name: str, data: bytes) -> None:
+        self.writer.write_raw(topic, type_name, data, self.get_clock().now().nanoseconds)
+        self.counts[topic] = self.counts.get(topic, 0) + 1
+
+    def close(self) -> None:
+        """Close the bag (called by the runtime on shutdown): the bag is complete after this."""
+        self.writer.close()
+        total = sum(self.counts.values())
+        self.get_logger().info(f"closed {self.path}: {total} messages "
+                               + ", ".join(f"{t}={n}" for t, n in sorted(self.counts.items())))
+
+
+main = main_for(Recorder)
