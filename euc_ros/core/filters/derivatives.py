@@ -1,0 +1,370 @@
+"""Savitzky-Golay smoothing with analytic first and second derivatives, offline and online.
+
+The EUC paper (Section 2) smooths the motion-capture signals with the Savitzky-Golay method and
+differentiates the fitted polynomials analytically. This module does the same in two forms that
+give identical numbers on identical data:
+
+* :func:`savgol_derivatives` (offline): a whole recording at once. The signal is split into
+  gap-free stretches: a run of more than ``max_gap`` missing frames (NaN samples or frame numbers
+  that skip) ends a stretch, and nothing is ever interpolated across it. Shorter runs are filled by
+  linear interpolation between their neighbours before filtering; those samples get values but are
+  flagged (:attr:`Derivatives.filled`). Stretches shorter than the window give NaN, never garbage.
+  Inside a stretch, :func:`scipy.signal.savgol_filter` (``mode="interp"``) gives the value and the
+  derivatives ``deriv=1, 2`` with ``delta=dt``.
+* :class:`StreamingSavgol` (online): push one sample at a time and receive the smoothed value and
+  derivatives of the sample ``lag`` frames earlier. With the default (centred) lag
+  ``(window - 1) / 2`` it is the same least-squares polynomial as the offline filter evaluated at
+  the centre, so the outputs equal the offline ones on the interior of every stretch (the samples
+  at least ``lag`` frames away from both ends of the stretch) to round-off. A smaller lag trades
+  noise for delay (``lag=0`` is causal: the fit evaluated at the newest sample).
+
+Units: ``dt`` in seconds; derivatives are per second and per second squared of ``y``'s unit.
+
+Examples
+--------
+>>> import numpy as np
+>>> dt = 1 / 120
+>>> t = np.arange(240) * dt
+>>> d = savgol_derivatives(dt, np.sin(t), window_s=0.2, polyorder=3)
+>>> bool(np.allclose(d.y_dot[12:-12], np.cos(t[12:-12]), atol=1e-6))
+True
+"""
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+from typing import Iterator, NamedTuple
+
+import numpy as np
+from scipy.signal import savgol_coeffs, savgol_filter
+
+from euc_ros.core.errors import ConfigError, InputError
+
+#: Default polynomial order (cubic: unbiased second derivative for signals up to cubic in time).
+DEFAULT_POLYORDER = 3
+#: Default longest run of missing frames filled by interpolation [frames].
+DEFAULT_MAX_GAP = 2
+
+
+def window_samples(dt: float, window_s: float | None = None, window: int | None = None,
+                   polyorder: int = DEFAULT_POLYORDER) -> int:
+    """Return an odd window length in samples from ``window_s`` [s] or ``window`` [samples].
+
+    Parameters
+    ----------
+    dt : float
+        Sample spacing [s].
+    window_s : float, optional
+        Window duration [s]; rounded to the nearest odd number of samples.
+    window : int, optional
+        Window length [samples]; must be odd. Give exactly one of ``window_s`` and ``window``.
+    polyorder : int
+        Polynomial order; the window must be longer than it.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``window_s``, ``window`` or ``polyorder`` when the combination is invalid.
+    """
+    if (window_s is None) == (window is None):
+        raise ConfigError("give exactly one of window_s [s] and window [samples]", key="window_s")
+    if isinstance(polyorder, bool) or not isinstance(polyorder, (int, np.integer)) or polyorder < 2:
+        raise ConfigError(f"polyorder must be an integer >= 2 (second derivatives), got {polyorder!r}",
+                          key="polyorder")
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"sample spacing must be > 0 s, got {dt!r}", key="dt")
+    if window_s is not None:
+        if not (np.isfinite(window_s) and window_s > 0):
+            raise ConfigError(f"window_s must be > 0 s, got {window_s!r}", key="window_s")
+        w = 2 * int(round((window_s / dt - 1.0) / 2.0)) + 1
+        key = "window_s"
+    else:
+        w = int(window)
+        key = "window"
+        if w != window or w % 2 == 0:
+            raise ConfigError(f"window must be an odd number of samples, got {window!r}", key="window")
+    if w <= polyorder:
+        raise ConfigError(f"window of {w} samples must be longer than polyorder {polyorder}", key=key)
+    return w
+
+
+@dataclass(frozen=True)
+class Derivatives:
+    """Smoothed signal and its analytic derivatives (unpacks as ``y, y_dot, y_ddot``).
+
+    Attributes
+    ----------
+    y, y_dot, y_ddot : ndarray
+        Same shape as the input; NaN outside usable stretches.
+    filled : ndarray of bool (n,)
+        Samples that were missing in the input and were filled by interpolation across a short gap:
+        they have values, but they are not measurements.
+    window : int
+        Window length used [samples].
+    dt : float
+        Sample spacing used [s].
+    """
+
+    y: np.ndarray
+    y_dot: np.ndarray
+    y_ddot: np.ndarray
+    filled: np.ndarray
+    window: int
+    dt: float
+
+    def __iter__(self) -> Iterator[np.ndarray]:
+        return iter((self.y, self.y_dot, self.y_ddot))
+
+
+def _grid_positions(t_or_dt, n: int, frame) -> tuple[float, np.ndarray]:
+    """Return (dt [s], integer grid position of every sample)."""
+    t_arr = np.asarray(t_or_dt, dtype=float)
+    if frame is not None:
+        k = np.asarray(frame, dtype=np.int64)
+        if k.shape != (n,):
+            raise InputError(f"frame must have shape ({n},), got {k.shape}", key="frame")
+        k = k - k[0] if n else k
+    if t_arr.ndim == 0:
+        dt = float(t_arr)
+        if frame is None:
+            k = np.arange(n, dtype=np.int64)
+    else:
+        if t_arr.shape != (n,):
+            raise InputError(f"t must have shape ({n},), got {t_arr.shape}", key="t")
+        if n < 2:
+            return float("nan"), np.arange(n, dtype=np.int64)
+        if frame is not None:
+            dk = np.diff(k)
+            ok = dk > 0
+            dt = float(np.median(np.diff(t_arr)[ok] / dk[ok])) if ok.any() else float("nan")
+        else:
+            dt = float(np.median(np.diff(t_arr)))
+            if not (np.isfinite(dt) and dt > 0):
+                raise InputError("time stamps must increase", key="t")
+            k = np.rint((t_arr - t_arr[0]) / dt).astype(np.int64)
+    if n > 1 and np.any(np.diff(k) <= 0):
+        i = int(np.flatnonzero(np.diff(k) <= 0)[0])
+        raise InputError(f"samples must be strictly increasing in time/frame (sample {i + 1})", key="t")
+    return dt, k
+
+
+def gap_stretches(k: np.ndarray, valid: np.ndarray, max_gap: int) -> list[tuple[int, int]]:
+    """Split samples into gap-free stretches.
+
+    Parameters
+    ----------
+    k : ndarray of int (n,)
+        Grid position (frame number) of every sample, strictly increasing.
+    valid : ndarray of bool (n,)
+        Samples holding a measurement.
+    max_gap : int
+        Longest run of missing frames (absent frame numbers or invalid samples) that does not end a
+        stretch.
+
+    Returns
+    -------
+    list of (i0, i1)
+        Index ranges ``[i0, i1]`` (inclusive) into the sample arrays; ``i0`` and ``i1`` are valid
+        samples.
+    """
+    idx = np.flatnonzero(valid)
+    if idx.size == 0:
+        return []
+    missing = np.diff(k[idx]) - 1
+    breaks = np.flatnonzero(missing > max_gap)
+    starts = np.concatenate(([0], breaks + 1))
+    ends = np.concatenate((breaks, [idx.size - 1]))
+    return [(int(idx[s]), int(idx[e])) for s, e in zip(starts, ends)]
+
+
+def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int | None = None,
+                       polyorder: int = DEFAULT_POLYORDER, max_gap: int = DEFAULT_MAX_GAP,
+                       frame=None) -> Derivatives:
+    """Smooth ``y`` and differentiate it analytically (Savitzky-Golay), stretch by stretch.
+
+    Parameters
+    ----------
+    t_or_dt : float or ndarray (n,)
+        Sample spacing dt [s], or the sample times [s] (then dt is their median spacing and a time
+        step of several dt counts as missing frames).
+    y : ndarray (n,) or (n, k)
+        Signal, time along axis 0. A sample with any NaN component is missing.
+    window_s : float, optional
+        Window duration [s] (rounded to an odd number of samples).
+    window : int, optional
+        Window length [samples], odd. Give exactly one of ``window_s`` and ``window``.
+    polyorder : int
+        Order of the local polynomial (>= 2).
+    max_gap : int
+        Runs of at most this many missing frames are filled by linear interpolation (and flagged);
+        longer runs split the signal into separate stretches.
+    frame : ndarray of int (n,), optional
+        Frame numbers; when given they define the sample grid (gaps are skipped numbers).
+
+    Returns
+    -------
+    Derivatives
+        ``y``, ``y_dot`` [unit/s], ``y_ddot`` [unit/s^2], ``filled`` flags. NaN on stretches
+        shorter than the window and on missing samples not filled.
+    """
+    y = np.asarray(y, dtype=float)
+    if y.ndim not in (1, 2):
+        raise InputError(f"y must have shape (n,) or (n, k), got {y.shape}", key="y")
+    n = y.shape[0]
+    if not isinstance(max_gap, (int, np.integer)) or max_gap < 0:
+        raise ConfigError(f"max_gap must be an integer >= 0, got {max_gap!r}", key="max_gap")
+    dt, k = _grid_positions(t_or_dt, n, frame)
+    out = [np.full(y.shape, np.nan) for _ in range(3)]
+    filled = np.zeros(n, dtype=bool)
+    if n < 2 or not np.isfinite(dt):
+        return Derivatives(*out, filled, 0, dt)
+    w = window_samples(dt, window_s, window, polyorder)
+    y2 = y.reshape(n, -1)
+    valid = np.all(np.isfinite(y2), axis=1)
+    for i0, i1 in gap_stretches(k, valid, max_gap):
+        length = int(k[i1] - k[i0]) + 1
+        if length < w:
+            continue
+        kk = k[i0:i1 + 1] - k[i0]
+        v = valid[i0:i1 + 1]
+        grid = np.arange(length)
+        seg = np.empty((length, y2.shape[1]))
+        for c in range(y2.shape[1]):
+            seg[:, c] = np.interp(grid, kk[v], y2[i0:i1 + 1][v, c])
+        for d in range(3):
+            res = savgol_filter(seg, w, polyorder, deriv=d, delta=dt, axis=0, mode="interp")
+            out[d].reshape(n, -1)[i0:i1 + 1] = res[kk]
+        filled[i0:i1 + 1] = ~v
+    return Derivatives(out[0], out[1], out[2], filled, w, dt)
+
+
+class StreamSample(NamedTuple):
+    """One output of :class:`StreamingSavgol`: the smoothed sample ``lag`` frames back."""
+
+    frame: int
+    y: np.ndarray | float
+    y_dot: np.ndarray | float
+    y_ddot: np.ndarray | float
+    filled: bool
+
+
+class StreamingSavgol:
+    """Online fixed-lag Savitzky-Golay filter with analytic derivatives.
+
+    Push one sample per frame; once ``window`` consecutive frames are buffered, each push returns
+    the local polynomial fit of the last ``window`` samples evaluated ``lag`` frames before the
+    newest one. With the default centred lag this equals :func:`savgol_derivatives` on the interior
+    of every stretch. A run of more than ``max_gap`` missing frames (a NaN sample or a frame number
+    that skips) resets the filter; shorter runs are filled by linear interpolation when the next
+    sample arrives, exactly as offline, and their outputs carry ``filled=True``.
+
+    Parameters
+    ----------
+    window : int
+        Odd window length [samples] (see :func:`window_samples`).
+    polyorder : int
+        Polynomial order (>= 2).
+    dt : float
+        Sample spacing [s].
+    max_gap : int
+        Longest run of missing frames that is bridged.
+    lag : int, optional
+        Output delay [frames], ``0 <= lag <= (window - 1) / 2``; default ``(window - 1) / 2``.
+        The time lag is ``lag * dt`` (:attr:`lag_s`).
+
+    Examples
+    --------
+    >>> f = StreamingSavgol(5, 2, 0.01)
+    >>> outs = [f.push(0.5 * (0.01 * i) ** 2, frame=i) for i in range(6)]
+    >>> [len(o) for o in outs]
+    [0, 0, 0, 0, 1, 1]
+    >>> s = outs[-1][0]
+    >>> s.frame, round(float(s.y_ddot), 9)
+    (3, 1.0)
+    """
+
+    def __init__(self, window: int, polyorder: int, dt: float, *, max_gap: int = DEFAULT_MAX_GAP,
+                 lag: int | None = None) -> None:
+        self.window = window_samples(dt, window=window, polyorder=polyorder)
+        self.polyorder = int(polyorder)
+        self.dt = float(dt)
+        if not isinstance(max_gap, (int, np.integer)) or max_gap < 0:
+            raise ConfigError(f"max_gap must be an integer >= 0, got {max_gap!r}", key="max_gap")
+        self.max_gap = int(max_gap)
+        half = (self.window - 1) // 2
+        self.lag = half if lag is None else int(lag)
+        if not 0 <= self.lag <= half:
+            raise ConfigError(f"lag must be in [0, {half}] frames, got {lag!r}", key="lag")
+        pos = self.window - 1 - self.lag
+        self._coeffs = np.stack([savgol_coeffs(self.window, self.polyorder, deriv=d, delta=self.dt, pos=pos,
+                                               use="dot") for d in range(3)])
+        self._buf: deque = deque(maxlen=self.window)
+        self._last_frame: int | None = None
+        self._last_value: np.ndarray | None = None
+        self._scalar = True
+
+    @property
+    def lag_s(self) -> float:
+        """Output delay [s]."""
+        return self.lag * self.dt
+
+    def reset(self) -> None:
+        """Forget the buffered samples (the next push starts a new stretch)."""
+        self._buf.clear()
+        self._last_frame = None
+        self._last_value = None
+
+    def _append(self, frame: int, value: np.ndarray, filled: bool, out: list[StreamSample]) -> None:
+        self._buf.append((frame, value, filled))
+        if len(self._buf) < self.window:
+            return
+        data = np.stack([b[1] for b in self._buf])  # (window, k)
+        res = self._coeffs @ data  # (3, k)
+        frame_out, _, filled_out = self._buf[self.window - 1 - self.lag]
+        if self._scalar:
+            out.append(StreamSample(frame_out, float(res[0, 0]), float(res[1, 0]), float(res[2, 0]), filled_out))
+        else:
+            out.append(StreamSample(frame_out, res[0], res[1], res[2], filled_out))
+
+    def push(self, y, frame: int | None = None) -> list[StreamSample]:
+        """Add the sample of ``frame`` (default: the frame after the previous push).
+
+        Parameters
+        ----------
+        y : float or array_like (k,)
+            The new sample; any NaN component marks it missing.
+        frame : int, optional
+            Its frame number.
+
+        Returns
+        -------
+        list of StreamSample
+            Usually zero or one output; more when a bridged gap completes several windows at once.
+        """
+        value = np.atleast_1d(np.asarray(y, dtype=float)).ravel()
+        self._scalar = np.ndim(y) == 0
+        if frame is None:
+            frame = 0 if self._last_frame is None else self._last_frame + 1
+        frame = int(frame)
+        out: list[StreamSample] = []
+        if not np.all(np.isfinite(value)):
+            if self._last_frame is not None and frame - self._last_frame > self.max_gap:
+                self.reset()
+            return out
+        if self._last_frame is None:
+            self._append(frame, value, False, out)
+        else:
+            missing = frame - self._last_frame - 1
+            if missing < 0:
+                raise InputError(f"frame {frame} does not follow frame {self._last_frame}", key="frame")
+            if missing > self.max_gap or (self._last_value is not None and self._last_value.shape != value.shape):
+                self.reset()
+                self._append(frame, value, False, out)
+            else:
+                for j in range(1, missing + 1):
+                    a = j / (missing + 1)
+                    self._append(self._last_frame + j, (1 - a) * self._last_value + a * value, True, out)
+                self._append(frame, value, False, out)
+        self._last_frame = frame
+        self._last_value = value
+        return out
