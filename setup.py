@@ -13,7 +13,6 @@ NODES = {
     "recorder": "euc_ros.nodes.recorder:main",
     "unicycle_sim": "euc_ros.nodes.unicycle_sim:main",
     "steering_controller": "euc_ros.nodes.steering_controller:main",
-    "frame_source": "euc_ros.nodes.frame_source:main",
 }
 
 setup(

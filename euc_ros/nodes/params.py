@@ -165,3 +165,21 @@ def validate_params_file(path: str, node_name: str, specs: Sequence[ParamSpec]) 
 def params_files_in(args: Sequence[str]) -> list[str]:
     """Return the ``--params-file`` paths found in a ROS argument list."""
     return [args[i + 1] for i, a in enumerate(args[:-1]) if a == "--params-file"]
+
+
+def render_params_yaml(node_name: str, specs: Sequence[ParamSpec]) -> str:
+    """Render the default ``config/<node>.yaml`` for a spec table: every key, one comment each."""
+    import yaml
+
+    lines = [f"# Parameters of the {node_name} node (defaults). Units in brackets; SI unless stated.",
+             f"{node_name}:", "  ros__parameters:"]
+    for s in specs:
+        value = yaml.safe_dump(s.default, default_flow_style=True).strip()
+        if value.endswith("\n..."):
+            value = value[:-4].strip()
+        value = value.removesuffix("...").strip()
+        comment = s.description + (f" [{s.unit}]" if s.unit else "")
+        if s.choices:
+            comment += f"; one of {', '.join(s.choices)}"
+        lines.append(f"    {s.name}: {value}  # {comment}")
+    return "\n".join(lines) + "\n"
