@@ -78,6 +78,8 @@ ERROR_COMPONENTS = ("mean marker error", "error per marker")
 MAX_HEADER_LINES = 64
 #: Rows per chunk when an error has to be located.
 _CHUNK_ROWS = 2048
+#: Largest plausible pivot distance from the origin of a capture volume [m] (unit sanity check).
+PLAUSIBLE_REACH_M = 50.0
 #: Note printed wherever the up axis is reported.
 UP_AXIS_NOTE = "Motive never writes the up axis in a CSV: it is configured (session world_up), not read"
 
@@ -705,6 +707,11 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
             err[k] = m[:, g.error] * scale
     err[~tracked] = np.nan
 
+    if info["header"] and hdr.get("Length Units")[0] in (None, "") and tracked.any():
+        reach = float(np.max(np.abs(pos[tracked])))
+        if reach > PLAUSIBLE_REACH_M:
+            warnings.append(f"positions reach {reach:.4g} (assumed m): without a 'Length Units' key the file may be "
+                            "in centimetres or millimetres")
     total, _ = hdr.get("Total Exported Frames")
     if total and total.isdigit() and int(total) != frames_all.size:
         warnings.append(f"header says Total Exported Frames {total} but the file has {frames_all.size} data rows")
@@ -823,3 +830,46 @@ def write_motive_csv(series: MocapSeries, path: str | Path, *, world_up: str = "
             pass
         raise
     return path
+
+
+# ------------------------------------------------------------------------------------------ up axis
+#: A pivot lower than this below the floor (file axis value) [m] rules that axis out as "up".
+UP_AXIS_FLOOR_TOLERANCE_M = 0.05
+
+
+def infer_up_axis(series: MocapSeries) -> dict:
+    """Guess the up axis of the Motive world a series was exported in (Motive never writes it).
+
+    The rigid-body pivots of a ridden EUC and its rider are above the floor, so the up axis of the
+    file is one along which no tracked pivot goes below ``-UP_AXIS_FLOOR_TOLERANCE_M``. Only the
+    file's Y and Z axes are candidates (Motive's Y-up default, or a Z-up export).
+
+    Parameters
+    ----------
+    series : MocapSeries
+        As returned by :func:`read_motive_csv`; ``series.meta["world_up"]`` says how it was read
+        (default ``"y"``) so the file's own axes can be recovered.
+
+    Returns
+    -------
+    dict
+        ``inferred``: ``"y"``, ``"z"``, ``"y or z"`` (both plausible) or ``"unknown"``; ``reason``: one
+        sentence with the evidence (lowest file Y and Z [m]).
+    """
+    pos = np.asarray(series.position, float)[np.asarray(series.tracked, bool)]
+    if pos.size == 0:
+        return {"inferred": "unknown", "reason": "no tracked rigid-body samples"}
+    if series.meta.get("world_up", "y") == "y":
+        pos = z_up_to_y_up_position(pos)
+    low_y, low_z = float(np.min(pos[:, 1])), float(np.min(pos[:, 2]))
+    tol = UP_AXIS_FLOOR_TOLERANCE_M
+    y_ok, z_ok = low_y >= -tol, low_z >= -tol
+    evidence = f"lowest tracked pivot: file Y {low_y:.3f} m, file Z {low_z:.3f} m"
+    if y_ok and not z_ok:
+        return {"inferred": "y", "reason": f"only Y keeps every pivot above the floor ({evidence})"}
+    if z_ok and not y_ok:
+        return {"inferred": "z", "reason": f"only Z keeps every pivot above the floor ({evidence})"}
+    if y_ok and z_ok:
+        return {"inferred": "y or z", "reason": f"both Y and Z keep every pivot above the floor ({evidence}); "
+                                                "Motive's default is Y"}
+    return {"inferred": "unknown", "reason": f"pivots go below the floor along both Y and Z ({evidence})"}
