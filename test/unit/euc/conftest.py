@@ -88,3 +88,103 @@ def symbolic():
 @pytest.fixture(scope="session")
 def rng():
     return np.random.default_rng(20240502)
+
+
+def rider_skeleton(session):
+    """Pivots of a standing rider in the rider's lean frame, relative to the ankle hinge A [m].
+
+    A plausible skeleton (x forward, y left, z up). The tests shift it along the lean axis so that
+    the mass-weighted segment CoG lies exactly at (0, 0, h).
+    """
+    base = {"H": (0.0, 0.0, 1.72), "CHR": (0.0, -0.19, 1.42), "CHL": (0.0, 0.19, 1.42),
+            "UAR": (0.05, -0.22, 1.1), "UAL": (0.05, 0.22, 1.1), "LAR": (0.2, -0.2, 0.9),
+            "LAL": (0.2, 0.2, 0.9), "HR": (0.0, -0.1, 0.92), "HL": (0.0, 0.1, 0.92),
+            "TR": (0.03, -0.1, 0.48), "TL": (0.03, 0.1, 0.48), "LR": (0.0, -0.1, 0.0), "LL": (0.0, 0.1, 0.0)}
+    names, fractions, offsets = session.segment_arrays()
+    piv = np.array([base[nm] for nm in names])
+    cog = np.sum(fractions[:, None] * (piv + offsets), axis=0) / fractions.sum()
+    return names, piv - cog  # CoG of the returned skeleton at the origin
+
+
+def synthesize_mocap(session, *, t, C, psi, theta, gamma, phi, h, rng=None, pos_noise=0.0, rot_noise=0.0,
+                     name="synthetic"):
+    """Build a Z-up MocapSeries from a planar motion placed on a heading (independent construction).
+
+    E and every segment get the orientations the conventions prescribe: R_E = Rz(psi) Rx(theta) Ry(gamma);
+    the rider frame R_r = Rz(psi) Rx(theta) Ry(phi) about the hinge A = C - l0 R_E e_z, with all
+    segments rigidly attached to it and their CoG at A + h R_r e_z.
+    """
+    from scipy.spatial.transform import Rotation
+
+    from euc_ros.core.mocap import MocapSeries
+
+    n = t.size
+    rE = Rotation.from_euler("ZXY", np.column_stack([psi, theta, gamma]))
+    rR = Rotation.from_euler("ZXY", np.column_stack([psi, theta, phi]))
+    E = C - rE.apply(np.asarray(session.euc.pivot_to_wheel_center))
+    A = C - session.euc.l0 * rE.apply([0.0, 0.0, 1.0])
+    names, skel = rider_skeleton(session)
+    bodies = [session.euc.body] + names
+    pos = np.empty((len(bodies), n, 3))
+    quat = np.empty((len(bodies), n, 4))
+    pos[0], quat[0] = E, rE.as_quat()
+    for k, p in enumerate(skel):
+        pos[k + 1] = A + rR.apply(p + np.array([0.0, 0.0, h]))
+        quat[k + 1] = rR.as_quat()
+    if rng is not None and (pos_noise or rot_noise):
+        pos = pos + rng.normal(0, pos_noise, pos.shape)
+        for b in range(len(bodies)):
+            noise = Rotation.from_rotvec(rng.normal(0, rot_noise, (n, 3)))
+            quat[b] = (Rotation.from_quat(quat[b]) * noise).as_quat()
+    tracked = np.ones((len(bodies), n), bool)
+    return MocapSeries(t=t, frame=np.arange(n, dtype=np.int64), bodies=bodies, position=pos, quat=quat,
+                       tracked=tracked, mean_marker_error=np.zeros((len(bodies), n)), name=name,
+                       meta={"rate_hz": 1.0 / (t[1] - t[0])})
+
+
+def planar_ride(symbolic, params, *, duration=12.0, rate=120.0, v0=3.0, seed=0, decel=0.0):
+    """A trajectory consistent with the model: chosen pitch motions, x_ddot from the symbolic solution.
+
+    phi(t) and gamma(t) are smooth sums of sines (plus a lean-back ramp when ``decel`` > 0); the
+    longitudinal acceleration is the one the (independently derived) equations require, integrated
+    with solve_ivp. Returns a dict of exact states sampled at ``rate``.
+    """
+    from scipy.integrate import solve_ivp
+
+    r = np.random.default_rng(seed)
+    amp_p, amp_g = r.uniform(0.03, 0.06, 3), r.uniform(0.005, 0.015, 2)
+    fr_p, fr_g = r.uniform(0.3, 1.2, 3), r.uniform(0.4, 1.5, 2)
+    ph_p, ph_g = r.uniform(0, 2 * np.pi, 3), r.uniform(0, 2 * np.pi, 2)
+
+    def angles(tt):
+        tt = np.asarray(tt, float)
+        w_p, w_g = 2 * np.pi * fr_p, 2 * np.pi * fr_g
+        arg_p = w_p[:, None] * tt + ph_p[:, None]
+        arg_g = w_g[:, None] * tt + ph_g[:, None]
+        phi = (amp_p[:, None] * np.sin(arg_p)).sum(0) - decel * (1 - np.cos(np.pi * tt / duration)) / 2
+        phid = (amp_p[:, None] * w_p[:, None] * np.cos(arg_p)).sum(0) - decel * np.pi / duration * np.sin(np.pi * tt / duration) / 2
+        phidd = (-amp_p[:, None] * w_p[:, None] ** 2 * np.sin(arg_p)).sum(0) - decel * (np.pi / duration) ** 2 * np.cos(np.pi * tt / duration) / 2
+        gam = (amp_g[:, None] * np.sin(arg_g)).sum(0)
+        gamd = (amp_g[:, None] * w_g[:, None] * np.cos(arg_g)).sum(0)
+        gamdd = (-amp_g[:, None] * w_g[:, None] ** 2 * np.sin(arg_g)).sum(0)
+        return gam, phi, gamd, phid, gamdd, phidd
+
+    pv = [getattr(params, k) for k in PARAM_NAMES]
+
+    def xdd(tt):
+        g_, p_, gd_, pd_, gdd_, pdd_ = angles(tt)
+        return symbolic.xdd(g_, p_, gd_, pd_, gdd_, pdd_, *pv)
+
+    t = np.arange(int(round(duration * rate))) / rate
+    sol = solve_ivp(lambda tt, y: [y[1], float(np.squeeze(xdd(np.atleast_1d(tt))))], (0, t[-1]), [0.0, v0],
+                    t_eval=t, rtol=1e-11, atol=1e-12, method="DOP853")
+    g_, p_, gd_, pd_, gdd_, pdd_ = angles(t)
+    return dict(t=t, x=sol.y[0], x_dot=sol.y[1], x_ddot=xdd(t), gamma=g_, phi=p_, gamma_dot=gd_, phi_dot=pd_,
+                gamma_ddot=gdd_, phi_ddot=pdd_)
+
+
+@pytest.fixture(scope="session")
+def synth():
+    """Helpers that build model-consistent rides and mocap from them (see the functions above)."""
+    return SimpleNamespace(planar_ride=planar_ride, synthesize_mocap=synthesize_mocap, rider_skeleton=rider_skeleton,
+                           PARAM_NAMES=PARAM_NAMES)

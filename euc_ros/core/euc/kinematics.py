@@ -1,0 +1,292 @@
+"""State reconstruction: from rigid-body poses to the planar model's states (EUC paper, Section 2).
+
+Per frame (:func:`frame_geometry`, vectorized over any number of frames, so the same code serves a
+live frame and a whole recording):
+
+* EUC pivot ``E`` and orientation ``R_E = Rz(psi) Rx(theta) Ry(gamma)`` (yaw, tilt, pitch, Fig. 2);
+* wheel centre ``C = E + R_E @ pivot_to_wheel_center`` (spec section 3);
+* ankle hinge ``A = C - l0 R_E e_z`` (``l0`` below C along the EUC body axis, Fig. 5);
+* segment centres of mass ``pivot + R_body @ com_offset`` and the rider CoG
+  ``G = sum_i f_i CoM_i`` (mass fractions ``f_i``, sum 1). A frame in which any segment of non-zero
+  mass is untracked has no G (``has_rider`` False, NaN);
+* the moving frame ``T = Rz(psi) Rx(theta)`` of eqs (1)-(2): ``r_CG = T^T (G - C)``, and
+  ``phi_eq3 = arctan(x_CG / z_CG)`` (eq (3), the angle of G seen from the wheel centre C);
+* ``phi_hinge``: the same angle seen from the ankle hinge A, ``r_AG = T^T (G - A)``. This is the
+  model's own rider pitch (the line A-G of Fig. 5) and the default for identification.
+
+Over a recording (:func:`reconstruct_states`), the pitch angles and the wheel centre are smoothed and
+differentiated with the Savitzky-Golay filter (:mod:`euc_ros.core.filters.derivatives`), split on
+occlusion gaps. The longitudinal speed and acceleration follow the paper: ``v_C`` and ``a_C`` are the
+ground-frame derivatives of ``R_C``, and ``x_dot = e_x . v_C``, ``x_ddot = e_x . a_C`` with the
+moving frame's forward axis ``e_x = T e_1 = (cos psi, sin psi, 0)`` (the tilt rotates about e_x, so
+only the yaw matters). Note that ``x_ddot`` so defined is the longitudinal component of ``a_C``, not
+the time derivative of ``x_dot``: they differ by ``psi_dot (e_y . v_C)``, which vanishes when C moves
+along the heading; we follow the paper.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, DEFAULT_POLYORDER, savgol_derivatives
+from euc_ros.core.rotations import rotation_matrices, yaw_tilt_pitch_from_quat
+
+#: Default Savitzky-Golay window [s] (chosen on simulated rides: see docs/identification.md).
+DEFAULT_WINDOW_S = 0.2
+#: Rider pitch definitions: about the ankle hinge A (the model's) or about the wheel centre C (eq (3)).
+PHI_DEFINITIONS = ("hinge", "eq3")
+
+
+def to_moving_frame(v, psi, theta) -> np.ndarray:
+    """Express world vectors in the moving frame of eqs (1)-(2): ``T_theta^T T_psi^T v``.
+
+    Parameters
+    ----------
+    v : array_like (..., 3)
+        World (Z-up) vectors [m].
+    psi, theta : array_like (...)
+        Yaw and tilt [rad].
+    """
+    v = np.asarray(v, dtype=float)
+    cp, sp = np.cos(psi), np.sin(psi)
+    ct, st = np.cos(theta), np.sin(theta)
+    x1 = cp * v[..., 0] + sp * v[..., 1]
+    y1 = -sp * v[..., 0] + cp * v[..., 1]
+    z1 = v[..., 2]
+    return np.stack([x1, ct * y1 + st * z1, -st * y1 + ct * z1], axis=-1)
+
+
+def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.ndarray]:
+    """Wheel centre, hinge, rider CoG and the EUC/rider angles of one or many frames.
+
+    Parameters
+    ----------
+    position : array_like (b, ..., 3)
+        Pivot positions of the rigid bodies [m], Z-up world.
+    quat : array_like (b, ..., 4)
+        Body-to-world quaternions (x, y, z, w).
+    tracked : array_like (b, ...) of bool, optional
+        Tracking flags; ``None`` means "tracked where finite".
+    session : Session
+        Segment mass fractions and CoM offsets, EUC geometry (``body``, ``l0``,
+        ``pivot_to_wheel_center``).
+    bodies : sequence of str
+        Names of the ``b`` rows.
+
+    Returns
+    -------
+    dict of ndarray
+        ``E, C, A, G`` (..., 3) [m]; ``r_CG, r_AG`` (..., 3) [m] in the moving frame (eq (1));
+        ``psi, theta, gamma`` (...) [rad] (yaw, tilt, pitch of E); ``phi_eq3`` (eq (3)) and
+        ``phi_hinge`` (...) [rad]; ``has_euc`` and ``has_rider`` (...) bool. Quantities that need
+        an untracked body are NaN; nothing raises for missing data.
+    """
+    position = np.asarray(position, dtype=float)
+    quat = np.asarray(quat, dtype=float)
+    bodies = list(bodies)
+    if position.shape[0] != len(bodies) or quat.shape[0] != len(bodies):
+        raise InputError(f"{len(bodies)} body names for position {position.shape} and quat {quat.shape}",
+                         key="bodies")
+    shape = position.shape[1:-1]
+    ok = np.all(np.isfinite(position), -1) & np.all(np.isfinite(quat), -1)
+    if tracked is not None:
+        ok &= np.asarray(tracked, dtype=bool)
+    nan3 = np.full(shape + (3,), np.nan)
+
+    euc = session.euc
+    if euc.body in bodies:
+        i = bodies.index(euc.body)
+        has_euc = ok[i].copy()
+        E = np.where(has_euc[..., None], position[i], np.nan)
+        qE = np.where(has_euc[..., None], quat[i], np.nan)
+    else:
+        has_euc = np.zeros(shape, dtype=bool)
+        E, qE = nan3.copy(), np.full(shape + (4,), np.nan)
+    R_E = rotation_matrices(qE)
+    ang = yaw_tilt_pitch_from_quat(qE)
+    psi, theta, gamma = ang[..., 0], ang[..., 1], ang[..., 2]
+    C = E + R_E @ np.asarray(euc.pivot_to_wheel_center, dtype=float)
+    A = C - euc.l0 * R_E[..., :, 2]
+
+    names, fractions, offsets = session.segment_arrays()
+    has_rider = np.ones(shape, dtype=bool)
+    G = np.zeros(shape + (3,))
+    for name, frac, off in zip(names, fractions, offsets):
+        if frac <= 0.0:
+            continue
+        if name not in bodies:
+            has_rider[...] = False
+            continue
+        j = bodies.index(name)
+        com = position[j] + rotation_matrices(quat[j]) @ off
+        G += frac * np.where(ok[j][..., None], com, 0.0)
+        has_rider &= ok[j]
+    G = np.where(has_rider[..., None], G / fractions[fractions > 0].sum(), np.nan)
+
+    r_CG = to_moving_frame(G - C, psi, theta)
+    r_AG = to_moving_frame(G - A, psi, theta)
+    return {
+        "E": E, "C": C, "A": A, "G": G, "r_CG": r_CG, "r_AG": r_AG,
+        "psi": psi, "theta": theta, "gamma": gamma,
+        "phi_eq3": np.arctan2(r_CG[..., 0], r_CG[..., 2]),
+        "phi_hinge": np.arctan2(r_AG[..., 0], r_AG[..., 2]),
+        "has_euc": has_euc, "has_rider": has_rider,
+    }
+
+
+@dataclass
+class RiderStates:
+    """States of the planar model over a recording, with their derivatives (SI units, radians).
+
+    Attributes
+    ----------
+    name : str
+        Recording name.
+    t : ndarray (n,)
+        Time [s].
+    frame : ndarray (n,) of int
+        Frame numbers.
+    x, x_dot, x_ddot : ndarray (n,)
+        Forward distance travelled by C [m] (integral of ``x_dot``), longitudinal speed [m/s] and
+        acceleration [m/s^2] of C (Section 2: longitudinal components of ``v_C``, ``a_C``).
+    gamma, gamma_dot, gamma_ddot : ndarray (n,)
+        EUC body pitch (smoothed) and its derivatives [rad, rad/s, rad/s^2].
+    phi, phi_dot, phi_ddot : ndarray (n,)
+        Rider pitch of the chosen definition (smoothed) and its derivatives.
+    phi_eq3, phi_hinge : ndarray (n,)
+        Both rider pitch definitions, unsmoothed [rad].
+    psi, theta : ndarray (n,)
+        EUC yaw (unwrapped) and tilt [rad], unsmoothed.
+    C, G : ndarray (n, 3)
+        Wheel centre (smoothed) and rider CoG (unsmoothed) [m], Z-up world.
+    has_euc, has_rider : ndarray (n,) of bool
+        E tracked; all rider segments of non-zero mass tracked.
+    valid : ndarray (n,) of bool
+        Every state and derivative finite and measured (not filled across a short gap).
+    phi_definition : str
+        ``"hinge"`` or ``"eq3"``.
+    window, polyorder : int
+        Savitzky-Golay window [samples] and order used.
+    dt : float
+        Sample spacing [s].
+    """
+
+    name: str
+    t: np.ndarray
+    frame: np.ndarray
+    x: np.ndarray
+    x_dot: np.ndarray
+    x_ddot: np.ndarray
+    gamma: np.ndarray
+    gamma_dot: np.ndarray
+    gamma_ddot: np.ndarray
+    phi: np.ndarray
+    phi_dot: np.ndarray
+    phi_ddot: np.ndarray
+    phi_eq3: np.ndarray
+    phi_hinge: np.ndarray
+    psi: np.ndarray
+    theta: np.ndarray
+    C: np.ndarray
+    G: np.ndarray
+    has_euc: np.ndarray
+    has_rider: np.ndarray
+    valid: np.ndarray
+    phi_definition: str = "hinge"
+    window: int = 0
+    polyorder: int = DEFAULT_POLYORDER
+    dt: float = float("nan")
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def n(self) -> int:
+        """Number of samples."""
+        return int(self.t.shape[0])
+
+    def torque_args(self, mask=None) -> tuple[np.ndarray, ...]:
+        """Return ``(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot)`` for :func:`~.torque.torques`.
+
+        Parameters
+        ----------
+        mask : ndarray of bool, optional
+            Samples to keep (default: all, including invalid ones as NaN).
+        """
+        arrs = (self.gamma, self.phi, self.gamma_dot, self.phi_dot, self.x_ddot, self.gamma_ddot, self.phi_ddot)
+        return arrs if mask is None else tuple(a[mask] for a in arrs)
+
+
+def reconstruct_states(series, session, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
+                       polyorder: int = DEFAULT_POLYORDER, max_gap: int = DEFAULT_MAX_GAP) -> RiderStates:
+    """Reconstruct the planar model's states and derivatives from a motion-capture recording.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        Z-up poses of the EUC body and the rider segments.
+    session : Session
+        The recording's session file.
+    phi_definition : {"hinge", "eq3"}
+        Rider pitch about the ankle hinge A (the model's definition, default) or about the wheel
+        centre C (eq (3) of the paper).
+    window_s : float
+        Savitzky-Golay window [s].
+    polyorder : int
+        Savitzky-Golay polynomial order.
+    max_gap : int
+        Longest run of missing frames bridged by interpolation (those samples stay invalid).
+
+    Returns
+    -------
+    RiderStates
+
+    Raises
+    ------
+    InputError
+        If the recording lacks the EUC body or a rider segment of non-zero mass altogether.
+    ConfigError
+        For an unknown ``phi_definition`` or bad filter settings.
+    """
+    if phi_definition not in PHI_DEFINITIONS:
+        raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
+                          key="phi_definition")
+    src = series.meta.get("path", series.name or None)
+    if session.euc.body not in series.bodies:
+        raise InputError(f"EUC rigid body {session.euc.body!r} not in recording (has: {', '.join(series.bodies)})",
+                         path=src)
+    names, fractions, _ = session.segment_arrays()
+    absent = [nm for nm, f in zip(names, fractions) if f > 0 and nm not in series.bodies]
+    if absent:
+        raise InputError(f"rider segment(s) {', '.join(absent)} of the session not in recording", path=src)
+    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies)
+    dt = 1.0 / series.rate_hz
+    frame = np.asarray(series.frame, dtype=np.int64)
+    sg = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, frame=frame)
+    d_gamma = savgol_derivatives(dt, geo["gamma"], **sg)
+    phi_raw = geo["phi_hinge"] if phi_definition == "hinge" else geo["phi_eq3"]
+    d_phi = savgol_derivatives(dt, phi_raw, **sg)
+    d_C = savgol_derivatives(dt, geo["C"], **sg)
+    psi = geo["psi"].copy()
+    fin = np.isfinite(psi)
+    if fin.any():
+        psi[fin] = np.unwrap(psi[fin])
+    e_x = np.stack([np.cos(geo["psi"]), np.sin(geo["psi"])], -1)
+    x_dot = np.sum(e_x * d_C.y_dot[:, :2], -1)
+    x_ddot = np.sum(e_x * d_C.y_ddot[:, :2], -1)
+    t = np.asarray(series.t, dtype=float)
+    xd0 = np.where(np.isfinite(x_dot), x_dot, 0.0)
+    x = np.concatenate(([0.0], np.cumsum(0.5 * (xd0[1:] + xd0[:-1]) * np.diff(t)))) if t.size else t.copy()
+    x[~np.isfinite(x_dot)] = np.nan
+    filled = d_gamma.filled | d_phi.filled | d_C.filled
+    fields_ = (x_dot, x_ddot, d_gamma.y, d_gamma.y_dot, d_gamma.y_ddot, d_phi.y, d_phi.y_dot, d_phi.y_ddot)
+    valid = np.all(np.isfinite(np.stack(fields_)), axis=0) & ~filled
+    return RiderStates(
+        name=series.name, t=t, frame=frame, x=x, x_dot=x_dot, x_ddot=x_ddot,
+        gamma=d_gamma.y, gamma_dot=d_gamma.y_dot, gamma_ddot=d_gamma.y_ddot,
+        phi=d_phi.y, phi_dot=d_phi.y_dot, phi_ddot=d_phi.y_ddot,
+        phi_eq3=geo["phi_eq3"], phi_hinge=geo["phi_hinge"], psi=psi, theta=geo["theta"],
+        C=d_C.y, G=geo["G"], has_euc=geo["has_euc"], has_rider=geo["has_rider"], valid=valid,
+        phi_definition=phi_definition, window=d_gamma.window, polyorder=polyorder, dt=dt,
+        meta={"source": src},
+    )

@@ -1,0 +1,150 @@
+"""State reconstruction: frame geometry on hand-built frames, missing bodies, projections, and states."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.euc.kinematics import frame_geometry, reconstruct_states, to_moving_frame
+from euc_ros.core.euc.model import EucParams
+from euc_ros.core.session import default_session
+
+SESSION = default_session(world_up="z")
+
+
+def _frames(rng, n):
+    psi = rng.uniform(-np.pi, np.pi, n)
+    theta = rng.uniform(-0.4, 0.4, n)
+    gamma = rng.uniform(-0.2, 0.2, n)
+    phi = rng.uniform(-0.3, 0.3, n)
+    C = np.column_stack([rng.uniform(-3, 3, n), rng.uniform(-3, 3, n), np.full(n, 0.2)])
+    h = rng.uniform(0.3, 1.0, n)[:, None]
+    return psi, theta, gamma, phi, C, h
+
+
+def test_frame_geometry_recovers_the_angles_and_points_it_was_built_from(rng, synth):
+    n = 64
+    psi, theta, gamma, phi, C, h = _frames(rng, n)
+    series = [synth.synthesize_mocap(SESSION, t=np.arange(2) * 0.01, C=C[i:i + 1].repeat(2, 0), psi=psi[i:i + 1].repeat(2),
+                               theta=theta[i:i + 1].repeat(2), gamma=gamma[i:i + 1].repeat(2),
+                               phi=phi[i:i + 1].repeat(2), h=float(h[i, 0])) for i in range(n)]
+    pos = np.concatenate([s.position[:, :1] for s in series], axis=1)
+    quat = np.concatenate([s.quat[:, :1] for s in series], axis=1)
+    geo = frame_geometry(pos, quat, None, SESSION, series[0].bodies)
+    np.testing.assert_allclose(geo["psi"], psi, atol=1e-12)
+    np.testing.assert_allclose(geo["theta"], theta, atol=1e-12)
+    np.testing.assert_allclose(geo["gamma"], gamma, atol=1e-12)
+    np.testing.assert_allclose(geo["C"], C, atol=1e-12)
+    np.testing.assert_allclose(geo["phi_hinge"], phi, atol=1e-12)
+    # Eq (3) by plane geometry: G - C = l0 (-sin g, -cos g) + h (sin phi, cos phi) in the moving frame.
+    l0 = SESSION.euc.l0
+    hh = h[:, 0]
+    expected_eq3 = np.arctan2(hh * np.sin(phi) - l0 * np.sin(gamma), hh * np.cos(phi) - l0 * np.cos(gamma))
+    np.testing.assert_allclose(geo["phi_eq3"], expected_eq3, atol=1e-12)
+    np.testing.assert_allclose(np.linalg.norm(geo["r_AG"], axis=-1), hh, atol=1e-12)
+    assert np.allclose(geo["r_AG"][:, 1], 0, atol=1e-12)  # G lies in the longitudinal plane
+    assert geo["has_rider"].all() and geo["has_euc"].all()
+
+
+def test_moving_frame_is_the_transpose_of_yaw_then_tilt(rng):
+    psi, theta = rng.uniform(-3, 3, 20), rng.uniform(-1, 1, 20)
+    v = rng.normal(size=(20, 3))
+    T = Rotation.from_euler("ZX", np.column_stack([psi, theta])).as_matrix()
+    np.testing.assert_allclose(to_moving_frame(v, psi, theta), np.einsum("nji,nj->ni", T, v), atol=1e-13)
+
+
+def _straight_series(synth, rng=None, n=600, psi0=0.7, **noise):
+    t = np.arange(n) / 120.0
+    x = 2.0 * t + 0.25 * t**2
+    C = np.column_stack([np.cos(psi0) * x, np.sin(psi0) * x, np.full(n, 0.2)])
+    gamma = 0.02 * np.sin(2 * t)
+    phi = 0.05 * np.sin(1.5 * t) + 0.02
+    return synth.synthesize_mocap(SESSION, t=t, C=C, psi=np.full(n, psi0), theta=np.zeros(n), gamma=gamma, phi=phi,
+                            h=0.6, rng=rng, **noise), dict(t=t, x_dot=2.0 + 0.5 * t, gamma=gamma, phi=phi)
+
+
+def test_missing_segment_gives_no_cog_for_that_frame_only(synth):
+    s, _ = _straight_series(synth, )
+    j = s.bodies.index("CHL")
+    s.tracked[j, 100:103] = False
+    s.position[j, 100:103] = np.nan
+    geo = frame_geometry(s.position, s.quat, s.tracked, SESSION, s.bodies)
+    assert not geo["has_rider"][100:103].any() and geo["has_rider"][:100].all() and geo["has_rider"][103:].all()
+    assert np.isnan(geo["G"][100:103]).all() and np.isnan(geo["phi_hinge"][100:103]).all()
+    assert np.isfinite(geo["gamma"][100:103]).all()  # the EUC is still there
+    st = reconstruct_states(s, SESSION, window_s=0.2)
+    assert not st.valid[100:103].any()
+    assert st.valid[200:400].all()
+
+
+def test_zero_mass_segment_may_be_missing(synth):
+    s, _ = _straight_series(synth, n=60)
+    j = s.bodies.index("HR")  # hip markers only, mass fraction 0
+    s.tracked[j] = False
+    geo = frame_geometry(s.position, s.quat, s.tracked, SESSION, s.bodies)
+    assert geo["has_rider"].all()
+
+
+def test_missing_euc_gives_no_state_and_absent_bodies_are_input_errors(synth):
+    s, _ = _straight_series(synth, )
+    i = s.bodies.index("E")
+    s.tracked[i, 300:320] = False
+    st = reconstruct_states(s, SESSION, window_s=0.2)
+    assert not st.valid[300:320].any()
+    assert np.isnan(st.gamma[300:320]).all() and np.isnan(st.x_ddot[300:320]).all()
+    assert st.valid[100:250].all() and st.valid[350:500].all()
+    # A recording without E at all, or without a segment of non-zero mass: named input errors.
+    with pytest.raises(InputError, match="'E'"):
+        reconstruct_states(s.select([b for b in s.bodies if b != "E"]), SESSION)
+    with pytest.raises(InputError, match="TL"):
+        reconstruct_states(s.select([b for b in s.bodies if b != "TL"]), SESSION)
+    with pytest.raises(ConfigError, match="phi"):
+        reconstruct_states(s, SESSION, phi_definition="chest")
+    # frame_geometry itself never raises for missing data: no E row -> no state.
+    geo = frame_geometry(s.position[1:], s.quat[1:], s.tracked[1:], SESSION, s.bodies[1:])
+    assert not geo["has_euc"].any() and np.isnan(geo["C"]).all() and np.isnan(geo["phi_hinge"]).all()
+
+
+def test_reconstructed_states_follow_the_built_motion_on_any_heading(synth):
+    s, truth = _straight_series(synth, psi0=2.5)
+    st = reconstruct_states(s, SESSION, window_s=0.2)
+    inner = slice(20, -20)
+    np.testing.assert_allclose(st.x_dot[inner], truth["x_dot"][inner], atol=1e-9)
+    np.testing.assert_allclose(st.x_ddot[inner], 0.5, atol=1e-7)
+    np.testing.assert_allclose(st.gamma[inner], truth["gamma"][inner], atol=1e-6)
+    np.testing.assert_allclose(st.phi[inner], truth["phi"][inner], atol=1e-6)
+    np.testing.assert_allclose(st.psi, 2.5, atol=1e-12)
+    assert st.window == 25 and st.phi_definition == "hinge"
+    eq3 = reconstruct_states(s, SESSION, window_s=0.2, phi_definition="eq3")
+    assert np.max(np.abs(eq3.phi[inner] - st.phi[inner])) > 1e-3  # the two definitions differ
+
+
+def test_longitudinal_acceleration_is_the_projection_of_a_C_on_a_circle(synth):
+    """On a circle at constant speed a_C is centripetal: its longitudinal component is zero."""
+    n, v, radius = 1200, 3.0, 4.0
+    t = np.arange(n) / 120.0
+    ang = v / radius * t
+    C = np.column_stack([radius * np.sin(ang), radius * (1 - np.cos(ang)), np.full(n, 0.2)])
+    s = synth.synthesize_mocap(SESSION, t=t, C=C, psi=ang, theta=np.full(n, -0.2), gamma=np.zeros(n),
+                         phi=np.full(n, 0.03), h=0.6)
+    st = reconstruct_states(s, SESSION, window_s=0.2)
+    inner = slice(20, -20)
+    np.testing.assert_allclose(st.x_dot[inner], v, atol=1e-6)
+    np.testing.assert_allclose(st.x_ddot[inner], 0.0, atol=1e-4)
+    np.testing.assert_allclose(st.theta, -0.2, atol=1e-12)
+    np.testing.assert_allclose(np.diff(st.psi), v / radius / 120, atol=1e-12)  # unwrapped, no jumps
+
+
+def test_states_of_a_model_consistent_ride_match_the_exact_ones(symbolic, synth):
+    p = EucParams.from_session(SESSION, 0.61)
+    ride = synth.planar_ride(symbolic, p, duration=6.0, seed=4)
+    n = ride["t"].size
+    C = np.column_stack([ride["x"], np.zeros(n), np.full(n, SESSION.euc.wheel_radius)])
+    s = synth.synthesize_mocap(SESSION, t=ride["t"], C=C, psi=np.zeros(n), theta=np.zeros(n), gamma=ride["gamma"],
+                         phi=ride["phi"], h=0.61)
+    st = reconstruct_states(s, SESSION, window_s=0.2)
+    inner = slice(30, -30)
+    # Tolerances: the 0.2 s cubic window attenuates second derivatives of ~1 Hz motions by a few %.
+    for k, tol in (("x_dot", 1e-3), ("x_ddot", 4e-2), ("gamma_dot", 1e-2), ("phi_ddot", 4e-2)):
+        assert np.max(np.abs(getattr(st, k)[inner] - ride[k][inner])) < tol * max(1, np.abs(ride[k]).max()), k
