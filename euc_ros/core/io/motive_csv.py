@@ -171,6 +171,8 @@ def _header_lines(raw: bytes, path: str) -> tuple[list[list[str]], list[int], bo
         rows.append(cells)
         ends.append(end)
         pos = end
+        if len(rows) == 1:
+            _parse_metadata(cells, path)  # fail early on files that are not Motive exports at all
         if len(rows) > 1 and cells and cells[0].strip().lower() == "frame":
             return rows, ends, crlf
     if not rows:
@@ -210,12 +212,16 @@ def _locate_rows(rows: list[list[str]], path: str) -> dict[str, int]:
     labelled = any(lbl in wanted for lbl in labels.values())
     expected = {"type": a - 4, "name": a - 3, "id": a - 2, "component": a - 1}
     if labelled:
+        at = {lbl: next((i for i, v in labels.items() if v == lbl), None) for lbl in wanted}
+        for k, lbl in enumerate(wanted):
+            if at[lbl] is None:  # where it should be: after the row before it, else before the row after it
+                prev = at[wanted[k - 1]] if k else None
+                nxt = next((at[w] for w in wanted[k + 1:] if at[w] is not None), None)
+                line = prev + 2 if prev is not None else (nxt + 1 if nxt is not None else a + 1)
+                raise InputError(f"missing header row '{lbl.capitalize()}' (rows Type, Name, ID and component "
+                                 f"must precede the 'Frame' row at line {a + 1})", path=path, line=line, column=2)
         for lbl in wanted:
             found = [i for i, v in labels.items() if v == lbl]
-            if not found:
-                raise InputError(f"missing header row '{lbl.capitalize()}' (expected at line {expected[lbl] + 1}, "
-                                 f"above the 'Frame' row at line {a + 1})",
-                                 path=path, line=max(expected[lbl] + 1, 2), column=2)
             if found[0] != expected[lbl]:
                 raise InputError(f"header row '{lbl.capitalize()}' is at line {found[0] + 1} but must be at line "
                                  f"{expected[lbl] + 1} (order: Type, Name, ID, component, Frame): missing header rows",
@@ -694,6 +700,7 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
             order = rot_type  # columns hold the angles about X, Y, Z; scipy wants them in sequence order
             angles = rot[tracked][:, ["XYZ".index(a) for a in order]]
             quat[tracked] = Rotation.from_euler(order, angles, degrees=True).as_quat()
+    tracked &= np.isfinite(quat).all(axis=2) & np.isfinite(pos).all(axis=2)  # overflowing nonsense is a gap too
     if not tracked.all():
         pos[~tracked] = np.nan
         quat[~tracked] = np.nan
