@@ -85,7 +85,11 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
 
 
 def summarize_bag(path: str | Path) -> dict:
-    """Return the inspect summary of a bag: ``bags.inspect_bag`` plus ``check`` {ok, problems}."""
+    """Return the inspect summary of a bag: ``bags.inspect_bag`` plus ``check`` {ok, problems}.
+
+    The problems are those of the structural check ``bags.check_bag`` (reported by ``inspect_bag``
+    itself when it carries them, so the bag is scanned once).
+    """
     try:
         bags = importlib.import_module("euc_ros.core.io.bags")
     except ModuleNotFoundError as exc:
@@ -93,7 +97,7 @@ def summarize_bag(path: str | Path) -> dict:
             raise InputError("bag support (euc_ros.core.io.bags) is not available in this build", path=path) from None
         raise
     info = dict(bags.inspect_bag(path))
-    problems = list(bags.check_bag(path))
+    problems = list(info.pop("problems")) if "problems" in info else list(bags.check_bag(path))
     return {"kind": "rosbag2", "path": str(path), **info, "check": {"ok": not problems, "problems": problems}}
 
 
@@ -124,7 +128,7 @@ def format_summary(summary: dict) -> str:
     up = s["up_axis"]
     lines = [
         f"Motive CSV     {s['path']}",
-        f"take           {s['take_name']}  (format {s['format_version']}, started {s['start_time']})",
+        f"take           {s['take_name']}  (format {s['format_version']}, started {s['start_time'] or '?'})",
         f"bodies         {s['n_bodies']}: {', '.join(s['bodies']) if s['bodies'] else '(no rigid bodies)'}",
         f"frames         {s['n_frames']} (first {s['first_frame']}, last {s['last_frame']}), "
         f"{s['n_dropped']} dropped, {s['n_duplicates_dropped']} duplicate/out-of-order dropped",
