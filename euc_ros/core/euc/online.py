@@ -1,0 +1,232 @@
+"""Online companions of the identification: a sliding-window RMSE and a sliding-window estimate of h.
+
+Both are fed one sample at a time (the torque_estimator node calls them at the mocap rate, after the
+fixed-lag Savitzky-Golay filter) and return their current value; they hold no clock and no ROS.
+
+:class:`OnlineHEstimator` keeps, for the last ``window`` valid samples, the six coefficients of the
+residual ``e(h) = c (a0 + a1 h + a2 h^2) / (d0 + d1 h)`` (see :mod:`euc_ros.core.euc.identify`), so
+the sum of squares ``S(h) = sum e^2`` over the window is exact for any h at O(window) cost. Each update
+takes the minimum of S on a coarse grid over the bounds, then refines it with Gauss-Newton steps. The
+standard deviation is the nonlinear least-squares one, ``sigma_h^2 = k s^2 / sum e'(h)^2`` with
+``s^2 = S / (n - 1)`` and ``k`` the number of correlated samples per independent one
+(``correlation_samples``; the Savitzky-Golay window is a fair value, since smoothing correlates
+neighbouring residuals). The estimate is NaN until the window holds ``min_samples`` samples and the
+data excite h: the RMS sensitivity ``sqrt(mean(e'^2))`` [N m per m of h] must reach
+``min_sensitivity``.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.euc.identify import model_params, residual_coefficients
+from euc_ros.core.euc.model import EucParams
+
+
+class SlidingRmse:
+    """RMS of the last ``window`` finite values pushed (NaN values are skipped, not counted).
+
+    Parameters
+    ----------
+    window : int
+        Number of most recent pushes considered (a NaN push still ages the window).
+
+    Examples
+    --------
+    >>> r = SlidingRmse(2)
+    >>> [round(r.push(v), 6) for v in (3.0, 4.0, float("nan"))]
+    [3.0, 3.535534, 4.0]
+    """
+
+    def __init__(self, window: int) -> None:
+        if int(window) != window or window < 1:
+            raise ConfigError(f"window must be a positive integer, got {window!r}", key="window")
+        self.window = int(window)
+        self._buf = np.zeros(self.window)
+        self._ok = np.zeros(self.window, dtype=bool)
+        self._i = 0
+        self._sum = 0.0
+        self._count = 0
+        self._pushes = 0
+
+    def push(self, value: float) -> float:
+        """Add one value [N m] and return the current RMS [N m] (NaN while no finite value is held)."""
+        j = self._i
+        if self._ok[j]:
+            self._sum -= self._buf[j] ** 2
+            self._count -= 1
+        ok = bool(np.isfinite(value))
+        self._buf[j] = value if ok else 0.0
+        self._ok[j] = ok
+        if ok:
+            self._sum += float(value) ** 2
+            self._count += 1
+        self._i = (j + 1) % self.window
+        self._pushes += 1
+        if self._pushes % self.window == 0:  # refresh the running sum (no drift)
+            self._sum = float(np.sum(self._buf[self._ok] ** 2))
+        return self.value
+
+    @property
+    def value(self) -> float:
+        """Current RMS [N m]."""
+        return float(np.sqrt(max(self._sum, 0.0) / self._count)) if self._count else float("nan")
+
+    @property
+    def count(self) -> int:
+        """Finite values in the window."""
+        return self._count
+
+    def reset(self) -> None:
+        """Forget everything."""
+        self.__init__(self.window)
+
+
+@dataclass(frozen=True)
+class HEstimate:
+    """Current online estimate of the CoG height.
+
+    Attributes
+    ----------
+    h_m : float
+        Estimate [m]; NaN until enough samples and excitation.
+    h_std_m : float
+        Its standard deviation [m] (NaN likewise).
+    rmse_nm : float
+        RMSE of ``M_d1 - M_d2`` over the window at ``h_m`` [N m].
+    n_samples : int
+        Valid samples in the window.
+    sensitivity_nm_per_m : float
+        RMS derivative of the residual with respect to h [N m / m] (the excitation).
+    """
+
+    h_m: float
+    h_std_m: float
+    rmse_nm: float
+    n_samples: int
+    sensitivity_nm_per_m: float
+
+
+class OnlineHEstimator:
+    """Sliding-window least-squares estimate of h with its uncertainty (see the module docstring).
+
+    Parameters
+    ----------
+    params : EucParams
+        Nominal parameters (``h`` ignored).
+    window : int
+        Number of most recent samples used [samples] (invalid samples age the window too).
+    model : {"3dof", "2dof"}
+    h_bounds : (float, float)
+        Search interval [m].
+    min_samples : int, optional
+        Valid samples needed before an estimate is given (default ``window // 4``).
+    min_sensitivity : float
+        Required RMS sensitivity of the residual to h [N m / m].
+    correlation_samples : float
+        Correlated samples per independent one, inflating the variance (>= 1).
+    grid_points : int
+        Size of the coarse grid over ``h_bounds``.
+    update_every : int
+        Re-estimate every this many samples (coefficients are stored at every sample).
+    """
+
+    def __init__(self, params: EucParams, window: int, *, model: str = "3dof", h_bounds=(0.1, 1.2),
+                 min_samples: int | None = None, min_sensitivity: float = 5.0, correlation_samples: float = 1.0,
+                 grid_points: int = 45, update_every: int = 1) -> None:
+        model_params(params, model)
+        if int(window) != window or window < 3:
+            raise ConfigError(f"window must be an integer >= 3 samples, got {window!r}", key="window")
+        lo, hi = (float(v) for v in h_bounds)
+        if not (0 < lo < hi):
+            raise ConfigError(f"h bounds must satisfy 0 < low < high, got {h_bounds!r}", key="h_bounds")
+        if correlation_samples < 1:
+            raise ConfigError(f"correlation_samples must be >= 1, got {correlation_samples!r}",
+                              key="correlation_samples")
+        self.params = params
+        self.model = model
+        self.window = int(window)
+        self.h_bounds = (lo, hi)
+        self.min_samples = max(3, self.window // 4 if min_samples is None else int(min_samples))
+        self.min_sensitivity = float(min_sensitivity)
+        self.correlation_samples = float(correlation_samples)
+        self.update_every = max(1, int(update_every))
+        self._grid = np.linspace(lo, hi, int(grid_points))
+        self._coef = np.zeros((6, self.window))
+        self._ok = np.zeros(self.window, dtype=bool)
+        self._i = 0
+        self._n_updates = 0
+        self._last = HEstimate(np.nan, np.nan, np.nan, 0, np.nan)
+
+    def reset(self) -> None:
+        """Forget all samples."""
+        self._ok[:] = False
+        self._i = 0
+        self._n_updates = 0
+        self._last = HEstimate(np.nan, np.nan, np.nan, 0, np.nan)
+
+    def update(self, gamma: float, phi: float, gamma_dot: float, phi_dot: float, x_ddot: float,
+               gamma_ddot: float, phi_ddot: float) -> HEstimate:
+        """Add one sample (SI units, radians) and return the current estimate.
+
+        A sample with any non-finite state is not used (but ages the window).
+        """
+        args = tuple(np.array([v], dtype=float) for v in (gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot,
+                                                            phi_ddot))
+        c = residual_coefficients(args, self.params, self.model)[:, 0]
+        j = self._i
+        ok = bool(np.all(np.isfinite(c)))
+        self._coef[:, j] = c if ok else 0.0
+        self._ok[j] = ok
+        self._i = (j + 1) % self.window
+        self._n_updates += 1
+        if self._n_updates % self.update_every == 0:
+            self._last = self._estimate()
+        return self._last
+
+    @property
+    def estimate(self) -> HEstimate:
+        """The latest estimate."""
+        return self._last
+
+    def _residual(self, coef: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
+        c, a0, a1, a2, d0, d1 = coef
+        N = a0 + h * (a1 + h * a2)
+        D = d0 + d1 * h
+        e = c * N / D
+        de = c * ((a1 + 2 * a2 * h) * D - N * d1) / D**2
+        return e, de
+
+    def _estimate(self) -> HEstimate:
+        coef = self._coef[:, self._ok]
+        n = coef.shape[1]
+        if n < self.min_samples:
+            return HEstimate(np.nan, np.nan, np.nan, n, np.nan)
+        c, a0, a1, a2, d0, d1 = coef
+        H = self._grid[:, None]
+        sse = np.sum((c * (a0 + H * (a1 + H * a2)) / (d0 + d1 * H)) ** 2, axis=1)
+        k = int(np.argmin(sse))
+        h = float(self._grid[k])
+        lo, hi = self.h_bounds
+        for _ in range(8):
+            e, de = self._residual(coef, h)
+            jtj = float(np.dot(de, de))
+            if jtj <= 0:
+                break
+            step = -float(np.dot(e, de)) / jtj
+            h_new = min(max(h + step, lo), hi)
+            if abs(h_new - h) < 1e-9:
+                h = h_new
+                break
+            h = h_new
+        e, de = self._residual(coef, h)
+        sse_h = float(np.dot(e, e))
+        jtj = float(np.dot(de, de))
+        sens = float(np.sqrt(jtj / n))
+        rmse = float(np.sqrt(sse_h / n))
+        if sens < self.min_sensitivity or jtj <= 0:
+            return HEstimate(np.nan, np.nan, rmse, n, sens)
+        std = float(np.sqrt(self.correlation_samples * sse_h / max(n - 1, 1) / jtj))
+        return HEstimate(h, std, rmse, n, sens)
