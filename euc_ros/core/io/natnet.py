@@ -441,7 +441,7 @@ def parse_packet(data: bytes, version=(4, 1)):
     raise NatNetError(f"unknown message id {mid}", offset=0, field="message_id", message_id=mid)
 
 
-def latency_s(frame: FrameOfData, server_info: ServerInfo) -> float | None:
+def latency_s(frame: FrameOfData, server_info: ServerInfo) -> float:
     """Return the system latency of a frame [s]: camera mid-exposure to transmission.
 
     ``(transmit_timestamp - camera_mid_exposure) / high_res_clock_frequency`` (server clock ticks).
@@ -456,17 +456,17 @@ def latency_s(frame: FrameOfData, server_info: ServerInfo) -> float | None:
 
     Returns
     -------
-    float or None
-        Latency [s]; None when it cannot be known: no clock frequency (short SERVERINFO), no
+    float
+        Latency [s]; NaN when it cannot be known: no clock frequency (short SERVERINFO), no
         mid-exposure stamp (``0``: camera system without latency measurement), or a transmit stamp
-        earlier than the exposure (corrupted).
+        earlier than the exposure (corrupted). Callers test ``np.isfinite``.
     """
     freq = server_info.high_res_clock_frequency
     if not freq or frame.camera_mid_exposure == 0:
-        return None
+        return float("nan")
     ticks = frame.transmit_timestamp - frame.camera_mid_exposure
     if ticks < 0:
-        return None
+        return float("nan")
     return ticks / float(freq)
 
 

@@ -1,0 +1,1057 @@
+"""rosbag2 bags with MCAP storage, without rosbag2_py: write, read, check, recover, mocap series.
+
+ROS-free (rosbags + mcap + mcap-ros2-support + numpy). The layout is rosbag2's: a directory holding
+``metadata.yaml`` (version 9, as ROS 2 Jazzy writes and reads it) and one ``<name>.mcap`` file with
+a ``ros2msg`` schema per type and CDR messages. The project's own types (euc_msgs) are registered
+from their ``.msg`` files (:mod:`euc_ros.core.io.msgdefs`), so their RIHS01 hashes equal rclpy's.
+
+Contents
+--------
+* :class:`BagWriter` - lazy connections, raw or message writes, always closes what it wrote.
+* :func:`read_bag` - iterate ``(topic, msgtype, stamp_ns, msg)`` through rosbags' AnyReader.
+* :func:`check_bag` - structural check (metadata.yaml as Jazzy's decoder reads it, MCAP magic,
+  summary, every record of every chunk, counts, decoding with mcap-ros2-support).
+* :func:`recover_bag` - rebuild a valid bag from the complete chunks of a truncated MCAP.
+* :func:`inspect_bag` - what a bag holds, with the check's problems.
+* :func:`read_mocap_bag`, :func:`write_mocap_bag` - :class:`~euc_ros.core.mocap.MocapSeries` from/to
+  ``euc_msgs/msg/MocapFrame`` and/or one ``geometry_msgs/msg/PoseStamped`` per body (spec section 2).
+
+See ``docs/bags.md``.
+"""
+from __future__ import annotations
+
+import logging
+import os
+import re
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+
+from euc_ros.core.errors import InputError
+from euc_ros.core.io.msgdefs import make_typestore
+from euc_ros.core.mocap import MocapSeries
+
+log = logging.getLogger(__name__)
+
+#: rosbag2 metadata version written (ROS 2 Jazzy's).
+METADATA_VERSION = 9
+#: Newest metadata version ROS 2 Jazzy decodes.
+JAZZY_MAX_VERSION = 9
+#: Default MCAP chunk size [bytes]; rosbags 0.11.9 closes a chunk past 1 MiB whatever is asked.
+DEFAULT_CHUNK_SIZE = 1 << 20
+MCAP_MAGIC = b"\x89MCAP0\r\n"
+POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
+MOCAP_FRAME = "euc_msgs/msg/MocapFrame"
+#: MocapFrame.stamp_source value for offline data (capture start + frame / rate).
+STAMP_FILE_TIME = 1
+#: custom_data keys write_mocap_bag stores in metadata.yaml to make the round trip exact.
+CUSTOM_START_NS = "euc_ros.start_ns"
+CUSTOM_RATE_HZ = "euc_ros.rate_hz"
+CUSTOM_NAME = "euc_ros.name"
+
+
+def _bag_dir(path) -> Path:
+    p = Path(path)
+    return p.parent if p.suffix == ".mcap" else p
+
+
+# =====================================================================================================================
+# Writing
+# =====================================================================================================================
+
+def _ensure_type(typestore, msgtype: str, msgdef: str | None = None) -> None:
+    """Make ``msgtype`` known to ``typestore``: from ``msgdef`` text, or from an installed ``.msg`` file.
+
+    Installed definitions are looked up as ``<prefix>/share/<pkg>/msg/<Name>.msg`` for ``sys.prefix``
+    and every ``AMENT_PREFIX_PATH`` entry; their dependencies are resolved the same way.
+    """
+    from rosbags.typesys import get_types_from_msg
+
+    if msgtype in typestore.types:
+        return
+    if msgdef is not None:
+        typestore.register(get_types_from_msg(msgdef, msgtype))
+        return
+    pending, seen = [msgtype], set()
+    while pending:
+        name = pending.pop()
+        if name in typestore.types or name in seen:
+            continue
+        seen.add(name)
+        parts = name.split("/")
+        if len(parts) != 3:
+            raise InputError(f"not a full message type name: {name!r} (expected pkg/msg/Name)", key="msgtype")
+        pkg, kind, base = parts
+        prefixes = [sys.prefix] + [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+        for prefix in prefixes:
+            f = Path(prefix) / "share" / pkg / kind / f"{base}.msg"
+            if f.is_file():
+                types = get_types_from_msg(f.read_text(encoding="utf-8"), name)
+                typestore.register(types)
+                for _, fields in types.values():
+                    pending += _nested_type_names(fields)
+                break
+        else:
+            raise InputError(f"no definition for message type {name} (not in the Jazzy typestore, not installed "
+                             f"under {', '.join(prefixes)})", key="msgtype")
+
+
+def _nested_type_names(fields) -> list[str]:
+    """Full type names referenced by rosbags field definitions (for dependency resolution)."""
+    out = []
+    for _, (kind, spec) in fields:
+        inner = spec
+        if kind.name in ("ARRAY", "SEQUENCE"):
+            inner = spec[0]
+        if isinstance(inner, tuple) and getattr(inner[0], "name", "") == "NAME":
+            out.append(inner[1])
+        elif isinstance(inner, str):
+            out.append(inner)
+    return out
+
+
+class BagWriter:
+    """Write a rosbag2 bag (metadata v9, MCAP storage) through rosbags.
+
+    Connections are registered lazily, one per ``(topic, msgtype)``, with the definition and RIHS01
+    hash from the typestore (the Jazzy store plus euc_msgs by default; other installed packages are
+    looked up under ``share/<pkg>/msg``).
+
+    The writer never aborts: on an exception inside ``with BagWriter(...)``, what was written is
+    closed into a valid bag and the exception propagates. (rosbags' own ``Writer.__exit__`` aborts,
+    leaving a headless .mcap and no metadata.yaml.)
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag directory to create; must not exist.
+    typestore : rosbags Typestore, optional
+        Default: :func:`euc_ros.core.io.msgdefs.make_typestore`.
+    chunk_size : int
+        Close the current MCAP chunk once it holds this many bytes [bytes]. Completed chunks are
+        flushed to the OS, so a recorder killed with SIGKILL loses at most one chunk (plus the
+        summary, which :func:`recover_bag` rebuilds). Smaller chunks lose less but cost an index
+        record per chunk and per channel (~100 bytes) and compress worse. rosbags 0.11.9 closes
+        chunks past 1 MiB on its own, so larger values act as 1 MiB.
+    custom_data : dict of str to str, optional
+        Stored in metadata.yaml ``custom_data``.
+
+    Attributes
+    ----------
+    counts : dict of str to int
+        Messages written per topic.
+    """
+
+    def __init__(self, path, typestore=None, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                 custom_data: dict | None = None) -> None:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+        from rosbags.rosbag2.errors import WriterError
+
+        self.path = Path(path)
+        if self.path.exists():
+            raise InputError("bag exists already, not overwriting (choose a new output path)", path=self.path)
+        if int(chunk_size) <= 0:
+            raise InputError(f"chunk_size must be > 0, got {chunk_size}", key="chunk_size")
+        self.chunk_size = int(chunk_size)
+        self.typestore = typestore if typestore is not None else make_typestore()
+        self.counts: dict[str, int] = {}
+        self._connections: dict[tuple[str, str], object] = {}
+        self._writer = Writer(self.path, version=METADATA_VERSION, storage_plugin=StoragePlugin.MCAP)
+        for key, value in (custom_data or {}).items():
+            self._writer.set_custom_data(str(key), str(value))
+        try:
+            self._writer.open()
+        except (WriterError, OSError) as exc:
+            raise InputError(f"cannot create bag: {exc}", path=self.path) from None
+        self._closed = False
+        self._n_chunks = 0
+        storage = self._writer.storage
+        self._chunk_control = all(hasattr(storage, a) for a in ("chunk", "chunks", "close_chunk", "bio"))
+        if not self._chunk_control:
+            log.warning("rosbags MCAP writer internals changed: chunk_size %d ignored", self.chunk_size)
+
+    # -- connections -----------------------------------------------------------------------------------------------
+    def connection(self, topic: str, msgtype: str, *, msgdef: str | None = None, rihs01: str | None = None,
+                   offered_qos_profiles=()):
+        """Return the connection of ``(topic, msgtype)``, adding it on first use.
+
+        Parameters
+        ----------
+        topic, msgtype : str
+        msgdef : str, optional
+            ``ros2msg`` definition text (with dependencies) for types the typestore does not know.
+        rihs01 : str, optional
+            Type hash to store with ``msgdef``; computed from the typestore when omitted.
+        offered_qos_profiles : sequence of rosbags Qos
+        """
+        key = (topic, msgtype)
+        conn = self._connections.get(key)
+        if conn is None:
+            if self._closed:
+                raise InputError("bag is closed", path=self.path)
+            _ensure_type(self.typestore, msgtype, msgdef)
+            if msgdef is not None and rihs01 is None:
+                rihs01 = self.typestore.hash_rihs01(msgtype)
+            conn = self._writer.add_connection(topic, msgtype, typestore=self.typestore, msgdef=msgdef,
+                                               rihs01=rihs01, offered_qos_profiles=list(offered_qos_profiles))
+            self._connections[key] = conn
+            self.counts.setdefault(topic, 0)
+        return conn
+
+    # -- writing ---------------------------------------------------------------------------------------------------
+    def write_raw(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> None:
+        """Write one serialized (CDR) message with receive time ``stamp_ns`` [ns since the epoch]."""
+        conn = self.connection(topic, msgtype)
+        self._writer.write(conn, int(stamp_ns), data)
+        self.counts[topic] += 1
+        if self._chunk_control:
+            storage = self._writer.storage
+            if storage.chunk.bio.tell() >= self.chunk_size:
+                storage.close_chunk()
+            if len(storage.chunks) != self._n_chunks:   # a chunk completed (here or in rosbags): to the OS
+                self._n_chunks = len(storage.chunks)
+                storage.bio.flush()
+
+    def write(self, topic: str, msgtype: str, msg, stamp_ns: int) -> None:
+        """Serialize a rosbags message object to CDR and write it (see :meth:`write_raw`)."""
+        _ensure_type(self.typestore, msgtype)
+        self.write_raw(topic, msgtype, self.typestore.serialize_cdr(msg, msgtype), stamp_ns)
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """Set a metadata.yaml ``custom_data`` entry (before :meth:`close`)."""
+        self._writer.set_custom_data(str(key), str(value))
+
+    @property
+    def closed(self) -> bool:
+        """True after :meth:`close`."""
+        return self._closed
+
+    def close(self) -> None:
+        """Write the MCAP summary and metadata.yaml; idempotent. The bag is complete afterwards."""
+        if self._closed:
+            return
+        self._closed = True
+        self._writer.close()
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        self.close()   # also on exceptions: keep what was recorded
+        return False
+
+
+# =====================================================================================================================
+# Reading
+# =====================================================================================================================
+
+def _require_bag(path) -> Path:
+    bag = _bag_dir(path)
+    if not (bag / "metadata.yaml").is_file():
+        raise InputError("not a complete rosbag2 bag: no metadata.yaml (recorder killed? try recover_bag)",
+                         path=bag)
+    return bag
+
+
+def read_bag(path, topics=None, *, raw: bool = False) -> Iterator[tuple]:
+    """Iterate the messages of a bag in time order.
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag directory (or its .mcap file).
+    topics : iterable of str, optional
+        Only these topics (all by default).
+    raw : bool
+        Yield the CDR bytes instead of deserialized messages.
+
+    Yields
+    ------
+    tuple
+        ``(topic, msgtype, stamp_ns, msg)``: the bag's receive time [ns] and a rosbags message object
+        (types auto-registered from the bag) or bytes.
+    """
+    from rosbags.highlevel import AnyReader
+
+    bag = _require_bag(path)
+    try:
+        reader = AnyReader([bag], default_typestore=make_typestore())
+        reader.open()
+    except Exception as exc:  # rosbags raises its own error types for unreadable bags
+        raise InputError(f"cannot open bag: {exc}", path=bag) from None
+    try:
+        wanted = None if topics is None else set(topics)
+        conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+        for conn, stamp, data in reader.messages(connections=conns):
+            yield (conn.topic, conn.msgtype, stamp, bytes(data) if raw else reader.deserialize(data, conn.msgtype))
+    finally:
+        reader.close()
+
+
+# =====================================================================================================================
+# Structural check
+# =====================================================================================================================
+
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_scalar(v) -> bool:
+    """yaml-cpp ``as<std::string>()`` accepts any scalar (not null, not a sequence or map)."""
+    return isinstance(v, (str, int, float, bool)) and v is not None
+
+
+_QOS_KEYS = ("history", "depth", "reliability", "durability", "deadline", "lifespan", "liveliness",
+             "liveliness_lease_duration", "avoid_ros_namespace_conventions")
+
+
+class _Meta:
+    """Walk metadata.yaml the way rosbag2 Jazzy's YAML decoder does, collecting problems."""
+
+    def __init__(self, problems: list[str]) -> None:
+        self.problems = problems
+
+    def get(self, node, key: str, where: str, kind: str):
+        path = f"{where}.{key}" if where else key
+        if not isinstance(node, dict) or key not in node:
+            self.problems.append(f"metadata.yaml: missing key '{path}'")
+            return None
+        v = node[key]
+        ok = {"int": _is_int(v), "uint": _is_int(v) and v >= 0, "scalar": _is_scalar(v),
+              "seq": isinstance(v, list), "map": isinstance(v, dict),
+              "map_or_null": v is None or isinstance(v, dict)}[kind]
+        if not ok:
+            want = {"int": "an integer", "uint": "a non-negative integer", "scalar": "a string",
+                    "seq": "a list", "map": "a mapping", "map_or_null": "a mapping"}[kind]
+            self.problems.append(f"metadata.yaml: '{path}' must be {want}, got {type(v).__name__} {v!r:.60}")
+            return None
+        return v
+
+    def nanoseconds(self, node, key: str, where: str, field: str):
+        sub = self.get(node, key, where, "map")
+        return None if sub is None else self.get(sub, field, f"{where}.{key}" if where else key, "uint")
+
+
+def _check_metadata(bag: Path, problems: list[str]) -> dict | None:
+    """Validate metadata.yaml; return the information block (or None when unusable)."""
+    import yaml
+
+    meta_file = bag / "metadata.yaml"
+    if not meta_file.is_file():
+        problems.append("metadata.yaml missing: the bag was not closed (recorder killed?); "
+                        "recover_bag can rebuild it from the complete chunks")
+        return None
+    try:
+        doc = yaml.safe_load(meta_file.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        problems.append(f"metadata.yaml: not valid YAML: {exc}")
+        return None
+    m = _Meta(problems)
+    info = m.get(doc, "rosbag2_bagfile_information", "", "map")
+    if info is None:
+        return None
+    w = "rosbag2_bagfile_information"
+    version = m.get(info, "version", w, "int")
+    if version is None:
+        return None
+    if version > JAZZY_MAX_VERSION:
+        problems.append(f"metadata.yaml: version {version} is newer than ROS 2 Jazzy reads ({JAZZY_MAX_VERSION})")
+    storage = m.get(info, "storage_identifier", w, "scalar")
+    if storage is not None and storage != "mcap":
+        problems.append(f"metadata.yaml: storage_identifier is {storage!r}, expected 'mcap'")
+    m.nanoseconds(info, "duration", w, "nanoseconds")
+    m.nanoseconds(info, "starting_time", w, "nanoseconds_since_epoch")
+    m.get(info, "message_count", w, "uint")
+    topics = m.get(info, "topics_with_message_count", w, "seq") or []
+    for i, t in enumerate(topics):
+        tw = f"{w}.topics_with_message_count[{i}]"
+        tm = m.get(t, "topic_metadata", tw, "map")
+        m.get(t, "message_count", tw, "uint")
+        if tm is None:
+            continue
+        tmw = f"{tw}.topic_metadata"
+        for key in ("name", "type", "serialization_format"):
+            m.get(tm, key, tmw, "scalar")
+        if version >= 9:
+            profiles = m.get(tm, "offered_qos_profiles", tmw, "seq") or []
+            for k, q in enumerate(profiles):
+                if not isinstance(q, dict):
+                    problems.append(f"metadata.yaml: '{tmw}.offered_qos_profiles[{k}]' must be a mapping")
+                    continue
+                missing = [key for key in _QOS_KEYS if key not in q]
+                if missing:
+                    problems.append(f"metadata.yaml: '{tmw}.offered_qos_profiles[{k}]' lacks {', '.join(missing)}")
+        elif version >= 4:
+            m.get(tm, "offered_qos_profiles", tmw, "scalar")
+        if version >= 7:
+            m.get(tm, "type_description_hash", tmw, "scalar")
+    paths = m.get(info, "relative_file_paths", w, "seq") or []
+    for k, p in enumerate(paths):
+        if not _is_scalar(p):
+            problems.append(f"metadata.yaml: '{w}.relative_file_paths[{k}]' must be a string")
+    if version >= 3:
+        m.get(info, "compression_format", w, "scalar")
+        m.get(info, "compression_mode", w, "scalar")
+    if version >= 5:
+        files = m.get(info, "files", w, "seq") or []
+        for k, f in enumerate(files):
+            fw = f"{w}.files[{k}]"
+            m.get(f, "path", fw, "scalar")
+            m.nanoseconds(f, "starting_time", fw, "nanoseconds_since_epoch")
+            m.nanoseconds(f, "duration", fw, "nanoseconds")
+            m.get(f, "message_count", fw, "uint")
+    if version >= 6:
+        custom = m.get(info, "custom_data", w, "map_or_null")
+        for k, v in (custom or {}).items():
+            if not (_is_scalar(k) and _is_scalar(v)):
+                problems.append(f"metadata.yaml: custom_data entry {k!r}: {v!r} is not string: string")
+    if version >= 8:
+        m.get(info, "ros_distro", w, "scalar")
+    # Internal consistency.
+    counts = [t.get("message_count") for t in topics if isinstance(t, dict)]
+    total = info.get("message_count")
+    if _is_int(total) and all(_is_int(c) for c in counts) and sum(counts) != total:
+        problems.append(f"metadata.yaml: topic message counts sum to {sum(counts)}, message_count is {total}")
+    return info
+
+
+class _Scan:
+    """What a sequential pass over an MCAP file found (possibly truncated)."""
+
+    def __init__(self) -> None:
+        self.schemas: dict[int, object] = {}
+        self.channels: dict[int, object] = {}
+        self.counts: dict[int, int] = {}
+        self.first_ns: int | None = None
+        self.last_ns: int | None = None
+        self.n_chunks = 0
+        self.n_messages = 0
+        self.footer = False
+        self.statistics = None
+        self.error: str | None = None
+
+
+def _scan_mcap(path: Path, *, keep_messages: bool = False, validate_crcs: bool = True):
+    """Parse every record (and every record inside every chunk) of an MCAP file, stopping at damage.
+
+    Returns ``(scan, messages)``; ``messages`` holds ``(channel_id, log_time, data)`` of messages in
+    complete chunks when ``keep_messages``.
+    """
+    from mcap.records import Channel, Chunk, Footer, Message, Schema, Statistics
+    from mcap.stream_reader import StreamReader, breakup_chunk
+
+    scan, messages = _Scan(), []
+
+    def take(rec) -> None:
+        if isinstance(rec, Schema):
+            scan.schemas[rec.id] = rec
+        elif isinstance(rec, Channel):
+            scan.channels[rec.id] = rec
+        elif isinstance(rec, Message):
+            scan.n_messages += 1
+            scan.counts[rec.channel_id] = scan.counts.get(rec.channel_id, 0) + 1
+            scan.first_ns = rec.log_time if scan.first_ns is None else min(scan.first_ns, rec.log_time)
+            scan.last_ns = rec.log_time if scan.last_ns is None else max(scan.last_ns, rec.log_time)
+            if keep_messages:
+                messages.append((rec.channel_id, rec.log_time, rec.data))
+
+    with open(path, "rb") as f:
+        reader = StreamReader(f, emit_chunks=True, validate_crcs=validate_crcs)
+        try:
+            for rec in reader.records:
+                if isinstance(rec, Chunk):
+                    inner = breakup_chunk(rec, validate_crc=validate_crcs)   # whole chunk first: all or nothing
+                    scan.n_chunks += 1
+                    for r in inner:
+                        take(r)
+                elif isinstance(rec, Statistics):
+                    scan.statistics = rec
+                elif isinstance(rec, Footer):
+                    scan.footer = True
+                else:
+                    take(rec)
+        except Exception as exc:  # mcap raises EndOfFile, struct.error, ValueError... on damaged input
+            scan.error = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+    return scan, messages
+
+
+def _check_mcap(file: Path, info: dict | None, problems: list[str]) -> _Scan | None:
+    size = file.stat().st_size
+    with open(file, "rb") as f:
+        head = f.read(len(MCAP_MAGIC))
+        f.seek(max(0, size - len(MCAP_MAGIC)))
+        tail = f.read(len(MCAP_MAGIC))
+    if head != MCAP_MAGIC:
+        problems.append(f"{file.name}: no MCAP magic at the start: not an MCAP file")
+        return None
+    scan, _ = _scan_mcap(file)
+    truncated = tail != MCAP_MAGIC or not scan.footer
+    if truncated:
+        problems.append(f"{file.name}: truncated ({size} bytes, no footer/end magic): the recorder was killed "
+                        f"before closing; {scan.n_messages} messages in {scan.n_chunks} complete chunks are "
+                        f"recoverable with recover_bag")
+        return scan
+    if scan.error:
+        problems.append(f"{file.name}: record parse failed: {scan.error}")
+        return scan
+    from mcap.reader import make_reader
+
+    try:
+        with open(file, "rb") as f:
+            summary = make_reader(f).get_summary()
+    except Exception as exc:  # damaged summary section
+        summary = None
+        problems.append(f"{file.name}: summary section unreadable: {exc}")
+    if summary is None:
+        problems.append(f"{file.name}: no summary section")
+    elif summary.statistics is None:
+        problems.append(f"{file.name}: summary has no statistics record")
+    else:
+        st = summary.statistics
+        if st.message_count != scan.n_messages:
+            problems.append(f"{file.name}: statistics say {st.message_count} messages, records hold {scan.n_messages}")
+        if dict(st.channel_message_counts) != {k: v for k, v in scan.counts.items()}:
+            problems.append(f"{file.name}: per-channel statistics {dict(st.channel_message_counts)} disagree with "
+                            f"the records {scan.counts}")
+        if st.chunk_count != scan.n_chunks or len(summary.chunk_indexes) != scan.n_chunks:
+            problems.append(f"{file.name}: {scan.n_chunks} chunks in the data, statistics say {st.chunk_count}, "
+                            f"{len(summary.chunk_indexes)} chunk indexes")
+    if info is not None:
+        by_topic: dict[str, int] = {}
+        types: dict[str, str] = {}
+        for cid, ch in scan.channels.items():
+            by_topic[ch.topic] = by_topic.get(ch.topic, 0) + scan.counts.get(cid, 0)
+            schema = scan.schemas.get(ch.schema_id)
+            types[ch.topic] = schema.name if schema is not None else "?"
+        meta_topics = {}
+        for t in info.get("topics_with_message_count") or []:
+            tm = t.get("topic_metadata") if isinstance(t, dict) else None
+            if isinstance(tm, dict) and "name" in tm:
+                meta_topics[tm["name"]] = (tm.get("type"), t.get("message_count"))
+        for topic, (mtype, count) in meta_topics.items():
+            if topic not in by_topic:
+                problems.append(f"metadata.yaml lists topic {topic} which has no channel in {file.name}")
+                continue
+            if count != by_topic[topic]:
+                problems.append(f"message count of {topic}: metadata.yaml says {count}, {file.name} holds "
+                                f"{by_topic[topic]}")
+            if mtype != types[topic]:
+                problems.append(f"type of {topic}: metadata.yaml says {mtype}, {file.name} schema is {types[topic]}")
+        for topic in sorted(set(by_topic) - set(meta_topics)):
+            problems.append(f"topic {topic} is in {file.name} but not in metadata.yaml")
+        if _is_int(info.get("message_count")) and info["message_count"] != scan.n_messages:
+            problems.append(f"message_count: metadata.yaml says {info['message_count']}, {file.name} holds "
+                            f"{scan.n_messages}")
+    # Decode everything with the independent ROS 2 reader of the mcap project.
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    try:
+        with open(file, "rb") as f:
+            n = sum(1 for _ in make_reader(f, decoder_factories=[DecoderFactory()]).iter_decoded_messages())
+        if n != scan.n_messages:
+            problems.append(f"{file.name}: mcap-ros2-support decoded {n} of {scan.n_messages} messages")
+    except Exception as exc:  # any decoder failure is a finding, not a crash
+        problems.append(f"{file.name}: mcap-ros2-support cannot decode: {type(exc).__name__}: {exc}")
+    return scan
+
+
+def check_bag(path) -> list[str]:
+    """Check a bag's structure; return the problems found (empty list: OK).
+
+    Checks, in order: metadata.yaml keys and YAML types as ROS 2 Jazzy's decoder reads them
+    (``rosbag2_storage/yaml.hpp``, metadata version 9: ``offered_qos_profiles`` is a list), the
+    internal consistency of its counts; for each listed file: MCAP magic at start and end, the footer
+    and summary (statistics, chunk indexes), every record of every chunk parses (CRCs validated when
+    present), per-channel counts agree with the statistics and with metadata.yaml, topic types agree,
+    and every message decodes with mcap-ros2-support. A truncated file (recorder killed: no
+    summary, no footer) is reported as such with the number of recoverable messages.
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag directory (or its .mcap file).
+
+    Returns
+    -------
+    list of str
+        One line per problem.
+    """
+    bag = _bag_dir(path)
+    if not bag.is_dir():
+        return [f"{bag}: no such bag directory"]
+    problems: list[str] = []
+    info = _check_metadata(bag, problems)
+    if info is not None and isinstance(info.get("relative_file_paths"), list):
+        files = [bag / str(p) for p in info["relative_file_paths"]]
+    else:
+        files = sorted(bag.glob("*.mcap"))
+    if not files:
+        problems.append("no .mcap file in the bag")
+    for file in files:
+        if not file.is_file():
+            problems.append(f"{file.name}: listed in metadata.yaml but missing")
+            continue
+        _check_mcap(file, info if len(files) == 1 else None, problems)
+    return problems
+
+
+# =====================================================================================================================
+# Recovery
+# =====================================================================================================================
+
+def recover_bag(path, out=None) -> dict:
+    """Rebuild a valid bag from what can be read of a truncated MCAP (messages in complete chunks).
+
+    Parameters
+    ----------
+    path : str or Path
+        Damaged bag directory (or its .mcap file), e.g. from a recorder killed with SIGKILL.
+    out : str or Path, optional
+        New bag directory; default ``<bag>_recovered`` next to the input.
+
+    Returns
+    -------
+    dict
+        ``output`` (Path), ``messages`` recovered, ``topics`` {topic: count}, ``chunks`` complete
+        chunks read, ``stopped_at`` (why reading stopped, None if the file was complete).
+
+    Raises
+    ------
+    InputError
+        No MCAP file, or not a single complete message to recover.
+    """
+    bag = _bag_dir(path)
+    mcaps = [Path(path)] if Path(path).suffix == ".mcap" else sorted(bag.glob("*.mcap"))
+    if not mcaps:
+        raise InputError("no .mcap file to recover", path=bag)
+    dest = Path(out) if out is not None else bag.with_name(bag.name + "_recovered")
+    total, topics, chunks, stopped = 0, {}, 0, None
+    scans = []
+    for file in mcaps:
+        with open(file, "rb") as f:
+            if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+                raise InputError("not an MCAP file (no magic)", path=file)
+        scan, messages = _scan_mcap(file, keep_messages=True, validate_crcs=False)
+        scans.append((scan, messages))
+        chunks += scan.n_chunks
+        stopped = stopped or scan.error
+    if not any(messages for _, messages in scans):
+        raise InputError(f"nothing to recover: no complete chunk ({stopped or 'empty file'})", path=bag)
+    with BagWriter(dest) as writer:
+        for scan, messages in scans:
+            for cid, stamp, data in sorted(messages, key=lambda m: m[1]):
+                ch = scan.channels.get(cid)
+                schema = scan.schemas.get(ch.schema_id) if ch is not None else None
+                if schema is None:
+                    continue
+                msgdef = schema.data.decode("utf-8")
+                writer.connection(ch.topic, schema.name, msgdef=msgdef)
+                writer.write_raw(ch.topic, schema.name, data, stamp)
+                total += 1
+                topics[ch.topic] = topics.get(ch.topic, 0) + 1
+    return {"output": dest, "messages": total, "topics": topics, "chunks": chunks, "stopped_at": stopped}
+
+
+# =====================================================================================================================
+# Inspection
+# =====================================================================================================================
+
+def inspect_bag(path) -> dict:
+    """Describe a bag: topics, types, counts, time span, storage, and the problems of :func:`check_bag`.
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag directory (or its .mcap file).
+
+    Returns
+    -------
+    dict
+        ``path``, ``storage``, ``metadata_version``, ``ros_distro``, ``files`` [{name, bytes}],
+        ``topics`` [{name, type, count, rate_hz}], ``message_count``, ``start_ns``, ``end_ns``,
+        ``duration_s``, ``problems`` (list of str; empty when the bag is sound). For a bag without
+        metadata.yaml the figures come from what the MCAP scan could read.
+    """
+    import yaml
+
+    bag = _bag_dir(path)
+    if not bag.is_dir():
+        raise InputError("no such bag directory", path=bag)
+    problems = check_bag(bag)
+    info = None
+    meta_file = bag / "metadata.yaml"
+    if meta_file.is_file():
+        try:
+            info = (yaml.safe_load(meta_file.read_text(encoding="utf-8")) or {}).get("rosbag2_bagfile_information")
+        except (yaml.YAMLError, AttributeError):
+            info = None
+    files = sorted(bag.glob("*.mcap"))
+    out = {"path": str(bag), "storage": "mcap", "metadata_version": None, "ros_distro": None,
+           "files": [{"name": f.name, "bytes": f.stat().st_size} for f in files], "topics": [],
+           "message_count": 0, "start_ns": None, "end_ns": None, "duration_s": 0.0, "problems": problems}
+    topics: dict[str, dict] = {}
+    first = last = None
+    for file in files:
+        scan, _ = _scan_mcap(file, validate_crcs=False)
+        for cid, ch in scan.channels.items():
+            schema = scan.schemas.get(ch.schema_id)
+            entry = topics.setdefault(ch.topic, {"name": ch.topic, "type": schema.name if schema else "?",
+                                                 "count": 0})
+            entry["count"] += scan.counts.get(cid, 0)
+        if scan.first_ns is not None:
+            first = scan.first_ns if first is None else min(first, scan.first_ns)
+            last = scan.last_ns if last is None else max(last, scan.last_ns)
+    if isinstance(info, dict):
+        out["storage"] = info.get("storage_identifier", "mcap")
+        out["metadata_version"] = info.get("version")
+        out["ros_distro"] = info.get("ros_distro")
+    duration = (last - first) * 1e-9 if first is not None else 0.0
+    for entry in topics.values():
+        entry["rate_hz"] = (entry["count"] - 1) / duration if duration > 0 and entry["count"] > 1 else None
+    out.update(topics=sorted(topics.values(), key=lambda e: e["name"]),
+               message_count=sum(e["count"] for e in topics.values()), start_ns=first, end_ns=last,
+               duration_s=duration)
+    return out
+
+
+# =====================================================================================================================
+# Mocap series <-> bag
+# =====================================================================================================================
+
+def _split_stamp(stamp_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """builtin_interfaces/Time from int64 ns: (sec int32, nanosec uint32), floor division."""
+    stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
+    return np.floor_divide(stamp_ns, 10**9), np.mod(stamp_ns, 10**9)
+
+
+def posestamped_cdr(stamp_ns, position, quat, frame_id: str = "world") -> list[bytes]:
+    """Serialize PoseStamped messages to little-endian CDR, vectorized.
+
+    Layout (XCDR1, alignment relative to the byte after the 4-byte encapsulation header):
+    ``00 01 00 00``; ``int32 sec``; ``uint32 nanosec``; ``uint32 len(frame_id)+1``; frame_id, NUL;
+    padding to 8; 7 ``float64`` (position x y z, orientation x y z w).
+
+    Parameters
+    ----------
+    stamp_ns : array (n,) of int
+        Header stamps [ns].
+    position : array (n, 3)
+        [m].
+    quat : array (n, 4)
+        (x, y, z, w).
+    frame_id : str
+
+    Returns
+    -------
+    list of bytes
+        One CDR message per sample.
+    """
+    stamp_ns = np.atleast_1d(np.asarray(stamp_ns, dtype=np.int64))
+    n = stamp_ns.shape[0]
+    fid = frame_id.encode("utf-8") + b"\0"
+    body_start = 12 + len(fid)                     # relative to the encapsulation end
+    pose_rel = (body_start + 7) // 8 * 8
+    length = 4 + pose_rel + 56
+    buf = np.zeros((n, length), dtype=np.uint8)
+    buf[:, 1] = 1                                  # CDR_LE
+    sec, nsec = _split_stamp(stamp_ns)
+    buf[:, 4:8] = sec.astype("<i4")[:, None].view(np.uint8)
+    buf[:, 8:12] = nsec.astype("<u4")[:, None].view(np.uint8)
+    buf[:, 12:16] = np.frombuffer(np.uint32(len(fid)).astype("<u4").tobytes(), np.uint8)
+    buf[:, 16:16 + len(fid)] = np.frombuffer(fid, np.uint8)
+    values = np.concatenate([np.asarray(position, float).reshape(n, 3), np.asarray(quat, float).reshape(n, 4)],
+                            axis=1).astype("<f8")
+    buf[:, 4 + pose_rel:] = values.view(np.uint8).reshape(n, 56)
+    return [row.tobytes() for row in buf]
+
+
+def posestamped_arrays(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Parse little-endian CDR PoseStamped messages, vectorized per message length.
+
+    Parameters
+    ----------
+    raws : list of bytes
+
+    Returns
+    -------
+    stamp_ns : ndarray (n,) of int64
+    position : ndarray (n, 3)
+    quat : ndarray (n, 4)
+
+    Raises
+    ------
+    InputError
+        Big-endian or malformed data (use :func:`read_bag` for those).
+    """
+    n = len(raws)
+    stamp = np.zeros(n, np.int64)
+    vals = np.zeros((n, 7))
+    lengths = np.fromiter((len(r) for r in raws), dtype=np.int64, count=n)
+    for length in np.unique(lengths):
+        idx = np.flatnonzero(lengths == length)
+        arr = np.frombuffer(b"".join(raws[i] for i in idx), dtype=np.uint8).reshape(len(idx), int(length))
+        if length < 16 or np.any(arr[:, 1] != 1) or np.any(arr[:, 0] != 0):
+            raise InputError("PoseStamped CDR is not little-endian XCDR1 or is too short", key=POSE_STAMPED)
+        slen = arr[:, 12:16].copy().view("<u4")[:, 0].astype(np.int64)
+        pose_rel = (12 + slen + 7) // 8 * 8
+        if np.any(4 + pose_rel + 56 > length):
+            raise InputError("PoseStamped CDR shorter than its frame_id length implies", key=POSE_STAMPED)
+        sec = arr[:, 4:8].copy().view("<i4")[:, 0].astype(np.int64)
+        nsec = arr[:, 8:12].copy().view("<u4")[:, 0].astype(np.int64)
+        stamp[idx] = sec * 10**9 + nsec
+        for start in np.unique(pose_rel):
+            rows = np.flatnonzero(pose_rel == start)
+            block = arr[rows, 4 + int(start):4 + int(start) + 56].copy()
+            vals[idx[rows]] = block.view("<f8").reshape(len(rows), 7)
+    return stamp, vals[:, :3], vals[:, 3:]
+
+
+def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None = "/mocap/frame",
+                    start_ns: int | None = None, frame_id: str = "world", poses: bool = True,
+                    chunk_size: int = DEFAULT_CHUNK_SIZE) -> dict:
+    """Write a mocap series as a bag: PoseStamped per body and/or MocapFrame messages.
+
+    Stamps (header and bag receive time) are capture times ``start_ns + round(t * 1e9)``.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        Z-up world, SI units.
+    path : str or Path
+        New bag directory.
+    prefix : str
+        PoseStamped topics are ``<prefix>/<Body>/pose`` (spec section 2).
+    frame_topic : str or None
+        Topic of ``euc_msgs/msg/MocapFrame`` messages (one per frame, every body, untracked ones
+        with ``tracked=false`` and a NaN pose); None writes none.
+    start_ns : int, optional
+        Capture time of ``t = 0`` [ns since the epoch]; default ``series.meta['start_ns']`` or 0.
+    frame_id : str
+        World frame name in the headers.
+    poses : bool
+        Write the PoseStamped topics (untracked samples are skipped: gaps, never zeros).
+    chunk_size : int
+        MCAP chunk size [bytes] (see :class:`BagWriter`).
+
+    Returns
+    -------
+    dict
+        Messages written per topic.
+    """
+    if start_ns is None:
+        start_ns = int(series.meta.get("start_ns", 0))
+    n, b = series.n_frames, len(series.bodies)
+    if series.position.shape != (b, n, 3) or series.quat.shape != (b, n, 4) or series.tracked.shape != (b, n):
+        raise InputError(f"inconsistent MocapSeries shapes: position {series.position.shape}, quat "
+                         f"{series.quat.shape}, tracked {series.tracked.shape} for {b} bodies x {n} frames")
+    stamps = int(start_ns) + np.round(np.asarray(series.t, float) * 1e9).astype(np.int64)
+    custom = {CUSTOM_START_NS: str(int(start_ns)), CUSTOM_NAME: series.name or ""}
+    if "rate_hz" in series.meta:
+        custom[CUSTOM_RATE_HZ] = repr(float(series.meta["rate_hz"]))
+    tracked = np.asarray(series.tracked, bool)
+    with BagWriter(path, chunk_size=chunk_size, custom_data=custom) as writer:
+        ts = writer.typestore
+        pose_cdr = []
+        if poses:
+            for j, body in enumerate(series.bodies):
+                sel = np.flatnonzero(tracked[j])
+                pose_cdr.append((f"{prefix}/{body}/pose", sel,
+                                 posestamped_cdr(stamps[sel], series.position[j, sel], series.quat[j, sel], frame_id)))
+        cursors = [0] * len(pose_cdr)
+        if frame_topic:
+            T = ts.types
+            Frame, Header, Time = T[MOCAP_FRAME], T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
+            Pose, Point, Quaternion = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/Point"], \
+                T["geometry_msgs/msg/Quaternion"]
+            sec, nsec = _split_stamp(stamps)
+            pos = np.where(tracked[..., None], series.position, np.nan)
+            quat = np.where(tracked[..., None], series.quat, np.nan)
+            err = np.asarray(series.mean_marker_error, float)
+            stamp_source = int(series.meta.get("stamp_source", STAMP_FILE_TIME))
+        for i in range(n):
+            for k, (topic, sel, cdrs) in enumerate(pose_cdr):
+                c = cursors[k]
+                if c < len(sel) and sel[c] == i:
+                    writer.write_raw(topic, POSE_STAMPED, cdrs[c], stamps[i])
+                    cursors[k] = c + 1
+            if frame_topic:
+                msg = Frame(
+                    header=Header(stamp=Time(sec=int(sec[i]), nanosec=int(nsec[i])), frame_id=frame_id),
+                    stamp_source=stamp_source, frame_number=int(series.frame[i]), body_names=list(series.bodies),
+                    poses=[Pose(position=Point(x=p[0], y=p[1], z=p[2]),
+                                orientation=Quaternion(x=q[0], y=q[1], z=q[2], w=q[3]))
+                           for p, q in zip(pos[:, i].tolist(), quat[:, i].tolist())],
+                    tracked=tracked[:, i].copy(), mean_marker_error=err[:, i].astype(np.float32))
+                writer.write(frame_topic, MOCAP_FRAME, msg, stamps[i])
+        return dict(writer.counts)
+
+
+def _custom_data(bag: Path) -> dict:
+    import yaml
+
+    try:
+        info = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+        return dict(info.get("custom_data") or {})
+    except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return {}
+
+
+def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None = None, bodies=None,
+                   merge_tolerance: float = 0.25) -> MocapSeries:
+    """Read mocap from a bag into a :class:`~euc_ros.core.mocap.MocapSeries`.
+
+    Source, in order: ``frame_topic`` (``euc_msgs/msg/MocapFrame``); else the first MocapFrame topic
+    of the bag; else one ``geometry_msgs/msg/PoseStamped`` per body on ``<prefix>/<Body>/pose``
+    (spec section 2), aligned on their header stamps.
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag directory (or its .mcap file).
+    prefix : str
+        PoseStamped topic prefix.
+    frame_topic : str, optional
+        MocapFrame topic to use.
+    bodies : list of str, optional
+        Bodies to return, in this order (default: all, in the bag's order).
+    merge_tolerance : float
+        PoseStamped stamps closer than ``merge_tolerance / rate`` are one frame [frame periods].
+
+    Returns
+    -------
+    MocapSeries
+        ``t`` = header stamp minus ``start_ns`` [s], where ``start_ns`` is the one
+        :func:`write_mocap_bag` stored in metadata.yaml, else the first stamp; ``meta['start_ns']``
+        holds it. Frame numbers from MocapFrame (``-1`` ones, and PoseStamped data, get
+        ``round(t * rate)``). Samples without data are NaN with ``tracked == False``.
+    """
+    from rosbags.highlevel import AnyReader
+
+    bag = _require_bag(path)
+    custom = _custom_data(bag)
+    with AnyReader([bag], default_typestore=make_typestore()) as reader:
+        conns = reader.connections
+        frame_conns = [c for c in conns if c.msgtype == MOCAP_FRAME]
+        if frame_topic is not None:
+            chosen = [c for c in frame_conns if c.topic == frame_topic]
+            if not chosen:
+                have = ", ".join(sorted({c.topic for c in frame_conns})) or "none"
+                raise InputError(f"no {MOCAP_FRAME} topic {frame_topic} in the bag (MocapFrame topics: {have})",
+                                 path=bag, key="frame_topic")
+            frame_conns = chosen[:1]
+        if frame_conns:
+            series = _series_from_frames(reader, frame_conns[0], bag)
+        else:
+            series = _series_from_poses(reader, conns, prefix, bag, merge_tolerance)
+    start_ns = series.meta.pop("_first_ns")
+    if CUSTOM_START_NS in custom:
+        try:
+            start_ns = int(custom[CUSTOM_START_NS])
+        except ValueError:
+            pass
+    series.t = (series.meta.pop("_stamps") - start_ns) * 1e-9
+    series.meta["start_ns"] = start_ns
+    if CUSTOM_RATE_HZ in custom:
+        series.meta["rate_hz"] = float(custom[CUSTOM_RATE_HZ])
+    if custom.get(CUSTOM_NAME):
+        series.name = custom[CUSTOM_NAME]
+    rate = series.rate_hz if series.n_frames > 1 else np.nan
+    unknown = series.frame < 0
+    if unknown.any():
+        series.frame[unknown] = (np.round(series.t[unknown] * rate).astype(np.int64) if np.isfinite(rate)
+                                 else np.flatnonzero(unknown))
+    if bodies is not None:
+        series = series.select(list(bodies))
+    return series
+
+
+def _series_from_frames(reader, conn, bag: Path) -> MocapSeries:
+    stamps, numbers, names_per, pos_per, quat_per, trk_per, err_per = [], [], [], [], [], [], []
+    for _, _, data in reader.messages(connections=[conn]):
+        m = reader.deserialize(data, conn.msgtype)
+        stamps.append(int(m.header.stamp.sec) * 10**9 + int(m.header.stamp.nanosec))
+        numbers.append(int(m.frame_number))
+        names_per.append(list(m.body_names))
+        pos_per.append([(p.position.x, p.position.y, p.position.z) for p in m.poses])
+        quat_per.append([(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w) for p in m.poses])
+        trk_per.append(np.asarray(m.tracked, bool))
+        err_per.append(np.asarray(m.mean_marker_error, float))
+    if not stamps:
+        raise InputError(f"topic {conn.topic} holds no messages", path=bag)
+    bodies: list[str] = []
+    for names in names_per:
+        for name in names:
+            if name not in bodies:
+                bodies.append(name)
+    order = np.argsort(np.asarray(stamps, np.int64), kind="stable")
+    n, b = len(stamps), len(bodies)
+    col = {name: k for k, name in enumerate(bodies)}
+    position, quat = np.full((b, n, 3), np.nan), np.full((b, n, 4), np.nan)
+    tracked, err = np.zeros((b, n), bool), np.full((b, n), np.nan)
+    for i, src in enumerate(order):
+        names = names_per[src]
+        rows = np.array([col[x] for x in names], dtype=np.int64)
+        k = len(names)
+        if not (len(pos_per[src]) == len(trk_per[src]) == k):
+            raise InputError(f"MocapFrame {numbers[src]}: {k} names but {len(pos_per[src])} poses and "
+                             f"{len(trk_per[src])} tracked flags", path=bag, key=conn.topic)
+        trk = trk_per[src]
+        position[rows, i] = np.where(trk[:, None], np.asarray(pos_per[src], float).reshape(k, 3), np.nan)
+        quat[rows, i] = np.where(trk[:, None], np.asarray(quat_per[src], float).reshape(k, 4), np.nan)
+        tracked[rows, i] = trk
+        if len(err_per[src]) == k:
+            err[rows, i] = err_per[src]
+    stamps_arr = np.asarray(stamps, np.int64)[order]
+    return MocapSeries(np.zeros(n), np.asarray(numbers, np.int64)[order], bodies, position, quat, tracked, err,
+                       name=bag.name, meta={"path": str(bag), "source": f"{MOCAP_FRAME} {conn.topic}",
+                                            "_stamps": stamps_arr, "_first_ns": int(stamps_arr[0])})
+
+
+def _series_from_poses(reader, conns, prefix: str, bag: Path, merge_tolerance: float) -> MocapSeries:
+    pattern = re.compile("^" + re.escape(prefix.rstrip("/")) + r"/([^/]+)/pose$")
+    body_conns: dict[str, list] = {}
+    for c in conns:
+        mt = pattern.match(c.topic)
+        if mt and c.msgtype == POSE_STAMPED:
+            body_conns.setdefault(mt.group(1), []).append(c)
+    if not body_conns:
+        topics = ", ".join(sorted({c.topic for c in conns})) or "none"
+        raise InputError(f"no {MOCAP_FRAME} topic and no {POSE_STAMPED} topics {prefix}/<Body>/pose "
+                         f"(bag has: {topics})", path=bag)
+    bodies = list(body_conns)
+    per_body = []
+    for name in bodies:
+        raws = [bytes(data) for _, _, data in reader.messages(connections=body_conns[name])]
+        try:
+            stamp, pos, quat = posestamped_arrays(raws)
+        except InputError:   # big-endian or odd encodings: the slow, general route
+            msgs = [reader.deserialize(r, POSE_STAMPED) for r in raws]
+            stamp = np.array([m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in msgs], np.int64)
+            pos = np.array([(m.pose.position.x, m.pose.position.y, m.pose.position.z) for m in msgs]).reshape(-1, 3)
+            quat = np.array([(m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
+                              m.pose.orientation.w) for m in msgs]).reshape(-1, 4)
+        per_body.append((stamp, pos, quat))
+    all_stamps = np.unique(np.concatenate([s for s, _, _ in per_body]))
+    # Merge stamps of one frame that differ by jitter: new frame where the gap exceeds the tolerance.
+    periods = [np.median(np.diff(np.unique(s))) for s, _, _ in per_body if np.unique(s).size > 1]
+    if all_stamps.size > 1 and periods:
+        period = float(np.median(periods))         # per body: one body's stamps are one per frame
+        gaps = np.diff(all_stamps) > merge_tolerance * period
+        group = np.concatenate([[0], np.cumsum(gaps)])
+    else:
+        group = np.zeros(all_stamps.size, np.int64)
+    starts = np.flatnonzero(np.concatenate([[True], np.diff(group) > 0]))
+    frame_stamps = all_stamps[starts]
+    n, b = frame_stamps.size, len(bodies)
+    position, quat = np.full((b, n, 3), np.nan), np.full((b, n, 4), np.nan)
+    tracked = np.zeros((b, n), bool)
+    for j, (stamp, pos, q) in enumerate(per_body):
+        cols = group[np.searchsorted(all_stamps, stamp)]
+        position[j, cols], quat[j, cols], tracked[j, cols] = pos, q, True
+    return MocapSeries(np.zeros(n), np.full(n, -1, np.int64), bodies, position, quat, tracked,
+                       np.full((b, n), np.nan), name=bag.name,
+                       meta={"path": str(bag), "source": f"{POSE_STAMPED} {prefix}/<Body>/pose",
+                             "_stamps": frame_stamps, "_first_ns": int(frame_stamps[0])})
