@@ -205,7 +205,8 @@ def test_euler_rotation_types(tmp_path, order):
     for k in range(6):
         a = dict(zip("XYZ", np.radians(angles[k])))
         # Motive's relative (intrinsic) order: about the first axis, then the new second, then the new third.
-        R_file = ELEMENTARY[order[0]](a[order[0]]) @ ELEMENTARY[order[1]](a[order[1]]) @ ELEMENTARY[order[2]](a[order[2]])
+        first, second, third = (ELEMENTARY[ax](a[ax]) for ax in order)
+        R_file = first @ second @ third
         np.testing.assert_allclose(rotation_matrices(s.quat[0, k]), M.T @ R_file @ M, atol=1e-8)
         np.testing.assert_allclose(s.position[0, k], M.T @ p_file[k], atol=1e-8)
     assert np.all(s.quat[0, :, 3] >= 0)
@@ -225,7 +226,8 @@ def test_euler_is_intrinsic_not_extrinsic(tmp_path):
 def test_length_units_scale_positions_and_marker_error(tmp_path, units, scale):
     p_file = np.array([1234.5, 876.0, -2000.0])
     cells = ["0", "0", "0", "1"] + [f9(v) for v in p_file] + ["0.5"]
-    s = read_motive_csv(put(tmp_path, motive_text(rb_columns("E"), [row(0, cells)], meta=meta_with(Length_Units=units))))
+    text = motive_text(rb_columns("E"), [row(0, cells)], meta=meta_with(Length_Units=units))
+    s = read_motive_csv(put(tmp_path, text))
     np.testing.assert_allclose(s.position[0, 0], scale * np.array([1234.5, 2000.0, 876.0]), rtol=1e-12)
     assert s.mean_marker_error[0, 0] == pytest.approx(0.5 * scale)
     assert s.meta["length_units"] == units
@@ -286,7 +288,8 @@ def test_crlf_equals_lf(tmp_path):
 
 
 def test_quoted_names_with_commas_and_duplicate_names_across_types(tmp_path):
-    cols = (marker_columns("E", "E") + rb_columns("Rider, left hand", '"7"') + marker_columns("E", "9", "Rigid Body Marker")
+    cols = (marker_columns("E", "E") + rb_columns("Rider, left hand", '"7"')
+            + marker_columns("E", "9", "Rigid Body Marker")
             + rb_columns("E", "2"))
     hand = pose_cells(np.eye(3), [1, 2, 3])
     e = pose_cells(np.eye(3), [4, 5, 6])
@@ -344,7 +347,7 @@ def test_without_any_rate_the_time_column_gives_it(tmp_path):
 
 def test_body_selection_and_order(tmp_path):
     cols = rb_columns("A", "1") + rb_columns("B", "2") + rb_columns("C", "3")
-    rows = [row(0, pose_cells(np.eye(3), [1, 0, 0]) + pose_cells(np.eye(3), [2, 0, 0]) + pose_cells(np.eye(3), [3, 0, 0]))]
+    rows = [row(0, sum((pose_cells(np.eye(3), [x, 0, 0]) for x in (1, 2, 3)), []))]
     p = put(tmp_path, motive_text(cols, rows))
     s = read_motive_csv(p, bodies=["C", "A"])
     assert s.bodies == ["C", "A"]
@@ -496,7 +499,8 @@ def test_rotation_type_disagrees_with_columns(tmp_path):
         read_motive_csv(put(tmp_path, motive_text(rb_columns("E"), simple_rows(), meta=meta_with(Rotation_Type="XYZ")),
                             "a.csv"))
     rows = [r[:5] + r[6:] for r in simple_rows()]
-    with pytest.raises(InputError, match=r"line 7, column 3: Rotation Type Quaternion needs rotation columns X, Y, Z, W"):
+    pattern = r"line 7, column 3: Rotation Type Quaternion needs rotation columns X, Y, Z, W"
+    with pytest.raises(InputError, match=pattern):
         read_motive_csv(put(tmp_path, motive_text(rb_columns("E", euler=True), rows), "b.csv"))
 
 
