@@ -1,0 +1,188 @@
+"""Maneuvers of the ride simulator: paths, speed profiles, tilt and rider sway.
+
+A run is planned before it is simulated (:func:`plan_run`): its path is a heading ``psi(s)`` as a
+function of the arc length ``s`` travelled by the wheel centre C (``s = x``, the planar model's
+coordinate), its speed reference is a function of time (straight runs) or of the arc length
+(figure-eight), and its tilt is the coordinated-turn lean plus a small wobble. Every function here
+takes scalars or numpy arrays.
+
+Maneuvers (EUC paper, Table 1 and Figs 6-7):
+
+* ``constant_speed``: one speed (2.5-3.5 m/s).
+* ``acceleration``: from about 1 m/s to 3.3-3.7 m/s over 3-4 s.
+* ``deceleration``: from 3.3-3.7 m/s to about 1 m/s over 3-4 s.
+* ``figure_eight``: about 1.7-2 m/s on a figure-eight of heading ``psi(s) = psi0 + a sin(2 pi s / L)``
+  with ``a`` the first zero of the Bessel function J0 (the curve then closes), L = 16 m
+  (about 6 m x 2.2 m).
+
+Straight runs alternate their direction (psi0 = 0, pi) as in the paper (U-turns outside the
+capture volume) and wander by about 1.5 deg of heading.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError
+
+#: Maneuver names accepted by the simulator.
+MANEUVERS = ("constant_speed", "acceleration", "deceleration", "figure_eight")
+
+#: First zero of J0: with this heading amplitude the sinusoidal-heading curve closes on itself.
+FIGURE_EIGHT_AMPLITUDE = 2.404825557695773
+#: Length of one figure-eight [m].
+FIGURE_EIGHT_LENGTH_M = 16.0
+#: Default recording duration per maneuver [s].
+DEFAULT_DURATION_S = {"constant_speed": 5.0, "acceleration": 6.5, "deceleration": 6.5, "figure_eight": 30.0}
+
+
+@dataclass(frozen=True)
+class HeadingPath:
+    """Heading as a function of arc length: ``psi(s) = psi0 + a sin(2 pi s / L + p)``.
+
+    Parameters
+    ----------
+    psi0 : float
+        Mean heading [rad].
+    amplitude : float
+        Heading amplitude a [rad].
+    length : float
+        Wavelength L [m].
+    phase : float
+        Phase p [rad].
+    """
+
+    psi0: float
+    amplitude: float
+    length: float
+    phase: float = 0.0
+
+    def psi(self, s):
+        """Heading [rad] at arc length s [m]."""
+        return self.psi0 + self.amplitude * np.sin(2 * np.pi * np.asarray(s) / self.length + self.phase)
+
+    def kappa(self, s):
+        """Curvature d psi / d s [1/m] at arc length s."""
+        k = 2 * np.pi / self.length
+        return self.amplitude * k * np.cos(k * np.asarray(s) + self.phase)
+
+    def dkappa(self, s):
+        """d kappa / d s [1/m^2] at arc length s."""
+        k = 2 * np.pi / self.length
+        return -self.amplitude * k * k * np.sin(k * np.asarray(s) + self.phase)
+
+
+@dataclass(frozen=True)
+class SpeedProfile:
+    """Speed reference of the rider.
+
+    Straight runs: ``v0`` until ``t1``, a smoothstep to ``v1`` over ``ramp_s``, then ``v1``.
+    Figure-eight (``slow_in_turns > 0``): ``v0 - slow_in_turns (kappa / kappa_max)^2`` along the path.
+    """
+
+    v0: float
+    v1: float
+    t1: float
+    ramp_s: float
+    slow_in_turns: float = 0.0
+    kappa_max: float = 1.0
+
+    def reference(self, t, kappa, dkappa_ds, x_dot):
+        """Return ``(v_ref, a_ref)`` [m/s, m/s^2] at time t for the curvature state along the path."""
+        t = np.asarray(t, float)
+        u = np.clip((t - self.t1) / self.ramp_s, 0.0, 1.0)
+        v = self.v0 + (self.v1 - self.v0) * u * u * (3 - 2 * u)
+        a = (self.v1 - self.v0) * 6 * u * (1 - u) / self.ramp_s
+        if self.slow_in_turns:
+            r = kappa / self.kappa_max
+            v = v - self.slow_in_turns * r * r
+            a = a - self.slow_in_turns * 2 * r * dkappa_ds / self.kappa_max * x_dot
+        return v, a
+
+
+@dataclass(frozen=True)
+class Sinusoids:
+    """A sum of sinusoids ``sum_k a_k sin(2 pi f_k t + p_k)`` (rider sway, tilt wobble) [rad]."""
+
+    amplitudes: tuple[float, ...]
+    freqs_hz: tuple[float, ...]
+    phases: tuple[float, ...]
+
+    def __call__(self, t):
+        t = np.asarray(t, float)
+        out = np.zeros_like(t)
+        for a, f, p in zip(self.amplitudes, self.freqs_hz, self.phases):
+            out = out + a * np.sin(2 * np.pi * f * t + p)
+        return out
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """Everything random about one run, drawn before simulation."""
+
+    name: str
+    maneuver: str
+    duration_s: float
+    path: HeadingPath
+    speed: SpeedProfile
+    sway: Sinusoids
+    tilt_wobble: Sinusoids
+
+    def tilt(self, t, x_dot, kappa, g: float):
+        """Tilt theta [rad]: coordinated-turn lean ``-atan(kappa x_dot^2 / g)`` plus a wobble.
+
+        With ``R = Rz(psi) Rx(theta)`` a positive theta tips the top to the right (-y); in a left turn
+        (kappa > 0) the rider leans left, so theta < 0.
+        """
+        return -np.arctan(kappa * x_dot * x_dot / g) + self.tilt_wobble(t)
+
+
+def _sinusoids(rng: np.random.Generator, n: int, total_amp: float, f_lo: float, f_hi: float) -> Sinusoids:
+    amps = rng.uniform(0.5, 1.0, n)
+    amps = amps / amps.sum() * total_amp
+    return Sinusoids(tuple(amps), tuple(rng.uniform(f_lo, f_hi, n)), tuple(rng.uniform(0, 2 * np.pi, n)))
+
+
+def plan_run(maneuver: str, index: int, rng: np.random.Generator, duration_s: float | None = None) -> RunPlan:
+    """Draw the plan of run ``index`` (0-based) of a maneuver.
+
+    Parameters
+    ----------
+    maneuver : str
+        One of :data:`MANEUVERS`.
+    index : int
+        Run index; straight runs alternate heading 0 / pi with it.
+    rng : numpy.random.Generator
+        Source of the run's randomness (speeds, timing, sway, wobble).
+    duration_s : float, optional
+        Recording duration [s]; default :data:`DEFAULT_DURATION_S`.
+    """
+    if maneuver not in MANEUVERS:
+        raise ConfigError(f"unknown maneuver {maneuver!r} (known: {', '.join(MANEUVERS)})", key="maneuver")
+    dur = DEFAULT_DURATION_S[maneuver] if duration_s is None else float(duration_s)
+    if not dur > 0:
+        raise ConfigError(f"must be > 0, got {duration_s}", key="duration_s")
+    sway = _sinusoids(rng, 3, math.radians(rng.uniform(1.0, 1.5)), 0.3, 1.5)
+    wobble = _sinusoids(rng, 2, math.radians(rng.uniform(0.5, 1.0)), 0.2, 0.7)
+    name = f"{maneuver}_{index + 1:02d}"
+    if maneuver == "figure_eight":
+        L = FIGURE_EIGHT_LENGTH_M
+        path = HeadingPath(-math.pi / 2 + rng.uniform(-0.1, 0.1), FIGURE_EIGHT_AMPLITUDE, L, 0.0)
+        v = rng.uniform(1.7, 2.0)
+        speed = SpeedProfile(v, v, 0.0, 1.0, slow_in_turns=0.25,
+                             kappa_max=FIGURE_EIGHT_AMPLITUDE * 2 * math.pi / L)
+        return RunPlan(name, maneuver, dur, path, speed, sway, wobble)
+    psi0 = 0.0 if index % 2 == 0 else math.pi
+    path = HeadingPath(psi0, math.radians(rng.uniform(1.0, 2.0)), rng.uniform(6.0, 10.0), rng.uniform(0, 2 * math.pi))
+    if maneuver == "constant_speed":
+        v = rng.uniform(2.5, 3.5)
+        speed = SpeedProfile(v, v, 0.0, 1.0)
+    else:
+        lo, hi = rng.uniform(0.8, 1.2), rng.uniform(3.3, 3.7)
+        v0, v1 = (lo, hi) if maneuver == "acceleration" else (hi, lo)
+        t1 = rng.uniform(0.5, 1.0)
+        ramp = rng.uniform(3.0, 4.0)
+        speed = SpeedProfile(v0, v1, t1, ramp)
+    return RunPlan(name, maneuver, dur, path, speed, sway, wobble)

@@ -1,0 +1,310 @@
+"""Truth dynamics of the ride simulator: the planar EUC + rider, derived here with sympy.
+
+This module deliberately shares no code with :mod:`euc_ros.core.euc` (the estimator). Instead of
+transcribing the EUC paper's eqs (5)-(8), it writes down the *point kinematics* of Fig. 5 (with the
+geometry of ``papers/ERRATA.md``) and lets sympy form Lagrange's equations of the second kind (eq. 4)
+once, on first use. The tests then compare the result with eqs (5)-(8) written out by hand.
+
+Geometry (longitudinal plane, axes (x forward, z up), SI units)::
+
+    C  = (x, R)                              wheel centre (R: true rolling radius)
+    A  = C + l0 (-sin gamma, -cos gamma)     ankle hinge, below C
+    G0 = C + h0 ( sin gamma,  cos gamma)     EUC body CoG
+    G  = A + h(t) (sin phi, cos phi)         rider CoG, h(t) may vary in time (rheonomic)
+
+Kinetic energy: wheel (mass m_w at C, spin x_dot/R, inertia J_w), EUC body (m_0 at G0, J_0,
+pitch rate gamma_dot), rider (m at G, J about G, pitch rate phi_dot). Gravity is a uniform field
+``g_vec = (g_x, g_z)`` in the plane (nominally ``(0, -g)``; ground slope and tilt-gravity change it), so
+its generalized force is ``Q_i = sum_k m_k g_vec . dr_k/dq_i``.
+
+The equations of motion are assembled as::
+
+    M(q, h) q_ddot + b(q, q_dot, h, h_dot, h_ddot, g_vec) = Q_nc
+
+where ``b`` holds the velocity terms, the rheonomic h(t) terms and minus the gravity forces, and
+``Q_nc`` the non-conservative generalized forces (inputs M_d, M_h and the effects' dQ).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+from functools import lru_cache
+from typing import Callable
+
+import numpy as np
+import sympy as sp
+
+from euc_ros.core.session import Session
+
+#: Standard gravity [m/s^2].
+G_M_PER_S2 = 9.81
+
+#: Names of the generalized coordinates, in order (EUC paper, eq. 4).
+COORDINATES = ("x", "gamma", "phi")
+
+
+@dataclass(frozen=True)
+class PlanarParams:
+    """Physical parameters of the planar model (EUC paper, Table 3), SI units.
+
+    Attributes
+    ----------
+    m : float
+        Rider mass [kg].
+    m0 : float
+        EUC body mass [kg].
+    mw : float
+        Wheel mass [kg].
+    Jw : float
+        Wheel spin inertia [kg m^2].
+    J0 : float
+        EUC body pitch inertia about G0 [kg m^2].
+    J : float
+        Rider pitch inertia about G [kg m^2].
+    R : float
+        Rolling radius of the wheel [m].
+    l0 : float
+        Distance C-A [m].
+    h0 : float
+        Distance C-G0 [m].
+    g : float
+        Gravitational acceleration [m/s^2].
+    """
+
+    m: float = 65.0
+    m0: float = 13.0
+    mw: float = 3.0
+    Jw: float = 0.12
+    J0: float = 0.5
+    J: float = 16.6
+    R: float = 0.2
+    l0: float = 0.05
+    h0: float = 0.075
+    g: float = G_M_PER_S2
+
+    @classmethod
+    def from_session(cls, session: Session) -> "PlanarParams":
+        """Return the parameters a session file states (nominal values)."""
+        e, r = session.euc, session.rider
+        return cls(m=r.mass, m0=e.body_mass, mw=e.wheel_mass, Jw=e.wheel_inertia, J0=e.body_inertia,
+                   J=r.inertia_pitch, R=e.wheel_radius, l0=e.l0, h0=e.h0)
+
+    def as_tuple(self) -> tuple[float, ...]:
+        """Return the values in the order of :data:`_PARAM_ORDER` (the lambdified functions' order)."""
+        return tuple(float(getattr(self, n)) for n in _PARAM_ORDER)
+
+    def with_changes(self, **changes: float) -> "PlanarParams":
+        """Return a copy with some parameters replaced."""
+        return replace(self, **changes)
+
+    @property
+    def total_mass(self) -> float:
+        """m + m0 + mw [kg]."""
+        return self.m + self.m0 + self.mw
+
+
+_PARAM_ORDER = tuple(f.name for f in fields(PlanarParams) if f.name != "g")
+
+
+@dataclass(frozen=True)
+class _Compiled:
+    """Lambdified pieces of the derived model (scalar ``math`` and vectorized ``numpy`` versions)."""
+
+    mass_s: Callable
+    bias_s: Callable
+    jac_g_s: Callable
+    vel_g_s: Callable
+    mass_v: Callable
+    bias_v: Callable
+    jac_g_v: Callable
+    vel_g_v: Callable
+    # sympy expressions kept for the docs and for independent checks
+    M: sp.Matrix
+    b: sp.Matrix
+    syms: dict
+
+
+@lru_cache(maxsize=1)
+def _derive() -> _Compiled:
+    """Form Lagrange's equations from the point kinematics (once per process)."""
+    t = sp.Symbol("t")
+    m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
+    gx, gz = sp.symbols("g_x g_z")
+    xf, gf, pf, hf = (sp.Function(n)(t) for n in ("x", "gamma", "phi", "h"))
+
+    def planar(v0, v1):
+        return sp.Matrix([v0, v1])
+
+    C = planar(xf, R)
+    A = C + l0 * planar(-sp.sin(gf), -sp.cos(gf))
+    G0 = C + h0 * planar(sp.sin(gf), sp.cos(gf))
+    G = A + hf * planar(sp.sin(pf), sp.cos(pf))
+    g_vec = planar(gx, gz)
+
+    def kin(point, mass):
+        v = point.diff(t)
+        return sp.Rational(1, 2) * mass * (v.T * v)[0]
+
+    T = (kin(C, mw) + sp.Rational(1, 2) * Jw * (xf.diff(t) / R) ** 2
+         + kin(G0, m0) + sp.Rational(1, 2) * J0 * gf.diff(t) ** 2
+         + kin(G, m) + sp.Rational(1, 2) * J * pf.diff(t) ** 2)
+    V = -(mw * (g_vec.T * C)[0] + m0 * (g_vec.T * G0)[0] + m * (g_vec.T * G)[0])
+    L = T - V
+
+    qf = [xf, gf, pf]
+    eom = [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in qf]
+
+    # Replace functions of time by plain symbols.
+    x, gam, phi, xd, gd, pd, xdd, gdd, pdd = sp.symbols("x gamma phi x_d gamma_d phi_d x_dd gamma_dd phi_dd")
+    h, hd, hdd = sp.symbols("h h_d h_dd")
+    subs = {}
+    for f, s0, s1, s2 in ((xf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)):
+        subs[f.diff(t, 2)] = s2
+        subs[f.diff(t)] = s1
+        subs[f] = s0
+
+    def plain(e):
+        # second derivatives first so that Derivative(f, t) inside them is not replaced early
+        for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
+            e = e.subs(k, subs[k])
+        return sp.expand(e)
+
+    eom_s = [plain(e) for e in eom]
+    qdd = [xdd, gdd, pdd]
+    M = sp.Matrix(3, 3, lambda i, j: sp.diff(eom_s[i], qdd[j]))
+    b = sp.Matrix([sp.expand(eom_s[i] - sum(M[i, j] * qdd[j] for j in range(3))) for i in range(3)])
+
+    Gp = G.subs(subs)
+    Gs = sp.Matrix([plain(Gp[0]), plain(Gp[1])])
+    jac_G = Gs.jacobian([x, gam, phi])
+    vel_G = sp.Matrix([plain(G.diff(t)[i]) for i in range(2)])
+
+    pars = (m, m0, mw, Jw, J0, J, R, l0, h0)
+    mass_args = (gam, phi, h) + pars
+    m_entries = [M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2]]
+    bias_args = (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz) + pars
+    jac_args = (gam, phi, h) + pars
+    vel_args = (gam, phi, xd, gd, pd, h, hd) + pars
+
+    def lam(args, expr, module):
+        return sp.lambdify(args, expr, modules=module, cse=True)
+
+    jac_list = [jac_G[i, j] for i in range(2) for j in range(3)]
+    return _Compiled(
+        mass_s=lam(mass_args, m_entries, "math"),
+        bias_s=lam(bias_args, list(b), "math"),
+        jac_g_s=lam(jac_args, jac_list, "math"),
+        vel_g_s=lam(vel_args, list(vel_G), "math"),
+        mass_v=lam(mass_args, m_entries, "numpy"),
+        bias_v=lam(bias_args, list(b), "numpy"),
+        jac_g_v=lam(jac_args, jac_list, "numpy"),
+        vel_g_v=lam(vel_args, list(vel_G), "numpy"),
+        M=M, b=b,
+        syms={"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
+              "g": (gx, gz), "params": pars, "G": Gs},
+    )
+
+
+def symbolic_model() -> tuple[sp.Matrix, sp.Matrix, dict]:
+    """Return the derived ``(M, b, symbols)`` as sympy objects (for documentation and checks)."""
+    c = _derive()
+    return c.M, c.b, c.syms
+
+
+def solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2):
+    """Solve a symmetric 3x3 system by Cramer's rule (scalars or broadcasting arrays)."""
+    c00 = a11 * a22 - a12 * a12
+    c01 = a02 * a12 - a01 * a22
+    c02 = a01 * a12 - a02 * a11
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    c11 = a00 * a22 - a02 * a02
+    c12 = a01 * a02 - a00 * a12
+    c22 = a00 * a11 - a01 * a01
+    return ((c00 * r0 + c01 * r1 + c02 * r2) / det,
+            (c01 * r0 + c11 * r1 + c12 * r2) / det,
+            (c02 * r0 + c12 * r1 + c22 * r2) / det)
+
+
+class PlanarModel:
+    """The planar 3-DoF truth model with numeric parameters.
+
+    Parameters
+    ----------
+    params : PlanarParams
+        True physical parameters (not the session's nominal ones when an effect changes them).
+
+    Notes
+    -----
+    Equivalent to the EUC paper's eqs (5)-(8) (checked in the tests against the hand-written
+    equations) extended by a general in-plane gravity vector and a time-varying rider CoG height
+    h(t) (rheonomic terms, see ``docs/ridesim.md``).
+    """
+
+    def __init__(self, params: PlanarParams) -> None:
+        self.params = params
+        self._p = params.as_tuple()
+        self._c = _derive()
+
+    # --- scalar (ODE right-hand side) -------------------------------------------------------------
+    def accel_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float,
+                     hdd: float, gx: float, gz: float, Q0: float, Q1: float, Q2: float):
+        """Return ``(x_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc."""
+        p = self._p
+        a = self._c.mass_s(gam, phi, h, *p)
+        b = self._c.bias_s(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, *p)
+        return solve3(a[0], a[1], a[2], a[3], a[4], a[5], Q0 - b[0], Q1 - b[1], Q2 - b[2])
+
+    def g_point_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float):
+        """Return (dG/dq as 6 numbers row-major (2x3), v_G as 2 numbers) for scalar states."""
+        p = self._p
+        return self._c.jac_g_s(gam, phi, h, *p), self._c.vel_g_s(gam, phi, xd, gd, pd, h, hd, *p)
+
+    # --- vectorized (samples) ---------------------------------------------------------------------
+    def mass_matrix(self, gam, phi, h) -> np.ndarray:
+        """Mass matrix M(q) (..., 3, 3) of eq. (5) for arrays of gamma, phi, h."""
+        gam, phi, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, h)))
+        e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.mass_v(gam, phi, h, *self._p)]
+        return np.stack([np.stack([e[0], e[1], e[2]], -1), np.stack([e[1], e[3], e[4]], -1),
+                         np.stack([e[2], e[4], e[5]], -1)], -2)
+
+    def bias(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz) -> np.ndarray:
+        """Bias vector b (..., 3): velocity terms, rheonomic h(t) terms, minus gravity forces."""
+        args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz)))
+        e = self._c.bias_v(*args, *self._p)
+        return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
+
+    def accelerations(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, Q) -> np.ndarray:
+        """Generalized accelerations (..., 3) for generalized forces Q (..., 3)."""
+        M = self.mass_matrix(gam, phi, h)
+        rhs = np.asarray(Q, float) - self.bias(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz)
+        return np.linalg.solve(M, rhs[..., None])[..., 0]
+
+    def rider_cog_jacobian(self, gam, phi, h) -> np.ndarray:
+        """dG/dq (..., 2, 3) of the rider CoG G (in-plane x and z rows)."""
+        gam, phi, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, h)))
+        e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.jac_g_v(gam, phi, h, *self._p)]
+        return np.stack([np.stack(e[:3], -1), np.stack(e[3:], -1)], -2)
+
+    def rider_cog_velocity(self, gam, phi, xd, gd, pd, h, hd) -> np.ndarray:
+        """In-plane velocity of G (..., 2) including the h_dot term."""
+        args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd)))
+        e = self._c.vel_g_v(*args, *self._p)
+        return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
+
+
+def input_directions(R: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """Generalized-force directions of the internal torques: ``b_d = (1/R, -1, 0)``, ``b_h = (0, 1, -1)``.
+
+    Derived by virtual power: M_d acts on the wheel (spin rate x_dot/R) and -M_d on the body (pitch
+    rate gamma_dot), so ``delta P = M_d (delta x_dot / R - delta gamma_dot)``; M_h acts on the body and
+    -M_h on the rider, ``delta P = M_h (delta gamma_dot - delta phi_dot)`` (EUC paper, eq. A.2).
+    """
+    return (1.0 / R, -1.0, 0.0), (0.0, 1.0, -1.0)
+
+
+def wheel_rate(x_dot, R):
+    """Wheel spin rate [rad/s] for rolling without slip at radius R."""
+    return x_dot / R
+
+
+__all__ = ["COORDINATES", "G_M_PER_S2", "PlanarModel", "PlanarParams", "input_directions", "solve3",
+           "symbolic_model", "wheel_rate"]

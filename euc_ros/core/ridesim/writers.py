@@ -1,0 +1,200 @@
+"""Files of a simulated ride: Motive CSV (spec section 1), session.yaml (section 4), truth, MCAP bag.
+
+Layout of ``write_ride(result, out_dir)``::
+
+    out_dir/
+      session.yaml                 nominal session (never the hidden truth), world_up: y
+      <maneuver>_01.csv            Motive CSV 1.23, Y-up, one group of 8 columns per rigid body
+      <maneuver>_01_truth.csv      true states, accelerations, inputs, h and effect signals per frame
+      ...
+      truth.json                   true h, effects and parameters, seed, per-run list
+      <maneuver>_01_bag/           (with bag=True) rosbag2 MCAP of geometry_msgs/PoseStamped, Z-up
+
+The CSV writer is our own (it does not use the project's reader) and vectorized: the numeric block
+is built with numpy and formatted in one pass; untracked samples are blank cells, dropped frames are
+missing rows.
+"""
+from __future__ import annotations
+
+import dataclasses
+import io
+import json
+import shutil
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+
+import numpy as np
+
+from euc_ros.core.errors import InputError
+from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.ridesim.simulate import RideResult, RunResult
+from euc_ros.core.rotations import z_up_to_y_up_position, z_up_to_y_up_quat
+from euc_ros.core.session import save_session
+
+#: Capture start of the first run (runs follow at 10 min intervals); also the bag's time base.
+CAPTURE_START = datetime(2024, 5, 2, 10, 15, 0, tzinfo=timezone.utc)
+#: Minutes between the capture starts of consecutive runs.
+RUN_SPACING_MIN = 10
+#: Topic prefix of the bag (vrpn_mocap driver convention, spec section 2).
+TOPIC_PREFIX = "/vrpn_mocap"
+
+TRUTH_COLUMNS = ("t", "frame", "x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",
+                 "phi_ddot", "psi", "theta", "M_d", "M_h", "h", "h_dot", "h_ddot", "psi_dot", "a_c", "g_x", "g_z",
+                 "v_ref", "F_contact", "tau_wb", "F_aero_x", "F_aero_z", "dQ_x", "dQ_gamma", "dQ_phi",
+                 "C_x", "C_y", "C_z", "G_x", "G_y", "G_z")
+
+
+def _capture_start(index: int) -> datetime:
+    return CAPTURE_START + timedelta(minutes=RUN_SPACING_MIN * index)
+
+
+def _motive_time(dt: datetime) -> str:
+    hour12 = dt.hour % 12 or 12
+    return f"{dt:%Y-%m-%d} {hour12:02d}.{dt:%M.%S}.{dt.microsecond // 1000:03d} {'AM' if dt.hour < 12 else 'PM'}"
+
+
+def motive_csv_text(series: MocapSeries, *, total_frames: int | None = None, start: datetime = CAPTURE_START) -> str:
+    """Return a Motive CSV (format 1.23, quaternions, meters, global, Y-up) of a Z-up series.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        Z-up poses (NaN / ``tracked == False`` samples become blank cells).
+    total_frames : int, optional
+        ``Total Frames in Take`` (default: last frame + 1).
+    start : datetime
+        Capture start time written in the header.
+    """
+    rate = series.rate_hz
+    b, n = len(series.bodies), series.n_frames
+    total = int(series.frame[-1]) + 1 if total_frames is None else int(total_frames)
+    meta = ["Format Version", "1.23", "Take Name", series.name, "Take Notes", "",
+            "Capture Frame Rate", f"{rate:.6f}", "Export Frame Rate", f"{rate:.6f}",
+            "Capture Start Time", _motive_time(start), "Capture Start Frame", "0",
+            "Total Frames in Take", str(total), "Total Exported Frames", str(n),
+            "Rotation Type", "Quaternion", "Length Units", "Meters", "Coordinate Space", "Global"]
+    groups = [("Rotation", a) for a in "XYZW"] + [("Position", a) for a in "XYZ"] + [("Mean Marker Error", "")]
+    names = [f'"{nm}"' if ("," in nm or " " in nm) else nm for nm in series.bodies]
+    lines = [",".join(meta), "",
+             ",Type," + ",".join(["Rigid Body"] * (8 * b)),
+             ",Name," + ",".join(nm for nm in names for _ in groups),
+             ",ID," + ",".join(str(i + 1) for i in range(b) for _ in groups),
+             ",," + ",".join(g for _ in range(b) for g, _a in groups),
+             "Frame,Time (Seconds)," + ",".join(a for _ in range(b) for _g, a in groups)]
+    ok = series.tracked[..., None]
+    pos = np.where(ok, z_up_to_y_up_position(series.position), np.nan)
+    quat = np.where(ok, z_up_to_y_up_quat(series.quat), np.nan)
+    err = np.where(series.tracked, series.mean_marker_error, np.nan)
+    block = np.concatenate([quat, pos, err[..., None]], axis=-1)  # (b, n, 8)
+    data = np.concatenate([series.frame[:, None].astype(float), (series.frame / rate)[:, None],
+                           block.transpose(1, 0, 2).reshape(n, 8 * b)], axis=1)
+    buf = io.StringIO()
+    np.savetxt(buf, data, fmt=["%d"] + ["%.6f"] * (data.shape[1] - 1), delimiter=",")
+    body = buf.getvalue().replace("nan", "")
+    return "\n".join(lines) + "\n" + body
+
+
+def write_motive_csv(series: MocapSeries, path: str | Path, **kwargs) -> Path:
+    """Write :func:`motive_csv_text` to ``path``; returns the path."""
+    p = Path(path)
+    p.write_text(motive_csv_text(series, **kwargs), encoding="utf-8", newline="\n")
+    return p
+
+
+def truth_table(run: RunResult) -> tuple[tuple[str, ...], np.ndarray]:
+    """Columns and (n, k) values of a run's truth CSV (every frame, including dropped ones)."""
+    s = run.signals
+    cols = {
+        "t": run.t, "frame": run.frame.astype(float),
+        "x": run.q[:, 0], "x_dot": run.q_dot[:, 0], "x_ddot": run.q_ddot[:, 0],
+        "gamma": run.q[:, 1], "gamma_dot": run.q_dot[:, 1], "gamma_ddot": run.q_ddot[:, 1],
+        "phi": run.q[:, 2], "phi_dot": run.q_dot[:, 2], "phi_ddot": run.q_ddot[:, 2],
+        "psi": run.psi, "theta": run.theta, "M_d": run.M_d, "M_h": run.M_h,
+        "h": run.h, "h_dot": run.h_dot, "h_ddot": run.h_ddot, "psi_dot": run.psi_dot,
+        **{k: s[k] for k in ("a_c", "g_x", "g_z", "v_ref", "F_contact", "tau_wb", "F_aero_x", "F_aero_z",
+                             "dQ_x", "dQ_gamma", "dQ_phi")},
+        "C_x": run.C[:, 0], "C_y": run.C[:, 1], "C_z": run.C[:, 2],
+        "G_x": run.G[:, 0], "G_y": run.G[:, 1], "G_z": run.G[:, 2],
+    }
+    assert tuple(cols) == TRUTH_COLUMNS
+    return TRUTH_COLUMNS, np.column_stack([np.broadcast_to(np.asarray(v, float), run.t.shape) for v in cols.values()])
+
+
+def write_truth_csv(run: RunResult, path: str | Path) -> Path:
+    """Write a run's truth table as CSV (header row of column names, SI units, radians)."""
+    cols, data = truth_table(run)
+    p = Path(path)
+    buf = io.StringIO()
+    np.savetxt(buf, data, fmt="%.12g", delimiter=",", header=",".join(cols), comments="")
+    p.write_text(buf.getvalue(), encoding="utf-8", newline="\n")
+    return p
+
+
+def write_bag(series: MocapSeries, path: str | Path, start: datetime = CAPTURE_START) -> Path:
+    """Write a rosbag2 MCAP directory of ``geometry_msgs/msg/PoseStamped`` on ``/vrpn_mocap/<Body>/pose``.
+
+    Stamps are capture times (``start`` + frame / rate); frame_id ``world``; Z-up; untracked samples
+    are not published.
+    """
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    p = Path(path)
+    if p.exists():
+        if (p / "metadata.yaml").exists():
+            shutil.rmtree(p)
+        else:
+            raise InputError("exists and is not a bag directory; remove it or choose another --out", path=p)
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    PoseStamped = ts.types["geometry_msgs/msg/PoseStamped"]
+    Header = ts.types["std_msgs/msg/Header"]
+    Time = ts.types["builtin_interfaces/msg/Time"]
+    Pose = ts.types["geometry_msgs/msg/Pose"]
+    Point = ts.types["geometry_msgs/msg/Point"]
+    Quaternion = ts.types["geometry_msgs/msg/Quaternion"]
+    msgtype = "geometry_msgs/msg/PoseStamped"
+    base_ns = int(start.timestamp()) * 1_000_000_000
+    stamps = base_ns + np.round(series.frame * (1e9 / series.rate_hz)).astype(np.int64)
+    with Writer(p, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        conns = [writer.add_connection(f"{TOPIC_PREFIX}/{b}/pose", msgtype, typestore=ts) for b in series.bodies]
+        for k in range(series.n_frames):
+            ns = int(stamps[k])
+            stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
+            for i, conn in enumerate(conns):
+                if not series.tracked[i, k]:
+                    continue
+                x, y, z = (float(v) for v in series.position[i, k])
+                qx, qy, qz, qw = (float(v) for v in series.quat[i, k])
+                msg = PoseStamped(header=Header(stamp=stamp, frame_id="world"),
+                                  pose=Pose(position=Point(x=x, y=y, z=z),
+                                            orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
+                writer.write(conn, ns, ts.serialize_cdr(msg, msgtype))
+    return p
+
+
+def write_ride(result: RideResult, out_dir: str | Path, *, bag: bool = False) -> list[Path]:
+    """Write a simulated ride to ``out_dir`` (created if missing); returns the written paths.
+
+    Writes ``session.yaml`` (nominal values, ``world_up: y``), per run the Motive CSV and the truth
+    CSV, ``truth.json`` and, with ``bag=True``, one MCAP bag directory per run.
+    """
+    out = Path(out_dir)
+    if out.exists() and not out.is_dir():
+        raise InputError("output path exists and is not a directory", path=out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    session = dataclasses.replace(result.session, world_up="y")
+    save_session(session, out / "session.yaml")
+    written.append(out / "session.yaml")
+    for k, run in enumerate(result.runs):
+        start = _capture_start(k)
+        written.append(write_motive_csv(run.mocap, out / f"{run.name}.csv", total_frames=run.t.size, start=start))
+        written.append(write_truth_csv(run, out / f"{run.name}_truth.csv"))
+        if bag:
+            written.append(write_bag(run.mocap, out / f"{run.name}_bag", start=start))
+    truth = result.truth_dict()
+    truth["capture_start_utc"] = [_capture_start(k).isoformat() for k in range(len(result.runs))]
+    truth["truth_columns"] = list(TRUTH_COLUMNS)
+    (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
+    written.append(out / "truth.json")
+    return written
