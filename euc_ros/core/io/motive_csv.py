@@ -412,7 +412,8 @@ def _scan_rows(rows: list[bytes], start: int, block: _Block) -> np.ndarray:
         else:
             cells = row.split(b",")
         if not row.strip():
-            raise block.error(i, 0, "blank line inside the data rows")
+            raise InputError("blank line inside the data rows", path=block.hdr.path, line=block.first_line + i,
+                             column=1)
         if len(cells) < width:
             last = i == block.n_rows - 1
             what = ("truncated last line" if last else "truncated line") + \
