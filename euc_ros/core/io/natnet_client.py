@@ -17,8 +17,8 @@ Session (see ``docs/natnet.md``)
    socket (unicast: the server sends to the address the CONNECT came from). In unicast the client
    sends KEEPALIVE every ``keepalive_s`` so that the server keeps streaming.
 
-Frames that arrive before SERVERINFO cannot be decoded (the layout depends on the version): they are
-counted as ``dropped_no_version``.
+Frames and MODELDEFs that arrive before SERVERINFO cannot be decoded (the layout depends on the
+version): they are counted as ``dropped_no_version`` (MODELDEF is requested again after SERVERINFO).
 """
 from __future__ import annotations
 
@@ -35,6 +35,7 @@ from euc_ros.core.io.natnet import (
     NAT_CONNECT,
     NAT_FRAMEOFDATA,
     NAT_KEEPALIVE,
+    NAT_MODELDEF,
     NAT_REQUEST_MODELDEF,
     FrameOfData,
     ModelDef,
@@ -111,7 +112,7 @@ class NatNetClient:
     ----------
     stats : dict of str to int
         ``received`` datagrams, ``frames``, ``malformed`` (dropped: undecodable), ``dropped_no_version``
-        (frames before SERVERINFO), ``server_info``, ``model_def``, ``other`` messages,
+        (frames and MODELDEFs before SERVERINFO), ``server_info``, ``model_def``, ``other`` messages,
         ``keepalives_sent``, ``connects_sent``, ``modeldef_requests``, ``send_errors``.
     last_error : str or None
         Message of the last dropped packet or send error.
@@ -269,7 +270,7 @@ class NatNetClient:
     def _handle(self, data: bytes, now_ns: int):
         self.stats["received"] += 1
         mid = int.from_bytes(data[:2], "little") if len(data) >= 2 else -1
-        if mid == NAT_FRAMEOFDATA and self.server_info is None:
+        if mid in (NAT_FRAMEOFDATA, NAT_MODELDEF) and self.server_info is None:
             self.stats["dropped_no_version"] += 1
             return None
         try:

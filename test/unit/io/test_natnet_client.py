@@ -103,8 +103,10 @@ def test_unicast_session_names_frames_keepalives_and_malformed():
         addr = server.wait_for(0)                                   # CONNECT
         assert addr == client.command_address
 
-        server.send(enc.enc_frame(VERSION), addr)                   # a frame before SERVERINFO: undecodable
-        poll_until(client, lambda _: client.stats["dropped_no_version"] == 1)
+        server.send(enc.enc_frame(VERSION), addr)                   # before SERVERINFO: undecodable
+        server.send(enc.enc_modeldef(VERSION), addr)
+        poll_until(client, lambda _: client.stats["dropped_no_version"] == 2)
+        assert client.model_def is None
 
         server.send(enc.enc_server_info(natnet=(4, 1, 0, 0), freq=enc.FREQ), addr)
         msgs = poll_until(client, lambda m: any(isinstance(x, ServerInfo) for x in m))
