@@ -78,6 +78,8 @@ ERROR_COMPONENTS = ("mean marker error", "error per marker")
 MAX_HEADER_LINES = 64
 #: Rows per chunk when an error has to be located.
 _CHUNK_ROWS = 2048
+#: |norm - 1| of a file quaternion above which a warning is added (Motive writes 6 decimals).
+QUAT_NORM_TOLERANCE = 1e-3
 #: Largest plausible pivot distance from the origin of a capture volume [m] (unit sanity check).
 PLAUSIBLE_REACH_M = 50.0
 #: Note printed wherever the up axis is reported.
@@ -485,6 +487,7 @@ def _parse_block(block: _Block) -> np.ndarray:
     if short.size:  # locate and report the first malformed row exactly
         i = int(short[0])
         _scan_rows([data[starts[i]:ends[i]]], i, block)
+        raise block.error(i, 0, "malformed row")  # not reached: the scan names the problem
     if np.any(n_cells > width):  # trailing empty cells beyond the header: exact path
         return _chunked(data.split(b"\n"), block)
     m = _fast(data, n_rows, width)
@@ -697,11 +700,18 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     fin_pos, fin_rot = np.isfinite(pos), np.isfinite(rot)
     finite = fin_pos.all(axis=2) & fin_rot.all(axis=2)
     partial = (fin_pos.any(axis=2) | fin_rot.any(axis=2)) & ~finite
+    norm_error = 0.0
     if rot_type == QUATERNION:
-        with np.errstate(invalid="ignore", divide="ignore"):
-            norm = np.sqrt(np.einsum("bni,bni->bn", rot, rot))
-            tracked = finite & (norm > 1e-9)
-            quat = rot / norm[..., None]
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            big = np.max(np.abs(rot), axis=2, keepdims=True)          # scale first: no overflow
+            unit = rot / big
+            norm = big[..., 0] * np.sqrt(np.einsum("bni,bni->bn", unit, unit))
+            tracked = finite & (norm > 1e-9) & np.isfinite(norm)
+            quat = unit / (norm / big[..., 0])[..., None]
+        if tracked.any():
+            norm_error = float(np.max(np.abs(norm[tracked] - 1.0)))
+            if norm_error > QUAT_NORM_TOLERANCE:
+                warnings.append(f"quaternions are not unit (largest |norm - 1| = {norm_error:.3g}): normalised")
     else:
         tracked = finite
         quat = np.full((b, n, 4), np.nan)
@@ -742,6 +752,7 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
         "occlusions": {g.name: int((~tracked[k]).sum()) for k, g in enumerate(selected)},
         "n_partial_blank": {g.name: int(partial[k].sum()) for k, g in enumerate(selected)},
         "time_column_max_dev_s": time_dev,
+        "max_quat_norm_error": norm_error,
         "warnings": warnings,
         "header": info["header"],
     }

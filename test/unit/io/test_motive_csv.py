@@ -233,6 +233,18 @@ def test_length_units_scale_positions_and_marker_error(tmp_path, units, scale):
     assert s.meta["length_units"] == units
 
 
+def test_non_unit_zero_and_huge_quaternions(tmp_path):
+    rows = [row(0, ["0", "0", "0", "2", "0", "1", "0", ""]),          # norm 2: normalised, warned
+            row(1, ["0", "0", "0", "0", "0", "1", "0", ""]),          # zero: not a rotation -> gap
+            row(2, ["0", "1e200", "0", "1e200", "0", "1", "0", ""])]  # would overflow a naive norm
+    s = read_motive_csv(put(tmp_path, motive_text(rb_columns("E"), rows)))
+    np.testing.assert_array_equal(s.tracked[0], [True, False, True])
+    np.testing.assert_allclose(s.quat[0, 0], [0, 0, 0, 1])
+    np.testing.assert_allclose(s.quat[0, 2], [0, 0, math.sqrt(0.5), math.sqrt(0.5)])  # Y-up y -> Z-up z
+    assert np.isnan(s.quat[0, 1]).all() and np.isnan(s.position[0, 1]).all()
+    assert any("not unit" in w for w in s.meta["warnings"])
+
+
 # -------------------------------------------------------------------------------- gaps and frames
 def test_blank_and_partly_blank_groups_are_gaps_never_zeros(tmp_path):
     cols = rb_columns("E") + marker_columns("E:Marker1")
