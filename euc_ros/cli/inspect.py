@@ -155,14 +155,24 @@ def format_summary(summary: dict) -> str:
 
 
 def _format_generic(s: dict) -> str:
-    lines = []
+    """Bag summary: scalars as ``key: value``, topics and files as tables, other lists/dicts as JSON."""
+    lines = [f"rosbag2 bag    {s.get('path')}"] if s.get("kind") == "rosbag2" else []
     for k, v in s.items():
-        if k == "check":
+        if k in ("check", "kind") or (k == "path" and lines):
             continue
-        if isinstance(v, (dict, list)):
+        if k == "topics" and isinstance(v, list) and all(isinstance(t, dict) for t in v):
+            lines.append(f"topics ({len(v)}):")
+            width = max((len(str(t.get("name", ""))) for t in v), default=0)
+            for t in v:
+                rate = t.get("rate_hz")
+                rate_s = f"{rate:9.2f} Hz" if isinstance(rate, (int, float)) else f"{'?':>9} Hz"
+                lines.append(f"  {str(t.get('name', '?')):<{width}}  {t.get('count', '?'):>8} msgs  {rate_s}  "
+                             f"{t.get('type', '?')}")
+        elif k == "files" and isinstance(v, list) and all(isinstance(f, dict) for f in v):
+            lines.append("files: " + ", ".join(f"{f.get('name', '?')} ({f.get('bytes', '?')} bytes)" for f in v))
+        elif isinstance(v, (dict, list)):
             lines.append(f"{k}:")
-            for line in json.dumps(v, indent=2).splitlines():
-                lines.append(f"  {line}")
+            lines.extend(f"  {line}" for line in json.dumps(v, indent=2).splitlines())
         else:
             lines.append(f"{k}: {v}")
     check = s.get("check")
