@@ -42,7 +42,8 @@ __all__ = [
     "wheel_turning_pitch_rate", "unicycle_turning_steady_state", "non_tilted_turning", "tilted_spinning",
     "wheel_steady_state", "unicycle_steady_state", "straight_rolling_coefficients",
     "wheel_stability_coefficients", "unicycle_stability_coefficients", "straight_rolling_is_stable",
-    "StabilityMap", "wheel_stability_map", "unicycle_stability_map",
+    "StabilityMap", "wheel_stability_map", "unicycle_stability_map", "wheel_turning_lambda2",
+    "wheel_steady_state_counts_rates", "wheel_steady_state_counts_tilt",
 ]
 
 _CHUNK = 8192  # states per Jacobian batch (bounds memory of the complex-step arrays)
@@ -291,6 +292,23 @@ def _grid(theta, psi_dot):
     return th, pd, TH, PD
 
 
+def wheel_turning_lambda2(params: UnicycleParams, theta, psi_dot) -> np.ndarray:
+    """``lambda_{1,2}^2 = s`` of the wheel's turning rolling at ``(theta*, psi_dot*)`` (eqs (14), (20)).
+
+    Computed from the numerical Jacobian of eq (6) at the steady state with the pitch rate of
+    eq (14); negative means neutrally stable, positive unstable. NaN where ``psi_dot* = 0``.
+    """
+    TH, PD = np.broadcast_arrays(np.asarray(theta, dtype=float), np.asarray(psi_dot, dtype=float))
+    FD = wheel_turning_pitch_rate(TH, PD, params)
+    exists = np.isfinite(FD)
+    X = wheel_steady_state(TH, PD, np.where(exists, FD, 0.0)).reshape(len(WHEEL_STATE_NAMES), -1)
+    s = np.empty(X.shape[1])
+    for k in range(0, X.shape[1], _CHUNK):
+        J = wheel_jacobian(params, X[:, k:k + _CHUNK])[:, :WHEEL_ESSENTIAL_STATES, :WHEEL_ESSENTIAL_STATES]
+        s[k:k + _CHUNK] = wheel_stability_coefficients(J)
+    return np.where(exists, s.reshape(TH.shape), np.nan)
+
+
 def wheel_stability_map(params: UnicycleParams, theta, psi_dot) -> StabilityMap:
     """Stability of the wheel's turning rolling over a ``(theta*, psi_dot*)`` grid (Fig. 3).
 
@@ -310,14 +328,80 @@ def wheel_stability_map(params: UnicycleParams, theta, psi_dot) -> StabilityMap:
     th, pd, TH, PD = _grid(theta, psi_dot)
     FD = wheel_turning_pitch_rate(TH, PD, params)
     exists = np.isfinite(FD)
-    X = wheel_steady_state(TH, PD, np.where(exists, FD, 0.0)).reshape(len(WHEEL_STATE_NAMES), -1)
-    s = np.empty(X.shape[1])
-    for k in range(0, X.shape[1], _CHUNK):
-        J = wheel_jacobian(params, X[:, k:k + _CHUNK])[:, :WHEEL_ESSENTIAL_STATES, :WHEEL_ESSENTIAL_STATES]
-        s[k:k + _CHUNK] = wheel_stability_coefficients(J)
-    stable = exists & (s.reshape(TH.shape) < 0)
+    s = wheel_turning_lambda2(params, TH, PD)
+    stable = exists & (s < 0)
     return StabilityMap(th, pd, np.where(exists, FD, np.nan), np.zeros_like(TH), params.R * np.cos(TH),
                         exists, stable, 0.0)
+
+
+def _count_stability(params, theta_roots, psi_roots, pixel, n_pixels):
+    s = wheel_turning_lambda2(params, theta_roots, psi_roots)
+    ok = np.isfinite(s)
+    n_stable = np.bincount(pixel[ok & (s < 0)], minlength=n_pixels)
+    n_unstable = np.bincount(pixel[ok & (s >= 0)], minlength=n_pixels)
+    return n_stable, n_unstable
+
+
+def wheel_steady_state_counts_rates(params: UnicycleParams, psi_dot, phi_dot, max_tilt: float = np.radians(85),
+                                    n_theta: int = 721) -> tuple[np.ndarray, np.ndarray]:
+    """Number of stable and unstable turning-rolling states at each ``(psi_dot*, phi_dot*)`` (Fig. 3(b)).
+
+    For given yaw and pitch rates, the tilt solves eq (13),
+    ``5 psi_dot^2 R sin cos + 6 psi_dot phi_dot R cos + 4 g sin = 0``, which may have several
+    solutions (the folding of the steady-state surface); they are found by sign changes on
+    ``n_theta`` samples of ``|theta| < max_tilt`` and refined linearly.
+
+    Returns
+    -------
+    n_stable, n_unstable : numpy.ndarray of int, shape ``np.broadcast(psi_dot, phi_dot).shape``
+    """
+    PD, FD = np.broadcast_arrays(np.asarray(psi_dot, dtype=float), np.asarray(phi_dot, dtype=float))
+    shape = PD.shape
+    pdf, fdf = PD.ravel(), FD.ravel()
+    th = np.linspace(-max_tilt, max_tilt, n_theta)
+    sn, cs = np.sin(th), np.cos(th)
+    R, g = params.R, params.g
+    roots_th, roots_pix = [], []
+    step = max(1, (1 << 21) // n_theta)
+    for k in range(0, pdf.size, step):
+        p_, f_ = pdf[k:k + step, None], fdf[k:k + step, None]
+        F = 5 * p_**2 * R * sn * cs + 6 * p_ * f_ * R * cs + 4 * g * sn
+        i, j = np.nonzero(F[:, :-1] * F[:, 1:] < 0)
+        f0, f1 = F[i, j], F[i, j + 1]
+        roots_th.append(th[j] - f0 * (th[j + 1] - th[j]) / (f1 - f0))
+        roots_pix.append(i + k)
+    theta_r = np.concatenate(roots_th)
+    pix = np.concatenate(roots_pix)
+    ns, nu = _count_stability(params, theta_r, pdf[pix], pix, pdf.size)
+    return ns.reshape(shape), nu.reshape(shape)
+
+
+def wheel_steady_state_counts_tilt(params: UnicycleParams, theta, phi_dot) -> tuple[np.ndarray, np.ndarray]:
+    """Number of stable and unstable turning-rolling states at each ``(theta*, phi_dot*)`` (Fig. 3(c)).
+
+    Eq (13) is quadratic in the yaw rate: ``(5 R sin cos) psi_dot^2 + (6 phi_dot R cos) psi_dot +
+    4 g sin = 0``; each real root (``theta* != 0``) is a steady state.
+
+    Returns
+    -------
+    n_stable, n_unstable : numpy.ndarray of int
+    """
+    TH, FD = np.broadcast_arrays(np.asarray(theta, dtype=float), np.asarray(phi_dot, dtype=float))
+    shape = TH.shape
+    thf, fdf = TH.ravel(), FD.ravel()
+    R, g = params.R, params.g
+    a = 5 * R * np.sin(thf) * np.cos(thf)
+    b = 6 * fdf * R * np.cos(thf)
+    c = 4 * g * np.sin(thf)
+    disc = b**2 - 4 * a * c
+    ok = (a != 0) & (disc >= 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r1 = (-b + np.sqrt(disc)) / (2 * a)
+        r2 = (-b - np.sqrt(disc)) / (2 * a)
+    pix = np.concatenate([np.nonzero(ok)[0], np.nonzero(ok & (disc > 0))[0]])
+    psi_r = np.concatenate([r1[ok], r2[ok & (disc > 0)]])
+    ns, nu = _count_stability(params, thf[pix], psi_r, pix, thf.size)
+    return ns.reshape(shape), nu.reshape(shape)
 
 
 def unicycle_stability_map(params: UnicycleParams, theta, psi_dot) -> StabilityMap:
