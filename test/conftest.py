@@ -72,3 +72,15 @@ def no_processes_left_behind():
     if leftovers:
         names = ", ".join(f"{p.pid}" for p in leftovers)
         raise RuntimeError(f"processes left behind by the tests (killed): {names}")
+
+
+@pytest.fixture(scope="session")
+def short_ride(tmp_path_factory):
+    """A 3 s deceleration run (Motive CSV, session.yaml, truth) written by the ride simulator."""
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.ridesim.writers import write_ride
+
+    out = tmp_path_factory.mktemp("short_ride")
+    result = simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=3, duration_s=3.0))
+    write_ride(result, out)
+    return out, result

@@ -169,15 +169,12 @@ def params_files_in(args: Sequence[str]) -> list[str]:
 
 def render_params_yaml(node_name: str, specs: Sequence[ParamSpec]) -> str:
     """Render the default ``config/<node>.yaml`` for a spec table: every key, one comment each."""
-    import yaml
+    import json
 
     lines = [f"# Parameters of the {node_name} node (defaults). Units in brackets; SI unless stated.",
              f"{node_name}:", "  ros__parameters:"]
     for s in specs:
-        value = yaml.safe_dump(s.default, default_flow_style=True).strip()
-        if value.endswith("\n..."):
-            value = value[:-4].strip()
-        value = value.removesuffix("...").strip()
+        value = json.dumps(s.default)  # JSON is YAML; quoted strings stay strings for rcl ('y' is not a bool)
         comment = s.description + (f" [{s.unit}]" if s.unit else "")
         if s.choices:
             comment += f"; one of {', '.join(s.choices)}"

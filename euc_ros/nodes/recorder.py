@@ -91,8 +91,9 @@ class Recorder(Node):
         """Close the bag (called by the runtime on shutdown): the bag is complete after this."""
         self.writer.close()
         total = sum(self.counts.values())
-        self.get_logger().info(f"closed {self.path}: {total} messages "
-                               + ", ".join(f"{t}={n}" for t, n in sorted(self.counts.items())))
+        # the context may already be shut down (rosout unavailable): print instead of the node logger
+        print(f"[recorder] closed {self.path}: {total} messages "
+              + ", ".join(f"{t}={n}" for t, n in sorted(self.counts.items())), flush=True)
 
 
 main = main_for(Recorder)
