@@ -233,8 +233,8 @@ def simulate(params: UnicycleParams, controller, x0, t_end: float, dt: float = D
         xs.append(x)
         us.append(u)
         ys.append(np.asarray(y_des, dtype=float))
-    return SimulationResult(np.array(ts), np.array(xs), np.array(us, dtype=float),
-                            np.array(ys).reshape(len(ys), -1), status, sim.dt)
+    y_des = np.array(ys).reshape(len(ys), -1) if ys else np.zeros((0, 0))
+    return SimulationResult(np.array(ts), np.array(xs), np.array(us, dtype=float), y_des, status, sim.dt)
 
 
 @dataclass(frozen=True)

@@ -366,7 +366,7 @@ def wheel_steady_state_counts_rates(params: UnicycleParams, psi_dot, phi_dot, ma
     for k in range(0, pdf.size, step):
         p_, f_ = pdf[k:k + step, None], fdf[k:k + step, None]
         F = 5 * p_**2 * R * sn * cs + 6 * p_ * f_ * R * cs + 4 * g * sn
-        i, j = np.nonzero(F[:, :-1] * F[:, 1:] < 0)
+        i, j = np.nonzero((F[:, :-1] * F[:, 1:] < 0) | ((F[:, :-1] == 0) & (F[:, 1:] != 0)))
         f0, f1 = F[i, j], F[i, j + 1]
         roots_th.append(th[j] - f0 * (th[j + 1] - th[j]) / (f1 - f0))
         roots_pix.append(i + k)
