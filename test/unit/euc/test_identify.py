@@ -132,10 +132,10 @@ def test_full_pipeline_recovers_h_from_synthetic_mocap(symbolic, synth, noise):
             h=h_true, rng=rng, pos_noise=2e-4 if noise else 0.0, rot_noise=np.radians(0.1) if noise else 0.0,
             name=f"run{i}"))
     window_s = 0.25 if noise else 0.2
-    res = identify_h([reconstruct_states(s, SESSION, window_s=window_s) for s in series], P)
+    res = identify_h([reconstruct_states(s, SESSION, window_s=window_s, polyorder=3) for s in series], P)
     fit = res.pooled["3dof"]
     assert abs(fit.h_m - h_true) < (0.02 if noise else 0.01)
     assert fit.rmse_nm < res.pooled["2dof"].rmse_nm
     # The eq (3) definition of phi (angle seen from C) is not the model's: it biases h.
-    eq3 = [reconstruct_states(s, SESSION, window_s=window_s, phi_definition="eq3") for s in series]
+    eq3 = [reconstruct_states(s, SESSION, window_s=window_s, polyorder=3, phi_definition="eq3") for s in series]
     assert abs(identify_h(eq3, P).pooled["3dof"].h_m - h_true) > 0.02
