@@ -9,11 +9,11 @@ takes scalars or numpy arrays.
 Maneuvers (EUC paper, Table 1 and Figs 6-7):
 
 * ``constant_speed``: one speed (2.5-3.5 m/s).
-* ``acceleration``: from about 1 m/s to 3.3-3.7 m/s over 3-4 s.
-* ``deceleration``: from 3.3-3.7 m/s to about 1 m/s over 3-4 s.
-* ``figure_eight``: about 1.7-2 m/s on a figure-eight of heading ``psi(s) = psi0 + a sin(2 pi s / L)``
-  with ``a`` the first zero of the Bessel function J0 (the curve then closes), L = 16 m
-  (about 6 m x 2.2 m).
+* ``acceleration``: from about 1 m/s to 3.3-3.7 m/s over 4-5 s.
+* ``deceleration``: from 3.3-3.7 m/s to about 1 m/s over 4-5 s.
+* ``figure_eight``: about 1.7-2 m/s, 0.6 m/s slower in the tightest turns, on a figure-eight of
+  heading ``psi(s) = psi0 + a sin(2 pi s / L)`` with ``a`` the first zero of the Bessel function J0
+  (the curve then closes), L = 16 m (about 6 m x 2.2 m).
 
 Straight runs alternate their direction (psi0 = 0, pi) as in the paper (U-turns outside the
 capture volume) and wander by about 1.5 deg of heading.
@@ -35,7 +35,7 @@ FIGURE_EIGHT_AMPLITUDE = 2.404825557695773
 #: Length of one figure-eight [m].
 FIGURE_EIGHT_LENGTH_M = 16.0
 #: Default recording duration per maneuver [s].
-DEFAULT_DURATION_S = {"constant_speed": 5.0, "acceleration": 6.5, "deceleration": 6.5, "figure_eight": 30.0}
+DEFAULT_DURATION_S = {"constant_speed": 5.0, "acceleration": 7.0, "deceleration": 7.0, "figure_eight": 30.0}
 
 
 @dataclass(frozen=True)
@@ -74,11 +74,27 @@ class HeadingPath:
         return -self.amplitude * k * k * np.sin(k * np.asarray(s) + self.phase)
 
 
+def smooth_step(u):
+    """C-infinity step from 0 (u <= 0) to 1 (u >= 1) and its derivative d/du.
+
+    ``s(u) = f(u) / (f(u) + f(1 - u))`` with ``f(u) = exp(-1/u)`` for u > 0, else 0.
+    """
+    u = np.clip(np.asarray(u, float), 0.0, 1.0)
+    inner = (u > 0) & (u < 1)
+    uu = np.where(inner, u, 0.5)
+    fa, fb = np.exp(-1.0 / uu), np.exp(-1.0 / (1.0 - uu))
+    den = fa + fb
+    s = np.where(inner, fa / den, np.where(u >= 1, 1.0, 0.0))
+    ds = np.where(inner, (fa / uu**2 * fb + fa * fb / (1.0 - uu) ** 2) / den**2, 0.0)
+    return s, ds
+
+
 @dataclass(frozen=True)
 class SpeedProfile:
     """Speed reference of the rider.
 
-    Straight runs: ``v0`` until ``t1``, a smoothstep to ``v1`` over ``ramp_s``, then ``v1``.
+    Straight runs: ``v0`` until ``t1``, a C-infinity :func:`smooth_step` to ``v1`` over ``ramp_s``, then
+    ``v1`` (a person's speed change has no corners, and smooth inputs keep the sampled truth smooth).
     Figure-eight (``slow_in_turns > 0``): ``v0 - slow_in_turns (kappa / kappa_max)^2`` along the path.
     """
 
@@ -92,9 +108,10 @@ class SpeedProfile:
     def reference(self, t, kappa, dkappa_ds, x_dot):
         """Return ``(v_ref, a_ref)`` [m/s, m/s^2] at time t for the curvature state along the path."""
         t = np.asarray(t, float)
-        u = np.clip((t - self.t1) / self.ramp_s, 0.0, 1.0)
-        v = self.v0 + (self.v1 - self.v0) * u * u * (3 - 2 * u)
-        a = (self.v1 - self.v0) * 6 * u * (1 - u) / self.ramp_s
+        u = (t - self.t1) / self.ramp_s
+        step, dstep = smooth_step(u)
+        v = self.v0 + (self.v1 - self.v0) * step
+        a = (self.v1 - self.v0) * dstep / self.ramp_s
         if self.slow_in_turns:
             r = kappa / self.kappa_max
             v = v - self.slow_in_turns * r * r
@@ -171,7 +188,7 @@ def plan_run(maneuver: str, index: int, rng: np.random.Generator, duration_s: fl
         L = FIGURE_EIGHT_LENGTH_M
         path = HeadingPath(-math.pi / 2 + rng.uniform(-0.1, 0.1), FIGURE_EIGHT_AMPLITUDE, L, 0.0)
         v = rng.uniform(1.7, 2.0)
-        speed = SpeedProfile(v, v, 0.0, 1.0, slow_in_turns=0.25,
+        speed = SpeedProfile(v, v, 0.0, 1.0, slow_in_turns=0.6,
                              kappa_max=FIGURE_EIGHT_AMPLITUDE * 2 * math.pi / L)
         return RunPlan(name, maneuver, dur, path, speed, sway, wobble)
     psi0 = 0.0 if index % 2 == 0 else math.pi
@@ -183,6 +200,6 @@ def plan_run(maneuver: str, index: int, rng: np.random.Generator, duration_s: fl
         lo, hi = rng.uniform(0.8, 1.2), rng.uniform(3.3, 3.7)
         v0, v1 = (lo, hi) if maneuver == "acceleration" else (hi, lo)
         t1 = rng.uniform(0.5, 1.0)
-        ramp = rng.uniform(3.0, 4.0)
+        ramp = rng.uniform(4.0, 5.0)
         speed = SpeedProfile(v0, v1, t1, ramp)
     return RunPlan(name, maneuver, dur, path, speed, sway, wobble)
