@@ -90,7 +90,7 @@ class UnicycleSimulator:
     >>> p = UnicycleParams()
     >>> sim = UnicycleSimulator(p, straight_rolling_state(p, 5.0), dt=0.01)
     >>> x, status = sim.step(0.0)
-    >>> status, round(sim.t, 2), round(x[8], 4)
+    >>> status, round(sim.t, 2), round(float(x[8]), 4)
     ('ok', 0.01, 0.05)
     """
 
