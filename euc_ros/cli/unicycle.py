@@ -53,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros unicycle``."""
     sub = parser.add_subparsers(dest="unicycle_command", metavar="SUBCOMMAND", required=True)
 
-    p = sub.add_parser("gains", help="steering gains placing every non-zero closed-loop root at --pole (Tables II, III)")
+    p = sub.add_parser("gains", help="gains placing every non-zero closed-loop root at --pole (Tables II, III)")
     p.add_argument("--maneuver", required=True, choices=("lane_change", "turn"))
     p.add_argument("--speed", required=True, type=float, metavar="M/S", help="design speed v = R phi_dot*")
     p.add_argument("--pole", type=float, default=-8.0, metavar="1/S", help="closed-loop root (default -8)")

@@ -27,7 +27,7 @@ from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams, _scalar_
 __all__ = [
     "STATUS_OK", "STATUS_TILT", "STATUS_GROUND", "STATUS_NON_FINITE", "DEFAULT_DT", "DEFAULT_SUBSTEPS",
     "DEFAULT_MAX_TILT", "domain_status", "rk4_step", "UnicycleSimulator", "SimulationResult", "simulate",
-    "ManeuverMetrics", "maneuver_metrics",
+    "ManeuverMetrics", "maneuver_metrics", "reference_path",
 ]
 
 STATUS_OK = "ok"
@@ -182,6 +182,8 @@ class SimulationResult:
         :data:`STATUS_OK` if ``t_end`` was reached, else why the run stopped.
     dt : float
         Control period [s].
+    meta : dict
+        Free-form annotations (empty unless a caller adds some).
     """
 
     t: np.ndarray
