@@ -2,17 +2,24 @@
 
 Sources (parameter ``source``):
 
-* ``csv``: a Motive CSV export replayed at real time times ``rate_factor`` (stamps: replay start or
-  the file's capture start, plus frame / rate);
+* ``csv``: a Motive CSV export replayed at real time times ``rate_factor``; stamps are the replay
+  start plus ``(frame - first frame) / rate`` (``stamp_mode: replay``) or the file's capture start
+  time plus ``frame / rate`` (``stamp_mode: file``); ``stamp_source`` FILE_TIME.
 * ``topics``: one ``geometry_msgs/PoseStamped`` per body on ``<topic_prefix>/<Body>/pose``
-  (vrpn_mocap convention), assembled into frames by stamp;
-* ``natnet``: live Motive over NatNet 3.x/4.x (multicast or unicast), stamped with the capture time
-  (receive time minus the latency the server reports).
+  (vrpn_mocap convention, Z-up), assembled into frames by header stamp; frame stamp = header stamp
+  (``stamp_source`` SOURCE_HEADER), frame number -1 (unknown).
+* ``natnet``: live Motive over NatNet 3.x/4.x (multicast or unicast with keep-alives), stamped with
+  the capture time: receive time minus the latency the server reports (``stamp_source``
+  CAPTURE_TIME; RECEIVE_TIME for frames without a usable latency).
+
+Bad input never stops the node: duplicate and out-of-order stamps or frame numbers, malformed
+NatNet packets and invalid poses are dropped (or published untracked) and counted in the
+diagnostics. The logic lives in :mod:`euc_ros.core.ingest`; this module only wires ROS.
 
 Publishes
     ``mocap/frame`` (euc_msgs/MocapFrame, reliable), ``mocap/<body>/pose`` (PoseStamped, tracked
     bodies only), ``/tf`` (world -> body, same stamps), ``/diagnostics`` (tracking rate, lost
-    bodies, dropped/duplicate/malformed counts).
+    bodies, dropped/duplicate/out-of-order/restart/malformed counts).
 Subscribes
     ``<topic_prefix>/<Body>/pose`` with the sensor-data QoS (source ``topics``).
 """
@@ -27,8 +34,16 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
-from euc_ros.core.errors import EucError
-from euc_ros.core.ingest import Frame, PoseSynchronizer, TrackingStats, replay_schedule
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.ingest import (
+    Frame,
+    PoseSynchronizer,
+    TrackingStats,
+    capture_start_ns,
+    frame_from_natnet,
+    natnet_capture_stamp,
+    replay_schedule,
+)
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.params import ParamSpec, declare_params
@@ -37,35 +52,67 @@ from euc_ros.nodes.runtime import main_for
 SPECS = (
     ParamSpec("source", "csv", "where poses come from", choices=("csv", "topics", "natnet")),
     ParamSpec("csv_path", "", "Motive CSV export to replay (source csv)"),
-    ParamSpec("world_up", "y", "up axis of the Motive world (Motive's default is y)", choices=("y", "z")),
-    ParamSpec("bodies", [""], "rigid bodies to publish, in order (empty: all in the source)"),
+    ParamSpec("world_up", "y", "up axis of the Motive world, CSV and NatNet (Motive's default is y)",
+              choices=("y", "z")),
+    ParamSpec("bodies", [""], "rigid bodies to publish, in order (empty: all in the source; required for topics)"),
     ParamSpec("rate_factor", 1.0, "replay speed relative to real time (source csv)", "", 0.01, 1000.0),
-    ParamSpec("loop", False, "restart the CSV replay at the end"),
-    ParamSpec("stamp_mode", "replay", "csv stamps: replay start + frame/rate, or the file's capture start",
+    ParamSpec("loop", False, "restart the CSV replay at the end (replay stamps keep increasing)"),
+    ParamSpec("stamp_mode", "replay", "csv stamps: replay start + frame/rate, or the file's capture start time",
               choices=("replay", "file")),
     ParamSpec("start_delay", 1.0, "wait before the first CSV frame so subscribers can match", "s", 0.0, 60.0),
+    ParamSpec("wait_subscribers", 0, "also wait until mocap/frame has this many subscriptions, then 0.3 s "
+              "(source csv)", "", 0, 1000),
     ParamSpec("exit_when_done", False, "exit (code 0) after the CSV replay ends and linger has passed"),
     ParamSpec("linger", 1.0, "time to keep running after the last CSV frame", "s", 0.0, 3600.0),
     ParamSpec("topic_prefix", itf.VRPN_PREFIX, "prefix of the per-body PoseStamped inputs (source topics)"),
     ParamSpec("sync_tolerance", 0.002, "poses closer than this belong to one frame (source topics)", "s",
               0.0, 1.0),
-    ParamSpec("sync_timeout", 0.05, "a partial frame is published untracked after this (source topics)", "s",
-              0.001, 10.0),
+    ParamSpec("sync_timeout", 0.05, "a partial frame is published with missing bodies untracked after this "
+              "(source topics)", "s", 0.001, 10.0),
+    ParamSpec("restart_jump", 1.0, "stamps jumping back by more than this mean the source restarted (source topics)",
+              "s", 0.01, 3600.0),
+    ParamSpec("restart_frames", 100, "frame numbers jumping back by more than this mean the source restarted",
+              "frames", 1, 1_000_000_000),
     ParamSpec("server_ip", "127.0.0.1", "Motive host (source natnet)"),
     ParamSpec("local_ip", "0.0.0.0", "local interface for NatNet (source natnet)"),
     ParamSpec("multicast", True, "NatNet multicast (true) or unicast with keep-alives (false)"),
     ParamSpec("multicast_group", "239.255.42.99", "NatNet multicast group"),
     ParamSpec("command_port", 1510, "NatNet command port", "", 1, 65535),
     ParamSpec("data_port", 1511, "NatNet data port", "", 1, 65535),
+    ParamSpec("keepalive_period", 1.0, "period of NatNet keep-alives in unicast", "s", 0.05, 60.0),
+    ParamSpec("max_latency", 1.0, "NatNet latencies above this are not trusted (receive time is used)", "s",
+              0.0, 10.0),
+    ParamSpec("poll_period", 0.001, "how often the NatNet sockets are drained", "s", 0.0002, 0.1),
     ParamSpec("frame_id", "world", "world frame of the published poses (REP-105)"),
     ParamSpec("publish_poses", True, "publish one PoseStamped per body"),
     ParamSpec("publish_tf", True, "publish world -> body transforms on /tf"),
     ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
 )
 
+#: Wait after the wanted subscriptions matched before the CSV replay starts (asymmetric DDS discovery) [s].
+SETTLE_S = 0.3
+
 
 class MocapIngest(Node):
-    """Publish OptiTrack rigid bodies as MocapFrame, poses, TF and diagnostics."""
+    """Publish OptiTrack rigid bodies as MocapFrame, poses, TF and diagnostics.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ``namespace``...).
+
+    Attributes
+    ----------
+    stats : TrackingStats
+        Frame and tracking counters (``frames``, ``dropped``, ``duplicates``, ``out_of_order``,
+        ``restarts``, ``malformed``).
+    published : int
+        MocapFrame messages published.
+    received : int
+        Inputs handled (poses for ``topics``, NatNet messages for ``natnet``, frames for ``csv``).
+    errors : int
+        Inputs that raised while being handled (dropped; the node goes on).
+    """
 
     NAME = "mocap_ingest"
     SPECS = SPECS
@@ -78,162 +125,221 @@ class MocapIngest(Node):
         self.tf_pub = self.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS) if cfg["publish_tf"] else None
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
         self.pose_pubs: dict[str, object] = {}
-        self.stats: TrackingStats | None = None
+        self.stats = TrackingStats(self.bodies, restart_frames=cfg["restart_frames"])
         self.published = 0
+        self.received = 0
+        self.errors = 0
+        self.stamp_source = MocapFrame.STAMP_FILE_TIME
+        self._last_frame_wall: float | None = None
+        self.client = None
+        self.sync = None
         getattr(self, f"_setup_{cfg['source']}")()
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
 
-    # -- sources ---------------------------------------------------------------------------------
+    # -- csv -------------------------------------------------------------------------------------
     def _setup_csv(self) -> None:
         from euc_ros.core.io.motive_csv import read_motive_csv
 
         cfg = self.config
         if not cfg["csv_path"]:
-            raise EucError("parameter 'csv_path' is required with source 'csv'")
+            raise ConfigError("parameter 'csv_path' is required with source 'csv'", key="csv_path")
         series = read_motive_csv(cfg["csv_path"], world_up=cfg["world_up"])
         if self.bodies:
             series = series.select(self.bodies)
         self.series = series
-        self.bodies = list(series.bodies)
-        self.stamp_source = MocapFrame.STAMP_FILE_TIME
+        self._set_bodies(list(series.bodies))
         self._schedule = replay_schedule(series.t, cfg["rate_factor"])
+        n = series.n_frames
+        period = 1.0 / series.rate_hz if np.isfinite(series.rate_hz) and series.rate_hz > 0 else 0.0
+        self._loop_span_s = (float(series.t[-1] - series.t[0]) if n else 0.0) + period   # data time per loop
+        self._file_start_ns = capture_start_ns(series.meta.get("start_time"))
+        if cfg["stamp_mode"] == "file" and self._file_start_ns is None:
+            self.get_logger().warning(f"no readable Capture Start Time in {cfg['csv_path']}: file stamps start at 0")
+            self._file_start_ns = 0
+        self._created = time.monotonic()
+        self._matched_at: float | None = None
+        self._t0_wall: float | None = None
+        self._t0_stamp = 0
+        self._loop_index = 0
         self._next = 0
-        self._t0_wall = time.monotonic() + cfg["start_delay"]
-        if cfg["stamp_mode"] == "file":
-            self._t0_stamp = int(series.meta.get("start_time_ns", 0) or 0)
-        else:
-            self._t0_stamp = self.get_clock().now().nanoseconds + int(cfg["start_delay"] * 1e9)
         self._done_at: float | None = None
-        period = min(0.5 / max(series.rate_hz * cfg["rate_factor"], 1.0), 0.005)
-        self.create_timer(period, self._replay_tick)
-        self.get_logger().info(f"replaying {cfg['csv_path']}: {series.n_frames} frames, {len(self.bodies)} bodies, "
-                               f"x{cfg['rate_factor']}")
+        tick = min(0.5 / max(series.rate_hz * cfg["rate_factor"], 1.0), 0.005)
+        self.create_timer(tick, self._replay_tick)
+        self.get_logger().info(f"replaying {cfg['csv_path']}: {n} frames, {len(self.bodies)} bodies, "
+                               f"x{cfg['rate_factor']}, stamps {cfg['stamp_mode']}")
+
+    def _ready_to_start(self, now: float) -> bool:
+        cfg = self.config
+        if now < self._created + cfg["start_delay"]:
+            return False
+        want = cfg["wait_subscribers"]
+        if want <= 0:
+            return True
+        if self._matched_at is None:
+            if self.frame_pub.get_subscription_count() < want:
+                self.get_logger().info(f"waiting for {want} subscription(s) of {itf.MOCAP_FRAME}",
+                                       throttle_duration_sec=5.0)
+                return False
+            self._matched_at = now
+        return now >= self._matched_at + SETTLE_S
 
     def _replay_tick(self) -> None:
+        cfg, s = self.config, self.series
+        now = time.monotonic()
+        if self._t0_wall is None:
+            if not self._ready_to_start(now):
+                return
+            self._t0_wall = now
+            self._t0_stamp = self.get_clock().now().nanoseconds
         if self._done_at is not None:
-            if self.config["exit_when_done"] and time.monotonic() >= self._done_at + self.config["linger"]:
+            if cfg["exit_when_done"] and now >= self._done_at + cfg["linger"]:
                 self.get_logger().info(f"replay finished: {self.published} frames published")
                 raise SystemExit(0)
             return
-        elapsed = time.monotonic() - self._t0_wall
-        s = self.series
-        t0 = s.t[0] if s.n_frames else 0.0
+        t0 = float(s.t[0]) if s.n_frames else 0.0
+        loop_wall = self._loop_index * self._loop_span_s / cfg["rate_factor"]
+        elapsed = now - self._t0_wall - loop_wall
         while self._next < s.n_frames and self._schedule[self._next] <= elapsed:
             k = self._next
-            stamp = self._t0_stamp + int(round((s.t[k] - t0) * 1e9))
-            if self.config["stamp_mode"] == "file":
-                stamp = self._t0_stamp + int(round(s.t[k] * 1e9))
+            if cfg["stamp_mode"] == "file":
+                stamp = self._file_start_ns + int(round(float(s.t[k]) * 1e9))
+            else:
+                stamp = self._t0_stamp + int(round((float(s.t[k]) - t0 + self._loop_index * self._loop_span_s) * 1e9))
+            self.received += 1
             self._publish(Frame(stamp, int(s.frame[k]), self.bodies, s.position[:, k], s.quat[:, k],
                                 s.tracked[:, k], s.mean_marker_error[:, k]))
             self._next += 1
         if self._next >= s.n_frames:
-            if self.config["loop"] and s.n_frames:
+            if cfg["loop"] and s.n_frames:
                 self._next = 0
-                self._t0_wall = time.monotonic()
-                self._t0_stamp = self.get_clock().now().nanoseconds
-                if self.stats is not None:
-                    self.stats.last_frame_number = None
+                self._loop_index += 1
             else:
-                self._done_at = time.monotonic()
+                self._done_at = now
 
+    # -- topics ----------------------------------------------------------------------------------
     def _setup_topics(self) -> None:
-        if not self.bodies:
-            raise EucError("parameter 'bodies' must list the rigid bodies with source 'topics'")
         cfg = self.config
+        if not self.bodies:
+            raise ConfigError("parameter 'bodies' must list the rigid bodies with source 'topics'", key="bodies")
         self.stamp_source = MocapFrame.STAMP_SOURCE_HEADER
-        self.sync = PoseSynchronizer(self.bodies, cfg["sync_tolerance"], cfg["sync_timeout"])
+        self.sync = PoseSynchronizer(self.bodies, cfg["sync_tolerance"], cfg["sync_timeout"], cfg["restart_jump"])
+        self._set_bodies(self.bodies)
         prefix = cfg["topic_prefix"].rstrip("/")
         for body in self.bodies:
             self.create_subscription(PoseStamped, f"{prefix}/{body}/pose",
                                      lambda msg, b=body: self._on_pose(b, msg), itf.MOCAP_INPUT_QOS)
-        self.create_timer(cfg["sync_timeout"], self._flush)
+        self.create_timer(min(cfg["sync_timeout"] / 2, 0.01), self._flush)
+        self.get_logger().info(f"assembling frames of {', '.join(self.bodies)} from {prefix}/<Body>/pose")
 
     def _on_pose(self, body: str, msg: PoseStamped) -> None:
-        stamp, pos, quat = convert.pose_from_msg(msg)
-        if not (np.all(np.isfinite(pos)) and np.all(np.isfinite(quat))) or abs(np.linalg.norm(quat) - 1) > 1e-3:
-            self._ensure_stats().malformed += 1
-            return
-        for frame in self.sync.push(body, stamp, pos, quat):
-            self._publish(frame)
+        self.received += 1
+        try:
+            stamp, pos, quat = convert.pose_from_msg(msg)
+            for frame in self.sync.push(body, stamp, pos, quat, arrival_ns=time.monotonic_ns()):
+                self._publish(frame)
+        except Exception as exc:   # never die on input
+            self._input_error(exc)
 
     def _flush(self) -> None:
-        for frame in self.sync.flush(self.get_clock().now().nanoseconds):
-            self._publish(frame)
+        try:
+            for frame in self.sync.flush(time.monotonic_ns()):
+                self._publish(frame)
+        except Exception as exc:
+            self._input_error(exc)
 
+    # -- natnet ----------------------------------------------------------------------------------
     def _setup_natnet(self) -> None:
         from euc_ros.core.io.natnet_client import NatNetClient
 
         cfg = self.config
         self.stamp_source = MocapFrame.STAMP_CAPTURE_TIME
+        self._configured_bodies = list(self.bodies)
+        self.names_by_id: dict[int, str] = {}
+        self.no_names_dropped = 0
         self.client = NatNetClient(cfg["server_ip"], local_ip=cfg["local_ip"], multicast=cfg["multicast"],
                                    multicast_group=cfg["multicast_group"], command_port=cfg["command_port"],
-                                   data_port=cfg["data_port"])
-        self.names_by_id: dict[int, str] = {}
-        self.server_info = None
-        self.create_timer(0.001, self._natnet_tick)
+                                   data_port=cfg["data_port"], keepalive_s=cfg["keepalive_period"],
+                                   clock_ns=lambda: self.get_clock().now().nanoseconds)
+        self.create_timer(cfg["poll_period"], self._natnet_tick)
+        mode = "multicast " + cfg["multicast_group"] if cfg["multicast"] else "unicast"
+        self.get_logger().info(f"NatNet: connecting to {cfg['server_ip']}:{cfg['command_port']} ({mode})")
 
     def _natnet_tick(self) -> None:
         from euc_ros.core.io import natnet
 
         try:
             messages = self.client.poll(0.0)
-        except EucError as exc:
-            self._ensure_stats().malformed += 1
-            self.get_logger().warning(f"NatNet: {exc}", throttle_duration_sec=5.0)
+        except Exception as exc:   # the client does not raise on input; be safe anyway
+            self._input_error(exc)
             return
-        now = self.get_clock().now().nanoseconds
         for m in messages:
-            if isinstance(m, natnet.ServerInfo):
-                self.server_info = m
-            elif isinstance(m, natnet.ModelDef):
-                self.names_by_id = {int(i): str(n) for i, n in m.rigid_bodies.items()}
-                if not self.bodies:
-                    self.bodies = list(self.names_by_id.values())
-            elif isinstance(m, natnet.FrameOfData) and self.bodies:
-                self._publish(self._natnet_frame(m, now))
+            self.received += 1
+            try:
+                if isinstance(m, natnet.ServerInfo):
+                    self.get_logger().info(f"NatNet: {m.app_name} {'.'.join(map(str, m.app_version))}, "
+                                           f"NatNet {m.version[0]}.{m.version[1]}")
+                elif isinstance(m, natnet.ModelDef):
+                    self._on_model_def(m)
+                elif isinstance(m, natnet.FrameOfData):
+                    self._on_natnet_frame(m)
+            except Exception as exc:
+                self._input_error(exc)
 
-    def _natnet_frame(self, m, now_ns: int) -> Frame:
-        from euc_ros.core.io import natnet
+    def _on_model_def(self, m) -> None:
+        self.names_by_id = {int(i): str(n) for i, n in m.rigid_bodies.items()}
+        names = list(self.names_by_id.values())
+        if self._configured_bodies:
+            missing = [b for b in self._configured_bodies if b not in names]
+            if missing:
+                self.get_logger().warning(f"NatNet MODELDEF lacks configured bodies {missing} (has {names})")
+            self._set_bodies(self._configured_bodies)
+        else:
+            self._set_bodies(names)
+        self.get_logger().info(f"NatNet MODELDEF: rigid bodies {self.names_by_id}")
 
-        b = len(self.bodies)
-        index = {name: i for i, name in enumerate(self.bodies)}
-        frame = Frame(now_ns, int(m.frame_number), self.bodies, np.full((b, 3), np.nan), np.full((b, 4), np.nan),
-                      np.zeros(b, bool), np.full(b, np.nan))
-        if self.server_info is not None:
-            latency = natnet.latency_s(m, self.server_info)
-            if np.isfinite(latency) and 0 <= latency < 1.0:
-                frame.stamp_ns = now_ns - int(latency * 1e9)
-        for rb in m.rigid_bodies:
-            i = index.get(self.names_by_id.get(int(rb.id), ""))
-            if i is None or not rb.tracking_valid:
-                continue
-            frame.position[i], frame.quat[i] = rb.position, rb.quat
-            frame.tracked[i], frame.mean_marker_error[i] = True, rb.mean_error
-        return frame
+    def _on_natnet_frame(self, m) -> None:
+        from euc_ros.core.io.natnet import latency_s
+
+        if not self.names_by_id or not self.bodies:
+            self.no_names_dropped += 1      # no MODELDEF yet: names unknown, do not guess
+            return
+        receive = m.receive_time_ns if m.receive_time_ns is not None else self.get_clock().now().nanoseconds
+        latency = latency_s(m, self.client.server_info) if self.client.server_info is not None else float("nan")
+        stamp, corrected = natnet_capture_stamp(receive, latency, self.config["max_latency"])
+        frame = frame_from_natnet(m, self.names_by_id, self.bodies, stamp, self.config["world_up"])
+        self._publish(frame, MocapFrame.STAMP_CAPTURE_TIME if corrected else MocapFrame.STAMP_RECEIVE_TIME)
 
     # -- output ----------------------------------------------------------------------------------
-    def _ensure_stats(self) -> TrackingStats:
-        if self.stats is None:
-            self.stats = TrackingStats(self.bodies)
-        return self.stats
+    def _set_bodies(self, bodies: list[str]) -> None:
+        """Use ``bodies`` from now on; create their pose publishers up front (subscribers match early)."""
+        self.bodies = list(bodies)
+        self.stats.set_bodies(self.bodies)
+        if self.config["publish_poses"]:
+            for body in self.bodies:
+                if body not in self.pose_pubs:
+                    self.pose_pubs[body] = self.create_publisher(PoseStamped, itf.body_pose_topic(body),
+                                                                 itf.RELIABLE_QOS)
 
-    def _publish(self, frame: Frame) -> None:
-        stats = self._ensure_stats()
-        if not stats.accept(frame.frame_number):
+    def _input_error(self, exc: Exception) -> None:
+        self.errors += 1
+        self.get_logger().warning(f"input dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+
+    def _publish(self, frame: Frame, stamp_source: int | None = None) -> None:
+        stats = self.stats
+        if not stats.accept(frame.frame_number, frame.stamp_ns):
             return
         stats.update(frame.tracked, frame.stamp_ns)
+        self._last_frame_wall = time.monotonic()
         fid = self.config["frame_id"]
-        self.frame_pub.publish(convert.frame_to_msg(frame, fid, self.stamp_source))
+        source = self.stamp_source if stamp_source is None else stamp_source
+        self.frame_pub.publish(convert.frame_to_msg(frame, fid, source))
         self.published += 1
         transforms = []
         for i, body in enumerate(frame.bodies):
             if not frame.tracked[i]:
                 continue  # an untracked body is invalid in the frame and absent here: never a zero pose
-            if self.config["publish_poses"]:
-                pub = self.pose_pubs.get(body)
-                if pub is None:
-                    pub = self.pose_pubs[body] = self.create_publisher(PoseStamped, itf.body_pose_topic(body),
-                                                                       itf.RELIABLE_QOS)
+            pub = self.pose_pubs.get(body)
+            if pub is not None:
                 pub.publish(convert.pose_stamped(frame.stamp_ns, fid, frame.position[i], frame.quat[i]))
             if self.tf_pub is not None:
                 transforms.append(convert.transform_stamped(frame.stamp_ns, fid, itf.sanitize(body),
@@ -241,17 +347,39 @@ class MocapIngest(Node):
         if transforms:
             self.tf_pub.publish(TFMessage(transforms=transforms))
 
+    def counters(self) -> dict:
+        """Every counter of the stream, as published in the diagnostics."""
+        st = self.stats
+        out = {"source": self.config["source"], "frames": st.frames, "rate_hz": st.frame_rate_hz(),
+               "dropped_frames": st.dropped, "duplicates_dropped": st.duplicates,
+               "out_of_order_dropped": st.out_of_order, "restarts": st.restarts, "malformed_dropped": st.malformed,
+               "input_errors": self.errors, "inputs": self.received}
+        if self.sync is not None:
+            out["duplicates_dropped"] += self.sync.duplicates
+            out["out_of_order_dropped"] += self.sync.out_of_order
+            out["restarts"] += self.sync.restarts
+            out["invalid_poses"] = self.sync.invalid
+        if self.client is not None:
+            cs = self.client.stats
+            out["malformed_dropped"] += cs["malformed"]
+            out["dropped_before_serverinfo"] = cs["dropped_no_version"]
+            out["dropped_before_modeldef"] = self.no_names_dropped
+            out["natnet_version"] = ("?" if self.client.version is None
+                                     else f"{self.client.version[0]}.{self.client.version[1]}")
+            out["send_errors"] = cs["send_errors"]
+        return out
+
     def _publish_diagnostics(self) -> None:
-        stats = self._ensure_stats()
+        stats = self.stats
+        values = self.counters()
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
-        rate = stats.frame_rate_hz()
-        level = convert.OK if stats.frames else convert.STALE
-        arr.status.append(convert.status(
-            "mocap_ingest: stream", level, "receiving" if stats.frames else "no frames yet",
-            {"source": self.config["source"], "frames": stats.frames, "rate_hz": rate, "dropped_frames": stats.dropped,
-             "duplicates_dropped": stats.duplicates, "out_of_order_dropped": stats.out_of_order,
-             "malformed_dropped": stats.malformed}))
+        stale = self._last_frame_wall is None or time.monotonic() - self._last_frame_wall > 1.0
+        if stale:
+            level, message = convert.STALE, "no frames yet" if stats.frames == 0 else "no frames for > 1 s"
+        else:
+            level, message = convert.OK, "receiving"
+        arr.status.append(convert.status("mocap_ingest: stream", level, message, values))
         rates, lost = stats.tracking_rate(), stats.lost()
         for i, body in enumerate(stats.bodies):
             arr.status.append(convert.status(
@@ -262,9 +390,8 @@ class MocapIngest(Node):
 
     def close(self) -> None:
         """Release the NatNet sockets, if any."""
-        client = getattr(self, "client", None)
-        if client is not None:
-            client.close()
+        if self.client is not None:
+            self.client.close()
 
 
 main = main_for(MocapIngest)
