@@ -17,8 +17,9 @@ Rider (a person leaning to follow a speed profile)::
     M_h     = m g h sin(phi) + k_p (phi - phi_des) + k_d phi_dot
 
 with the feed-forward ``c_ff = (m h + R m_eq) / (m g h)`` (the steady lean ``tan(phi) = c_ff a`` of the
-reduced model at constant acceleration a), gravity compensation and a PD ankle torque. The integral of the speed error ``z`` lets the rider hold
-the profile against slopes and resistances as a person would.
+reduced model at constant acceleration a), gravity compensation and a PD ankle torque. The integral
+of the speed error ``z`` lets the rider hold the profile against slopes and resistances as a person
+would.
 """
 from __future__ import annotations
 

@@ -79,6 +79,13 @@ def smooth_step(u):
 
     ``s(u) = f(u) / (f(u) + f(1 - u))`` with ``f(u) = exp(-1/u)`` for u > 0, else 0.
     """
+    if np.ndim(u) == 0:  # scalar fast path (ODE right-hand side), same formula
+        u = float(u)
+        if u <= 0.0 or u >= 1.0:
+            return (1.0 if u >= 1.0 else 0.0), 0.0
+        fa, fb = math.exp(-1.0 / u), math.exp(-1.0 / (1.0 - u))
+        den = fa + fb
+        return fa / den, (fa / u**2 * fb + fa * fb / (1.0 - u) ** 2) / den**2
     u = np.clip(np.asarray(u, float), 0.0, 1.0)
     inner = (u > 0) & (u < 1)
     uu = np.where(inner, u, 0.5)
@@ -107,11 +114,12 @@ class SpeedProfile:
 
     def reference(self, t, kappa, dkappa_ds, x_dot):
         """Return ``(v_ref, a_ref)`` [m/s, m/s^2] at time t for the curvature state along the path."""
-        t = np.asarray(t, float)
-        u = (t - self.t1) / self.ramp_s
-        step, dstep = smooth_step(u)
-        v = self.v0 + (self.v1 - self.v0) * step
-        a = (self.v1 - self.v0) * dstep / self.ramp_s
+        if self.v1 == self.v0:
+            v, a = self.v0 + 0.0 * np.asarray(t, float), 0.0 * np.asarray(t, float)
+        else:
+            step, dstep = smooth_step((np.asarray(t, float) - self.t1) / self.ramp_s)
+            v = self.v0 + (self.v1 - self.v0) * step
+            a = (self.v1 - self.v0) * dstep / self.ramp_s
         if self.slow_in_turns:
             r = kappa / self.kappa_max
             v = v - self.slow_in_turns * r * r
@@ -128,6 +136,10 @@ class Sinusoids:
     phases: tuple[float, ...]
 
     def __call__(self, t):
+        if np.ndim(t) == 0:  # scalar fast path (ODE right-hand side), same formula
+            t = float(t)
+            return sum(a * math.sin(2 * math.pi * f * t + p)
+                       for a, f, p in zip(self.amplitudes, self.freqs_hz, self.phases))
         t = np.asarray(t, float)
         out = np.zeros_like(t)
         for a, f, p in zip(self.amplitudes, self.freqs_hz, self.phases):

@@ -35,7 +35,7 @@ from euc_ros.core.ridesim.effects import AIR_DENSITY, ROLLING_SIGN_SPEED, Effect
 from euc_ros.core.ridesim.maneuvers import MANEUVERS, RunPlan, plan_run
 from euc_ros.core.ridesim.mocap_synth import MocapNoise, corrupt, rotations_to_quats
 from euc_ros.core.ridesim.skeleton import Skeleton
-from euc_ros.core.ridesim.truth_model import G_M_PER_S2, PlanarModel, PlanarParams
+from euc_ros.core.ridesim.truth_model import PlanarModel, PlanarParams
 from euc_ros.core.rotations import quat_from_yaw_tilt_pitch, rotation_matrices
 from euc_ros.core.session import Session, default_session
 
@@ -232,10 +232,12 @@ class _RunDynamics:
     # --- pieces ---
     def h_profile(self, t):
         """h(t), h_dot(t), h_ddot(t) [m, m/s, m/s^2]."""
-        t = np.asarray(t, float)
         if not self.h_w:
-            z = np.zeros_like(t)
+            if np.ndim(t) == 0:
+                return self.h_mean, 0.0, 0.0
+            z = np.zeros_like(np.asarray(t, float))
             return self.h_mean + z, z, z
+        t = np.asarray(t, float)
         s, c = np.sin(self.h_w * t), np.cos(self.h_w * t)
         a, w = self.h_amp, self.h_w
         return self.h_mean + a * s, a * w * c, -a * w * w * s
