@@ -1,0 +1,514 @@
+"""Close the loop: fit candidate effects to the residual M_d1 - M_d2, select by held-out error.
+
+Steps (issue 5): identify h with the paper's 3-DoF model; compute r(t) = M_d1 - M_d2; check each
+candidate's detectability (is its generalized force in span(b_d, b_h)?); fit each detectable
+candidate's parameters jointly with h on training data and evaluate on held-out data (other runs,
+or other segments of a single run); select by held-out error with a one-sided paired test over
+blocks of the held-out residual (Bonferroni-corrected over the candidates) and a minimum relative
+gain; repeat greedily with the selected effects in the model until nothing significant remains.
+
+The residual of a model is ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - dQ)) / D``
+(:mod:`euc_ros.core.euc.torque`), so an extra force with ``w . dQ = 0`` cannot change it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+from scipy import optimize, stats
+
+from euc_ros.core.euc.kinematics import RiderStates, to_moving_frame
+from euc_ros.core.euc.model import EucParams, consistency_weights
+from euc_ros.core.euc.torque import torques
+from euc_ros.core.filters.derivatives import savgol_derivatives
+from euc_ros.core.residual.candidates import Candidate, ModelContext, make_candidates
+
+#: Significance level of the selection test (family-wise over the candidates of one step).
+DEFAULT_ALPHA = 0.01
+#: A selected effect must cut the held-out RMSE by at least this fraction.
+DEFAULT_MIN_GAIN = 0.05
+#: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
+DEFAULT_BLOCK_S = 1.0
+#: An effect is undetectable when its generalized force projects on w = [R, 1, 1] by less than this
+#: fraction of its size (it lies in the span of the input directions).
+DETECTABILITY_TOL = 1e-6
+#: h bounds of the joint fits [m].
+H_BOUNDS = (0.05, 1.6)
+
+
+# --------------------------------------------------------------------------------------------
+# data
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Recording:
+    """One recording prepared for the analysis: its valid samples as a model context."""
+
+    name: str
+    ctx: ModelContext
+    block: np.ndarray  # block index of each sample (for the paired test and single-run folds)
+
+
+def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: int, valid: np.ndarray
+                  ) -> Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time."""
+    t = st.t
+    gamma, psi, theta = st.gamma, st.psi, st.theta
+    # body z axis of the EUC: Rz(psi) Rx(theta) Ry(gamma) e_z, and the hinge A = C - l0 z_E
+    zb = np.stack([np.sin(gamma), -np.sin(theta) * np.cos(gamma), np.cos(theta) * np.cos(gamma)], axis=1)
+    zw = np.stack([np.cos(psi) * zb[:, 0] - np.sin(psi) * zb[:, 1],
+                   np.sin(psi) * zb[:, 0] + np.cos(psi) * zb[:, 1], zb[:, 2]], axis=1)
+    A = st.C - params.l0 * zw
+
+    def phi_of(G):
+        r = to_moving_frame(G - A, psi, theta)
+        return np.arctan2(r[:, 0], r[:, 2])
+
+    phi0 = phi_of(st.G)
+
+    def shift(dt: float):
+        Gs = np.stack([np.interp(t + dt, t, st.G[:, k], left=np.nan, right=np.nan) for k in range(3)], axis=1)
+        d = phi_of(Gs) - phi0
+        der = savgol_derivatives(t, d, window=window, polyorder=polyorder, frame=st.frame)
+        return der.y[valid], der.y_dot[valid], der.y_ddot[valid]
+
+    return shift
+
+
+def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S
+            ) -> list[Recording]:
+    """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook)."""
+    out = []
+    for st in states:
+        valid = np.asarray(st.valid, bool).copy()
+        window = st.window if st.window and st.window % 2 == 1 else 9
+        dpsi = savgol_derivatives(st.t, np.unwrap(st.psi), window=window, polyorder=st.polyorder, frame=st.frame)
+        valid &= np.isfinite(dpsi.y_dot) & np.isfinite(st.theta)
+        ctx = ModelContext(
+            t=st.t[valid] - st.t[0], x_dot=st.x_dot[valid], x_ddot=st.x_ddot[valid], gamma=st.gamma[valid],
+            gamma_dot=st.gamma_dot[valid], gamma_ddot=st.gamma_ddot[valid], phi=st.phi[valid],
+            phi_dot=st.phi_dot[valid], phi_ddot=st.phi_ddot[valid], psi=np.unwrap(st.psi)[valid],
+            psi_dot=dpsi.y_dot[valid], theta=st.theta[valid], params=params)
+        if st.phi_definition == "hinge":
+            ctx.extras["phi_shift"] = _phi_shift_fn(st, params, window, st.polyorder, valid)
+        dt = st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t)))
+        block = np.floor((st.t[valid] - st.t[0]) / max(block_s, dt)).astype(int)
+        out.append(Recording(st.name, ctx, block))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# models
+# --------------------------------------------------------------------------------------------
+@dataclass
+class Model:
+    """The base model plus a list of candidate effects; parameter vector ``[h, theta_1..., theta_2...]``."""
+
+    effects: list[Candidate] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        """``none`` or the effect names joined with ``+`` in selection order."""
+        return "+".join(c.name for c in self.effects) or "none"
+
+    @property
+    def n_params(self) -> int:
+        """1 (h) plus every effect's parameters."""
+        return 1 + sum(c.n_params for c in self.effects)
+
+    def split(self, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
+        """Return (h, [theta per effect])."""
+        out, k = [], 1
+        for c in self.effects:
+            out.append(np.asarray(x[k:k + c.n_params], float))
+            k += c.n_params
+        return float(x[0]), out
+
+    def residual(self, rec: Recording, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``."""
+        h, thetas = self.split(x)
+        ctx = rec.ctx.copy()
+        ctx.overrides["h"] = h
+        ctx.params = ctx.params.with_h(h)
+        mask = np.ones(ctx.t.shape[0], bool)
+        for c, th in zip(self.effects, thetas):
+            c.modify(ctx, th)
+            if ctx.mask is not None:
+                mask &= ctx.mask
+                ctx.mask = None
+        for c, th in zip(self.effects, thetas):
+            dQ = c.force(ctx, th)
+            if dQ is not None:
+                ctx.add_force(dQ)
+        m1, m2 = self.torques(ctx)
+        # M_d1 - M_d2 = R m11 (x_ddot - x_ddot*): compare models on the acceleration mismatch scaled by the
+        # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
+        # For the base model and every effect that keeps R and m this is exactly M_d1 - M_d2.
+        p_mod, p_nom = ctx.p(), rec.ctx.params
+        ratio = (p_nom.R * _m11(p_nom)) / (np.asarray(p_mod.R, float) * _m11(p_mod))
+        r = (m1 - m2) * ratio
+        mask &= np.isfinite(r)
+        return np.where(mask, r, 0.0), mask
+
+    @staticmethod
+    def torques(ctx: ModelContext) -> tuple[np.ndarray, np.ndarray]:
+        """M_d1, M_d2 of a prepared context (eqs (9)-(10) with the context's extensions)."""
+        return torques(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot, ctx.phi_ddot,
+                       ctx.p(), extra_Q=ctx.extra_Q)
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of ``x``."""
+        lo = [H_BOUNDS[0]] + [q.low for c in self.effects for q in c.params]
+        hi = [H_BOUNDS[1]] + [q.high for c in self.effects for q in c.params]
+        return np.array(lo), np.array(hi)
+
+    def scales(self) -> np.ndarray:
+        """Typical magnitudes of ``x`` (least-squares scaling)."""
+        return np.array([0.1] + [q.scale for c in self.effects for q in c.params])
+
+    def starts(self, h0: float, fixed: np.ndarray | None = None) -> list[np.ndarray]:
+        """Starting points: the last effect's starts appended to ``fixed`` (the previous fit) or defaults."""
+        head = np.array([h0]) if fixed is None else np.asarray(fixed, float)
+        known = head.size - 1
+        rest = []
+        k = 0
+        for c in self.effects:
+            if k >= known:
+                rest.append(c.starts())
+            k += c.n_params
+        if not rest:
+            return [head]
+        combos = [head]
+        for options in rest:
+            combos = [np.concatenate([base, s]) for base in combos for s in options]
+        return combos
+
+    def report(self, x: np.ndarray) -> dict[str, float]:
+        """All effect parameters by their reported names."""
+        _, thetas = self.split(x)
+        out: dict[str, float] = {}
+        for c, th in zip(self.effects, thetas):
+            out.update(c.report(th))
+        return out
+
+
+@dataclass
+class Fit:
+    """A model fitted on some recordings."""
+
+    model: Model
+    x: np.ndarray
+    rmse: float
+    n: int
+
+    @property
+    def h(self) -> float:
+        """Fitted CoG height [m]."""
+        return float(self.x[0])
+
+
+def _m11(p: EucParams):
+    """First diagonal entry of the mass matrix, eq (6): m + m0 + mw + Jw / R^2."""
+    return p.m + p.m0 + p.mw + p.Jw / np.asarray(p.R, float) ** 2
+
+
+def _stack_residual(model: Model, recs: Sequence[Recording], x: np.ndarray) -> np.ndarray:
+    parts = [model.residual(r, x)[0] for r in recs]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndarray | None = None) -> Fit:
+    """Least-squares fit of h and the effects' parameters to zero residual on ``recs``.
+
+    Several starting points (multi-modal parameters such as a period) are tried; the best is kept.
+    """
+    lo, hi = model.bounds()
+    best = None
+    for x0 in model.starts(h0, fixed):
+        x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+        try:
+            sol = optimize.least_squares(lambda x: _stack_residual(model, recs, x), x0, bounds=(lo, hi),
+                                         x_scale=model.scales(), method="trf", max_nfev=200 * len(x0))
+        except ValueError:
+            continue
+        cost = float(np.sum(sol.fun ** 2))
+        if best is None or cost < best[0]:
+            best = (cost, sol.x)
+    if best is None:
+        raise RuntimeError(f"fit of model {model.name} failed from every start")
+    masks = [model.residual(r, best[1])[1] for r in recs]
+    n = int(sum(int(m.sum()) for m in masks))
+    return Fit(model, best[1], math.sqrt(best[0] / max(n, 1)), n)
+
+
+def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 111)) -> float:
+    """Grid-then-refine estimate of h with the base model (a good start for every joint fit)."""
+    base = Model()
+    sse = [float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)) for h in h_grid]
+    k = int(np.argmin(sse))
+    lo, hi = h_grid[max(k - 1, 0)], h_grid[min(k + 1, len(h_grid) - 1)]
+    res = optimize.minimize_scalar(lambda h: float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)),
+                                   bounds=(lo, hi), method="bounded")
+    return float(res.x)
+
+
+# --------------------------------------------------------------------------------------------
+# detectability
+# --------------------------------------------------------------------------------------------
+def detectability(candidate: Candidate, recs: Sequence[Recording], h: float) -> float:
+    """Fraction of the candidate's generalized force that is visible in M_d1 - M_d2.
+
+    The generalized-force equivalent of a unit-scale parameter change is compared with its
+    projection on ``w = [R, 1, 1]`` (which annihilates b_d and b_d): 0 means it lies in
+    span(b_d, b_h) and cannot show in the residual.
+    """
+    model = Model([candidate])
+    num = den = 0.0
+    for rec in recs:
+        x0 = np.concatenate([[h], candidate.starts()[0]])
+        x1 = x0.copy()
+        x1[1:] += np.array([q.scale for q in candidate.params])
+        dQ = _equivalent_force(model, rec, x1) - _equivalent_force(model, rec, x0)
+        w = consistency_weights(rec.ctx.params)
+        proj = dQ @ np.asarray(w, float) / np.linalg.norm(w)
+        num += float(np.nansum(proj ** 2))
+        den += float(np.nansum(dQ ** 2))
+    return math.sqrt(num / den) if den > 0 else 0.0
+
+
+def _equivalent_force(model: Model, rec: Recording, x: np.ndarray) -> np.ndarray:
+    """Generalized force a model adds, in the base model's terms: f_base - f_model (n, 3)."""
+    from euc_ros.core.euc.model import bias_terms, gravity_forces, mass_matrix
+
+    h, thetas = model.split(x)
+    ctx = rec.ctx.copy()
+    ctx.params = ctx.params.with_h(h)
+    for c, th in zip(model.effects, thetas):
+        c.modify(ctx, th)
+    for c, th in zip(model.effects, thetas):
+        dQ = c.force(ctx, th)
+        if dQ is not None:
+            ctx.add_force(dQ)
+    n = ctx.t.shape[0]
+    q = np.stack([np.zeros(n), ctx.gamma, ctx.phi], 1)
+    qd = np.stack([ctx.x_dot, ctx.gamma_dot, ctx.phi_dot], 1)
+    qdd = np.stack([ctx.x_ddot, ctx.gamma_ddot, ctx.phi_ddot], 1)
+    p = ctx.p()
+    f = np.einsum("nij,nj->ni", np.broadcast_to(mass_matrix(q, p), (n, 3, 3)), qdd) + bias_terms(q, qd, p) \
+        - gravity_forces(q, p)
+    if ctx.extra_Q is not None:
+        f = f - ctx.extra_Q
+    return -f
+
+
+# --------------------------------------------------------------------------------------------
+# held-out evaluation and selection
+# --------------------------------------------------------------------------------------------
+def folds_of(recs: Sequence[Recording], n_folds: int = 4) -> list[tuple[list[Recording], list[Recording]]]:
+    """Train/test splits: leave-one-run-out over runs (at most ``n_folds`` groups), or contiguous
+    segments of a single run."""
+    if len(recs) >= 2:
+        groups = np.array_split(np.arange(len(recs)), min(n_folds, len(recs)))
+        return [([recs[i] for i in range(len(recs)) if i not in g], [recs[i] for i in g]) for g in groups]
+    rec = recs[0]
+    n = rec.ctx.t.shape[0]
+    edges = np.linspace(0, n, n_folds + 1).astype(int)
+    parts = [_subset(rec, slice(edges[k], edges[k + 1]), f"{rec.name}[{k}]") for k in range(n_folds)]
+    return [([p for j, p in enumerate(parts) if j != k], [parts[k]]) for k in range(n_folds)]
+
+
+def _subset(rec: Recording, sl: slice, name: str) -> Recording:
+    c = rec.ctx
+    sub = ModelContext(**{k: getattr(c, k)[sl] for k in (
+        "t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
+        "psi_dot", "theta")}, params=c.params)
+    shift = c.extras.get("phi_shift")
+    if shift is not None:
+        sub.extras["phi_shift"] = lambda dt, f=shift: tuple(a[sl] for a in f(dt))
+    return Recording(name, sub, rec.block[sl])
+
+
+@dataclass
+class HeldOut:
+    """Held-out residuals of a model over all folds, with their blocks."""
+
+    model: Model
+    residual: np.ndarray
+    block: np.ndarray
+    params: list[np.ndarray]
+
+    @property
+    def rmse(self) -> float:
+        """Held-out RMSE [N m]."""
+        return float(np.sqrt(np.mean(self.residual ** 2))) if self.residual.size else float("nan")
+
+
+def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
+             fixed: np.ndarray | None = None) -> HeldOut:
+    """Fit on each fold's training part, collect the residual on its held-out part."""
+    folds = folds or folds_of(recs)
+    res, blocks, params = [], [], []
+    offset = 0
+    for train, test in folds:
+        fit = fit_model(model, train, h0, fixed)
+        params.append(fit.x)
+        for r in test:
+            rr, mask = model.residual(r, fit.x)
+            res.append(rr[mask])
+            blocks.append(r.block[mask] + offset)
+            offset += int(r.block.max()) + 1 if r.block.size else 0
+    return HeldOut(model, np.concatenate(res), np.concatenate(blocks), params)
+
+
+def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
+    """One-sided p-value that the candidate's held-out squared residual is smaller, over blocks.
+
+    Samples within a block are correlated by the derivative filter, so blocks (~1 s) are the units.
+    """
+    if base.residual.shape != cand.residual.shape:
+        # different masks (e.g. a time shift near gaps): compare on common block means
+        pass
+    ub = np.unique(base.block)
+    mb = np.array([np.mean(base.residual[base.block == b] ** 2) for b in ub])
+    mc = np.array([np.mean(cand.residual[cand.block == b] ** 2) if np.any(cand.block == b) else np.nan for b in ub])
+    d = (mb - mc)[np.isfinite(mc)]
+    if d.size < 3 or np.allclose(d, 0):
+        return 1.0
+    return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)
+
+
+@dataclass
+class CandidateResult:
+    """One row of the candidate table."""
+
+    effect: str
+    detectable: bool
+    visibility: float
+    rmse_after_nm: float
+    p_value: float
+    parameters: dict
+    h_m: float
+
+    def to_dict(self) -> dict:
+        """JSON row."""
+        return {"effect": self.effect, "rmse_after_nm": self.rmse_after_nm, "p_value": self.p_value,
+                "detectable": self.detectable, "visibility": self.visibility, "effect_parameters": self.parameters,
+                "h_m": self.h_m}
+
+
+@dataclass
+class ResidualResult:
+    """Outcome of :func:`analyze`."""
+
+    h_base: float
+    rmse_train_base: float
+    rmse_before: float
+    rmse_after: float
+    effect: str
+    effect_parameters: dict
+    h_after: float
+    final_x: np.ndarray
+    selected: list[str]
+    candidates: list[CandidateResult]
+    steps: list[dict]
+    alpha: float
+    min_gain: float
+    folds: int
+    fold_kind: str
+    base_heldout: HeldOut
+    final_heldout: HeldOut
+    final_model: Model
+
+    def to_json(self) -> dict:
+        """JSON per recording-format spec section 5 (plus the analysis settings and steps)."""
+        rows = sorted(self.candidates, key=lambda c: (not c.detectable, c.rmse_after_nm))
+        table = [c.to_dict() for c in rows]
+        if not any(c["effect"] == "none" for c in table):
+            table.append({"effect": "none", "rmse_after_nm": self.rmse_before, "p_value": None, "detectable": True,
+                          "effect_parameters": {}, "h_m": self.h_base})
+            table.sort(key=lambda c: (not c["detectable"], c["rmse_after_nm"]))
+        return {"h_m": self.h_base, "rmse_before_nm": self.rmse_before, "effect": self.effect,
+                "effect_parameters": self.effect_parameters, "rmse_after_nm": self.rmse_after,
+                "h_after_m": self.h_after, "candidates": table, "selection_steps": self.steps,
+                "significance_level": self.alpha, "min_relative_gain": self.min_gain,
+                "held_out": {"folds": self.folds, "kind": self.fold_kind},
+                "undetectable": [c.effect for c in self.candidates if not c.detectable]}
+
+
+def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Sequence[Candidate] | None = None,
+            alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
+            n_folds: int = 4, progress: Callable[[str], None] | None = None) -> ResidualResult:
+    """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (greedy forward selection).
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        Reconstructed recordings (phi about the hinge for the time-offset candidate).
+    params : EucParams
+        Nominal parameters (``h`` is identified).
+    candidates : sequence of Candidate, optional
+        The library (default: all of :data:`~euc_ros.core.residual.candidates.LIBRARY`).
+    alpha : float
+        Family-wise significance level of each selection step (Bonferroni over the candidates).
+    min_gain : float
+        Minimum relative cut of the held-out RMSE for a selection.
+    """
+    say = progress or (lambda _m: None)
+    candidates = list(candidates) if candidates is not None else make_candidates()
+    recs = prepare(states, params)
+    folds = folds_of(recs, n_folds)
+    h0 = fit_base_h(recs)
+    base_fit = fit_model(Model(), recs, h0)
+    say(f"base model: h = {base_fit.h:.3f} m, RMSE {base_fit.rmse:.3f} N m (training)")
+
+    visible = {c.name: detectability(c, recs, base_fit.h) for c in candidates}
+    detectable = [c for c in candidates if visible[c.name] > DETECTABILITY_TOL]
+    for c in candidates:
+        if c not in detectable:
+            say(f"{c.name}: undetectable (its generalized force lies in span(b_d, b_h))")
+
+    current = Model()
+    current_ho = held_out(current, recs, h0, folds)
+    base_ho = current_ho
+    current_x = base_fit.x
+    rows: dict[str, CandidateResult] = {}
+    steps = []
+    remaining = list(detectable)
+    while remaining and len(current.effects) < max_effects:
+        trials = []
+        for c in remaining:
+            model = Model(current.effects + [c])
+            ho = held_out(model, recs, h0, folds, fixed=current_x)
+            p = paired_block_test(current_ho, ho)
+            full = fit_model(model, recs, h0, fixed=current_x)
+            trials.append((c, model, ho, p, full))
+            say(f"  + {c.name}: held-out RMSE {ho.rmse:.3f} N m (p = {p:.2g})")
+            if not current.effects:
+                rows[c.name] = CandidateResult(c.name, True, visible[c.name], ho.rmse, p,
+                                               model.report(full.x), full.h)
+        threshold = alpha / max(len(remaining), 1)
+        ok = [t for t in trials if t[3] < threshold and t[2].rmse <= (1 - min_gain) * current_ho.rmse]
+        step = {"model": current.name, "rmse_nm": current_ho.rmse, "threshold_p": threshold,
+                "tried": [{"effect": t[0].name, "rmse_after_nm": t[2].rmse, "p_value": t[3]} for t in trials]}
+        if not ok:
+            step["selected"] = None
+            steps.append(step)
+            break
+        best = min(ok, key=lambda t: t[2].rmse)
+        step["selected"] = best[0].name
+        steps.append(step)
+        say(f"selected {best[0].name}: held-out RMSE {current_ho.rmse:.3f} -> {best[2].rmse:.3f} N m")
+        current, current_ho, current_x = best[1], best[2], best[4].x
+        remaining = [c for c in remaining if c is not best[0]]
+    for c in candidates:
+        if c not in detectable:
+            rows[c.name] = CandidateResult(c.name, False, visible[c.name], base_ho.rmse, 1.0, {}, base_fit.h)
+    final_fit = fit_model(current, recs, h0, fixed=current_x) if current.effects else base_fit
+    return ResidualResult(
+        h_base=base_fit.h, rmse_train_base=base_fit.rmse, rmse_before=base_ho.rmse, rmse_after=current_ho.rmse,
+        effect=current.name, effect_parameters=current.report(final_fit.x), h_after=final_fit.h,
+        final_x=final_fit.x, selected=[c.name for c in current.effects], candidates=list(rows.values()),
+        steps=steps, alpha=alpha, min_gain=min_gain, folds=len(folds),
+        fold_kind="leave-runs-out" if len(recs) >= 2 else "segments of one run",
+        base_heldout=base_ho, final_heldout=current_ho, final_model=current)
