@@ -191,6 +191,11 @@ class OnlineHEstimator:
         """The latest estimate."""
         return self._last
 
+    def refresh(self) -> HEstimate:
+        """Re-estimate now from the samples held (whatever ``update_every`` says) and return it."""
+        self._last = self._estimate()
+        return self._last
+
     def _residual(self, coef: np.ndarray, h: float) -> tuple[np.ndarray, np.ndarray]:
         c, a0, a1, a2, d0, d1 = coef
         N = a0 + h * (a1 + h * a2)
