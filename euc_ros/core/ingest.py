@@ -91,13 +91,14 @@ class PoseSynchronizer:
     Dropped and counted (attributes):
 
     ``duplicates``
-        a second pose of a body for a frame it already reported in (same stamp within ``tolerance_s``);
+        a pose of a body with the stamp (within ``tolerance_s``) of that body's previous pose;
     ``out_of_order``
-        a pose older than the last emitted frame (or late for it), by less than ``restart_s``;
+        a pose older than that body's previous pose, or too late for a frame already emitted
+        without it (by less than ``restart_s``);
     ``restarts``
-        not dropped: a pose more than ``restart_s`` older than the last emitted frame means the
-        source restarted (a replay looped, a driver restarted); pending frames are emitted and the
-        order check starts again from that pose;
+        not dropped: a pose more than ``restart_s`` older than the body's previous pose or the last
+        emitted frame means the source restarted (a replay looped, a driver restarted); pending
+        frames are emitted and the order checks start again from that pose;
     ``invalid``
         poses with a NaN or a non-unit quaternion (kept as untracked, counted).
 
@@ -122,7 +123,7 @@ class PoseSynchronizer:
         self.restart_ns = int(round(restart_s * 1e9))
         self._pending: dict[int, _Pending] = {}
         self._last_ns: int | None = None
-        self._last_reported: np.ndarray | None = None
+        self._body_last: list[int | None] = [None] * len(self.bodies)
         self.duplicates = 0
         self.out_of_order = 0
         self.restarts = 0
@@ -162,21 +163,23 @@ class PoseSynchronizer:
         stamp_ns = int(stamp_ns)
         arrival_ns = stamp_ns if arrival_ns is None else int(arrival_ns)
         out: list[Frame] = []
-        last = self._last_ns
-        if last is not None:
-            if stamp_ns < last - self.restart_ns:
-                self.restarts += 1
-                out += [self._emit(k) for k in sorted(self._pending)]
-                self._last_ns = self._last_reported = None
-            elif abs(stamp_ns - last) <= self.tol_ns:
-                if self._last_reported is not None and self._last_reported[i]:
-                    self.duplicates += 1
-                else:
-                    self.out_of_order += 1   # late for a frame already emitted without it
-                return out
-            elif stamp_ns < last:
-                self.out_of_order += 1
-                return out
+        last_b = self._body_last[i]
+        if ((last_b is not None and stamp_ns < last_b - self.restart_ns)
+                or (self._last_ns is not None and stamp_ns < self._last_ns - self.restart_ns)):
+            self.restarts += 1
+            out += [self._emit(k) for k in sorted(self._pending)]
+            self._last_ns = None
+            self._body_last = [None] * len(self.bodies)
+            last_b = None
+        if last_b is not None and abs(stamp_ns - last_b) <= self.tol_ns:
+            self.duplicates += 1
+            return out
+        if last_b is not None and stamp_ns < last_b:
+            self.out_of_order += 1
+            return out
+        if self._last_ns is not None and stamp_ns <= self._last_ns + self.tol_ns:
+            self.out_of_order += 1       # late for a frame already emitted without this body
+            return out
         key = next((k for k in self._pending if abs(k - stamp_ns) <= self.tol_ns), None)
         if key is None:
             key = stamp_ns
@@ -185,6 +188,7 @@ class PoseSynchronizer:
         if entry.reported[i]:
             self.duplicates += 1
             return out
+        self._body_last[i] = stamp_ns
         entry.reported[i] = True
         if valid_pose(position, quat):
             q = np.asarray(quat, float)
@@ -219,7 +223,6 @@ class PoseSynchronizer:
     def _emit(self, key: int) -> Frame:
         entry = self._pending.pop(key)
         self._last_ns = entry.frame.stamp_ns
-        self._last_reported = entry.reported
         return entry.frame
 
 
@@ -235,7 +238,8 @@ class TrackingStats:
 
     Without frame numbers (``-1``, per-body pose topics) dropped frames are counted from gaps in the
     stamps: a gap of ``g`` nominal periods (the median spacing of the window) with ``g > 1.5`` adds
-    ``round(g) - 1``; a stamp going backwards restarts the window.
+    ``round(g) - 1``; a stamp going backwards restarts the window (the stamp ordering, and the restart
+    count, belong to :class:`PoseSynchronizer` upstream).
 
     Parameters
     ----------
@@ -292,7 +296,7 @@ class TrackingStats:
         elif stamp_ns is not None and self._stamps:
             gap = int(stamp_ns) - self._stamps[-1]
             if gap < 0:
-                self._restart()
+                self._stamps.clear()   # stamps went back: the synchronizer upstream counted the restart
             else:
                 period = self.period_ns()
                 if np.isfinite(period) and period > 0 and gap > 1.5 * period:
@@ -302,6 +306,11 @@ class TrackingStats:
     def _restart(self) -> None:
         self.restarts += 1
         self._stamps.clear()
+
+    def restart(self) -> None:
+        """Declare a restart of the source (e.g. a replay that loops): counted, numbering starts again."""
+        self._restart()
+        self.last_frame_number = None
 
     def period_ns(self) -> float:
         """Median stamp spacing over the window [ns] (NaN with fewer than 5 frames)."""

@@ -213,6 +213,7 @@ class MocapIngest(Node):
             if cfg["loop"] and s.n_frames:
                 self._next = 0
                 self._loop_index += 1
+                self.stats.restart()   # frame numbers start again: a restart, not out-of-order frames
             else:
                 self._done_at = now
 
