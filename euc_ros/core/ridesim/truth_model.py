@@ -31,7 +31,6 @@ from functools import lru_cache
 from typing import Callable
 
 import numpy as np
-import sympy as sp
 
 from euc_ros.core.session import Session
 
@@ -125,7 +124,9 @@ class _Compiled:
 
 @lru_cache(maxsize=1)
 def _derive() -> _Compiled:
-    """Form Lagrange's equations from the point kinematics (once per process)."""
+    """Form Lagrange's equations from the point kinematics (once per process, about 0.8 s)."""
+    import sympy as sp  # lazily: only simulations need it
+
     t = sp.Symbol("t")
     m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
     gx, gz = sp.symbols("g_x g_z")
@@ -204,7 +205,7 @@ def _derive() -> _Compiled:
     )
 
 
-def symbolic_model() -> tuple[sp.Matrix, sp.Matrix, dict]:
+def symbolic_model() -> tuple["sp.Matrix", "sp.Matrix", dict]:
     """Return the derived ``(M, b, symbols)`` as sympy objects (for documentation and checks)."""
     c = _derive()
     return c.M, c.b, c.syms

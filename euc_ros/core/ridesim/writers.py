@@ -54,7 +54,7 @@ def _motive_time(dt: datetime) -> str:
 
 
 def motive_csv_text(series: MocapSeries, *, total_frames: int | None = None, start: datetime = CAPTURE_START) -> str:
-    """Return a Motive CSV (format 1.23, quaternions, meters, global, Y-up) of a Z-up series.
+    """Return a Motive CSV (format 1.23, quaternions, meters, global, Y-up, CRLF like Motive) of a Z-up series.
 
     Parameters
     ----------
@@ -89,15 +89,15 @@ def motive_csv_text(series: MocapSeries, *, total_frames: int | None = None, sta
     data = np.concatenate([series.frame[:, None].astype(float), (series.frame / rate)[:, None],
                            block.transpose(1, 0, 2).reshape(n, 8 * b)], axis=1)
     buf = io.StringIO()
-    np.savetxt(buf, data, fmt=["%d"] + ["%.6f"] * (data.shape[1] - 1), delimiter=",")
+    np.savetxt(buf, data, fmt=["%d"] + ["%.6f"] * (data.shape[1] - 1), delimiter=",", newline="\r\n")
     body = buf.getvalue().replace("nan", "")
-    return "\n".join(lines) + "\n" + body
+    return "\r\n".join(lines) + "\r\n" + body
 
 
 def write_motive_csv(series: MocapSeries, path: str | Path, **kwargs) -> Path:
     """Write :func:`motive_csv_text` to ``path``; returns the path."""
     p = Path(path)
-    p.write_text(motive_csv_text(series, **kwargs), encoding="utf-8", newline="\n")
+    p.write_text(motive_csv_text(series, **kwargs), encoding="utf-8", newline="")
     return p
 
 
@@ -130,11 +130,34 @@ def write_truth_csv(run: RunResult, path: str | Path) -> Path:
     return p
 
 
+#: CDR (little endian) layout of a geometry_msgs/msg/PoseStamped with frame_id "world": encapsulation
+#: header, stamp, string length + "world\0", padding to the 8-byte alignment of the float64 fields
+#: (offsets count from the end of the 4-byte encapsulation header), position xyz, orientation xyzw.
+_POSE_CDR = np.dtype([("encap", "<u4"), ("sec", "<i4"), ("nanosec", "<u4"), ("len", "<u4"), ("frame_id", "S6"),
+                      ("pad", "S6"), ("values", "<f8", (7,))])
+
+
+def posestamped_cdr_block(stamp_ns: np.ndarray, position: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    """Serialized PoseStamped messages (k, 84) uint8 for k stamps [ns], positions and quaternions.
+
+    Vectorized equivalent of ``typestore.serialize_cdr`` for frame_id ``world`` (checked in the tests).
+    """
+    k = stamp_ns.shape[0]
+    rec = np.zeros(k, _POSE_CDR)
+    rec["encap"] = 0x00000100  # bytes 00 01 00 00: CDR little endian
+    rec["sec"] = stamp_ns // 1_000_000_000
+    rec["nanosec"] = stamp_ns % 1_000_000_000
+    rec["len"] = 6
+    rec["frame_id"] = b"world\0"
+    rec["values"] = np.concatenate([position, quat], axis=1)
+    return rec.view(np.uint8).reshape(k, _POSE_CDR.itemsize)
+
+
 def write_bag(series: MocapSeries, path: str | Path, start: datetime = CAPTURE_START) -> Path:
     """Write a rosbag2 MCAP directory of ``geometry_msgs/msg/PoseStamped`` on ``/vrpn_mocap/<Body>/pose``.
 
     Stamps are capture times (``start`` + frame / rate); frame_id ``world``; Z-up; untracked samples
-    are not published.
+    are not published. Messages are written in time order.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -146,29 +169,17 @@ def write_bag(series: MocapSeries, path: str | Path, start: datetime = CAPTURE_S
         else:
             raise InputError("exists and is not a bag directory; remove it or choose another --out", path=p)
     ts = get_typestore(Stores.ROS2_JAZZY)
-    PoseStamped = ts.types["geometry_msgs/msg/PoseStamped"]
-    Header = ts.types["std_msgs/msg/Header"]
-    Time = ts.types["builtin_interfaces/msg/Time"]
-    Pose = ts.types["geometry_msgs/msg/Pose"]
-    Point = ts.types["geometry_msgs/msg/Point"]
-    Quaternion = ts.types["geometry_msgs/msg/Quaternion"]
     msgtype = "geometry_msgs/msg/PoseStamped"
     base_ns = int(start.timestamp()) * 1_000_000_000
     stamps = base_ns + np.round(series.frame * (1e9 / series.rate_hz)).astype(np.int64)
+    # (frame, body) pairs in time order, tracked only
+    tracked = series.tracked.T  # (n, b)
+    k_idx, b_idx = np.nonzero(tracked)
+    raw = posestamped_cdr_block(stamps[k_idx], series.position[b_idx, k_idx], series.quat[b_idx, k_idx])
     with Writer(p, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
         conns = [writer.add_connection(f"{TOPIC_PREFIX}/{b}/pose", msgtype, typestore=ts) for b in series.bodies]
-        for k in range(series.n_frames):
-            ns = int(stamps[k])
-            stamp = Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
-            for i, conn in enumerate(conns):
-                if not series.tracked[i, k]:
-                    continue
-                x, y, z = (float(v) for v in series.position[i, k])
-                qx, qy, qz, qw = (float(v) for v in series.quat[i, k])
-                msg = PoseStamped(header=Header(stamp=stamp, frame_id="world"),
-                                  pose=Pose(position=Point(x=x, y=y, z=z),
-                                            orientation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
-                writer.write(conn, ns, ts.serialize_cdr(msg, msgtype))
+        for row, (k, b) in enumerate(zip(k_idx.tolist(), b_idx.tolist())):
+            writer.write(conns[b], int(stamps[k]), raw[row].tobytes())
     return p
 
 

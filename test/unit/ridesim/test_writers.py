@@ -178,3 +178,24 @@ def test_bag_round_trips_through_the_projects_reader(written):
     np.testing.assert_array_equal(s.tracked, rec.tracked)
     ok = rec.tracked
     np.testing.assert_array_equal(s.position[ok], rec.position[ok])
+
+
+def test_vectorized_cdr_equals_the_typestore_serializer():
+    from rosbags.typesys import Stores, get_typestore
+
+    from euc_ros.core.ridesim.writers import posestamped_cdr_block
+
+    ts = get_typestore(Stores.ROS2_JAZZY)
+    T = ts.types
+    rng = np.random.default_rng(0)
+    stamps = np.array([1714644900_123456789, 1714644901_000000001, 5], dtype=np.int64)
+    pos, quat = rng.normal(size=(3, 3)), rng.normal(size=(3, 4))
+    raw = posestamped_cdr_block(stamps, pos, quat)
+    for k in range(3):
+        msg = T["geometry_msgs/msg/PoseStamped"](
+            header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                sec=int(stamps[k] // 10**9), nanosec=int(stamps[k] % 10**9)), frame_id="world"),
+            pose=T["geometry_msgs/msg/Pose"](
+                position=T["geometry_msgs/msg/Point"](x=pos[k, 0], y=pos[k, 1], z=pos[k, 2]),
+                orientation=T["geometry_msgs/msg/Quaternion"](x=quat[k, 0], y=quat[k, 1], z=quat[k, 2], w=quat[k, 3])))
+        assert raw[k].tobytes() == bytes(ts.serialize_cdr(msg, "geometry_msgs/msg/PoseStamped"))
