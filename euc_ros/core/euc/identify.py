@@ -36,7 +36,7 @@ DEFAULT_H_GRID = np.linspace(0.1, 1.2, 221)
 MODELS = ("3dof", "2dof")
 #: Step [m] used for the sharpness of an RMSE(h) curve (relative RMSE increase at h* +- this).
 SHARPNESS_STEP_M = 0.1
-_CHUNK_ELEMENTS = 1 << 21
+_CHUNK_ELEMENTS = 1 << 20
 
 
 def model_params(params: EucParams, model: str) -> EucParams:
@@ -95,18 +95,28 @@ def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: 
 
 
 def _sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Sum of squared residuals for every h (chunked over samples)."""
+    """Sum of squared residuals for every h (chunked over samples, in place to spare memory traffic)."""
     h = np.asarray(h, dtype=float).reshape(-1)
     n = coef.shape[1]
     sse = np.zeros(h.size)
     if n == 0:
         return sse
+    c, a0, a1, a2, d0, d1 = coef
+    a0c, a1c, a2c = c * a0, c * a1, c * a2
     H = h[:, None]
-    step = max(1, _CHUNK_ELEMENTS // max(1, h.size))
+    step = max(1, min(n, _CHUNK_ELEMENTS // h.size))
+    num_buf = np.empty((h.size, step))
+    den_buf = np.empty((h.size, step))
     for s in range(0, n, step):
-        c, a0, a1, a2, d0, d1 = coef[:, s:s + step]
-        e = (c * (a0 + H * (a1 + H * a2))) / (d0 + d1 * H)
-        sse += np.einsum("gn,gn->g", e, e)
+        e = min(n, s + step)
+        num = np.multiply(H, a2c[s:e], out=num_buf[:, :e - s])
+        num += a1c[s:e]
+        num *= H
+        num += a0c[s:e]
+        den = np.multiply(H, d1[s:e], out=den_buf[:, :e - s])
+        den += d0[s:e]
+        num /= den
+        sse += np.einsum("gn,gn->g", num, num)
     return sse
 
 

@@ -61,6 +61,17 @@ def to_moving_frame(v, psi, theta) -> np.ndarray:
     return np.stack([x1, ct * y1 + st * z1, -st * y1 + ct * z1], axis=-1)
 
 
+def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate the body vector ``v`` (3,) by quaternions ``q`` (..., 4) (x, y, z, w), normalised here.
+
+    ``v' = v + 2 w (u x v) + 2 u x (u x v)`` with ``u = (x, y, z)``; NaN quaternions give NaN.
+    """
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
+    u, w = q[..., :3], q[..., 3:4]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
 def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.ndarray]:
     """Wheel centre, hinge, rider CoG and the EUC/rider angles of one or many frames.
 
@@ -93,15 +104,18 @@ def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.nda
         raise InputError(f"{len(bodies)} body names for position {position.shape} and quat {quat.shape}",
                          key="bodies")
     shape = position.shape[1:-1]
-    ok = np.all(np.isfinite(position), -1) & np.all(np.isfinite(quat), -1)
-    if tracked is not None:
-        ok &= np.asarray(tracked, dtype=bool)
+    tracked = None if tracked is None else np.asarray(tracked, dtype=bool)
+
+    def usable(i: int) -> np.ndarray:
+        ok = np.isfinite(position[i]).all(-1) & np.isfinite(quat[i]).all(-1)
+        return ok if tracked is None else ok & tracked[i]
+
     nan3 = np.full(shape + (3,), np.nan)
 
     euc = session.euc
     if euc.body in bodies:
         i = bodies.index(euc.body)
-        has_euc = ok[i].copy()
+        has_euc = usable(i)
         E = np.where(has_euc[..., None], position[i], np.nan)
         qE = np.where(has_euc[..., None], quat[i], np.nan)
     else:
@@ -123,9 +137,10 @@ def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.nda
             has_rider[...] = False
             continue
         j = bodies.index(name)
-        com = position[j] + rotation_matrices(quat[j]) @ off
-        G += frac * np.where(ok[j][..., None], com, 0.0)
-        has_rider &= ok[j]
+        ok_j = usable(j)
+        com = position[j] + _rotate(quat[j], off)
+        G += frac * np.where(ok_j[..., None], com, 0.0)
+        has_rider &= ok_j
     G = np.where(has_rider[..., None], G / fractions[fractions > 0].sum(), np.nan)
 
     r_CG = to_moving_frame(G - C, psi, theta)
