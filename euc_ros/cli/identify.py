@@ -66,7 +66,8 @@ def _fmt(v: float, digits: int) -> str:
 
 def format_table(result) -> str:
     """The per-recording and pooled table printed by the command."""
-    head = f"{'recording':<28} {'samples':>8}  {'3-DoF h [m]':>11} {'RMSE [Nm]':>10}  {'2-DoF h [m]':>11} {'RMSE [Nm]':>10}"
+    head = (f"{'recording':<28} {'samples':>8}  {'3-DoF h [m]':>11} {'RMSE [Nm]':>10}  "
+            f"{'2-DoF h [m]':>11} {'RMSE [Nm]':>10}")
     lines = [head, "-" * len(head)]
 
     def row(name, n, fits):

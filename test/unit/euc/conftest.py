@@ -162,8 +162,9 @@ def planar_ride(symbolic, params, *, duration=12.0, rate=120.0, v0=3.0, seed=0, 
         arg_p = w_p[:, None] * tt + ph_p[:, None]
         arg_g = w_g[:, None] * tt + ph_g[:, None]
         phi = (amp_p[:, None] * np.sin(arg_p)).sum(0) - decel * (1 - np.cos(np.pi * tt / duration)) / 2
-        phid = (amp_p[:, None] * w_p[:, None] * np.cos(arg_p)).sum(0) - decel * np.pi / duration * np.sin(np.pi * tt / duration) / 2
-        phidd = (-amp_p[:, None] * w_p[:, None] ** 2 * np.sin(arg_p)).sum(0) - decel * (np.pi / duration) ** 2 * np.cos(np.pi * tt / duration) / 2
+        k = np.pi / duration
+        phid = (amp_p[:, None] * w_p[:, None] * np.cos(arg_p)).sum(0) - decel * k * np.sin(k * tt) / 2
+        phidd = (-amp_p[:, None] * w_p[:, None] ** 2 * np.sin(arg_p)).sum(0) - decel * k**2 * np.cos(k * tt) / 2
         gam = (amp_g[:, None] * np.sin(arg_g)).sum(0)
         gamd = (amp_g[:, None] * w_g[:, None] * np.cos(arg_g)).sum(0)
         gamdd = (-amp_g[:, None] * w_g[:, None] ** 2 * np.sin(arg_g)).sum(0)

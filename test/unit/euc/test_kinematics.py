@@ -26,9 +26,10 @@ def _frames(rng, n):
 def test_frame_geometry_recovers_the_angles_and_points_it_was_built_from(rng, synth):
     n = 64
     psi, theta, gamma, phi, C, h = _frames(rng, n)
-    series = [synth.synthesize_mocap(SESSION, t=np.arange(2) * 0.01, C=C[i:i + 1].repeat(2, 0), psi=psi[i:i + 1].repeat(2),
-                               theta=theta[i:i + 1].repeat(2), gamma=gamma[i:i + 1].repeat(2),
-                               phi=phi[i:i + 1].repeat(2), h=float(h[i, 0])) for i in range(n)]
+    series = [synth.synthesize_mocap(SESSION, t=np.arange(2) * 0.01, C=C[i:i + 1].repeat(2, 0),
+                                     psi=psi[i:i + 1].repeat(2), theta=theta[i:i + 1].repeat(2),
+                                     gamma=gamma[i:i + 1].repeat(2), phi=phi[i:i + 1].repeat(2), h=float(h[i, 0]))
+              for i in range(n)]
     pos = np.concatenate([s.position[:, :1] for s in series], axis=1)
     quat = np.concatenate([s.quat[:, :1] for s in series], axis=1)
     geo = frame_geometry(pos, quat, None, SESSION, series[0].bodies)
