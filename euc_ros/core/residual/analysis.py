@@ -34,6 +34,9 @@ DEFAULT_BLOCK_S = 1.0
 #: An effect is undetectable when its generalized force projects on w = [R, 1, 1] by less than this
 #: fraction of its size (it lies in the span of the input directions).
 DETECTABILITY_TOL = 1e-6
+#: Another candidate is reported as ambiguous with the selected one unless the selected one is better
+#: than it at this one-sided level (paired block test).
+AMBIGUITY_ALPHA = 0.05
 #: h bounds of the joint fits [m].
 H_BOUNDS = (0.05, 1.6)
 
@@ -361,6 +364,16 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
     return HeldOut(model, np.concatenate(res), np.concatenate(blocks), params)
 
 
+def _implausibility(candidate: Candidate, theta) -> float:
+    """Size of a candidate's reported-scale parameters in units of their typical magnitude."""
+    th = np.asarray(theta, float)
+    scales = np.array([q.scale for q in candidate.params], float)
+    keep = np.array([q.reported for q in candidate.params], bool)
+    if hasattr(candidate, "PERIOD_STARTS"):      # time_varying_h: amplitude of (a_sin, a_cos)
+        return float(np.hypot(th[0], th[1]) / scales[0])
+    return float(np.sqrt(np.sum((th[keep] / scales[keep]) ** 2))) if keep.any() else 0.0
+
+
 def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
     """One-sided p-value that the candidate's held-out squared residual is smaller, over blocks.
 
@@ -428,8 +441,10 @@ class ResidualResult:
             table.append({"effect": "none", "rmse_after_nm": self.rmse_before, "p_value": None, "detectable": True,
                           "effect_parameters": {}, "h_m": self.h_base})
             table.sort(key=lambda c: (not c["detectable"], c["rmse_after_nm"]))
+        ambiguous = sorted({a for s in self.steps for a in s.get("ambiguous_with", [])})
         return {"h_m": self.h_base, "rmse_before_nm": self.rmse_before, "effect": self.effect,
                 "effect_parameters": self.effect_parameters, "rmse_after_nm": self.rmse_after,
+                "ambiguous_with": ambiguous,
                 "h_after_m": self.h_after, "candidates": table, "selection_steps": self.steps,
                 "significance_level": self.alpha, "min_relative_gain": self.min_gain,
                 "held_out": {"folds": self.folds, "kind": self.fold_kind},
@@ -496,7 +511,14 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             steps.append(step)
             break
         best = min(ok, key=lambda t: t[2].rmse)
+        # candidates the held-out data cannot tell apart from the best one (not significantly worse)
+        tied = [t for t in ok if t is best or paired_block_test(t[2], best[2]) >= AMBIGUITY_ALPHA]
+        # among those, prefer the explanation that needs the least implausible parameters (each parameter in
+        # units of its typical magnitude, ParamInfo.scale): a prior-weighted tie-break, reported as such
+        best = min(tied, key=lambda t: _implausibility(t[0], t[4].x[-t[0].n_params:] if t[0].n_params else []))
         step["selected"] = best[0].name
+        ambiguous = [t[0].name for t in tied if t is not best]
+        step["ambiguous_with"] = ambiguous
         steps.append(step)
         say(f"selected {best[0].name}: held-out RMSE {current_ho.rmse:.3f} -> {best[2].rmse:.3f} N m")
         current, current_ho, current_x = best[1], best[2], best[4].x
