@@ -79,13 +79,28 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
     return shift
 
 
+def trim_edges(valid: np.ndarray, k: int) -> np.ndarray:
+    """Drop ``k`` samples at both ends of every run of True in ``valid``."""
+    if k <= 0:
+        return valid.copy()
+    v = np.concatenate([[False], valid, [False]]).astype(int)
+    d = np.diff(v)
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    out = np.zeros_like(valid)
+    for a, b in zip(starts, ends):
+        if b - a > 2 * k:
+            out[a + k:b - k] = True
+    return out
+
+
 def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S
             ) -> list[Recording]:
     """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook)."""
     out = []
     for st in states:
-        valid = np.asarray(st.valid, bool).copy()
         window = st.window if st.window and st.window % 2 == 1 else 9
+        # the Savitzky-Golay fits at the ends of a stretch extrapolate: drop half a window there
+        valid = trim_edges(np.asarray(st.valid, bool), window // 2)
         dpsi = savgol_derivatives(st.t, np.unwrap(st.psi), window=window, polyorder=st.polyorder, frame=st.frame)
         valid &= np.isfinite(dpsi.y_dot) & np.isfinite(st.theta)
         ctx = ModelContext(
@@ -221,14 +236,16 @@ def _stack_residual(model: Model, recs: Sequence[Recording], x: np.ndarray) -> n
     return np.concatenate(parts) if parts else np.zeros(0)
 
 
-def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndarray | None = None) -> Fit:
+def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndarray | None = None,
+              start: np.ndarray | None = None) -> Fit:
     """Least-squares fit of h and the effects' parameters to zero residual on ``recs``.
 
-    Several starting points (multi-modal parameters such as a period) are tried; the best is kept.
+    Several starting points (multi-modal parameters such as a period) are tried and the best is kept,
+    unless one ``start`` is given (e.g. the fit on all data, as the start of a fold's fit).
     """
     lo, hi = model.bounds()
     best = None
-    for x0 in model.starts(h0, fixed):
+    for x0 in ([start] if start is not None else model.starts(h0, fixed)):
         x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
         try:
             sol = optimize.least_squares(lambda x: _stack_residual(model, recs, x), x0, bounds=(lo, hi),
@@ -348,13 +365,16 @@ class HeldOut:
 
 
 def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
-             fixed: np.ndarray | None = None) -> HeldOut:
-    """Fit on each fold's training part, collect the residual on its held-out part."""
+             fixed: np.ndarray | None = None, start: np.ndarray | None = None) -> HeldOut:
+    """Fit on each fold's training part, collect the residual on its held-out part.
+
+    ``start`` (the fit on all data) seeds every fold's fit; without it each fold tries every start.
+    """
     folds = folds or folds_of(recs)
     res, blocks, params = [], [], []
     offset = 0
     for train, test in folds:
-        fit = fit_model(model, train, h0, fixed)
+        fit = fit_model(model, train, h0, fixed, start=start)
         params.append(fit.x)
         for r in test:
             rr, mask = model.residual(r, fit.x)
@@ -453,7 +473,7 @@ class ResidualResult:
 
 def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Sequence[Candidate] | None = None,
             alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
-            n_folds: int = 4, progress: Callable[[str], None] | None = None) -> ResidualResult:
+            n_folds: int = 3, progress: Callable[[str], None] | None = None) -> ResidualResult:
     """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (greedy forward selection).
 
     Parameters
@@ -484,7 +504,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             say(f"{c.name}: undetectable (its generalized force lies in span(b_d, b_h))")
 
     current = Model()
-    current_ho = held_out(current, recs, h0, folds)
+    current_ho = held_out(current, recs, h0, folds, start=base_fit.x)
     base_ho = current_ho
     current_x = base_fit.x
     rows: dict[str, CandidateResult] = {}
@@ -494,9 +514,9 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         trials = []
         for c in remaining:
             model = Model(current.effects + [c])
-            ho = held_out(model, recs, h0, folds, fixed=current_x)
-            p = paired_block_test(current_ho, ho)
             full = fit_model(model, recs, h0, fixed=current_x)
+            ho = held_out(model, recs, h0, folds, start=full.x)
+            p = paired_block_test(current_ho, ho)
             trials.append((c, model, ho, p, full))
             say(f"  + {c.name}: held-out RMSE {ho.rmse:.3f} N m (p = {p:.2g})")
             if not current.effects:

@@ -1,0 +1,261 @@
+"""`euc-ros residual SESSION.yaml RECORDING... --json OUT`: trace M_d1 - M_d2 to a missing physical effect.
+
+1. identify h with the paper's 3-DoF model; 2. compute r(t) = M_d1 - M_d2; 3. for every candidate
+effect of the library (check detectability first: a generalized force in span(b_d, b_h) cannot show
+in r) fit its parameters jointly with h on training data and evaluate on held-out data (other runs, or
+segments of a single run); 4. select by held-out error with a paired block test (Bonferroni over the
+candidates) and a minimum gain, greedily, until nothing significant remains; 5. report the extended
+model, which ``identify --from-residual`` and the ``torque_estimator`` node (``effects``,
+``effect_parameters``) use; 6. write JSON (spec section 5), a Markdown report and PNG figures.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError, InputError
+
+HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the error before and after"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``euc-ros residual``."""
+    from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S
+    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN
+    from euc_ros.core.residual.candidates import LIBRARY
+
+    parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
+    parser.add_argument("recordings", metavar="RECORDING", nargs="+",
+                        help="Motive CSV export, rosbag2 directory or .mcap file")
+    parser.add_argument("--json", metavar="OUT", required=True, help="write the analysis JSON (spec section 5)")
+    parser.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures into DIR")
+    parser.add_argument("--report", metavar="OUT.md", default=None, help="write a Markdown report")
+    parser.add_argument("--alpha", type=float, default=DEFAULT_ALPHA,
+                        help=f"significance level of each selection step ({DEFAULT_ALPHA})")
+    parser.add_argument("--min-gain", type=float, default=DEFAULT_MIN_GAIN,
+                        help=f"minimum relative cut of the held-out RMSE to select an effect ({DEFAULT_MIN_GAIN})")
+    parser.add_argument("--candidates", nargs="+", default=None, metavar="EFFECT",
+                        help=f"restrict the library (default: all: {', '.join(LIBRARY)})")
+    parser.add_argument("--max-effects", type=int, default=3, help="most effects to select (3)")
+    parser.add_argument("--window-s", type=float, default=DEFAULT_WINDOW_S, metavar="S",
+                        help=f"Savitzky-Golay window [s] ({DEFAULT_WINDOW_S})")
+    parser.add_argument("--polyorder", type=int, default=DEFAULT_SG_POLYORDER,
+                        help=f"Savitzky-Golay order ({DEFAULT_SG_POLYORDER})")
+    parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
+
+
+def load_states(session, paths, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
+                progress: bool = True, desc: str = "read"):
+    """Read recordings and reconstruct their states, with a progress bar over recordings."""
+    from tqdm import tqdm
+
+    from euc_ros.core.euc.kinematics import reconstruct_states
+    from euc_ros.core.io.recordings import load_recording, recording_kind
+
+    for path in paths:
+        recording_kind(path)  # fail early, before any long read
+    states = []
+    for path in tqdm(paths, desc=desc, unit="rec", file=sys.stderr, disable=not progress or len(paths) < 2):
+        series = load_recording(path, session.world_up)
+        st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
+                                polyorder=polyorder)
+        if not st.valid.any():
+            raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
+                             path=path)
+        st.name = st.name or Path(path).stem
+        states.append(st)
+    seen: dict[str, int] = {}
+    for st in states:  # unique names for the report
+        k = seen.get(st.name, 0)
+        seen[st.name] = k + 1
+        if k:
+            st.name = f"{st.name}#{k + 1}"
+    return states
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    tmp.write_text(text, encoding="utf-8")
+    tmp.replace(path)
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
+    from euc_ros.core.euc.model import EucParams
+    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.candidates import make_candidates
+    from euc_ros.core.session import load_session
+
+    if not 0 < args.alpha < 1:
+        raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}", key="--alpha")
+    if not 0 <= args.min_gain < 1:
+        raise ConfigError(f"--min-gain must be in [0, 1), got {args.min_gain}", key="--min-gain")
+    session = load_session(args.session)
+    candidates = make_candidates(args.candidates)
+    states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
+                         progress=not args.no_progress)
+    params = EucParams.from_session(session)
+    say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
+    result = analyze(states, params, candidates=candidates, alpha=args.alpha, min_gain=args.min_gain,
+                     max_effects=args.max_effects, progress=say)
+    data = result.to_json()
+    data["recordings"] = [st.name for st in states]
+    data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
+                        "candidates": [c.name for c in candidates]}
+    _atomic_write(Path(args.json), json.dumps(data, indent=2) + "\n")
+    print(format_summary(data))
+    figures = []
+    if args.plots:
+        figures = write_plots(result, states, params, Path(args.plots))
+    if args.report:
+        _atomic_write(Path(args.report), markdown_report(data, figures, Path(args.report).parent))
+    return 0
+
+
+def format_summary(data: dict) -> str:
+    """Console summary: the verdict and the candidate table."""
+    lines = [f"h (3-DoF, no effect) = {data['h_m']:.3f} m; held-out RMSE of M_d1 - M_d2: "
+             f"{data['rmse_before_nm']:.3f} N m ({data['held_out']['kind']}, {data['held_out']['folds']} folds)"]
+    if data["effect"] == "none":
+        lines.append("effect: none (no candidate beats chance at the stated significance)")
+    else:
+        params = ", ".join(f"{k} = {v:.4g}" for k, v in data["effect_parameters"].items())
+        lines.append(f"effect: {data['effect']} ({params}); h = {data['h_after_m']:.3f} m; held-out RMSE "
+                     f"{data['rmse_before_nm']:.3f} -> {data['rmse_after_nm']:.3f} N m")
+        if data.get("ambiguous_with"):
+            lines.append(f"  not distinguishable on this data from: {', '.join(data['ambiguous_with'])}")
+    lines.append(f"{'candidate':22s} {'held-out RMSE':>14s} {'p':>9s}  parameters")
+    for c in data["candidates"]:
+        p = "-" if c.get("p_value") is None else f"{c['p_value']:.2g}"
+        rmse = "undetectable" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}"
+        params = ", ".join(f"{k}={v:.4g}" for k, v in (c.get("effect_parameters") or {}).items())
+        lines.append(f"{c['effect']:22s} {rmse:>14s} {p:>9s}  {params}")
+    return "\n".join(lines)
+
+
+def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
+    """A Markdown report of the analysis (figures linked relative to the report)."""
+    import os
+
+    out = ["# Residual analysis: M_d1 - M_d2", "",
+           f"Recordings: {', '.join(data.get('recordings', []))}  ",
+           f"Held-out evaluation: {data['held_out']['kind']} ({data['held_out']['folds']} folds); "
+           f"significance level {data['significance_level']} (Bonferroni over candidates), "
+           f"minimum gain {100 * data['min_relative_gain']:.0f} %.", "",
+           "## Verdict", ""]
+    if data["effect"] == "none":
+        out.append("**No effect**: no candidate explains the residual better than chance.")
+    else:
+        params = ", ".join(f"`{k}` = {v:.4g}" for k, v in data["effect_parameters"].items())
+        out.append(f"**{data['effect']}** ({params}).")
+        if data.get("ambiguous_with"):
+            out.append(f"The held-out data cannot tell it apart from: {', '.join(data['ambiguous_with'])} "
+                       "(the choice among them is the one needing the most typical parameter values).")
+    out += ["", "| | h [m] | held-out RMSE [N m] |", "|---|---|---|",
+            f"| before (3-DoF model) | {data['h_m']:.3f} | {data['rmse_before_nm']:.3f} |",
+            f"| after ({data['effect']}) | {data['h_after_m']:.3f} | {data['rmse_after_nm']:.3f} |", "",
+            "## Candidates", "", "| effect | held-out RMSE [N m] | p | parameters |", "|---|---|---|---|"]
+    for c in data["candidates"]:
+        p = "" if c.get("p_value") is None else f"{c['p_value']:.2g}"
+        rmse = "undetectable (in span of the inputs)" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}"
+        params = ", ".join(f"{k}={v:.4g}" for k, v in (c.get("effect_parameters") or {}).items())
+        out.append(f"| {c['effect']} | {rmse} | {p} | {params} |")
+    if figures:
+        out += ["", "## Figures", ""]
+        out += [f"![{f.stem}]({os.path.relpath(f, base)})" for f in figures]
+    out += ["", "To use the selected model: `euc-ros identify SESSION RECORDING... --from-residual THIS.json`, or set",
+            "the `torque_estimator` parameters `effects` and `effect_parameters`.", ""]
+    return "\n".join(out)
+
+
+def write_plots(result, states, params, out_dir: Path) -> list[Path]:
+    """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png."""
+    from euc_ros.cli.plots import DPI, pyplot
+    from euc_ros.core.residual.analysis import Model, prepare
+
+    plt = pyplot()
+    out_dir.mkdir(parents=True, exist_ok=True)
+    recs = prepare(states, params)
+    base_x = np.array([result.h_base])
+    final = result.final_model
+    paths = []
+
+    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 2.2 * len(recs) + 0.6), squeeze=False, sharex=False)
+    for ax, rec in zip(axes[:, 0], recs):
+        r0, m0 = Model().residual(rec, base_x)
+        r1, m1 = final.residual(rec, result.final_x)
+        ax.plot(rec.ctx.t[m0], r0[m0], lw=0.8, label=f"3-DoF, h = {result.h_base:.3f} m")
+        if final.effects:
+            ax.plot(rec.ctx.t[m1], r1[m1], lw=0.8, label=f"3-DoF + {final.name}")
+        ax.set_ylabel("M_d1 - M_d2 [N m]")
+        ax.set_title(rec.name, fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(fontsize=8, loc="upper right")
+    axes[-1, 0].set_xlabel("t [s]")
+    fig.tight_layout()
+    paths.append(out_dir / "residual_time.png")
+    fig.savefig(paths[-1], dpi=DPI)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(5.5, 5))
+    if final.effects:
+        xs, ys = [], []
+        for rec in recs:
+            r0, m0 = Model().residual(rec, np.array([result.h_after]))
+            r1, m1 = final.residual(rec, result.final_x)
+            m = m0 & m1
+            xs.append((r0 - r1)[m])
+            ys.append(r0[m])
+        x, y = np.concatenate(xs), np.concatenate(ys)
+        ax.plot(x, y, ".", ms=2, alpha=0.5)
+        lim = np.nanmax(np.abs(np.concatenate([x, y]))) if x.size else 1.0
+        ax.plot([-lim, lim], [-lim, lim], "k--", lw=1, label="1:1")
+        ax.set_xlabel(f"signature of {final.name} [N m]")
+        ax.legend(fontsize=8)
+    else:
+        ax.text(0.5, 0.5, "no effect selected", ha="center", va="center", transform=ax.transAxes)
+        ax.set_xlabel("signature [N m]")
+    ax.set_ylabel(f"residual of the 3-DoF model at h = {result.h_after:.3f} m [N m]")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    paths.append(out_dir / "residual_signature.png")
+    fig.savefig(paths[-1], dpi=DPI)
+    plt.close(fig)
+
+    fig, ax = plt.subplots(figsize=(5, 3.5))
+    ax.bar(["before\n(3-DoF)", f"after\n({final.name})"], [result.rmse_before, result.rmse_after],
+           color=["tab:gray", "tab:blue"])
+    for i, v in enumerate([result.rmse_before, result.rmse_after]):
+        ax.text(i, v, f"{v:.3f}", ha="center", va="bottom")
+    ax.set_ylabel("held-out RMSE of M_d1 - M_d2 [N m]")
+    fig.tight_layout()
+    paths.append(out_dir / "rmse_before_after.png")
+    fig.savefig(paths[-1], dpi=DPI)
+    plt.close(fig)
+
+    data = result.to_json()
+    rows = [[c["effect"], "undetectable" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}",
+             "" if c.get("p_value") is None else f"{c['p_value']:.2g}",
+             ", ".join(f"{k}={v:.3g}" for k, v in (c.get("effect_parameters") or {}).items())]
+            for c in data["candidates"]]
+    fig, ax = plt.subplots(figsize=(9, 0.32 * len(rows) + 0.8))
+    ax.axis("off")
+    table = ax.table(cellText=rows, colLabels=["effect", "held-out RMSE [N m]", "p", "parameters"], loc="center",
+                     cellLoc="left")
+    table.auto_set_font_size(False)
+    table.set_fontsize(8)
+    table.auto_set_column_width([0, 1, 2, 3])
+    for (i, _), cell in table.get_celld().items():
+        if i > 0 and rows[i - 1][0] in result.selected:
+            cell.set_facecolor("#d9ead3")
+    ax.set_title(f"candidates (selected: {final.name})", fontsize=10)
+    fig.tight_layout()
+    paths.append(out_dir / "candidates.png")
+    fig.savefig(paths[-1], dpi=DPI)
+    plt.close(fig)
+    return paths
