@@ -11,12 +11,16 @@ A node only converts messages and calls these (functional core, imperative shell
   :func:`~euc_ros.core.euc.kinematics.reconstruct_states` on the interior of every gap-free stretch.
 * :class:`TorqueEstimator`: one state in, ``M_d1``/``M_d2`` of both models, the sliding-window RMSE
   of ``M_d1 - M_d2`` and the online h estimate out. It returns ``None`` for a state that is not
-  usable, so a NaN never reaches a published torque.
+  usable, so a NaN never reaches a published torque. It ages its windows over missing states and
+  resets on a jump back in time; optionally it evaluates the model extended with the effects the
+  residual analysis selected (:class:`~euc_ros.core.residual.extended.ExtendedModel`).
+* :class:`FrameSequencer`: frame numbers for the state estimator from a live stream (repeated and
+  out-of-order frames dropped, restarts detected, numbers made from stamps when the source has none).
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
+from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
 
@@ -26,6 +30,9 @@ from euc_ros.core.euc.model import EucParams
 from euc_ros.core.euc.online import OnlineHEstimator, SlidingRmse
 from euc_ros.core.euc.torque import torques, torques_2dof
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
+
+if TYPE_CHECKING:
+    from euc_ros.core.residual.extended import ExtendedModel
 
 
 @dataclass(frozen=True)
@@ -162,6 +169,80 @@ class RiderStateEstimator:
         return out
 
 
+class FrameSequencer:
+    """Frame numbers for the live state estimator: order checks and restarts of the mocap source.
+
+    A :class:`RiderStateEstimator` needs increasing frame numbers (gaps are missing frames). Live
+    streams may repeat or reorder frames, restart their numbering (a looping replay, a restarted
+    Motive) or carry no frame number at all (``-1``: frames assembled from pose topics). This class
+    decides, frame by frame, what the estimator does with each one.
+
+    Rules, with ``dstamp`` the stamp difference to the last accepted frame:
+
+    * no frame number (``< 0``): the number is ``round((stamp - origin) * rate)`` with ``origin`` the
+      stamp of the first frame after a (re)start;
+    * ``dstamp < -restart_jump_s``: the source restarted (time jumped back): ``"restart"``;
+    * a frame number not above the last one with a *later* stamp: the numbering restarted:
+      ``"restart"``;
+    * otherwise a frame number not above the last one, or a stamp not after the last one: a repeated or
+      out-of-order frame: ``"drop"``;
+    * else ``"ok"`` (``"start"`` for the very first frame).
+
+    Parameters
+    ----------
+    rate_hz : float
+        Nominal frame rate [Hz] (for frames without a number).
+    restart_jump_s : float
+        A jump back in time longer than this is a restart [s].
+
+    Examples
+    --------
+    >>> s = FrameSequencer(100.0)
+    >>> [s.accept(f, t)[0] for f, t in ((5, 0), (6, 10_000_000), (6, 10_000_000), (1, 20_000_000))]
+    ['start', 'ok', 'drop', 'restart']
+    """
+
+    def __init__(self, rate_hz: float, restart_jump_s: float = 1.0) -> None:
+        if not (np.isfinite(rate_hz) and rate_hz > 0):
+            raise ConfigError(f"rate must be > 0, got {rate_hz!r}", key="rate_hz")
+        self.period_ns = 1e9 / float(rate_hz)
+        self.restart_jump_ns = int(round(float(restart_jump_s) * 1e9))
+        self._last: tuple[int, int] | None = None   # (frame, stamp_ns) of the last accepted frame
+        self._origin_ns = 0
+        self.restarts = 0
+        self.dropped = 0
+
+    def reset(self) -> None:
+        """Forget the stream (the next frame is a start)."""
+        self._last = None
+
+    def accept(self, frame_number: int, stamp_ns: int) -> tuple[str, int]:
+        """Classify one frame; returns ``(action, frame)`` with action start, ok, restart or drop."""
+        frame_number, stamp_ns = int(frame_number), int(stamp_ns)
+        if self._last is None:
+            return self._start("start", frame_number, stamp_ns)
+        last_frame, last_stamp = self._last
+        dstamp = stamp_ns - last_stamp
+        if dstamp < -self.restart_jump_ns:
+            self.restarts += 1
+            return self._start("restart", frame_number, stamp_ns)
+        frame = frame_number if frame_number >= 0 else int(round((stamp_ns - self._origin_ns) / self.period_ns))
+        if frame_number >= 0 and frame <= last_frame and dstamp > 0:
+            self.restarts += 1
+            return self._start("restart", frame_number, stamp_ns)
+        if frame <= last_frame or dstamp <= 0:
+            self.dropped += 1
+            return "drop", frame
+        self._last = (frame, stamp_ns)
+        return "ok", frame
+
+    def _start(self, action: str, frame_number: int, stamp_ns: int) -> tuple[str, int]:
+        self._origin_ns = stamp_ns
+        frame = frame_number if frame_number >= 0 else 0
+        self._last = (frame, stamp_ns)
+        return action, frame
+
+
 @dataclass(frozen=True)
 class TorqueSample:
     """Driving torque estimate of one state (fields as the TorqueEstimate message).
@@ -208,6 +289,12 @@ class TorqueSample:
 class TorqueEstimator:
     """Torques of both models, sliding RMSE and online h from one state at a time.
 
+    The states must arrive in time order, one per frame. The estimator watches their capture times
+    ``state.t``: a run of missing states ages the sliding windows by the number of missing frames (so
+    the RMSE always covers the last ``rmse_window_s`` of time), a gap at least as long as the RMSE
+    window or a jump back in time (a restarted source) resets everything, and a repeated time is
+    dropped. Nothing from before a reset reaches a later output.
+
     Parameters
     ----------
     params : EucParams
@@ -226,22 +313,111 @@ class TorqueEstimator:
         Excitation needed before the online h is given [N m/m].
     extra_Q : callable, optional
         ``extra_Q(state) -> (3,)`` additional generalized force [N, N m, N m] (model extensions).
+    model : ExtendedModel, optional
+        The 3-DoF model extended with effects of the residual analysis
+        (:class:`~euc_ros.core.residual.extended.ExtendedModel`, built with ``online=True``): when
+        given, ``M_d1``, ``M_d2``, the residual and its RMSE are the extended model's, evaluated at
+        ``params.h``, and ``model`` of each sample is its name (``"3dof+ground_slope"``). The 2-DoF
+        torques and the online h stay those of the paper's models.
+    psi_rate_window_s : float
+        Window of the causal yaw-rate estimate some effects need (``tilt_gravity``) [s]: a cubic
+        Savitzky-Golay fit of the unwrapped yaw, evaluated at the newest state (no lag; the states
+        themselves carry no yaw rate). Its first window of states after a (re)start gives no output.
     """
 
     def __init__(self, params: EucParams, dt: float, *, rmse_window_s: float = 5.0, h_window_s: float = 30.0,
                  h_update_every: int = 12, correlation_samples: float | None = None, min_sensitivity: float = 5.0,
-                 extra_Q: Callable | None = None) -> None:
+                 extra_Q: Callable | None = None, model: "ExtendedModel | None" = None,
+                 psi_rate_window_s: float = 0.3) -> None:
         if not (dt > 0 and rmse_window_s > 0 and h_window_s > 0):
             raise ConfigError("dt, rmse_window_s and h_window_s must be > 0", key="rmse_window_s")
+        if model is not None and extra_Q is not None:
+            raise ConfigError("give either an extended model or extra_Q, not both", key="effects")
         self.params = params
         self.dt = float(dt)
         self.extra_Q = extra_Q
+        self.model = model
         n_rmse = max(1, int(round(rmse_window_s / self.dt)))
         self.window_s = n_rmse * self.dt
         self._rmse = SlidingRmse(n_rmse)
         k = window_samples(self.dt, window_s=DEFAULT_WINDOW_S) if correlation_samples is None else correlation_samples
         self._h = OnlineHEstimator(params, max(3, int(round(h_window_s / self.dt))), update_every=h_update_every,
                                    correlation_samples=k, min_sensitivity=min_sensitivity)
+        names = {c.name for c in getattr(model, "candidates", ())}
+        self._needs_psi_rate = "tilt_gravity" in names
+        self._psi_rate = (StreamingSavgol(window_samples(self.dt, window_s=max(psi_rate_window_s, 6 * self.dt),
+                                                         polyorder=3), 3, self.dt, lag=0)
+                          if self._needs_psi_rate else None)
+        self._last_t: float | None = None
+        self._t0: float | None = None
+        self._psi_prev: float | None = None
+        self._psi_unwrapped = 0.0
+        self._frame = 0
+        #: Counters: states seen, samples returned, states not usable, resets, repeated times dropped,
+        #: frames missing between states.
+        self.counts = {"states": 0, "outputs": 0, "invalid": 0, "resets": 0, "repeated": 0, "missing": 0}
+
+    @property
+    def model_name(self) -> str:
+        """``"3dof"``, ``"3dof+extra"`` or the extended model's name."""
+        if self.model is not None:
+            return self.model.name
+        return "3dof" if self.extra_Q is None else "3dof+extra"
+
+    def reset(self) -> None:
+        """Forget every window (a new stream starts with the next state)."""
+        self._rmse.reset()
+        self._h.reset()
+        if self._psi_rate is not None:
+            self._psi_rate.reset()
+        self._last_t = None
+        self._t0 = None
+        self._psi_prev = None
+        self._frame = 0
+        self.counts["resets"] += 1
+
+    def _age(self, n: int) -> None:
+        for _ in range(n):
+            self._rmse.push(np.nan)
+            self._h.update(*([np.nan] * 7))
+
+    def _continuity(self, t: float) -> bool:
+        """Handle gaps and jumps in the state times; False when the state must be dropped."""
+        if not np.isfinite(t):
+            return True
+        if self._last_t is not None:
+            step = (t - self._last_t) / self.dt
+            if step <= -0.5:
+                self.reset()
+            elif step < 0.5:
+                self.counts["repeated"] += 1
+                return False
+            else:
+                missing = int(round(step)) - 1
+                if missing >= self._rmse.window:
+                    self.reset()
+                elif missing > 0:
+                    self.counts["missing"] += missing
+                    self._age(missing)
+                    self._frame += missing
+        if self._t0 is None:
+            self._t0 = t
+        self._last_t = t
+        return True
+
+    def _yaw_rate(self, state) -> float:
+        psi = float(getattr(state, "psi", np.nan))
+        if self._psi_rate is None:
+            return 0.0
+        if not np.isfinite(psi):
+            return np.nan
+        if self._psi_prev is None:
+            self._psi_unwrapped = psi
+        else:
+            self._psi_unwrapped += (psi - self._psi_prev + np.pi) % (2 * np.pi) - np.pi
+        self._psi_prev = psi
+        out = self._psi_rate.push(self._psi_unwrapped, frame=self._frame)
+        return float(out[-1].y_dot) if out else np.nan
 
     def update(self, state) -> TorqueSample | None:
         """Process one state (any object with the RiderStateSample fields).
@@ -249,30 +425,45 @@ class TorqueEstimator:
         Returns
         -------
         TorqueSample or None
-            None when the state is not valid or any torque would not be finite (the sliding windows
-            still age by one sample).
+            None when the state is not valid, any torque would not be finite, or its time repeats the
+            previous one (the sliding windows still age by one sample, except for a repeat).
         """
+        self.counts["states"] += 1
+        t = float(getattr(state, "t", np.nan))
+        if not self._continuity(t):
+            return None
         args = tuple(float(getattr(state, k)) for k in ("gamma", "phi", "gamma_dot", "phi_dot", "x_ddot",
                                                           "gamma_ddot", "phi_ddot"))
+        psi_dot = self._yaw_rate(state)
+        self._frame += 1
         ok = bool(getattr(state, "valid", True)) and all(np.isfinite(args))
         extra = None
         if ok and self.extra_Q is not None:
             extra = np.asarray(self.extra_Q(state), dtype=float)
             ok = bool(np.all(np.isfinite(extra)))
-        if not ok:
-            self._rmse.push(np.nan)
-            self._h.update(*([np.nan] * 7))
-            return None
-        d1, d2 = (float(v) for v in torques(*args, self.params, extra_Q=extra))
-        e1, e2 = (float(v) for v in torques_2dof(args[1], args[3], args[4], args[6], self.params))
-        if not all(np.isfinite((d1, d2, e1, e2))):
+        d1 = d2 = np.nan
+        if ok and self.model is not None:
+            gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot = args
+            m1, m2 = self.model.torques(
+                t=(t - self._t0) if np.isfinite(t) else 0.0, x_dot=float(getattr(state, "x_dot", np.nan)),
+                x_ddot=x_ddot, gamma=gamma, gamma_dot=gamma_dot, gamma_ddot=gamma_ddot, phi=phi, phi_dot=phi_dot,
+                phi_ddot=phi_ddot, psi=float(getattr(state, "psi", 0.0)), psi_dot=psi_dot,
+                theta=float(getattr(state, "theta", 0.0)))
+            d1, d2 = float(np.squeeze(m1)), float(np.squeeze(m2))
+        elif ok:
+            d1, d2 = (float(v) for v in torques(*args, self.params, extra_Q=extra))
+        e1 = e2 = np.nan
+        if ok:
+            e1, e2 = (float(v) for v in torques_2dof(args[1], args[3], args[4], args[6], self.params))
+        if not (ok and all(np.isfinite((d1, d2, e1, e2)))):
+            self.counts["invalid"] += 1
             self._rmse.push(np.nan)
             self._h.update(*([np.nan] * 7))
             return None
         rmse = self._rmse.push(d1 - d2)
         est = self._h.update(*args)
-        return TorqueSample(frame=int(getattr(state, "frame", -1)), t=float(getattr(state, "t", np.nan)),
+        self.counts["outputs"] += 1
+        return TorqueSample(frame=int(getattr(state, "frame", -1)), t=t,
                             M_d1=d1, M_d2=d2, M_d1_2dof=e1, M_d2_2dof=e2, h_m=float(self.params.h),
                             residual_nm=d1 - d2, rmse_window_nm=rmse, window_s=self.window_s,
-                            h_online_m=est.h_m, h_online_std_m=est.h_std_m,
-                            model="3dof" if self.extra_Q is None else "3dof+extra")
+                            h_online_m=est.h_m, h_online_std_m=est.h_std_m, model=self.model_name)

@@ -96,3 +96,126 @@ def test_torque_estimator_never_returns_nan_and_matches_the_offline_torques(reco
     bad = type("S", (), dict(gamma=np.nan, phi=0.0, gamma_dot=0.0, phi_dot=0.0, x_ddot=0.0, gamma_ddot=0.0,
                              phi_ddot=0.0, valid=True, frame=1, t=0.0))
     assert te.update(bad) is None
+
+
+# --- stream handling: frame numbers, gaps, restarts ---------------------------------------------------------
+def test_frame_sequencer_orders_frames_and_detects_restarts():
+    from euc_ros.core.euc.estimators import FrameSequencer
+
+    ms = 1_000_000
+    seq = FrameSequencer(100.0, restart_jump_s=1.0)
+    got = [seq.accept(f, t * ms) for f, t in (
+        (10, 0), (11, 10), (13, 30),        # a skipped frame number is a missing frame, not an error
+        (13, 30), (12, 20),                  # repeated and out-of-order frames are dropped
+        (1, 40),                             # numbering restarted while time went on (a looping replay)
+        (2, 50), (3, -5000),                 # time jumped back by 5 s: the source restarted
+        (4, -4990))]
+    assert [a for a, _ in got] == ["start", "ok", "ok", "drop", "drop", "restart", "ok", "restart", "ok"]
+    assert [f for _, f in got] == [10, 11, 13, 13, 12, 1, 2, 3, 4]
+    assert seq.restarts == 2 and seq.dropped == 2
+
+
+def test_frame_sequencer_numbers_frames_from_stamps_when_the_source_has_none():
+    from euc_ros.core.euc.estimators import FrameSequencer
+
+    seq = FrameSequencer(120.0)
+    t0 = 1_700_000_000_000_000_000
+    period = 1e9 / 120
+    stamps = [t0 + int(round(k * period)) + j for k, j in ((0, 0), (1, 300), (2, -200), (5, 0), (5, 1000), (6, 0))]
+    got = [seq.accept(-1, s) for s in stamps]
+    assert got == [("start", 0), ("ok", 1), ("ok", 2), ("ok", 5), ("drop", 5), ("ok", 6)]
+
+
+def _states_of(st, idx):
+    keys = ("gamma", "phi", "gamma_dot", "phi_dot", "x_ddot", "gamma_ddot", "phi_ddot", "valid", "frame", "t",
+            "x_dot", "psi", "theta")
+    return [type("S", (), {k: getattr(st, k)[i] for k in keys}) for i in idx]
+
+
+def test_torque_estimator_window_covers_time_across_gaps_and_forgets_on_a_jump_back(recording):
+    s = recording
+    st = reconstruct_states(s, SESSION)
+    good = np.flatnonzero(st.valid)
+    first = good[(good > 200) & (good < 380)]     # a stretch of valid states ...
+    second = good[(good >= first[-1] + 120) & (good < first[-1] + 200)]  # ... 1 s later another one
+    te = TorqueEstimator(P, 1 / 120, rmse_window_s=1.5, h_window_s=6.0)
+    outs = [te.update(x) for x in _states_of(st, np.concatenate([first, second]))]
+    assert all(o is not None for o in outs)
+    t = np.array([o.t for o in outs])
+    r = np.array([o.residual_nm for o in outs])
+    for k in (len(first) - 1, len(first) + 10, len(outs) - 1):
+        inside = (t > t[k] - 1.5 + 0.5 / 120) & (t <= t[k])   # the states of the last 1.5 s only
+        assert outs[k].rmse_window_nm == pytest.approx(np.sqrt(np.mean(r[inside] ** 2)), rel=1e-9)
+    assert te.counts["missing"] == int(round((t[len(first)] - t[len(first) - 1]) * 120)) - 1
+    assert te.counts["resets"] == 0
+    # The same time again is dropped; a jump back in time (a restarted source) forgets everything.
+    assert te.update(_states_of(st, second[-1:])[0]) is None and te.counts["repeated"] == 1
+    again = [te.update(x) for x in _states_of(st, first[:30])]
+    assert te.counts["resets"] == 1
+    r_again = np.array([o.residual_nm for o in again])
+    assert again[-1].rmse_window_nm == pytest.approx(np.sqrt(np.mean(r_again ** 2)), rel=1e-9)
+    assert np.isnan(again[-1].h_online_m)     # the online h starts over too
+    # A gap longer than the RMSE window is a reset as well.
+    te.update(_states_of(st, [first[29] + 200])[0])
+    assert te.counts["resets"] == 2
+
+
+# --- the extended model (issue 5, step 5) ---------------------------------------------------------------------
+def _truth_states(run):
+    from types import SimpleNamespace
+
+    return [SimpleNamespace(t=run.t[i], x_dot=run.q_dot[i, 0], x_ddot=run.q_ddot[i, 0], gamma=run.q[i, 1],
+                            gamma_dot=run.q_dot[i, 1], gamma_ddot=run.q_ddot[i, 1], phi=run.q[i, 2],
+                            phi_dot=run.q_dot[i, 2], phi_ddot=run.q_ddot[i, 2], psi=run.psi[i], theta=run.theta[i],
+                            valid=True, frame=int(run.frame[i])) for i in range(run.t.size)]
+
+
+@pytest.fixture(scope="module")
+def sloped_ride():
+    from euc_ros.core.ridesim.effects import make_effects
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+
+    return simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=2, duration_s=4.0,
+                                    effects=make_effects(["ground_slope"], {"alpha_deg": 3.0})))
+
+
+def test_extended_model_explains_a_slope_on_the_simulators_true_states(sloped_ride):
+    """The simulator derives the slope's gravity independently: with the effect, M_d1 = M_d2 = true M_d."""
+    from euc_ros.core.residual.extended import ExtendedModel
+
+    run = sloped_ride.runs[0]
+    p = EucParams.from_session(sloped_ride.session, 0.61)
+    plain = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0)
+    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0,
+                          model=ExtendedModel(p, {"ground_slope": {"alpha_deg": 3.0}}, online=True))
+    states = _truth_states(run)
+    a = [plain.update(x) for x in states]
+    b = [ext.update(x) for x in states]
+    assert all(o is not None for o in a + b)
+    assert b[-1].model == "3dof+ground_slope" and a[-1].model == "3dof"
+    d1, d2 = np.array([o.M_d1 for o in b]), np.array([o.M_d2 for o in b])
+    np.testing.assert_allclose(d1, run.M_d, atol=1e-9)
+    np.testing.assert_allclose(d2, run.M_d, atol=1e-9)
+    assert b[-1].rmse_window_nm < 1e-9 and a[-1].rmse_window_nm > 3.0
+    # the 2-DoF torques are the paper's model either way
+    assert [o.M_d2_2dof for o in b] == pytest.approx([o.M_d2_2dof for o in a], rel=1e-12)
+
+
+def test_extended_model_with_a_yaw_rate_effect_uses_a_causal_yaw_rate():
+    from euc_ros.core.residual.extended import ExtendedModel
+    from euc_ros.core.ridesim.effects import make_effects
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+
+    ride = simulate_ride(RideConfig(maneuver="figure_eight", runs=1, seed=2, duration_s=8.0,
+                                    effects=make_effects(["tilt_gravity"], {"gain": 1.0})))
+    run = ride.runs[0]
+    p = EucParams.from_session(ride.session, 0.61)
+    plain = TorqueEstimator(p, 1 / 120, rmse_window_s=8.0)
+    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=8.0,
+                          model=ExtendedModel(p, {"tilt_gravity": {"gain": 1.0}}, online=True))
+    states = _truth_states(run)
+    a = [plain.update(x) for x in states]
+    b = [ext.update(x) for x in states]
+    n_missing = sum(o is None for o in b)
+    assert n_missing == ext._psi_rate.window - 1        # no yaw rate until its first window is full
+    assert a[-1].rmse_window_nm > 0.02 and b[-1].rmse_window_nm < 0.15 * a[-1].rmse_window_nm
