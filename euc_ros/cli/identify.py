@@ -8,6 +8,13 @@ reduced 2-DoF model (eq (13)), per recording and pooled (Fig. 8), and the optimu
 Output: a table on stdout; with ``--json OUT`` the analysis output of the recording-format spec
 (section 5) plus both models' curves; with ``--plots DIR`` PNG figures: ``<recording>_states.png``
 (Figs 6-7 layout at the recording's optimal h) and ``rmse_curves.png`` (Fig. 8).
+
+Extended model (issue 5, step 5). ``--effect NAME`` (repeatable) with ``--param EFFECT.NAME=VALUE``
+(repeatable), or ``--from-residual residual.json`` (its ``effect`` and ``effect_parameters``), adds
+the effects the residual analysis selected to the 3-DoF model
+(:class:`~euc_ros.core.residual.extended.ExtendedModel`, parameters fixed at the given values). h is
+then identified for that model too, on the same grid and with the same refinement, and the JSON is
+headed by it: ``"model": "3dof+ground_slope"``.
 """
 from __future__ import annotations
 
@@ -41,8 +48,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"Savitzky-Golay window [s] ({DEFAULT_WINDOW_S})")
     parser.add_argument("--polyorder", type=int, default=DEFAULT_SG_POLYORDER,
                         help=f"Savitzky-Golay polynomial order ({DEFAULT_SG_POLYORDER})")
-    parser.add_argument("--model", choices=("3dof", "2dof"), default="3dof",
-                        help="model heading the JSON output (both are always computed)")
+    parser.add_argument("--model", choices=("3dof", "2dof"), default=None,
+                        help="model heading the JSON output (default: the extended model with --effect, else 3dof)")
+    parser.add_argument("--effect", action="append", default=[], metavar="NAME",
+                        help="add an effect of the residual analysis to the 3-DoF model (repeatable)")
+    parser.add_argument("--param", action="append", default=[], metavar="EFFECT.NAME=VALUE",
+                        help="a parameter of an added effect, in the residual report's units (repeatable)")
+    parser.add_argument("--from-residual", metavar="RESIDUAL.json", default=None,
+                        help="add the effect(s) and parameters selected by 'euc-ros residual --json'")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
 
 
@@ -60,26 +73,186 @@ def h_grid_from_args(args: argparse.Namespace) -> np.ndarray:
     return lo + step * np.arange(n)
 
 
+def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
+    """The extended model's effects ``{name: {parameter: value}}`` of ``--from-residual``, ``--effect``, ``--param``.
+
+    ``--from-residual`` contributes its ``effect`` (names joined by ``+``; ``none`` adds nothing) with
+    its flat ``effect_parameters``; ``--effect`` adds effects and ``--param`` sets or overrides
+    parameters of any of them.
+
+    Raises
+    ------
+    InputError
+        The residual JSON cannot be read or lacks ``effect`` / ``effect_parameters``.
+    ConfigError
+        An unknown effect, a malformed ``--param`` or a parameter of an effect that is not added.
+    """
+    from euc_ros.core.residual.extended import parse_effect_assignments
+
+    effects: dict[str, dict[str, float]] = {}
+    path = getattr(args, "from_residual", None)
+    if path:
+        try:
+            data = json.loads(Path(path).read_text(encoding="utf-8"))
+        except OSError as exc:
+            raise InputError(f"cannot read residual JSON: {exc.strerror}", path=path) from None
+        except json.JSONDecodeError as exc:
+            raise InputError(f"not valid JSON: {exc.msg}", path=path, line=exc.lineno, column=exc.colno) from None
+        if not isinstance(data, dict) or not isinstance(data.get("effect"), str):
+            raise InputError("expected the output of 'euc-ros residual --json' with a string 'effect'", path=path,
+                             key="effect")
+        values = data.get("effect_parameters", {})
+        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) for v in values.values()):
+            raise InputError("expected a mapping of parameter names to numbers", path=path, key="effect_parameters")
+        names = [n.strip() for n in data["effect"].split("+") if n.strip() and n.strip() != "none"]
+        for n in names:
+            effects[n] = {k: float(v) for k, v in values.items()}
+    added = [e for e in getattr(args, "effect", []) or [] if e]
+    items = list(getattr(args, "param", []) or [])
+    for item in items:  # name the option, and keep this error apart from a malformed assignment
+        effect = item.split("=", 1)[0].split(".", 1)[0].strip()
+        if "=" in item and "." in item.split("=", 1)[0] and effect not in list(effects) + added:
+            raise ConfigError(f"effect {effect!r} is not in the list of effects (add --effect {effect})",
+                              key=f"--param {item}")
+    assigned = parse_effect_assignments(list(effects) + added, items)
+    for name, vals in assigned.items():
+        effects.setdefault(name, {}).update(vals)
+    return effects
+
+
+def _fit_from_sse(sse_of, h_grid: np.ndarray, n: int, model: str):
+    """A :class:`~euc_ros.core.euc.identify.ModelFit` from a sum-of-squares function ``sse_of(h)``.
+
+    Same steps as the paper models' fits: grid minimum, bounded refinement between its neighbours,
+    formal std from the curvature (``sigma^2 = 2 s^2 / SSE''``), sharpness at +-0.1 m.
+    """
+    from scipy.optimize import minimize_scalar
+
+    from euc_ros.core.euc.identify import SHARPNESS_STEP_M, ModelFit
+
+    sse = np.array([sse_of(float(h)) for h in h_grid])
+    if n == 0 or not np.any(np.isfinite(sse)):
+        return ModelFit(model, np.nan, np.nan, n, np.full(h_grid.size, np.nan), False, np.nan, np.nan)
+    i = int(np.nanargmin(sse))
+    lo, hi = h_grid[max(i - 1, 0)], h_grid[min(i + 1, h_grid.size - 1)]
+    h_opt, sse_opt = float(h_grid[i]), float(sse[i])
+    if hi > lo:
+        res = minimize_scalar(sse_of, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7})
+        if res.fun <= sse_opt:
+            h_opt, sse_opt = float(res.x), float(res.fun)
+    d = 1e-3
+    curv = (sse_of(h_opt - d) + sse_of(h_opt + d) - 2 * sse_opt) / d**2
+    h_std = float(np.sqrt(2 * sse_opt / max(n - 1, 1) / curv)) if curv > 0 else np.nan
+    rmse_opt = float(np.sqrt(sse_opt / n))
+    side = np.sqrt(np.array([sse_of(h_opt - SHARPNESS_STEP_M), sse_of(h_opt + SHARPNESS_STEP_M)]) / n)
+    sharp = float(np.mean(side) / rmse_opt - 1.0) if rmse_opt > 0 else np.inf
+    return ModelFit(model, h_opt, rmse_opt, n, np.sqrt(sse / n), i in (0, h_grid.size - 1), h_std, sharp)
+
+
+def _extended_inputs(states, params, effects: dict) -> list[tuple[dict, dict]]:
+    """Per recording: the extended model's input arrays over its samples, and its ``extras``.
+
+    The samples are the recording's valid ones (those of the paper's models) with a finite yaw and
+    tilt; the yaw rate is the Savitzky-Golay derivative of the (unwrapped) yaw with the states' own
+    window. With ``mocap_time_offset``, which needs the time-shift hook of the residual analysis, the
+    inputs are those of :func:`euc_ros.core.residual.analysis.prepare` (its sample set).
+    """
+    from euc_ros.core.filters.derivatives import savgol_derivatives
+
+    if "mocap_time_offset" in effects:
+        from euc_ros.core.residual.analysis import prepare
+
+        out = []
+        for rec in prepare(states, params):
+            c = rec.ctx
+            out.append(({k: getattr(c, k) for k in _EXTENDED_KEYS}, c.extras))
+        return out
+    out = []
+    for st in states:
+        window = st.window if st.window and st.window % 2 == 1 else 9
+        dpsi = savgol_derivatives(st.dt if np.isfinite(st.dt) else st.t, st.psi, window=window,
+                                  polyorder=st.polyorder, frame=st.frame)
+        mask = np.asarray(st.valid, bool) & np.isfinite(st.psi) & np.isfinite(st.theta) & np.isfinite(dpsi.y_dot)
+        arrays = {k: np.asarray(getattr(st, k), float)[mask] for k in _EXTENDED_KEYS if k not in ("t", "psi_dot")}
+        arrays["t"] = st.t[mask] - (st.t[0] if st.n else 0.0)
+        arrays["psi_dot"] = dpsi.y_dot[mask]
+        out.append((arrays, {}))
+    return out
+
+
+_EXTENDED_KEYS = ("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
+                  "psi_dot", "theta")
+
+
+def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
+    """Identify h for the 3-DoF model extended with ``effects``, per recording and pooled.
+
+    The residual of a sample is ``M_d1 - M_d2`` of
+    :class:`~euc_ros.core.residual.extended.ExtendedModel` with the effects' parameters fixed (see
+    :func:`_extended_inputs` for the samples). The sum of squares is evaluated at every h of the grid
+    (vectorized over samples), then refined as for the paper's models.
+
+    Returns
+    -------
+    name : str
+        ``"3dof+<effect>..."``.
+    per_recording : list of ModelFit
+    pooled : ModelFit
+    """
+    from euc_ros.core.residual.extended import ExtendedModel
+
+    model = ExtendedModel(params, effects)
+    inputs = _extended_inputs(states, params, effects)
+
+    def residual(k: int, h: float) -> np.ndarray:
+        arrays, extras = inputs[k]
+        m1, m2 = model.torques(**arrays, h=h, extras=extras)
+        return np.asarray(m1 - m2, float)
+
+    mid = float(np.median(h_grid))
+    masks = [np.isfinite(residual(k, mid)) for k in range(len(inputs))]
+    cache: dict[tuple[int, float], float] = {}
+
+    def sse_rec(k: int, h: float) -> float:
+        if (k, h) not in cache:
+            e = residual(k, h)[masks[k]]
+            cache[(k, h)] = float(np.dot(e, e))
+        return cache[(k, h)]
+
+    per = [_fit_from_sse(lambda h, k=k: sse_rec(k, h), h_grid, int(masks[k].sum()), model.name)
+           for k in range(len(inputs))]
+    pooled = _fit_from_sse(lambda h: sum(sse_rec(k, h) for k in range(len(inputs))), h_grid,
+                           int(sum(m.sum() for m in masks)), model.name)
+    return model.name, per, pooled
+
+
 def _fmt(v: float, digits: int) -> str:
     return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
 
 
 def format_table(result) -> str:
-    """The per-recording and pooled table printed by the command."""
+    """The per-recording and pooled table printed by the command (an extended model adds two columns)."""
+    extra = [m for m in result.pooled if m not in ("3dof", "2dof")]
     head = (f"{'recording':<28} {'samples':>8}  {'3-DoF h [m]':>11} {'RMSE [Nm]':>10}  "
             f"{'2-DoF h [m]':>11} {'RMSE [Nm]':>10}")
+    for m in extra:
+        label = m.replace("3dof", "3-DoF", 1) + " h [m]"
+        head += f"  {label:>11} {'RMSE [Nm]':>10}"
     lines = [head, "-" * len(head)]
 
     def row(name, n, fits):
-        f3, f2 = fits.get("3dof"), fits.get("2dof")
         cells = []
-        for f in (f3, f2):
+        for f in [fits.get("3dof"), fits.get("2dof")] + [fits.get(m) for m in extra]:
             if f is None:
                 cells += ["-", "-"]
             else:
                 h = _fmt(f.h_m, 3) + ("*" if f.at_bound else " ")
                 cells += [h, _fmt(f.rmse_nm, 3)]
-        return f"{name[:28]:<28} {n:>8}  {cells[0]:>11} {cells[1]:>10}  {cells[2]:>11} {cells[3]:>10}"
+        text = f"{name[:28]:<28} {n:>8}  {cells[0]:>11} {cells[1]:>10}  {cells[2]:>11} {cells[3]:>10}"
+        for k, m in enumerate(extra):
+            width = max(11, len(m.replace("3dof", "3-DoF", 1) + " h [m]"))
+            text += f"  {cells[4 + 2 * k]:>{width}} {cells[5 + 2 * k]:>10}"
+        return text
 
     for rec in result.per_recording:
         lines.append(row(rec.recording, rec.n_samples, rec.fits))
@@ -113,7 +286,13 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.session import load_session
 
     grid = h_grid_from_args(args)
+    effects = effects_from_args(args)
     session = load_session(args.session)
+    params = EucParams.from_session(session)
+    if effects:
+        from euc_ros.core.residual.extended import ExtendedModel
+
+        ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
     for path in args.recordings:
         recording_kind(path)  # fail early, before any long read
     states = []
@@ -129,18 +308,26 @@ def main(args: argparse.Namespace) -> int:
         states.append(st)
     for st, name in zip(states, _unique_names([s.name or Path(p).stem for s, p in zip(states, args.recordings)])):
         st.name = name
-    params = EucParams.from_session(session)
     settings = {"session": str(args.session), "recordings": [str(p) for p in args.recordings],
                 "phi_definition": args.phi_definition, "window_s": args.window_s,
                 "window_samples": states[0].window, "polyorder": args.polyorder,
                 "h_grid": {"min_m": float(grid[0]), "max_m": float(grid[-1]), "step_m": args.h_step},
                 "gravity_m_per_s2": float(params.g)}
     result = identify_h(states, params, grid, settings=settings)
+    head = args.model or "3dof"
+    if effects:
+        name, per, pooled = extended_fits(states, params, effects, grid)
+        for rec, fit in zip(result.per_recording, per):
+            rec.fits[name] = fit
+        result.pooled[name] = pooled
+        result.settings["effects"] = {k: dict(v) for k, v in effects.items()}
+        result.settings["extended_model"] = name
+        head = args.model or name
     print(format_table(result))
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(result.to_json(args.model), indent=2) + "\n", encoding="utf-8")
+        out.write_text(json.dumps(result.to_json(head), indent=2) + "\n", encoding="utf-8")
     if args.plots:
         write_plots(result, states, params, Path(args.plots))
     return 0

@@ -114,3 +114,101 @@ def test_bad_session_and_missing_recording_exit_2(recordings, tmp_path, capsys):
     (tmp_path / "x.txt").write_text("hello")
     assert main(["identify", str(d / "session.yaml"), str(tmp_path / "x.txt")]) == 2
     assert "unknown recording type" in capsys.readouterr().err
+
+
+# --- the extended model (issue 5, step 5): --effect, --param, --from-residual --------------------------------
+@pytest.fixture(scope="module")
+def sloped(tmp_path_factory):
+    """Two deceleration runs of the ride simulator on a floor rising 3 deg along +x (true h = 0.61 m)."""
+    from euc_ros.core.ridesim.effects import make_effects
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.ridesim.writers import write_ride
+
+    d = tmp_path_factory.mktemp("sloped")
+    ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=4, duration_s=4.0,
+                                    effects=make_effects(["ground_slope"], {"alpha_deg": 3.0})))
+    write_ride(ride, d)
+    return d, sorted(str(p) for p in d.glob("deceleration_0?.csv"))
+
+
+def _identify(args, out):
+    assert main(["identify", *args, "--json", str(out), "--no-progress"]) == 0
+    return json.loads(out.read_text())
+
+
+def test_identify_with_the_selected_effect_recovers_h(sloped, tmp_path, capsys):
+    d, files = sloped
+    js = _identify([str(d / "session.yaml"), *files, "--effect", "ground_slope",
+                    "--param", "ground_slope.alpha_deg=3.0"], tmp_path / "ext.json")
+    table = capsys.readouterr().out
+    assert js["model"] == "3dof+ground_slope" and "3-DoF+ground_slope h [m]" in table
+    plain = js["models"]["3dof"]
+    assert abs(js["h_m"] - H_TRUE) < 0.02 and abs(plain["h_m"] - H_TRUE) > 0.1   # the slope biases the paper's model
+    assert js["rmse_nm"] < 0.2 * plain["rmse_nm"]
+    assert js["n_samples"] == plain["n_samples"]                 # the same samples as the paper's models
+    assert [r["recording"] for r in js["per_recording"]] == ["deceleration_01", "deceleration_02"]
+    assert all(abs(r["h_m"] - H_TRUE) < 0.03 and r["3dof"]["rmse_nm"] > 3 * r["rmse_nm"] for r in js["per_recording"])
+    assert js["settings"]["effects"] == {"ground_slope": {"alpha_deg": 3.0}}
+    curve = np.array(js["models"]["3dof+ground_slope"]["rmse_curve_nm"])
+    assert np.nanmin(curve) >= js["rmse_nm"] - 1e-9              # the refined optimum is at least as good
+
+
+def test_residual_json_gives_the_same_model_as_the_options(sloped, tmp_path):
+    d, files = sloped
+    residual = tmp_path / "residual.json"
+    # the recording-format spec's residual output (section 5), several effects joined by '+'
+    residual.write_text(json.dumps({"h_m": 0.2, "rmse_before_nm": 8.0, "effect": "ground_slope+time_varying_h",
+                                    "effect_parameters": {"alpha_deg": 3.0, "amplitude_m": 0.0, "period_s": 4.0,
+                                                          "phase_rad": 0.0},
+                                    "rmse_after_nm": 0.4, "candidates": []}))
+    a = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(residual)], tmp_path / "a.json")
+    b = _identify([str(d / "session.yaml"), files[0], "--effect", "ground_slope",
+                   "--param", "ground_slope.alpha_deg=3"], tmp_path / "b.json")
+    assert a["model"] == "3dof+ground_slope+time_varying_h"
+    assert a["h_m"] == pytest.approx(b["h_m"], abs=1e-6) and a["rmse_nm"] == pytest.approx(b["rmse_nm"], rel=1e-6)
+    # --param overrides what the residual JSON says
+    c = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(residual),
+                   "--param", "ground_slope.alpha_deg=0"], tmp_path / "c.json")
+    assert c["rmse_nm"] > 3 * a["rmse_nm"]
+
+
+def test_extended_fit_without_effect_strength_equals_the_paper_fit(sloped, tmp_path):
+    """A zero slope is the paper's model: the direct-evaluation fit must match the coefficient fit."""
+    d, files = sloped
+    js = _identify([str(d / "session.yaml"), *files, "--effect", "ground_slope", "--param",
+                    "ground_slope.alpha_deg=0", "--model", "3dof"], tmp_path / "zero.json")
+    assert js["model"] == "3dof"
+    ext, plain = js["models"]["3dof+ground_slope"], js["models"]["3dof"]
+    assert ext["h_m"] == pytest.approx(plain["h_m"], abs=1e-6)
+    assert ext["rmse_nm"] == pytest.approx(plain["rmse_nm"], rel=1e-9)
+    assert ext["h_std_m"] == pytest.approx(plain["h_std_m"], rel=1e-3)
+    assert ext["sharpness"] == pytest.approx(plain["sharpness"], rel=1e-6)
+    np.testing.assert_allclose(ext["rmse_curve_nm"], plain["rmse_curve_nm"], rtol=1e-9)
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--effect", "ground_slop"], "unknown effect 'ground_slop'"),
+    (["--effect", "ground_slope"], "ground_slope.alpha_deg"),                    # parameter missing
+    (["--param", "ground_slope.alpha_deg=2"], "not in the list of effects"),     # effect not added
+    (["--effect", "ground_slope", "--param", "ground_slope.alpha_deg"], "<effect>.<parameter>=<number>"),
+])
+def test_bad_effect_options_exit_2(sloped, capsys, extra, needle):
+    d, files = sloped
+    assert main(["identify", str(d / "session.yaml"), files[0], *extra]) == 2
+    assert needle in capsys.readouterr().err
+
+
+def test_bad_residual_json_exits_2_naming_the_file(sloped, tmp_path, capsys):
+    d, files = sloped
+    for name, text, needle in (("missing.json", None, "cannot read"), ("broken.json", "{\"effect\": ", "line 1"),
+                               ("noeffect.json", "{\"h_m\": 0.6}", "effect")):
+        path = tmp_path / name
+        if text is not None:
+            path.write_text(text)
+        assert main(["identify", str(d / "session.yaml"), files[0], "--from-residual", str(path)]) == 2
+        err = capsys.readouterr().err
+        assert name in err and needle in err
+    none = tmp_path / "none.json"
+    none.write_text(json.dumps({"effect": "none", "effect_parameters": {}}))
+    js = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(none)], tmp_path / "n.json")
+    assert js["model"] == "3dof" and set(js["models"]) == {"3dof", "2dof"}
