@@ -1,0 +1,301 @@
+"""Node ``unicycle_sim``: the autonomous unicycle (steering paper, eq (36)) integrated step by step.
+
+The physics is :class:`euc_ros.core.unicycle.simulate.UnicycleSimulator` (zero-order hold on ``u``,
+``substeps`` RK4 steps per control period ``dt``); this module only wires ROS. Two modes:
+
+* ``lockstep`` (deterministic): the node publishes state ``k`` (``step = k``, stamped with the
+  simulated time ``k dt``), waits for the ``SteeringCommand`` whose ``step`` is ``k``, applies its
+  ``u`` for one period and publishes state ``k + 1``. Wall-clock timing cannot change the result:
+  with the same ``dt`` and ``substeps`` the run equals the in-process
+  :func:`~euc_ros.core.unicycle.simulate.simulate`. Before step 0 the node waits until the
+  controller (and ``wait_observers`` recorders) have subscribed; a state left unanswered for
+  ``resend_period`` is published again (the controller answers duplicates with its cached command).
+* ``realtime``: a wall timer of period ``dt / rate_factor`` steps with the latest command (``u = 0``
+  before the first) and publishes ``/clock`` (``rosgraph_msgs/Clock``) with the simulated time, so
+  other nodes may run with ``use_sim_time``.
+
+A step that leaves the model's domain stops the simulation: the state carrying the status
+(``tilt_limit``, ``mass_below_ground`` or ``non_finite``, never a NaN state) is published and no
+further steps are taken. After ``duration`` simulated seconds, or such a stop, the node waits until
+its reliable messages are acknowledged, lingers ``linger`` seconds (so a recorder takes the last
+messages) and, with ``exit_when_done``, exits: code 0 after the full duration, 1 after a domain stop.
+
+Publishes
+    ``unicycle/state`` (euc_msgs/UnicycleState, LOCKSTEP_QOS), ``unicycle/pose``
+    (geometry_msgs/PoseStamped of the wheel centre G, LOCKSTEP_QOS), ``/tf`` (``frame_id`` ->
+    ``child_frame_id``, same pose), ``/clock`` (realtime mode only).
+Subscribes
+    ``unicycle/command`` (euc_msgs/SteeringCommand, LOCKSTEP_QOS).
+Parameters
+    see :data:`SPECS`.
+
+Pose. Position ``(x_G, y_G, R cos(theta))``: the wheel centre G (eq (37)); orientation the wheel
+body, ``Rz(psi) Rx(theta) Ry(phi)`` (yaw, tilt about the forward axis, rolling angle about the
+axle; :func:`euc_ros.core.rotations.quat_from_yaw_tilt_pitch`), REP-103 world frame.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from euc_msgs.msg import SteeringCommand, UnicycleState
+from geometry_msgs.msg import PoseStamped
+from rclpy.duration import Duration
+from rclpy.node import Node
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from tf2_msgs.msg import TFMessage
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.rotations import quat_from_yaw_tilt_pitch
+from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams
+from euc_ros.core.unicycle.linearize import straight_rolling_state
+from euc_ros.core.unicycle.simulate import STATUS_OK, UnicycleSimulator
+from euc_ros.nodes import convert
+from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.params import ParamSpec, declare_params
+from euc_ros.nodes.runtime import main_for
+
+_DEFAULTS = UnicycleParams()
+
+SPECS = (
+    ParamSpec("mode", "lockstep", "lockstep: each step waits for the command of that step (deterministic); "
+              "realtime: a wall timer steps with the latest command and publishes /clock",
+              choices=("lockstep", "realtime")),
+    ParamSpec("dt", 0.01, "control period: one step, input held constant over it", "s", 1e-4, 1.0),
+    ParamSpec("substeps", 5, "RK4 steps per control period", "", 1, 1000),
+    ParamSpec("duration", 10.0, "simulated time after which the simulation ends (0: never)", "s", 0.0, 1e6),
+    ParamSpec("speed", 1.0, "initial straight-rolling speed v = R phi_dot* of the wheel centre", "m/s", 1e-6, 100.0),
+    ParamSpec("initial_tilt", 0.0, "initial tilt theta added to straight rolling", "rad", -1.5, 1.5),
+    ParamSpec("max_tilt", math.radians(80.0), "the simulation stops with status tilt_limit at this |theta|", "rad",
+              1e-3, 1.57),
+    ParamSpec("wheel_mass", _DEFAULTS.m, "wheel mass m (Table I)", "kg", 1e-6, 1e6),
+    ParamSpec("point_mass", _DEFAULTS.m0, "point mass m0 sliding on the axle (Table I)", "kg", 1e-6, 1e6),
+    ParamSpec("radius", _DEFAULTS.R, "wheel radius R (Table I)", "m", 1e-6, 100.0),
+    ParamSpec("gravity", _DEFAULTS.g, "gravitational acceleration g", "m/s^2", 0.0, 1000.0),
+    ParamSpec("rate_factor", 1.0, "realtime mode: simulated seconds per wall second", "", 0.01, 1000.0),
+    ParamSpec("wait_observers", 0, "subscribers besides the controller (e.g. a recorder) whose subscriptions to "
+              "unicycle/state and unicycle/pose must have matched before step 0", "", 0, 100),
+    ParamSpec("resend_period", 0.5, "lockstep: publish the current state again after this long without an "
+              "answer", "s", 0.01, 60.0),
+    ParamSpec("linger", 0.5, "time to keep running after the end so subscribers take the last messages", "s",
+              0.0, 3600.0),
+    ParamSpec("exit_when_done", True, "exit after the end (code 0; 1 if the state left the model's domain)"),
+    ParamSpec("publish_pose", True, "publish the wheel pose on unicycle/pose"),
+    ParamSpec("publish_tf", True, "publish frame_id -> child_frame_id on /tf"),
+    ParamSpec("frame_id", "world", "world frame of the pose and TF (REP-103/105)"),
+    ParamSpec("child_frame_id", "unicycle", "TF frame of the wheel body"),
+)
+
+#: Wait after the wanted subscriptions matched before step 0 (DDS discovery is asymmetric) [s].
+SETTLE_S = 0.3
+#: Period of the start-up, resend and end checks [s].
+CHECK_PERIOD_S = 0.05
+#: Longest wait for the acknowledgement of the last messages [s].
+ACK_TIMEOUT_S = 2.0
+
+
+def state_to_msg(x, u: float, step: int, stamp_ns: int, status: str, frame_id: str = "world") -> UnicycleState:
+    """State ``x`` (10,) of eq (37) -> ``euc_msgs/UnicycleState`` (fields in :data:`STATE_NAMES` order)."""
+    msg = UnicycleState()
+    msg.header.stamp = convert.ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    (msg.omega1, msg.omega2, msg.omega3, msg.theta, msg.sigma, msg.r, msg.psi, msg.phi, msg.x_g,
+     msg.y_g) = (float(v) for v in x)
+    msg.u = float(u)
+    msg.step = int(step)
+    msg.status = status
+    return msg
+
+
+#: Message fields of the state, in :data:`STATE_NAMES` order.
+STATE_FIELDS = ("omega1", "omega2", "omega3", "theta", "sigma", "r", "psi", "phi", "x_g", "y_g")
+assert tuple(n.lower() for n in STATE_NAMES) == STATE_FIELDS
+
+
+def msg_to_state(msg) -> np.ndarray:
+    """``UnicycleState`` (rclpy or rosbags message) -> state (10,) of eq (37)."""
+    return np.array([getattr(msg, f) for f in STATE_FIELDS], dtype=float)
+
+
+def wheel_pose(x, params: UnicycleParams) -> tuple[np.ndarray, np.ndarray]:
+    """Position of the wheel centre ``(x_G, y_G, R cos(theta))`` [m] and body quaternion (x, y, z, w).
+
+    The body frame is F2 (eq (73)) turned by the rolling angle ``phi`` about the axle:
+    ``Rz(psi) Rx(theta) Ry(phi)``.
+    """
+    x = np.asarray(x, dtype=float)
+    pos = np.array([x[8], x[9], params.R * math.cos(x[3])])
+    return pos, quat_from_yaw_tilt_pitch(x[6], x[3], x[7])
+
+
+class UnicycleSim(Node):
+    """Simulate the autonomous unicycle, in lockstep with the controller or in real time.
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ``namespace``...).
+
+    Attributes
+    ----------
+    sim : UnicycleSimulator
+        The integrator (``sim.x``, ``sim.t``, ``sim.steps``, ``sim.status``).
+    n_steps : int or None
+        Steps until the end (``round(duration / dt)``; None with ``duration`` 0).
+    done : bool
+        True once the simulation has ended (duration reached or domain left).
+    resent : int
+        States published again because no answer came (lockstep).
+    ignored : int
+        Commands ignored (wrong step in lockstep, or non-finite).
+    """
+
+    NAME = "unicycle_sim"
+    SPECS = SPECS
+
+    def __init__(self, **kwargs):
+        super().__init__(self.NAME, **kwargs)
+        self.config = cfg = declare_params(self, SPECS)
+        self.params = UnicycleParams(m=cfg["wheel_mass"], m0=cfg["point_mass"], R=cfg["radius"], g=cfg["gravity"])
+        x0 = straight_rolling_state(self.params, cfg["speed"])
+        x0[3] = cfg["initial_tilt"]
+        try:
+            self.sim = UnicycleSimulator(self.params, x0, cfg["dt"], max_tilt=cfg["max_tilt"],
+                                         substeps=cfg["substeps"])
+        except ConfigError as exc:
+            raise ConfigError(exc.detail, key=f"{self.NAME}.ros__parameters.{exc.key}") from None
+        self.lockstep = cfg["mode"] == "lockstep"
+        self.n_steps = int(round(cfg["duration"] / cfg["dt"])) if cfg["duration"] > 0 else None
+        self.done = self.sim.status != STATUS_OK
+        self.resent = 0
+        self.ignored = 0
+        self._u = 0.0                       # input of the last step (published with the state)
+        self._u_latest = 0.0                # realtime: latest command
+        self._started = False
+        self._matched_at: float | None = None
+        self._sent_at = 0.0
+        self._done_at: float | None = None
+        self._last_msg: UnicycleState | None = None
+
+        self.state_pub = self.create_publisher(UnicycleState, itf.UNICYCLE_STATE, itf.LOCKSTEP_QOS)
+        self.pose_pub = (self.create_publisher(PoseStamped, itf.UNICYCLE_POSE, itf.LOCKSTEP_QOS)
+                         if cfg["publish_pose"] else None)
+        self.tf_pub = self.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS) if cfg["publish_tf"] else None
+        self.clock_pub = (None if self.lockstep else
+                          self.create_publisher(Clock, itf.CLOCK, QoSProfile(depth=10,
+                                                                             reliability=ReliabilityPolicy.RELIABLE)))
+        self.create_subscription(SteeringCommand, itf.STEERING_COMMAND, self._on_command, itf.LOCKSTEP_QOS)
+        self.create_timer(CHECK_PERIOD_S, self._check)
+        if not self.lockstep:
+            self._step_timer = self.create_timer(cfg["dt"] / cfg["rate_factor"], self._realtime_tick)
+        self.get_logger().info(
+            f"{cfg['mode']} simulation, dt {cfg['dt']:g} s x {cfg['substeps']} RK4 substeps, "
+            f"{'until stopped' if self.n_steps is None else f'{self.n_steps} steps'}, start at "
+            f"{cfg['speed']:g} m/s, tilt {cfg['initial_tilt']:g} rad")
+
+    # -- start-up --------------------------------------------------------------------------------
+    def _subscribers_ready(self) -> bool:
+        """True once the controller (lockstep) and ``wait_observers`` observers matched our publishers.
+
+        Counts are DDS matches of our own writers, not graph entries: a subscriber listed in the
+        graph may not be matched yet. (The controller waits the same way for ``unicycle/command``.)
+        """
+        obs = self.config["wait_observers"]
+        need_state = obs + (1 if self.lockstep else 0)
+        ok = self.state_pub.get_subscription_count() >= need_state
+        if self.pose_pub is not None:
+            ok = ok and self.pose_pub.get_subscription_count() >= obs
+        return ok
+
+    def _ready_to_start(self, now: float) -> bool:
+        if self._matched_at is None:
+            if not self._subscribers_ready():
+                self.get_logger().info("waiting for subscribers of unicycle/state (controller"
+                                       + (f" + {self.config['wait_observers']} observer(s))" if
+                                          self.config["wait_observers"] else ")"), throttle_duration_sec=5.0)
+                return False
+            self._matched_at = now
+        return now >= self._matched_at + SETTLE_S
+
+    # -- stepping --------------------------------------------------------------------------------
+    def _publish_state(self) -> None:
+        sim = self.sim
+        stamp_ns = int(round(sim.t * 1e9))
+        x = sim.x
+        self._last_msg = state_to_msg(x, self._u, sim.steps, stamp_ns, sim.status, self.config["frame_id"])
+        self.state_pub.publish(self._last_msg)
+        self._sent_at = time.monotonic()
+        if self.pose_pub is not None or self.tf_pub is not None:
+            pos, quat = wheel_pose(x, self.params)
+            if self.pose_pub is not None:
+                self.pose_pub.publish(convert.pose_stamped(stamp_ns, self.config["frame_id"], pos, quat))
+            if self.tf_pub is not None:
+                self.tf_pub.publish(TFMessage(transforms=[convert.transform_stamped(
+                    stamp_ns, self.config["frame_id"], self.config["child_frame_id"], pos, quat)]))
+        if self.clock_pub is not None:
+            self.clock_pub.publish(Clock(clock=convert.ns_to_stamp(stamp_ns)))
+
+    def _advance(self, u: float) -> None:
+        """Apply ``u`` for one period, publish the new state, and end when done or out of the domain."""
+        _, status = self.sim.step(u)
+        self._u = float(u)
+        self._publish_state()
+        if status != STATUS_OK or (self.n_steps is not None and self.sim.steps >= self.n_steps):
+            self._finish()
+
+    def _finish(self) -> None:
+        self.done = True
+        self._done_at = time.monotonic()
+        st = self.sim.status
+        self.get_logger().info(f"simulation ended at t = {self.sim.t:.3f} s after {self.sim.steps} steps: {st}"
+                               + (f" ({self.resent} states resent)" if self.resent else ""))
+
+    def _on_command(self, msg: SteeringCommand) -> None:
+        if self.done or not self._started:
+            return
+        if not math.isfinite(msg.u):
+            self.ignored += 1   # the simulator would stop with non_finite; a bad command is dropped instead
+            self.get_logger().warning(f"ignoring non-finite command for step {msg.step}", throttle_duration_sec=5.0)
+            return
+        if not self.lockstep:
+            self._u_latest = float(msg.u)
+            return
+        if msg.step != self.sim.steps:
+            self.ignored += 1   # a duplicate answer to an older state
+            return
+        self._advance(msg.u)
+
+    def _realtime_tick(self) -> None:
+        if self._started and not self.done:
+            self._advance(self._u_latest)
+
+    def _check(self) -> None:
+        now = time.monotonic()
+        if not self._started:
+            if self.done:           # the initial state is already outside the domain
+                self._started = True
+                self._publish_state()
+                self._finish()
+            elif self._ready_to_start(now):
+                self._started = True
+                self._publish_state()
+            return
+        if not self.done:
+            if self.lockstep and now - self._sent_at >= self.config["resend_period"] and self._last_msg is not None:
+                self.state_pub.publish(self._last_msg)
+                self._sent_at = now
+                self.resent += 1
+            return
+        if self.config["exit_when_done"] and now >= self._done_at + self.config["linger"]:
+            self._exit()
+
+    def _exit(self) -> None:
+        for pub in (self.state_pub, self.pose_pub, self.tf_pub):
+            if pub is not None:
+                pub.wait_for_all_acked(Duration(seconds=ACK_TIMEOUT_S))
+        raise SystemExit(0 if self.sim.status == STATUS_OK else 1)
+
+
+main = main_for(UnicycleSim)
