@@ -45,6 +45,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="true rider CoG height above the ankle hinge [m] [0.61]")
     parser.add_argument("--duration", type=float, default=None, metavar="S",
                         help="recording duration per run [s] (default per maneuver)")
+    parser.add_argument("--speed-scale", type=float, default=1.0, metavar="K",
+                        help="multiply every planned speed (a more aggressive rider) [1]")
+    parser.add_argument("--path-scale", type=float, default=1.0, metavar="K",
+                        help="multiply the figure-eight's length (wider turns) [1]")
     parser.add_argument("--session", default=None, metavar="FILE",
                         help="nominal session YAML (default: the paper's Table 3 with default segments)")
     parser.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
@@ -76,7 +80,8 @@ def main(args: argparse.Namespace) -> int:
     config = RideConfig(maneuver=args.maneuver.replace("-", "_"), runs=args.runs, seed=args.seed,
                         h=args.cog_height, effects=effects,
                         session=None if args.session is None else load_session(args.session),
-                        duration_s=args.duration, noise=noise)
+                        duration_s=args.duration, speed_scale=args.speed_scale,
+                        path_scale=args.path_scale, noise=noise)
     result = simulate_ride(config)
     written = write_ride(result, args.out, bag=args.bag)
     print(f"simulate-ride: {config.maneuver}, {len(result.runs)} run(s), effect {effects.label}, "

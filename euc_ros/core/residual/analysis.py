@@ -28,7 +28,7 @@ from euc_ros.core.residual.candidates import Candidate, ModelContext, make_candi
 #: Significance level of the selection test (family-wise over the candidates of one step).
 DEFAULT_ALPHA = 0.01
 #: A selected effect must cut the held-out RMSE by at least this fraction.
-DEFAULT_MIN_GAIN = 0.05
+DEFAULT_MIN_GAIN = 0.10
 #: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
 DEFAULT_BLOCK_S = 1.0
 #: An effect is undetectable when its generalized force projects on w = [R, 1, 1] by less than this

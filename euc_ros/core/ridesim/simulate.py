@@ -65,6 +65,10 @@ class RideConfig:
         Nominal session (default :func:`~euc_ros.core.session.default_session` with Y-up).
     duration_s : float, optional
         Recording duration of each run [s] (default per maneuver).
+    speed_scale : float
+        Multiplies every planned speed (1 = the paper-like defaults).
+    path_scale : float
+        Multiplies the figure-eight's length (1 = 16 m).
     settle_s : float
         Simulated time before the recording starts [s].
     noise : MocapNoise
@@ -84,6 +88,8 @@ class RideConfig:
     effects: EffectSet = field(default_factory=EffectSet)
     session: Session | None = None
     duration_s: float | None = None
+    speed_scale: float = 1.0
+    path_scale: float = 1.0
     settle_s: float = 2.0
     noise: MocapNoise = field(default_factory=MocapNoise)
     euc_controller: EucBalanceController = field(default_factory=EucBalanceController)
@@ -445,6 +451,7 @@ def simulate_ride(config: RideConfig) -> RideResult:
     children = seq.spawn(2 * config.runs)
     runs = []
     for k in range(config.runs):
-        plan = plan_run(config.maneuver, k, np.random.default_rng(children[2 * k]), config.duration_s)
+        plan = plan_run(config.maneuver, k, np.random.default_rng(children[2 * k]), config.duration_s,
+                        config.speed_scale, config.path_scale)
         runs.append(simulate_run(plan, config, params, skeleton, np.random.default_rng(children[2 * k + 1])))
     return RideResult(config=config, session=session, params_true=params, params_nominal=nominal, runs=runs)
