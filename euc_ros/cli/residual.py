@@ -243,13 +243,12 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
              "" if c.get("p_value") is None else f"{c['p_value']:.2g}",
              ", ".join(f"{k}={v:.3g}" for k, v in (c.get("effect_parameters") or {}).items())]
             for c in data["candidates"]]
-    fig, ax = plt.subplots(figsize=(9, 0.32 * len(rows) + 0.8))
+    fig, ax = plt.subplots(figsize=(9, 0.28 * len(rows) + 0.7))
     ax.axis("off")
     table = ax.table(cellText=rows, colLabels=["effect", "held-out RMSE [N m]", "p", "parameters"], loc="center",
-                     cellLoc="left")
+                     cellLoc="left", bbox=[0, 0, 1, 1], colWidths=[0.22, 0.18, 0.1, 0.5])
     table.auto_set_font_size(False)
     table.set_fontsize(8)
-    table.auto_set_column_width([0, 1, 2, 3])
     for (i, _), cell in table.get_celld().items():
         if i > 0 and rows[i - 1][0] in result.selected:
             cell.set_facecolor("#d9ead3")
