@@ -467,3 +467,41 @@ class TorqueEstimator:
                             M_d1=d1, M_d2=d2, M_d1_2dof=e1, M_d2_2dof=e2, h_m=float(self.params.h),
                             residual_nm=d1 - d2, rmse_window_nm=rmse, window_s=self.window_s,
                             h_online_m=est.h_m, h_online_std_m=est.h_std_m, model=self.model_name)
+
+
+def extended_model_from_config(params: EucParams, effects: Sequence[str], assignments: Sequence[str],
+                               *, key: str = "effects") -> "ExtendedModel | None":
+    """The online extended model of the ``effects`` / ``effect_parameters`` settings, or None for none.
+
+    Parameters
+    ----------
+    params : EucParams
+        Nominal parameters with the CoG height to use [m].
+    effects : sequence of str
+        Effect names of the residual analysis (empty strings ignored), e.g. ``["ground_slope"]``.
+    assignments : sequence of str
+        ``"<effect>.<parameter>=<value>"`` in the residual report's units, e.g.
+        ``["ground_slope.alpha_deg=2.9"]``.
+    key : str
+        Prefix of the configuration keys named in errors.
+
+    Raises
+    ------
+    ConfigError
+        Unknown effect, an effect that needs future samples (``mocap_time_offset``), a malformed
+        assignment, one for an effect not listed, or a missing parameter.
+    """
+    from euc_ros.core.residual.extended import ExtendedModel, parse_effect_assignments
+
+    names = [e.strip() for e in effects if e and e.strip()]
+    items = [a for a in assignments if a and a.strip()]
+    for item in items:
+        lhs = item.split("=", 1)[0]
+        effect = lhs.split(".", 1)[0].strip()
+        if "=" not in item or "." not in lhs:
+            raise ConfigError("expected '<effect>.<parameter>=<number>'", key=f"{key}: {item}")
+        if effect not in names:
+            raise ConfigError(f"effect {effect!r} is not in the list of effects {names}", key=f"{key}: {item}")
+    if not names:
+        return None
+    return ExtendedModel(params, parse_effect_assignments(names, items), online=True)

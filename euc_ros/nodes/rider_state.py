@@ -1,0 +1,164 @@
+"""Node ``rider_state``: ``MocapFrame`` -> ``RiderState`` (EUC paper, Section 2), with a stated filter lag.
+
+Per frame the rigid bodies give the EUC attitude (yaw psi, tilt theta, pitch gamma), the wheel centre
+C, the ankle hinge A and the rider CoG G (mass-weighted segment centres of mass), and the rider pitch
+phi (about the hinge A by default, or eq (3)). Two fixed-lag Savitzky-Golay filters (the online twin
+of the offline filter of ``euc-ros identify``) give the derivatives: each state is published
+``filter_lag = (window - 1) / 2`` frames after its frame (0.45 s at the default 0.9 s window and
+120 Hz), stamped with the capture time of *its own* frame. The logic lives in
+:class:`~euc_ros.core.euc.estimators.RiderStateEstimator`; this module only wires ROS.
+
+Bad input never stops the node:
+
+* a frame without the EUC body (or with it untracked) gives no state;
+* a frame with a rider segment missing gives a state with ``has_rider`` false and NaN phi and g;
+* frames bridged across a short gap (at most ``max_gap``) give no state; a longer gap restarts the
+  filters (no state across it);
+* repeated and out-of-order frames are dropped; a frame numbering that restarts or a stamp that jumps
+  back by more than ``restart_jump`` restarts the filters
+  (:class:`~euc_ros.core.euc.estimators.FrameSequencer`); frames without a number (``-1``, topic
+  sources) are numbered from their stamps.
+
+Subscribes
+    ``mocap/frame`` (euc_msgs/MocapFrame, reliable).
+Publishes
+    ``rider/state`` (euc_msgs/RiderState, reliable), ``/diagnostics`` (frames, states, frames without
+    the EUC, states without the rider, restarts, drops, filter lag).
+"""
+from __future__ import annotations
+
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from euc_msgs.msg import MocapFrame, RiderState
+from rclpy.node import Node
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.euc.estimators import FrameSequencer, RiderStateEstimator
+from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
+from euc_ros.core.session import load_session
+from euc_ros.nodes import convert
+from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.params import ParamSpec, declare_params
+from euc_ros.nodes.runtime import main_for
+
+SPECS = (
+    ParamSpec("session_file", "", "session file (spec section 4): rider segments and EUC geometry (required)"),
+    ParamSpec("phi_definition", "hinge", "rider pitch phi: about the ankle hinge A (model) or about the wheel "
+              "centre C (eq 3)", choices=PHI_DEFINITIONS),
+    ParamSpec("window_s", DEFAULT_WINDOW_S, "Savitzky-Golay window; states are published half of it late",
+              "s", 0.02, 10.0),
+    ParamSpec("polyorder", DEFAULT_SG_POLYORDER, "Savitzky-Golay polynomial order", "", 2, 8),
+    ParamSpec("max_gap", DEFAULT_MAX_GAP, "longest run of missing frames bridged (bridged frames give no state)",
+              "frames", 0, 1000),
+    ParamSpec("rate_hz", 0.0, "mocap frame rate; 0 takes the session's rate_hz", "Hz", 0.0, 100000.0),
+    ParamSpec("restart_jump", 1.0, "stamps jumping back by more than this mean the source restarted", "s",
+              0.001, 3600.0),
+    ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
+)
+
+
+def _point(msg_point, xyz) -> None:
+    msg_point.x, msg_point.y, msg_point.z = (float(v) for v in xyz)
+
+
+class RiderStateNode(Node):
+    """Reconstruct the planar model's state from mocap frames (see the module docstring).
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``, ``namespace``...).
+
+    Attributes
+    ----------
+    estimator : RiderStateEstimator
+    sequencer : FrameSequencer
+    counts : dict
+        ``frames`` received, ``states`` published, ``no_euc`` frames, ``no_rider`` states, ``errors``.
+    """
+
+    NAME = "rider_state"
+    SPECS = SPECS
+
+    def __init__(self, **kwargs):
+        super().__init__(self.NAME, **kwargs)
+        self.config = cfg = declare_params(self, SPECS)
+        if not cfg["session_file"]:
+            raise ConfigError("parameter 'session_file' is required", key=f"{self.NAME}.ros__parameters.session_file")
+        self.session = load_session(cfg["session_file"])
+        rate = cfg["rate_hz"] or self.session.rate_hz
+        self.estimator = RiderStateEstimator(self.session, 1.0 / rate, phi_definition=cfg["phi_definition"],
+                                             window_s=cfg["window_s"], polyorder=cfg["polyorder"],
+                                             max_gap=cfg["max_gap"])
+        self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
+        self.counts = {"frames": 0, "states": 0, "no_euc": 0, "no_rider": 0, "errors": 0}
+        self._origin_ns: int | None = None
+        self._last_frame_wall: float | None = None
+        self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
+        self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frame, itf.RELIABLE_QOS)
+        self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
+        self.get_logger().info(f"session {cfg['session_file']}: {rate:g} Hz, phi {cfg['phi_definition']}, "
+                               f"filter lag {self.estimator.lag_s:.3f} s")
+
+    def _on_frame(self, msg: MocapFrame) -> None:
+        self.counts["frames"] += 1
+        self._last_frame_wall = time.monotonic()
+        try:
+            frame = convert.msg_to_frame(msg)
+            action, number = self.sequencer.accept(frame.frame_number, frame.stamp_ns)
+            if action == "drop":
+                return
+            if action == "restart":
+                self.estimator.reset()
+                self.get_logger().info(f"mocap stream restarted at frame {frame.frame_number}: filters reset")
+            if self._origin_ns is None:
+                self._origin_ns = frame.stamp_ns
+            body = self.session.euc.body
+            if body not in frame.bodies or not frame.tracked[frame.bodies.index(body)]:
+                self.counts["no_euc"] += 1
+            t = (frame.stamp_ns - self._origin_ns) * 1e-9
+            samples = self.estimator.update(number, t, frame.position, frame.quat, frame.tracked, frame.bodies)
+        except Exception as exc:   # never die on input
+            self.counts["errors"] += 1
+            self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+            return
+        for s in samples:
+            self.state_pub.publish(self._to_msg(s, msg.header.frame_id))
+            self.counts["states"] += 1
+            self.counts["no_rider"] += not s.has_rider
+
+    def _to_msg(self, s, frame_id: str) -> RiderState:
+        m = RiderState()
+        m.header.stamp = convert.ns_to_stamp(self._origin_ns + int(round(s.t * 1e9)))
+        m.header.frame_id = frame_id
+        m.has_rider = bool(s.has_rider)
+        for k in ("x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot",
+                  "phi_eq3", "phi_hinge", "psi", "theta"):
+            setattr(m, k, float(getattr(s, k)))
+        m.phi_definition = s.phi_definition
+        _point(m.c, s.C)
+        _point(m.g, s.G)
+        m.filter_lag = float(s.filter_lag_s)
+        return m
+
+    def _publish_diagnostics(self) -> None:
+        c = self.counts
+        values = dict(c, restarts=self.sequencer.restarts, dropped_frames=self.sequencer.dropped,
+                      filter_lag_s=self.estimator.lag_s, phi_definition=self.config["phi_definition"])
+        stale = self._last_frame_wall is None or time.monotonic() - self._last_frame_wall > 1.0
+        if stale:
+            level, message = convert.STALE, "no frames yet" if c["frames"] == 0 else "no frames for > 1 s"
+        elif c["errors"]:
+            level, message = convert.WARN, f"{c['errors']} frame(s) could not be used"
+        else:
+            level, message = convert.OK, f"publishing states {self.estimator.lag_s:.3f} s after their frames"
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status.append(convert.status("rider_state: states", level, message, values))
+        self.diag_pub.publish(arr)
+
+
+main = main_for(RiderStateNode)

@@ -1,0 +1,162 @@
+"""Node ``torque_estimator``: ``RiderState`` -> ``TorqueEstimate`` at the mocap rate (EUC paper, eqs 9, 10, 13).
+
+For every usable state: M_d1 (eq 9) and M_d2 (eq 10) of the 3-DoF model at the configured CoG height
+``h``, the reduced model's eq (13), the residual ``M_d1 - M_d2``, its RMSE over a sliding window and an
+online sliding-window estimate of h with its standard deviation. With ``effects`` (and
+``effect_parameters``) the 3-DoF torques are those of the model extended with the effects the
+residual analysis selected (``model`` then reads ``"3dof+ground_slope"``), so the live residual drops
+too. The logic lives in :class:`~euc_ros.core.euc.estimators.TorqueEstimator`; this module only wires
+ROS.
+
+A NaN never reaches a published torque: a state that is not usable (no rider, a NaN derivative, a
+torque that would not be finite) is not published and only counted in the diagnostics. States
+missing from the stream age the sliding windows by the time they cover; a jump back in time (a
+restarted upstream) or a gap longer than the RMSE window resets them, so nothing stale is published.
+
+Subscribes
+    ``rider/state`` (euc_msgs/RiderState, reliable).
+Publishes
+    ``euc/torque`` (euc_msgs/TorqueEstimate, reliable, header copied from the state),
+    ``/diagnostics`` (states, published, not usable, resets, model, RMSE, online h).
+"""
+from __future__ import annotations
+
+import time
+from types import SimpleNamespace
+
+from diagnostic_msgs.msg import DiagnosticArray
+from euc_msgs.msg import RiderState, TorqueEstimate
+from rclpy.node import Node
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.euc.estimators import TorqueEstimator, extended_model_from_config
+from euc_ros.core.euc.model import EucParams
+from euc_ros.core.session import load_session
+from euc_ros.nodes import convert
+from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.params import ParamSpec, declare_params
+from euc_ros.nodes.runtime import main_for
+
+SPECS = (
+    ParamSpec("session_file", "", "session file (spec section 4): rider and EUC parameters (required)"),
+    ParamSpec("h", 0.61, "rider CoG height above the ankle hinge A used for the torques (the identified value)",
+              "m", 0.05, 3.0),
+    ParamSpec("rmse_window_s", 5.0, "window of the sliding RMSE of M_d1 - M_d2", "s", 0.01, 3600.0),
+    ParamSpec("h_window_s", 30.0, "window of the online h estimate", "s", 0.1, 3600.0),
+    ParamSpec("h_update_every", 12, "re-estimate h every this many states", "states", 1, 1_000_000),
+    ParamSpec("min_sensitivity", 5.0, "excitation needed before the online h is given (RMS dResidual/dh)",
+              "N m/m", 0.0, 1e6),
+    ParamSpec("effects", [""], "effects of the residual analysis added to the 3-DoF model (e.g. ground_slope)"),
+    ParamSpec("effect_parameters", [""], "their parameters as <effect>.<parameter>=<value> in the residual "
+              "report's units (e.g. ground_slope.alpha_deg=2.9)"),
+    ParamSpec("rate_hz", 0.0, "state rate; 0 takes the session's rate_hz", "Hz", 0.0, 100000.0),
+    ParamSpec("psi_rate_window_s", 0.3, "window of the causal yaw rate some effects need (tilt_gravity)", "s",
+              0.01, 10.0),
+    ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
+)
+
+_STATE_FIELDS = ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi", "theta")
+
+
+class TorqueEstimatorNode(Node):
+    """Driving torque of both models, sliding RMSE and online h from rider states (module docstring).
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node`.
+
+    Attributes
+    ----------
+    estimator : TorqueEstimator
+        Its ``counts`` are published in the diagnostics.
+    published : int
+        TorqueEstimate messages published.
+    """
+
+    NAME = "torque_estimator"
+    SPECS = SPECS
+
+    def __init__(self, **kwargs):
+        super().__init__(self.NAME, **kwargs)
+        self.config = cfg = declare_params(self, SPECS)
+        key = f"{self.NAME}.ros__parameters"
+        if not cfg["session_file"]:
+            raise ConfigError("parameter 'session_file' is required", key=f"{key}.session_file")
+        session = load_session(cfg["session_file"])
+        params = EucParams.from_session(session, cfg["h"])
+        model = extended_model_from_config(params, cfg["effects"], cfg["effect_parameters"],
+                                           key=f"{key}.effect_parameters")
+        rate = cfg["rate_hz"] or session.rate_hz
+        self.estimator = TorqueEstimator(params, 1.0 / rate, rmse_window_s=cfg["rmse_window_s"],
+                                         h_window_s=cfg["h_window_s"], h_update_every=cfg["h_update_every"],
+                                         min_sensitivity=cfg["min_sensitivity"], model=model,
+                                         psi_rate_window_s=cfg["psi_rate_window_s"])
+        self.published = 0
+        self.errors = 0
+        self.last = None
+        self._origin_ns: int | None = None
+        self._last_state_wall: float | None = None
+        self._published_at_last_diag = 0
+        self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS)
+        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
+        self.create_subscription(RiderState, itf.RIDER_STATE, self._on_state, itf.RELIABLE_QOS)
+        self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
+        self.get_logger().info(f"model {self.estimator.model_name}, h = {cfg['h']:g} m, "
+                               f"RMSE window {self.estimator.window_s:g} s")
+
+    def _on_state(self, msg: RiderState) -> None:
+        self._last_state_wall = time.monotonic()
+        try:
+            stamp = convert.stamp_to_ns(msg.header.stamp)
+            if self._origin_ns is None:
+                self._origin_ns = stamp
+            state = SimpleNamespace(t=(stamp - self._origin_ns) * 1e-9, frame=-1, valid=True,
+                                    **{k: float(getattr(msg, k)) for k in _STATE_FIELDS})
+            out = self.estimator.update(state)
+        except Exception as exc:   # never die on input
+            self.errors += 1
+            self.get_logger().warning(f"state dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+            return
+        if out is None:
+            return
+        m = TorqueEstimate()
+        m.header = msg.header
+        m.valid = True
+        m.m_d1, m.m_d2, m.m_d1_2dof, m.m_d2_2dof = out.M_d1, out.M_d2, out.M_d1_2dof, out.M_d2_2dof
+        m.h = out.h_m
+        m.residual = out.residual_nm
+        m.rmse_window = out.rmse_window_nm
+        m.window = out.window_s
+        m.h_online = out.h_online_m
+        m.h_online_std = out.h_online_std_m
+        m.model = out.model
+        self.torque_pub.publish(m)
+        self.published += 1
+        self.last = out
+
+    def _publish_diagnostics(self) -> None:
+        c = self.estimator.counts
+        last = self.last
+        nan = float("nan")
+        values = {"states": c["states"], "published": self.published, "not_usable": c["invalid"],
+                  "resets": c["resets"], "repeated_dropped": c["repeated"], "missing_states": c["missing"],
+                  "errors": self.errors, "model": self.estimator.model_name, "h_m": float(self.estimator.params.h),
+                  "rmse_window_nm": last.rmse_window_nm if last else nan, "h_online_m": last.h_online_m if last else nan,
+                  "h_online_std_m": last.h_online_std_m if last else nan}
+        fresh = self.published - self._published_at_last_diag
+        self._published_at_last_diag = self.published
+        stale = self._last_state_wall is None or time.monotonic() - self._last_state_wall > 1.0
+        if stale:
+            level, message = convert.STALE, "no states yet" if c["states"] == 0 else "no states for > 1 s"
+        elif fresh == 0:
+            level, message = convert.WARN, "states arrive but none is usable (rider missing?)"
+        else:
+            level, message = convert.OK, f"{self.estimator.model_name}: publishing torques"
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status.append(convert.status("torque_estimator: torques", level, message, values))
+        self.diag_pub.publish(arr)
+
+
+main = main_for(TorqueEstimatorNode)

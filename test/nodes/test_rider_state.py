@@ -1,0 +1,346 @@
+"""rider_state node in-process: MocapFrame messages of a simulated ride in, RiderState messages out.
+
+The frames are published over DDS by a feeder node and the states read back by a probe, all in one
+private rclpy context; each frame is drained through the graph before the next one is sent, so the
+comparison with the ROS-free core is exact and nothing is lost to queue depths.
+The :class:`Pipe` helper is shared with the torque_estimator and monitor tests.
+"""
+from __future__ import annotations
+
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+
+import rclpy  # noqa: E402
+from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
+from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate  # noqa: E402
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+
+from euc_ros.core.errors import ConfigError, InputError  # noqa: E402
+from euc_ros.core.euc.estimators import RiderStateEstimator  # noqa: E402
+from euc_ros.core.euc.kinematics import reconstruct_states  # noqa: E402
+from euc_ros.core.ingest import Frame  # noqa: E402
+from euc_ros.core.session import save_session  # noqa: E402
+from euc_ros.nodes import convert  # noqa: E402
+from euc_ros.nodes import interfaces as itf  # noqa: E402
+from euc_ros.nodes.rider_state import RiderStateNode  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+T0_NS = 1_700_000_000_123_456_789   # a realistic epoch stamp: the ns round trip must be exact
+
+
+def stamp_ns(stamp) -> int:
+    return stamp.sec * 10**9 + stamp.nanosec
+
+
+def frame_msgs(series, t0_ns=T0_NS, frames=None):
+    """MocapFrame messages of a Z-up MocapSeries (stamps t0 + t)."""
+    out = []
+    for k in range(series.n_frames) if frames is None else frames:
+        f = Frame(t0_ns + int(round(float(series.t[k]) * 1e9)), int(series.frame[k]), list(series.bodies),
+                  series.position[:, k], series.quat[:, k], series.tracked[:, k], series.mean_marker_error[:, k])
+        out.append(convert.frame_to_msg(f, "world", MocapFrame.STAMP_FILE_TIME))
+    return out
+
+
+class Pipe:
+    """A feeder of MocapFrame, the nodes under test, a probe of every output; one executor.
+
+    ``feed`` publishes frames one at a time and spins until each has gone through every node and every
+    output has reached the probe (``drained``).
+    """
+
+    def __init__(self, ctx, nodes=()):
+        self.ctx = ctx
+        self.feeder = rclpy.create_node("feeder", context=ctx)
+        self.frame_pub = self.feeder.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS)
+        self.state_pub = self.feeder.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS)
+        self.probe = rclpy.create_node("probe", context=ctx)
+        self.states: list[RiderState] = []
+        self.torques: list[TorqueEstimate] = []
+        self.diag: list[DiagnosticArray] = []
+        self.probe.create_subscription(RiderState, itf.RIDER_STATE, self.states.append, itf.RELIABLE_QOS)
+        self.probe.create_subscription(TorqueEstimate, itf.TORQUE, self.torques.append, itf.RELIABLE_QOS)
+        self.probe.create_subscription(DiagnosticArray, itf.DIAGNOSTICS, self.diag.append, itf.DIAGNOSTICS_QOS)
+        self.ex = SingleThreadedExecutor(context=ctx)
+        self.ex.add_node(self.feeder)
+        self.ex.add_node(self.probe)
+        self.nodes = []
+        self.fed_states = 0
+        for n in nodes:
+            self.add(n)
+
+    def add(self, node):
+        self.nodes.append(node)
+        self.ex.add_node(node)
+        return node
+
+    def remove(self, node):
+        self.ex.remove_node(node)
+        self.nodes.remove(node)
+        node.destroy_node()
+
+    def spin_until(self, predicate, timeout_s=10.0, what="condition"):
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline:
+            if predicate():
+                return
+            self.ex.spin_once(timeout_sec=0.005)
+        assert predicate(), f"timed out waiting for {what}"
+
+    def settle(self, seconds):
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.ex.spin_once(timeout_sec=0.01)
+
+    def _riders(self):
+        return [n for n in self.nodes if isinstance(n, RiderStateNode)]
+
+    def _torque_nodes(self):
+        return [n for n in self.nodes if hasattr(n, "estimator") and hasattr(n, "torque_pub")]
+
+    def matched(self):
+        subs_frames = len(self._riders()) + sum(1 for n in self.nodes if n.NAME == "monitor")
+        ok = self.frame_pub.get_subscription_count() >= subs_frames
+        for r in self._riders():
+            ok &= r.state_pub.get_subscription_count() >= 1 + len(self._torque_nodes())
+        for t in self._torque_nodes():
+            ok &= t.torque_pub.get_subscription_count() >= 1
+        return ok
+
+    def drained(self):
+        states = sum(r.counts["states"] for r in self._riders()) + self.fed_states
+        if len(self.states) < states:
+            return False
+        for t in self._torque_nodes():
+            if t.estimator.counts["states"] + t.errors < states or len(self.torques) < sum(
+                    x.published for x in self._torque_nodes()):
+                return False
+        return True
+
+    def wait_matched(self):
+        self.spin_until(self.matched, what="publishers and subscriptions to match")
+
+    def feed(self, msgs):
+        self.wait_matched()
+        for m in msgs:
+            riders = self._riders()
+            before = [r.counts["frames"] for r in riders]
+            self.frame_pub.publish(m)
+            self.spin_until(lambda: all(r.counts["frames"] > b for r, b in zip(riders, before)) and self.drained(),
+                            what="a frame to pass through the pipeline")
+
+    def feed_states(self, msgs):
+        self.wait_matched()
+        for m in msgs:
+            self.state_pub.publish(m)
+            self.fed_states += 1
+            self.spin_until(self.drained, what="a state to pass through the pipeline")
+
+    def close(self):
+        self.ex.shutdown()
+        for n in list(self.nodes):
+            n.destroy_node()
+        self.feeder.destroy_node()
+        self.probe.destroy_node()
+
+
+@pytest.fixture(scope="module")
+def ride(tmp_path_factory):
+    """A 4 s deceleration run of the ride simulator (Z-up mocap) with a lost EUC, a lost rider segment
+    (short and long) and dropped frames; the session written to a file."""
+    from euc_ros.core.mocap import MocapSeries
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+
+    result = simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=8, duration_s=4.0))
+    s = result.runs[0].mocap
+    tracked = s.tracked.copy()
+    e, chl = s.bodies.index("E"), s.bodies.index("CHL")
+    tracked[e, 150:160] = False            # EUC lost: no state for these frames
+    tracked[chl, 250:252] = False          # a rider segment lost for 2 frames: bridged, flagged
+    tracked[chl, 300:340] = False          # ... and for 40 frames: EUC state without phi
+    pos, quat = s.position.copy(), s.quat.copy()
+    pos[~tracked] = np.nan
+    quat[~tracked] = np.nan
+    keep = np.ones(s.n_frames, bool)
+    keep[[100, 101, 400]] = False          # dropped frames
+    series = MocapSeries(s.t[keep], s.frame[keep], list(s.bodies), pos[:, keep], quat[:, keep], tracked[:, keep],
+                         s.mean_marker_error[:, keep], s.name, dict(s.meta))
+    d = tmp_path_factory.mktemp("rider_state")
+    save_session(result.session, d / "session.yaml")
+    return series, result.session, d / "session.yaml"
+
+
+@pytest.fixture
+def pipes(ros_context):
+    made = []
+
+    def make(nodes=()):
+        p = Pipe(ros_context, nodes)
+        made.append(p)
+        return p
+
+    yield make
+    for p in made:
+        p.close()
+
+
+def rider_node(ctx, session_file, **params):
+    overrides = [Parameter("session_file", value=str(session_file))]
+    overrides += [Parameter(k, value=v) for k, v in params.items()]
+    return RiderStateNode(context=ctx, parameter_overrides=overrides)
+
+
+def core_states(series, session, frames=None, **kw):
+    """The core estimator on the same frames, keyed by the capture stamp of each state's frame [ns]."""
+    est = RiderStateEstimator(session, 1 / session.rate_hz, **kw)
+    out = {}
+    for k in range(series.n_frames) if frames is None else frames:
+        for s in est.update(int(series.frame[k]), float(series.t[k]), series.position[:, k], series.quat[:, k],
+                            series.tracked[:, k], series.bodies):
+            out[T0_NS + int(round(s.t * 1e9))] = s
+    return out
+
+
+FIELDS = ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "phi_eq3",
+          "phi_hinge", "psi", "theta")
+
+
+def test_states_equal_the_core_and_carry_their_own_frames_stamp(pipes, ros_context, ride):
+    series, session, path = ride
+    node = rider_node(ros_context, path)
+    pipe = pipes([node])
+    pipe.feed(frame_msgs(series))
+    want = core_states(series, session)
+    got = {stamp_ns(m.header.stamp): m for m in pipe.states}
+    assert len(pipe.states) == len(want) == node.counts["states"] and set(got) == set(want)
+    frame_stamps = {T0_NS + int(round(float(t) * 1e9)) for t in series.t}
+    assert set(got) <= frame_stamps                      # each state is stamped with its own frame's time
+    for stamp, m in got.items():
+        s = want[stamp]
+        for k in FIELDS:
+            np.testing.assert_allclose(getattr(m, k), getattr(s, k), rtol=1e-12, atol=1e-12, equal_nan=True,
+                                       err_msg=k)
+        np.testing.assert_allclose([m.c.x, m.c.y, m.c.z], s.C, rtol=1e-12, atol=1e-12)
+        assert m.has_rider == s.has_rider and m.phi_definition == "hinge" and m.header.frame_id == "world"
+        assert m.filter_lag == pytest.approx(54 / 120)
+    # ... and away from the edges of each stretch, equal to the offline reconstruction
+    off = reconstruct_states(series, session)
+    idx = {T0_NS + int(round(float(t) * 1e9)): i for i, t in enumerate(series.t)}
+    interior = [st for st, m in got.items() if off.valid[idx[st]] and np.isfinite(m.phi)]
+    assert len(interior) > 80
+    for st in interior:
+        i = idx[st]
+        assert got[st].x_ddot == pytest.approx(off.x_ddot[i], abs=1e-9)
+        assert got[st].phi_ddot == pytest.approx(off.phi_ddot[i], abs=1e-9)
+
+
+def test_missing_bodies_and_frames(pipes, ros_context, ride):
+    series, session, path = ride
+    node = rider_node(ros_context, path)
+    pipe = pipes([node])
+    pipe.feed(frame_msgs(series))
+    by_frame = {int(series.frame[np.flatnonzero(T0_NS + np.round(series.t * 1e9).astype(np.int64)
+                                                == stamp_ns(m.header.stamp))[0]]): m for m in pipe.states}
+    # a lost EUC gives no state (nor do frames that never came, or were bridged around it)
+    assert not any(150 <= f < 160 for f in by_frame) and 100 not in by_frame and 400 not in by_frame
+    assert node.counts["no_euc"] == 10
+    # a lost rider segment: the EUC state goes on, has_rider false, phi and G NaN
+    for f in (250, 251, 320):
+        m = by_frame[f]
+        assert np.isfinite(m.gamma) and np.isfinite(m.x_ddot)
+        assert np.isnan(m.phi) and np.isnan(m.phi_ddot) and np.isnan(m.g.x)
+    assert not by_frame[320].has_rider and not by_frame[250].has_rider
+    assert by_frame[230].has_rider and np.isfinite(by_frame[230].phi) and np.isfinite(by_frame[230].g.z)
+    assert node.counts["no_rider"] == sum(not m.has_rider for m in pipe.states) > 40
+
+
+def test_repeated_frames_are_dropped_and_a_restarted_source_restarts_the_filters(pipes, ros_context, ride):
+    series, session, path = ride
+    node = rider_node(ros_context, path)
+    pipe = pipes([node])
+    msgs = frame_msgs(series, frames=range(0, 120))
+    pipe.feed(msgs[:80] + [msgs[79], msgs[60]] + msgs[80:])     # a repeat and an out-of-order frame
+    assert node.sequencer.dropped == 2
+    n_first = len(pipe.states)
+    assert n_first == len(core_states(series, session, frames=range(0, 120)))
+    # The source restarts: the same recording again with the same stamps (time jumps back 1 s).
+    pipe.feed(frame_msgs(series, frames=range(0, 120)))
+    assert node.sequencer.restarts == 1
+    second = pipe.states[n_first:]
+    assert len(second) == n_first                   # a fresh start: no state mixes the two streams
+    for a, b in zip(pipe.states[:n_first], second):
+        assert stamp_ns(a.header.stamp) == stamp_ns(b.header.stamp)
+        assert b.gamma_ddot == a.gamma_ddot and b.x_ddot == a.x_ddot
+    # A looping replay: numbering restarts while the stamps go on.
+    later = frame_msgs(series, t0_ns=T0_NS + 10**10, frames=range(0, 120))
+    pipe.feed(later)
+    assert node.sequencer.restarts == 2 and len(pipe.states) == 3 * n_first
+
+
+def test_frames_without_numbers_are_numbered_from_their_stamps(pipes, ros_context, ride):
+    series, session, path = ride
+    node = rider_node(ros_context, path)
+    pipe = pipes([node])
+    msgs = frame_msgs(series, frames=range(0, 200))
+    for m in msgs:
+        m.frame_number = -1
+    pipe.feed(msgs)
+    want = core_states(series, session, frames=range(0, 200))
+    assert {stamp_ns(m.header.stamp) for m in pipe.states} == set(want)  # frames 100-101 missing, as numbered
+
+
+def test_eq3_definition_and_filter_settings_are_honoured(pipes, ros_context, ride):
+    series, session, path = ride
+    node = rider_node(ros_context, path, phi_definition="eq3", window_s=0.3, polyorder=3)
+    pipe = pipes([node])
+    pipe.feed(frame_msgs(series, frames=range(0, 100)))
+    want = core_states(series, session, frames=range(0, 100), phi_definition="eq3", window_s=0.3, polyorder=3)
+    assert len(pipe.states) == len(want) > 0
+    m = pipe.states[10]
+    s = want[stamp_ns(m.header.stamp)]
+    assert m.phi_definition == "eq3" and m.phi == pytest.approx(s.phi, abs=1e-12)
+    assert m.filter_lag == pytest.approx(node.estimator.lag_s) and m.filter_lag < 0.2
+
+
+def test_diagnostics_count_what_happened(pipes, ros_context, ride):
+    series, session, path = ride
+    node = rider_node(ros_context, path, diagnostics_period=0.05)
+    pipe = pipes([node])
+    pipe.feed(frame_msgs(series, frames=range(140, 200)))
+    pipe.spin_until(lambda: any(st.name == "rider_state: states" and any(
+        kv.key == "frames" and kv.value == "60" for kv in st.values) for a in pipe.diag for st in a.status),
+        what="diagnostics")
+    vals = {kv.key: kv.value for a in pipe.diag for st in a.status if st.name == "rider_state: states"
+            for kv in st.values}
+    assert vals["no_euc"] == "10" and vals["filter_lag_s"] == "0.45"
+
+
+def test_session_errors(ros_context, tmp_path, ride):
+    _, _, path = ride
+    with pytest.raises(ConfigError, match="session_file"):
+        RiderStateNode(context=ros_context)
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(path.read_text().replace("wheel_radius", "wheel_radios"))
+    with pytest.raises(InputError, match="wheel_radios"):
+        rider_node(ros_context, bad)
+
+
+def test_session_error_is_one_line_and_exit_2(ros_domain, tmp_path, ride):
+    _, _, path = ride
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(path.read_text().replace("wheel_radius", "wheel_radios"))
+    exe = Path(sys.executable).parent / "rider_state"
+    r = subprocess.run([str(exe), "--ros-args", "-p", f"session_file:={bad}"], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 2
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and str(bad) in lines[0] and "wheel_radios" in lines[0], r.stderr
