@@ -75,18 +75,28 @@ class Pipe:
         self.ex.add_node(self.probe)
         self.nodes = []
         self.fed_states = 0
+        self.removed_states = 0
+        self.removed_torques = 0
         for n in nodes:
             self.add(n)
 
     def add(self, node):
         self.nodes.append(node)
         self.ex.add_node(node)
+        node._pipe_base = self.total_states()   # a torque node joining late sees only later states
         return node
 
     def remove(self, node):
         self.ex.remove_node(node)
         self.nodes.remove(node)
+        if isinstance(node, RiderStateNode):
+            self.removed_states += node.counts["states"]
+        if hasattr(node, "torque_pub"):
+            self.removed_torques += node.published
         node.destroy_node()
+
+    def total_states(self):
+        return sum(r.counts["states"] for r in self._riders()) + self.removed_states + self.fed_states
 
     def spin_until(self, predicate, timeout_s=10.0, what="condition"):
         deadline = time.monotonic() + timeout_s
@@ -117,14 +127,13 @@ class Pipe:
         return ok
 
     def drained(self):
-        states = sum(r.counts["states"] for r in self._riders()) + self.fed_states
+        states = self.total_states()
         if len(self.states) < states:
             return False
-        for t in self._torque_nodes():
-            if t.estimator.counts["states"] + t.errors < states or len(self.torques) < sum(
-                    x.published for x in self._torque_nodes()):
-                return False
-        return True
+        torque_nodes = self._torque_nodes()
+        if len(self.torques) < sum(t.published for t in torque_nodes) + self.removed_torques:
+            return False
+        return all(t.estimator.counts["states"] + t.errors >= states - t._pipe_base for t in torque_nodes)
 
     def wait_matched(self):
         self.spin_until(self.matched, what="publishers and subscriptions to match")
