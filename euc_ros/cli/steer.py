@@ -3,7 +3,7 @@
 ::
 
     euc-ros steer --maneuver lane_change|turn --speed V --out DIR [--json OUT] [--target T] [--pole -8]
-                  [--dt 0.01] [--duration 10] [--timeout 120] [--verbose]
+                  [--dt 0.01] [--duration 10] [--timeout 120] [--overwrite] [--verbose]
 
 Starts three processes through :mod:`euc_ros.launch`: ``recorder`` (``unicycle/state``,
 ``unicycle/command``, ``unicycle/pose`` into ``DIR/bag``), ``steering_controller`` and
@@ -63,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--duration", type=float, default=10.0, metavar="S", help="simulated time (default 10)")
     parser.add_argument("--timeout", type=float, default=DEFAULT_TIMEOUT_S, metavar="S",
                         help=f"wall-clock limit of the run (default {DEFAULT_TIMEOUT_S:g})")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing bag DIR/bag")
     parser.add_argument("--verbose", action="store_true", help="stream the nodes' logs")
     _add_model_args(parser)
 
@@ -77,7 +78,7 @@ def main(args: argparse.Namespace) -> int:
     try:
         report = run_steer(args.maneuver, args.speed, args.out, target=target, pole=args.pole, dt=args.dt,
                            duration=args.duration, params=_params(args), timeout=args.timeout,
-                           stream=sys.stdout if args.verbose else None)
+                           stream=sys.stdout if args.verbose else None, overwrite=args.overwrite)
     except SteerFailed as exc:
         print(f"euc-ros steer: error: {exc}", file=sys.stderr)
         return 1
@@ -158,9 +159,21 @@ def steer_result_from_bag(bag, dt: float):
     return SimulationResult(t, x, u, y, str(rows[-1][4]), float(dt)), log_ns
 
 
+def _remove_bag(bag: Path) -> None:
+    """Delete a rosbag2 directory, refusing anything that does not look like one."""
+    import shutil
+
+    entries = list(bag.iterdir()) if bag.is_dir() else []
+    if not bag.is_dir() or any(not (e.is_file() and (e.suffix == ".mcap" or e.name == "metadata.yaml"))
+                               for e in entries):
+        raise ConfigError("exists and is not a bag directory (metadata.yaml and .mcap files only); not replacing it",
+                          path=bag)
+    shutil.rmtree(bag)
+
+
 def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = None, pole: float = -8.0,
               dt: float = 0.01, duration: float = 10.0, params=None, timeout: float = DEFAULT_TIMEOUT_S,
-              stream=None) -> dict:
+              stream=None, overwrite: bool = False) -> dict:
     """Run one maneuver over topics (recorder, controller, simulator as processes) and report it.
 
     Parameters
@@ -181,6 +194,9 @@ def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = No
         Wall-clock limit [s].
     stream : file, optional
         Where the nodes' logs go (default: kept, and shown in the error of a failed run).
+    overwrite : bool
+        Replace an existing ``DIR/bag`` (only a directory that holds nothing but a bag's
+        ``metadata.yaml`` and ``.mcap`` files).
 
     Returns
     -------
@@ -214,7 +230,9 @@ def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = No
     out = Path(out_dir)
     bag = out / "bag"
     if bag.exists():
-        raise ConfigError("already exists; remove it or choose another --out", path=bag)
+        if not overwrite:
+            raise ConfigError("already exists; remove it, choose another --out or pass --overwrite", path=bag)
+        _remove_bag(bag)
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -252,7 +270,8 @@ def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = No
 
     result, log_ns = steer_result_from_bag(bag, dt)
     met = maneuver_metrics(result, ctrl)
-    stepping_s = max((log_ns[-1] - log_ns[0]) / 1e9, 1e-9)
+    # wall time of the stepping, from the first answered state on (start-up waits for DDS discovery)
+    stepping_s = max((log_ns[-1] - log_ns[min(1, len(log_ns) - 1)]) / 1e9, 1e-9) * len(log_ns) / max(len(log_ns) - 1, 1)
     # the same run in process (a check that the topics changed nothing)
     ref = simulate(params, ctrl, straight_rolling_state(params, ctrl.speed), duration, dt)
     n = min(len(ref.x), len(result.x))

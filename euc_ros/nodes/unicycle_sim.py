@@ -186,7 +186,8 @@ class UnicycleSim(Node):
         self.clock_pub = (None if self.lockstep else
                           self.create_publisher(Clock, itf.CLOCK, QoSProfile(depth=10,
                                                                              reliability=ReliabilityPolicy.RELIABLE)))
-        self.create_subscription(SteeringCommand, itf.STEERING_COMMAND, self._on_command, itf.LOCKSTEP_QOS)
+        self.command_sub = self.create_subscription(SteeringCommand, itf.STEERING_COMMAND, self._on_command,
+                                                    itf.LOCKSTEP_QOS)
         self.create_timer(CHECK_PERIOD_S, self._check)
         if not self.lockstep:
             self._step_timer = self.create_timer(cfg["dt"] / cfg["rate_factor"], self._realtime_tick)
@@ -205,6 +206,8 @@ class UnicycleSim(Node):
         obs = self.config["wait_observers"]
         need_state = obs + (1 if self.lockstep else 0)
         ok = self.state_pub.get_subscription_count() >= need_state
+        if self.lockstep:   # and our reader has matched the controller's writer (the answers must get through)
+            ok = ok and self.command_sub.get_publisher_count() >= 1
         if self.pose_pub is not None:
             ok = ok and self.pose_pub.get_subscription_count() >= obs
         return ok
@@ -287,6 +290,8 @@ class UnicycleSim(Node):
                 self.state_pub.publish(self._last_msg)
                 self._sent_at = now
                 self.resent += 1
+                self.get_logger().info(f"no command for step {self.sim.steps} yet: state resent",
+                                       throttle_duration_sec=2.0)
             return
         if self.config["exit_when_done"] and now >= self._done_at + self.config["linger"]:
             self._exit()

@@ -31,8 +31,14 @@ def test_steer_over_topics_matches_in_process_simulation(ros_domain, tmp_path, c
 
     out = tmp_path / "run"
     report_path = tmp_path / "report.json"
+    extra = []
+    if maneuver == "turn":           # a bag left by an earlier run is replaced with --overwrite
+        (out / "bag").mkdir(parents=True)
+        (out / "bag" / "metadata.yaml").write_text("stale")
+        (out / "bag" / "bag_0.mcap").write_bytes(b"stale")
+        extra = ["--overwrite"]
     code = main(["steer", "--maneuver", maneuver, "--speed", str(speed), "--out", str(out),
-                 "--json", str(report_path)])
+                 "--json", str(report_path), *extra])
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert "final lateral error" in printed and "max |u|" in printed
@@ -100,8 +106,12 @@ def test_steer_refuses_an_existing_bag(tmp_path, capsys):
     from euc_ros.cli.main import main
 
     (tmp_path / "bag").mkdir()
+    (tmp_path / "bag" / "notes.txt").write_text("mine")
     assert main(["steer", "--maneuver", "turn", "--speed", "1", "--out", str(tmp_path)]) == 2
     assert "already exists" in capsys.readouterr().err
+    assert main(["steer", "--maneuver", "turn", "--speed", "1", "--out", str(tmp_path), "--overwrite"]) == 2
+    assert "not a bag directory" in capsys.readouterr().err
+    assert (tmp_path / "bag" / "notes.txt").read_text() == "mine"
 
 
 @pytest.mark.parametrize("speed", ["100.0", "0.0"])
