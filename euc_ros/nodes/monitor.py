@@ -72,6 +72,8 @@ class Monitor(Node):
     ----------
     last : dict of str -> Health
         The statuses of the latest report, by name.
+    received : dict of str -> int
+        Messages received per stream (``frames``, ``states``, ``torques``).
     """
 
     NAME = "monitor"
@@ -86,6 +88,7 @@ class Monitor(Node):
         self._last_torque_wall: float | None = None
         self._torque: TorqueEstimate | None = None
         self.last: dict[str, mon.Health] = {}
+        self.received = {"frames": 0, "states": 0, "torques": 0}
         self.reports = 0
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
         self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frame, itf.RELIABLE_QOS)
@@ -95,15 +98,18 @@ class Monitor(Node):
 
     # -- inputs: record only ---------------------------------------------------------------------
     def _on_frame(self, msg: MocapFrame) -> None:
+        self.received["frames"] += 1
         self.frames.push(time.monotonic(), msg.frame_number, list(msg.body_names), list(msg.tracked))
 
     def _on_state(self, msg: RiderState) -> None:
+        self.received["states"] += 1
         self._last_state_wall = time.monotonic()
         self.peaks["phi"].push(msg.phi)
         self.peaks["gamma"].push(msg.gamma)
         self.peaks["theta"].push(msg.theta)
 
     def _on_torque(self, msg: TorqueEstimate) -> None:
+        self.received["torques"] += 1
         self._last_torque_wall = time.monotonic()
         self._torque = msg
         self.peaks["m_d1"].push(msg.m_d1 if msg.valid else float("nan"))

@@ -118,12 +118,14 @@ class Pipe:
         return [n for n in self.nodes if hasattr(n, "estimator") and hasattr(n, "torque_pub")]
 
     def matched(self):
-        subs_frames = len(self._riders()) + sum(1 for n in self.nodes if n.NAME == "monitor")
-        ok = self.frame_pub.get_subscription_count() >= subs_frames
+        monitors = sum(1 for n in self.nodes if n.NAME == "monitor")
+        torques = len(self._torque_nodes())
+        ok = self.frame_pub.get_subscription_count() >= len(self._riders()) + monitors
+        ok &= self.state_pub.get_subscription_count() >= 1 + torques + monitors
         for r in self._riders():
-            ok &= r.state_pub.get_subscription_count() >= 1 + len(self._torque_nodes())
+            ok &= r.state_pub.get_subscription_count() >= 1 + torques + monitors
         for t in self._torque_nodes():
-            ok &= t.torque_pub.get_subscription_count() >= 1
+            ok &= t.torque_pub.get_subscription_count() >= 1 + monitors
         return ok
 
     def drained(self):
