@@ -142,7 +142,8 @@ class TorqueEstimatorNode(Node):
         values = {"states": c["states"], "published": self.published, "not_usable": c["invalid"],
                   "resets": c["resets"], "repeated_dropped": c["repeated"], "missing_states": c["missing"],
                   "errors": self.errors, "model": self.estimator.model_name, "h_m": float(self.estimator.params.h),
-                  "rmse_window_nm": last.rmse_window_nm if last else nan, "h_online_m": last.h_online_m if last else nan,
+                  "rmse_window_nm": last.rmse_window_nm if last else nan,
+                  "h_online_m": last.h_online_m if last else nan,
                   "h_online_std_m": last.h_online_std_m if last else nan}
         fresh = self.published - self._published_at_last_diag
         self._published_at_last_diag = self.published

@@ -27,7 +27,8 @@ pytestmark = pytest.mark.ros
 
 
 def _load_helpers():
-    spec = importlib.util.spec_from_file_location("rider_state_helpers", Path(__file__).with_name("test_rider_state.py"))
+    path = Path(__file__).with_name("test_rider_state.py")
+    spec = importlib.util.spec_from_file_location("rider_state_helpers", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -92,7 +93,8 @@ def _state(phi_deg, gamma_deg, theta_deg, k):
 
 
 def _torque(m_d1, rmse, k):
-    m = TorqueEstimate(valid=True, m_d1=float(m_d1), m_d2=float(m_d1), rmse_window=float(rmse), residual=0.1, h=0.61, model="3dof",
+    m = TorqueEstimate(valid=True, m_d1=float(m_d1), m_d2=float(m_d1), rmse_window=float(rmse), residual=0.1, h=0.61,
+                       model="3dof",
                        h_online=float("nan"), h_online_std=float("nan"))
     m.header.stamp.sec, m.header.stamp.nanosec = 100, k * 8_333_333
     return m

@@ -28,7 +28,8 @@ pytestmark = pytest.mark.ros
 
 
 def _load_helpers():
-    spec = importlib.util.spec_from_file_location("rider_state_helpers", Path(__file__).with_name("test_rider_state.py"))
+    path = Path(__file__).with_name("test_rider_state.py")
+    spec = importlib.util.spec_from_file_location("rider_state_helpers", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
