@@ -197,27 +197,26 @@ class UnicycleSim(Node):
             f"{cfg['speed']:g} m/s, tilt {cfg['initial_tilt']:g} rad")
 
     # -- start-up --------------------------------------------------------------------------------
-    def _subscribers_ready(self) -> bool:
-        """True once the controller (lockstep) and ``wait_observers`` observers matched our publishers.
+    def _missing_matches(self) -> list[str]:
+        """What is still missing before step 0: the controller (lockstep) and ``wait_observers`` observers.
 
-        Counts are DDS matches of our own writers, not graph entries: a subscriber listed in the
+        Counts are DDS matches of our own endpoints, not graph entries: a subscriber listed in the
         graph may not be matched yet. (The controller waits the same way for ``unicycle/command``.)
         """
         obs = self.config["wait_observers"]
-        need_state = obs + (1 if self.lockstep else 0)
-        ok = self.state_pub.get_subscription_count() >= need_state
-        if self.lockstep:   # and our reader has matched the controller's writer (the answers must get through)
-            ok = ok and self.command_sub.get_publisher_count() >= 1
+        want = [(itf.UNICYCLE_STATE + " subscriptions", self.state_pub.get_subscription_count(),
+                 obs + (1 if self.lockstep else 0))]
+        if self.lockstep:   # our reader must have matched the controller's writer (the answers must get through)
+            want.append((itf.STEERING_COMMAND + " publishers", self.command_sub.get_publisher_count(), 1))
         if self.pose_pub is not None:
-            ok = ok and self.pose_pub.get_subscription_count() >= obs
-        return ok
+            want.append((itf.UNICYCLE_POSE + " subscriptions", self.pose_pub.get_subscription_count(), obs))
+        return [f"{what} {have}/{need}" for what, have, need in want if have < need]
 
     def _ready_to_start(self, now: float) -> bool:
         if self._matched_at is None:
-            if not self._subscribers_ready():
-                self.get_logger().info("waiting for subscribers of unicycle/state (controller"
-                                       + (f" + {self.config['wait_observers']} observer(s))" if
-                                          self.config["wait_observers"] else ")"), throttle_duration_sec=5.0)
+            missing = self._missing_matches()
+            if missing:
+                self.get_logger().info("waiting for matches: " + ", ".join(missing), throttle_duration_sec=5.0)
                 return False
             self._matched_at = now
         return now >= self._matched_at + SETTLE_S
