@@ -242,7 +242,7 @@ class TiltGravity(Candidate):
     """Tilt-gravity coupling in turns: the in-plane gravity of a tilted, turning rider."""
 
     name = "tilt_gravity"
-    params = (ParamInfo("gain", "-", -5.0, 5.0, 0.0, 1.0),)
+    params = (ParamInfo("gain", "-", -20.0, 20.0, 0.0, 1.0),)
     formula = "g -> g + gain (g cos(theta) - a_c sin(theta) - g), a_c = psi_dot x_dot"
 
     def modify(self, ctx, theta):
