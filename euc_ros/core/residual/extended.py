@@ -34,19 +34,23 @@ def parse_effect_assignments(effects: list[str], assignments: list[str]) -> dict
     ConfigError
         Naming the assignment that is malformed or refers to an effect not listed.
     """
-    out: dict[str, dict[str, float]] = {e: {} for e in effects if e}
+    listed = [e for e in effects if e]
+    out: dict[str, dict[str, float]] = {e: {} for e in listed}
     for item in assignments:
         if not item:
             continue
+        lhs, sep, value = item.partition("=")
+        effect, dot, param = lhs.strip().partition(".")
         try:
-            lhs, value = item.split("=", 1)
-            effect, param = lhs.strip().split(".", 1)
-            out.setdefault(effect, {})
-            if effect not in [e for e in effects if e]:
-                raise ConfigError(f"effect {effect!r} is not in the list of effects", key=f"effect_parameters: {item}")
-            out[effect][param.strip()] = float(value)
+            number = float(value)
         except ValueError:
-            raise ConfigError("expected '<effect>.<parameter>=<number>'", key=f"effect_parameters: {item}") from None
+            number = None
+        if not sep or not dot or not param.strip() or number is None:
+            raise ConfigError("expected '<effect>.<parameter>=<number>'", key=f"effect_parameters: {item}")
+        if effect not in listed:
+            raise ConfigError(f"effect {effect!r} is not in the list of effects ({', '.join(listed) or 'none'})",
+                              key=f"effect_parameters: {item}")
+        out[effect][param.strip()] = number
     return out
 
 

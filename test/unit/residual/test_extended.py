@@ -1,0 +1,39 @@
+"""The extended model: configuration parsing and agreement with the analysis' candidate models."""
+import numpy as np
+import pytest
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.euc.model import EucParams
+from euc_ros.core.euc.torque import torques
+from euc_ros.core.residual.extended import ExtendedModel, parse_effect_assignments
+from euc_ros.core.session import default_session
+
+
+def test_parse_assignments():
+    assert parse_effect_assignments(["ground_slope"], ["ground_slope.alpha_deg=2.9"]) == \
+        {"ground_slope": {"alpha_deg": 2.9}}
+    with pytest.raises(ConfigError, match="not in the list of effects"):
+        parse_effect_assignments(["ground_slope"], ["rolling_resistance.c_rr=0.1"])
+    for bad in ("ground_slope.alpha_deg", "ground_slope=1", "ground_slope.alpha_deg=abc"):
+        with pytest.raises(ConfigError, match="expected"):
+            parse_effect_assignments(["ground_slope"], [bad])
+
+
+def test_online_refuses_offline_only_effects():
+    p = EucParams.from_session(default_session(), 0.61)
+    with pytest.raises(ConfigError, match="offline only"):
+        ExtendedModel(p, {"mocap_time_offset": {"dt_ms": 10.0}}, online=True)
+
+
+def test_zero_effect_equals_the_paper_model():
+    p = EucParams.from_session(default_session(), 0.61)
+    rng = np.random.default_rng(0)
+    s = {k: rng.normal(0, 0.1, 50) for k in ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi",
+                                              "phi_dot", "phi_ddot", "psi", "psi_dot", "theta")}
+    m = ExtendedModel(p, {"ground_slope": {"alpha_deg": 0.0}, "viscous_friction": {"c_v": 0.0}})
+    m1, m2 = m.torques(t=np.arange(50) / 120, **s)
+    r1, r2 = torques(s["gamma"], s["phi"], s["gamma_dot"], s["phi_dot"], s["x_ddot"], s["gamma_ddot"],
+                     s["phi_ddot"], p)
+    np.testing.assert_allclose(m1, r1, atol=1e-12)
+    np.testing.assert_allclose(m2, r2, atol=1e-12)
+    assert m.name == "3dof+ground_slope+viscous_friction"
