@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.core.errors import ConfigError, EucError
+from euc_ros.core.errors import ConfigError, EucError, InputError
 
 HELP = "run a steering maneuver in closed loop over topics (simulator, controller, recorder as processes)"
 
@@ -127,7 +127,6 @@ def steer_result_from_bag(bag, dt: float):
     InputError
         The bag holds no ``unicycle/state`` messages, or the steps are not contiguous from 0.
     """
-    from euc_ros.core.errors import InputError
     from euc_ros.core.io.bags import read_bag
     from euc_ros.core.unicycle.simulate import SimulationResult
     from euc_ros.nodes.unicycle_sim import STATE_FIELDS
@@ -268,7 +267,10 @@ def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = No
     if not bag.exists():
         raise _fail("the recorder wrote no bag")
 
-    result, log_ns = steer_result_from_bag(bag, dt)
+    try:
+        result, log_ns = steer_result_from_bag(bag, dt)
+    except InputError as exc:
+        raise _fail(f"the recorded run is unusable: {exc}") from None
     met = maneuver_metrics(result, ctrl)
     # wall time of the stepping, from the first answered state on (start-up waits for DDS discovery)
     stepping_s = max((log_ns[-1] - log_ns[min(1, len(log_ns) - 1)]) / 1e9, 1e-9) * len(log_ns) / max(len(log_ns) - 1, 1)

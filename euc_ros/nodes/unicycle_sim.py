@@ -167,7 +167,7 @@ class UnicycleSim(Node):
         except ConfigError as exc:
             raise ConfigError(exc.detail, key=f"{self.NAME}.ros__parameters.{exc.key}") from None
         self.lockstep = cfg["mode"] == "lockstep"
-        self.n_steps = int(round(cfg["duration"] / cfg["dt"])) if cfg["duration"] > 0 else None
+        self.n_steps = max(1, int(round(cfg["duration"] / cfg["dt"]))) if cfg["duration"] > 0 else None
         self.done = self.sim.status != STATUS_OK
         self.resent = 0
         self.ignored = 0
@@ -276,13 +276,11 @@ class UnicycleSim(Node):
     def _check(self) -> None:
         now = time.monotonic()
         if not self._started:
-            if self.done:           # the initial state is already outside the domain
+            if self._ready_to_start(now):
                 self._started = True
                 self._publish_state()
-                self._finish()
-            elif self._ready_to_start(now):
-                self._started = True
-                self._publish_state()
+                if self.done:       # the initial state is already outside the domain
+                    self._finish()
             return
         if not self.done:
             if self.lockstep and now - self._sent_at >= self.config["resend_period"] and self._last_msg is not None:

@@ -123,3 +123,29 @@ def test_controller_process_exits_with_one_line_and_code_2(ros_domain, tmp_path,
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert len(lines) == 1, r.stderr
     assert lines[0].startswith("steering_controller: error: key 'steering_controller.ros__parameters.speed'")
+
+
+def test_bag_reader_dedupes_resent_states_and_rejects_lost_steps(tmp_path):
+    from rclpy.serialization import serialize_message
+
+    from euc_ros.cli.steer import steer_result_from_bag
+    from euc_ros.core.errors import InputError
+    from euc_ros.core.io.bags import BagWriter
+    from euc_ros.nodes.unicycle_sim import state_to_msg
+
+    def write(path, steps):
+        with BagWriter(path) as w:
+            for i, k in enumerate(steps):
+                x = np.arange(10.0) + k
+                msg = state_to_msg(x, 0.5 * k, k, int(k * 0.01 * 1e9), "ok")
+                w.write_raw("/unicycle/state", "euc_msgs/msg/UnicycleState", serialize_message(msg), 1000 + i)
+
+    write(tmp_path / "good", [0, 0, 1, 2, 2, 3])        # resent states 0 and 2
+    result, log_ns = steer_result_from_bag(tmp_path / "good", 0.01)
+    np.testing.assert_array_equal(result.x[:, 0], [0, 1, 2, 3])
+    np.testing.assert_array_equal(result.u, [0.5, 1.0, 1.5])    # u of state k+1 is the input of step k
+    np.testing.assert_allclose(result.t, [0, 0.01, 0.02, 0.03], atol=1e-12)
+    assert list(log_ns) == [1000, 1002, 1003, 1005]        # first copy of each step
+    write(tmp_path / "gap", [0, 1, 3])
+    with pytest.raises(InputError, match="not contiguous"):
+        steer_result_from_bag(tmp_path / "gap", 0.01)

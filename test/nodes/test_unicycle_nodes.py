@@ -213,6 +213,24 @@ def test_lockstep_resends_unanswered_state_and_exits_with_status(ros_context):
     assert np.all(np.isfinite(sim.sim.x))
 
 
+def test_initial_state_outside_the_domain_is_published_with_its_status(ros_context):
+    sim = UnicycleSim(context=ros_context, parameter_overrides=_overrides(
+        mode="realtime", initial_tilt=1.45, wait_observers=1, exit_when_done=False, publish_pose=False))  # 83 > 80 deg
+    probe = rclpy.create_node("probe", context=ros_context)
+    states = _Collector(probe, UnicycleState, itf.UNICYCLE_STATE)
+    ex = SingleThreadedExecutor(context=ros_context)
+    ex.add_node(sim)
+    ex.add_node(probe)
+    try:
+        _spin_until(ex, lambda: len(states.msgs) == 1)
+    finally:
+        ex.shutdown()
+        sim.destroy_node()
+        probe.destroy_node()
+    assert sim.done and sim.sim.steps == 0
+    assert states.msgs[0].status == "tilt_limit" and states.msgs[0].theta == 1.45
+
+
 def test_wheel_pose_axle_and_height():
     """Orientation Rz(psi) Rx(theta) Ry(phi): the axle y2 = (-sin psi cos theta, cos psi cos theta, sin theta)."""
     p = UnicycleParams()
