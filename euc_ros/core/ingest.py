@@ -423,12 +423,12 @@ def capture_start_ns(text: str | None) -> int | None:
 def format_capture_start(ns: int) -> str:
     """Format nanoseconds since the epoch (UTC) as Motive's ``Capture Start Time`` (``2024-05-02 10.15.00.000 AM``).
 
-    Milliseconds, 12-hour clock with an English marker, as Motive writes it in an English locale;
-    :func:`capture_start_ns` reads it back to the millisecond.
+    Rounded to the millisecond, 12-hour clock with an English marker, as Motive writes it in an
+    English locale; :func:`capture_start_ns` reads it back to the millisecond.
     """
     import time as _time
 
-    ns = int(ns)
+    ns = (int(ns) + 500_000) // 1_000_000 * 1_000_000
     seconds, rest = divmod(ns, 1_000_000_000)
     st = _time.gmtime(seconds)
     hour12 = st.tm_hour % 12 or 12

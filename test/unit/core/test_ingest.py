@@ -134,7 +134,9 @@ def test_drops_from_stamps_when_there_is_no_frame_number():
         assert st_.accept(-1, s)
         st_.update(np.array([True]), s)
     assert st_.dropped == 3 and st_.duplicates == 0
-    assert st_.accept(-1, 0) and st_.restarts == 1                     # stamps went back: a restart
+    assert st_.accept(-1, 0) and st_.restarts == 0           # stamps went back: the synchronizer counts it
+    st_.update(np.array([True]), 0)
+    assert np.isnan(st_.frame_rate_hz())                     # the rate window started again
 
 
 def test_set_bodies_restarts_per_body_history():
@@ -208,3 +210,9 @@ def test_frame_from_natnet_maps_names_validity_and_y_up():
     assert np.isnan(f.position[[0, 2]]).all() and np.isnan(f.quat[[0, 2]]).all()
     g = frame_from_natnet(m, {7: "E"}, ["E"], 0, world_up="z")
     np.testing.assert_allclose(g.position[0], [0.1, 1.5, -0.2], atol=1e-6)
+
+
+def test_format_capture_start_rounds_to_the_millisecond_with_carry():
+    ns = _utc_ns(2021, 12, 31, 23, 59, 59, 999) + 600_000          # 23:59:59.9996 -> next day
+    assert format_capture_start(ns) == "2022-01-01 12.00.00.000 AM"
+    assert format_capture_start(_utc_ns(2021, 6, 1, 12, 0, 0, 7) + 400_000) == "2021-06-01 12.00.00.007 PM"
