@@ -1,0 +1,25 @@
+"""Benchmarks of ``euc-ros bench``: each figure is measured beside a floor taken in the same run.
+
+One module per benchmark; each exposes ``run(ctx: BenchContext) -> dict`` (see
+:mod:`euc_ros.bench.common`). The modules are ROS-free at import time: the live benchmarks import
+rclpy (and the launcher) only inside the functions that need it, and their helper processes are
+:mod:`euc_ros.bench.probe` and :mod:`euc_ros.bench.relay`.
+
+=============  ==========================================================================
+module         what it measures (floor)
+=============  ==========================================================================
+latency        live mocap_ingest -> rider_state -> torque_estimator latency per hop and end
+               to end, frames dropped (a bare rclpy relay chain, same hops and sizes)
+throughput     identify and residual on a 10-minute recording, CSV and bag, in
+               recording-seconds per wall-second (loading the recording alone)
+csv_parse      Motive CSV parse rate (numpy.loadtxt reading the same numbers)
+recording      recorder messages per second into MCAP with no loss (rosbags writing the
+               same messages directly)
+unicycle       unicycle simulation real-time factor in process and in lockstep over topics
+               (the bare RK4 physics; a bare rclpy lockstep ping-pong)
+fuzz           NatNet packets and Motive CSV files: inputs, crashes, hangs, rejection classes
+=============  ==========================================================================
+"""
+
+#: Benchmarks in the order they run (module names under euc_ros.bench).
+BENCHMARKS = ("csv_parse", "throughput", "unicycle", "recording", "latency", "fuzz")

@@ -1,0 +1,74 @@
+"""Benchmark 3: Motive CSV parse rate (frames per second) of ``read_motive_csv``, 14 rigid bodies.
+
+The file is the benchmark recording (simulated, 120 Hz, 14 bodies of 8 columns: 114 columns per
+row; 10 minutes, or 1 minute with ``--quick``). ``read_motive_csv`` parses the header, every cell,
+validates the frame column, converts Y-up to Z-up and normalises the quaternions.
+
+Floor: ``numpy.loadtxt(path, delimiter=",", skiprows=<header lines>)`` reading the same numbers
+into one float array and nothing else. Each runs in a fresh interpreter on one core.
+"""
+from __future__ import annotations
+
+import time
+
+from euc_ros.bench.common import BenchContext, figure, pinned_to_one_core
+
+#: Recording lengths [s]: full and --quick.
+DURATION_S = {False: 600.0, True: 60.0}
+
+
+def header_lines(path: str) -> int:
+    """Number of lines up to and including the ``Frame,Time,...`` row."""
+    with open(path, "rb") as f:
+        for i, line in enumerate(f, start=1):
+            if line.split(b",", 1)[0].strip().strip(b'"').lower() == b"frame" and i > 1:
+                return i
+    raise ValueError(f"{path}: no Frame row")
+
+
+def measure_ours(path: str) -> dict:
+    """``read_motive_csv`` on one core: ``{"wall_s", "frames", "bodies"}``."""
+    from euc_ros.core.io.motive_csv import read_motive_csv
+
+    with pinned_to_one_core():
+        t0 = time.perf_counter()
+        s = read_motive_csv(path, world_up="y")
+        wall = time.perf_counter() - t0
+    return {"wall_s": wall, "frames": int(s.n_frames), "bodies": len(s.bodies)}
+
+
+def measure_numpy(path: str) -> dict:
+    """``numpy.loadtxt`` of the data rows on one core: ``{"wall_s", "frames", "columns"}``."""
+    import numpy as np
+
+    skip = header_lines(path)
+    with pinned_to_one_core():
+        t0 = time.perf_counter()
+        a = np.loadtxt(path, delimiter=",", skiprows=skip, dtype=float)
+        wall = time.perf_counter() - t0
+    return {"wall_s": wall, "frames": int(a.shape[0]), "columns": int(a.shape[1])}
+
+
+def run(ctx: BenchContext) -> dict:
+    """Benchmark 3 (see the module docstring)."""
+    from euc_ros.bench.common import BenchError
+    from euc_ros.bench.data import ride_recording
+
+    duration = DURATION_S[ctx.quick]
+    rec = ride_recording(ctx.cache_dir, duration, log=ctx.log)
+    t_start = time.monotonic()
+    path = str(rec["csv"])
+    ours = ctx.isolated("euc_ros.bench.csv_parse:measure_ours", path=path)
+    floor = ctx.isolated("euc_ros.bench.csv_parse:measure_numpy", path=path)
+    if ours["frames"] != floor["frames"]:
+        raise BenchError(f"read_motive_csv read {ours['frames']} frames, numpy.loadtxt {floor['frames']}")
+    rate, floor_rate = ours["frames"] / ours["wall_s"], floor["frames"] / floor["wall_s"]
+    import os
+
+    size_mb = os.path.getsize(path) / 1e6
+    figures = [figure("read_motive_csv", rate, "frames/s", floor=floor_rate, lower_is_better=False,
+                      note=f"{ours['frames']} frames x {ours['bodies']} bodies ({size_mb:.0f} MB) in "
+                           f"{ours['wall_s']:.2f} s; numpy.loadtxt {floor['wall_s']:.2f} s")]
+    return {"name": "csv_parse", "title": "Motive CSV parse rate (14 bodies, one core)", "figures": figures,
+            "peak_rss_mb": {"read_motive_csv": ours["peak_rss_mb"], "numpy.loadtxt": floor["peak_rss_mb"]},
+            "details": {"file_mb": size_mb, "ours": ours, "numpy": floor}, "wall_s": time.monotonic() - t_start}

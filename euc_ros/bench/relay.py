@@ -1,0 +1,365 @@
+"""Floor processes of the live benchmarks: bare rclpy nodes that do nothing but move messages.
+
+``python -m euc_ros.bench.relay MODE [options]`` with MODE
+
+``source``
+    publishes ``mocap/frame`` (MocapFrame of ``--bodies`` bodies, the pipeline's body names) at
+    ``--rate`` Hz for ``--frames`` frames with the scheduling of ``mocap_ingest``'s CSV replay: a
+    timer of ``min(0.5 / rate, 5 ms)`` publishes every frame that is due, stamped with its scheduled
+    time (``start + k / rate``). It waits for ``--wait-subscribers`` subscriptions, then
+    ``--start-delay`` s; after the last frame it lingers ``--linger`` s and exits 0.
+``hop --kind state|torque``
+    relays ``mocap/frame`` -> ``rider/state`` (RiderState) or ``rider/state`` -> ``euc/torque``
+    (TorqueEstimate): on every input it publishes a prebuilt message of the output type with the
+    input's header (``filter_lag`` 0).
+``blast``
+    publishes the recorded pipeline's message mix per frame (1 MocapFrame, one PoseStamped per body,
+    1 TFMessage of every body, 1 RiderState, 1 TorqueEstimate) at ``--frame-rate`` frames/s for
+    ``--duration`` s, once every topic has a subscription; prints one JSON line ``{"sent": {topic:
+    n}, "messages": N, "publish_s": s, "achieved_msgs_per_s": r}``.
+``lockstep-sim`` / ``lockstep-ctrl``
+    a bare lockstep ping-pong with the unicycle's message types: the sim publishes UnicycleState
+    ``k`` and waits for the SteeringCommand of step ``k`` (resending after 0.5 s), ``--steps`` times;
+    the controller answers each state. The sim prints ``{"steps": n, "stepping_s": s}``.
+
+All use the pipeline's QoS profiles (:mod:`euc_ros.nodes.interfaces`). Message content is fixed;
+only stamps, steps and counters change, so what is measured is the middleware and rclpy alone.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+
+#: Rigid bodies of the benchmark frames: the EUC and the 13 rider segments (14 bodies).
+BODY_NAMES = ("E", "H", "CHR", "CHL", "UAR", "UAL", "LAR", "LAL", "HR", "HL", "TR", "TL", "LR", "LL")
+
+
+def mocap_frame(n_bodies: int):
+    """A MocapFrame of ``n_bodies`` tracked bodies (names as the pipeline's), stamp 0."""
+    from euc_msgs.msg import MocapFrame
+    from geometry_msgs.msg import Pose
+
+    names = list(BODY_NAMES[:n_bodies]) + [f"B{i}" for i in range(len(BODY_NAMES), n_bodies)]
+    msg = MocapFrame()
+    msg.header.frame_id = "world"
+    msg.stamp_source = MocapFrame.STAMP_FILE_TIME
+    msg.frame_number = 0
+    msg.body_names = names
+    poses = []
+    for i in range(n_bodies):
+        p = Pose()
+        p.position.x, p.position.y, p.position.z = 0.1 * i, -0.05 * i, 1.0 + 0.01 * i
+        p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w = 0.0, 0.0, 0.0, 1.0
+        poses.append(p)
+    msg.poses = poses
+    msg.tracked = [True] * n_bodies
+    msg.mean_marker_error = [0.0002] * n_bodies
+    return msg
+
+
+def rider_state():
+    """A RiderState with every field set (the pipeline's size: ``phi_definition`` ``hinge``)."""
+    from euc_msgs.msg import RiderState
+
+    m = RiderState()
+    m.header.frame_id = "world"
+    m.has_rider = True
+    for i, k in enumerate(("x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",
+                           "phi_ddot", "phi_eq3", "phi_hinge", "psi", "theta")):
+        setattr(m, k, 0.01 * (i + 1))
+    m.phi_definition = "hinge"
+    m.filter_lag = 0.0
+    return m
+
+
+def torque_estimate():
+    """A TorqueEstimate with every field set (``model`` ``3dof``)."""
+    from euc_msgs.msg import TorqueEstimate
+
+    m = TorqueEstimate()
+    m.valid = True
+    m.m_d1, m.m_d2, m.m_d1_2dof, m.m_d2_2dof = 10.0, 10.1, 9.9, 10.2
+    m.h, m.residual, m.rmse_window, m.window = 0.61, -0.1, 0.3, 5.0
+    m.h_online, m.h_online_std = 0.6, 0.01
+    m.model = "3dof"
+    return m
+
+
+def _ns_to_stamp(ns: int, stamp) -> None:
+    stamp.sec, stamp.nanosec = divmod(int(ns), 1_000_000_000)
+
+
+class _Done(Exception):
+    pass
+
+
+def _source(node, args) -> None:
+    from euc_msgs.msg import MocapFrame
+
+    from euc_ros.nodes import interfaces as itf
+
+    pub = node.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS)
+    msg = mocap_frame(args.bodies)
+    period_ns = 1e9 / args.rate
+    state = {"created": time.monotonic(), "matched": None, "t0": None, "stamp0": 0, "next": 0, "done": None}
+
+    def tick() -> None:
+        now = time.monotonic()
+        if state["t0"] is None:
+            if pub.get_subscription_count() < args.wait_subscribers:
+                return
+            if state["matched"] is None:
+                state["matched"] = now
+            if now < max(state["matched"] + 0.3, state["created"]) + args.start_delay:
+                return
+            state["t0"], state["stamp0"] = now, node.get_clock().now().nanoseconds
+        if state["done"] is not None:
+            if now >= state["done"] + args.linger:
+                raise _Done
+            return
+        elapsed_ns = (now - state["t0"]) * 1e9
+        while state["next"] < args.frames and state["next"] * period_ns <= elapsed_ns:
+            k = state["next"]
+            _ns_to_stamp(state["stamp0"] + round(k * period_ns), msg.header.stamp)
+            msg.frame_number = k
+            pub.publish(msg)
+            state["next"] += 1
+        if state["next"] >= args.frames:
+            state["done"] = now
+
+    node.create_timer(min(0.5 / args.rate, 0.005), tick)
+
+
+def _hop(node, args) -> None:
+    from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
+
+    from euc_ros.nodes import interfaces as itf
+
+    if args.kind == "state":
+        in_type, in_topic, out_type, out_topic, out = MocapFrame, itf.MOCAP_FRAME, RiderState, itf.RIDER_STATE, \
+            rider_state()
+    else:
+        in_type, in_topic, out_type, out_topic, out = RiderState, itf.RIDER_STATE, TorqueEstimate, itf.TORQUE, \
+            torque_estimate()
+    pub = node.create_publisher(out_type, out_topic, itf.RELIABLE_QOS)
+
+    def on_input(msg) -> None:
+        out.header = msg.header
+        pub.publish(out)
+
+    node.create_subscription(in_type, in_topic, on_input, itf.RELIABLE_QOS)
+
+
+def _blast(node, args) -> dict:
+    from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
+    from geometry_msgs.msg import PoseStamped, TransformStamped
+    from tf2_msgs.msg import TFMessage
+
+    from euc_ros.nodes import interfaces as itf
+
+    frame = mocap_frame(args.bodies)
+    names = list(frame.body_names)
+    pubs = [(itf.MOCAP_FRAME, node.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS), frame)]
+    for i, name in enumerate(names):
+        ps = PoseStamped()
+        ps.header.frame_id = "world"
+        ps.pose = frame.poses[i]
+        topic = itf.body_pose_topic(name)
+        pubs.append((topic, node.create_publisher(PoseStamped, topic, itf.RELIABLE_QOS), ps))
+    tf = TFMessage()
+    for i, name in enumerate(names):
+        t = TransformStamped()
+        t.header.frame_id = "world"
+        t.child_frame_id = name
+        p = frame.poses[i]
+        t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = (
+            p.position.x, p.position.y, p.position.z)
+        t.transform.rotation = p.orientation
+        tf.transforms.append(t)
+    pubs.append((itf.TF, node.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS), tf))
+    pubs.append((itf.RIDER_STATE, node.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS),
+                 rider_state()))
+    pubs.append((itf.TORQUE, node.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS), torque_estimate()))
+
+    import rclpy
+
+    deadline = time.monotonic() + args.match_timeout
+    while any(p.get_subscription_count() < args.wait_subscribers for _, p, _ in pubs):
+        rclpy.spin_once(node, timeout_sec=0.05)
+        if time.monotonic() > deadline:
+            missing = [t for t, p, _ in pubs if p.get_subscription_count() < args.wait_subscribers]
+            raise SystemExit(f"relay blast: no subscription on {missing} after {args.match_timeout:g} s")
+    settle = time.monotonic() + args.start_delay
+    while time.monotonic() < settle:
+        rclpy.spin_once(node, timeout_sec=0.02)
+
+    sent = {t: 0 for t, _, _ in pubs}
+    n_frames = int(round(args.frame_rate * args.duration))
+    period = 1.0 / args.frame_rate
+    clock = node.get_clock()
+    t0 = time.monotonic()
+    for k in range(n_frames):
+        due = t0 + k * period
+        delay = due - time.monotonic()
+        if delay > 0:
+            time.sleep(delay)
+        stamp = clock.now().nanoseconds
+        for topic, pub, msg in pubs:
+            if topic == itf.TF:
+                for t in msg.transforms:
+                    _ns_to_stamp(stamp, t.header.stamp)
+            else:
+                _ns_to_stamp(stamp, msg.header.stamp)
+            pub.publish(msg)
+            sent[topic] += 1
+    publish_s = time.monotonic() - t0
+    linger = time.monotonic() + args.linger
+    while time.monotonic() < linger:
+        rclpy.spin_once(node, timeout_sec=0.05)
+    total = sum(sent.values())
+    return {"sent": sent, "messages": total, "frames": n_frames, "publish_s": publish_s,
+            "achieved_msgs_per_s": total / publish_s if publish_s > 0 else float("nan")}
+
+
+def _lockstep_sim(node, args) -> dict:
+    import rclpy
+    from euc_msgs.msg import SteeringCommand, UnicycleState
+
+    from euc_ros.nodes import interfaces as itf
+
+    pub = node.create_publisher(UnicycleState, itf.UNICYCLE_STATE, itf.LOCKSTEP_QOS)
+    state = UnicycleState()
+    state.header.frame_id = "world"
+    state.status = "ok"
+    got = {"step": -1}
+
+    def on_command(msg) -> None:
+        got["step"] = max(got["step"], int(msg.step))
+
+    sub = node.create_subscription(SteeringCommand, itf.STEERING_COMMAND, on_command, itf.LOCKSTEP_QOS)
+    deadline = time.monotonic() + args.match_timeout
+    while pub.get_subscription_count() < 1 or node.count_publishers(itf.STEERING_COMMAND) < 1:
+        rclpy.spin_once(node, timeout_sec=0.05)
+        if time.monotonic() > deadline:
+            raise SystemExit("relay lockstep-sim: the controller did not appear")
+    settle = time.monotonic() + 0.3
+    while time.monotonic() < settle:
+        rclpy.spin_once(node, timeout_sec=0.02)
+    del sub
+    t0 = None
+    for k in range(args.steps):
+        state.step = k
+        _ns_to_stamp(round(k * args.dt * 1e9), state.header.stamp)
+        state.x_g = k * args.dt
+        pub.publish(state)
+        sent = time.monotonic()
+        while got["step"] < k:
+            rclpy.spin_once(node, timeout_sec=0.1)
+            if time.monotonic() - sent > 0.5:
+                pub.publish(state)
+                sent = time.monotonic()
+        if k == 0:
+            t0 = time.monotonic()   # stepping time from the first answered state on, as run_steer measures it
+    stepping = time.monotonic() - t0 if t0 is not None else float("nan")
+    state.status = "done"
+    pub.publish(state)
+    return {"steps": args.steps, "stepping_s": stepping, "steps_per_s": (args.steps - 1) / stepping}
+
+
+def _lockstep_ctrl(node, args) -> None:
+    from euc_msgs.msg import SteeringCommand, UnicycleState
+
+    from euc_ros.nodes import interfaces as itf
+
+    pub = node.create_publisher(SteeringCommand, itf.STEERING_COMMAND, itf.LOCKSTEP_QOS)
+    cmd = SteeringCommand()
+    cmd.maneuver = "lane_change"
+    cmd.reference = [0.0, 0.0]
+
+    def on_state(msg) -> None:
+        if msg.status == "done":
+            raise _Done
+        cmd.header = msg.header
+        cmd.step = msg.step
+        cmd.u = 0.0
+        pub.publish(cmd)
+
+    node.create_subscription(UnicycleState, itf.UNICYCLE_STATE, on_state, itf.LOCKSTEP_QOS)
+
+
+def spin_until_signal(node, stop) -> None:
+    """Spin ``node`` until ``stop()`` is true, polling every 0.1 s (signals are handled in Python)."""
+    import rclpy
+
+    while not stop():
+        rclpy.spin_once(node, timeout_sec=0.1)
+
+
+def install_stop_handlers() -> "callable":
+    """SIGINT/SIGTERM set a flag instead of going through rclpy's handlers; returns ``stop()``.
+
+    rclpy's own handlers shut the context down from the signal, which can race a callback that is
+    publishing; a flag checked between ``spin_once`` calls cannot.
+    """
+    import signal
+
+    flag = {"stop": False}
+
+    def handler(signum, frame):
+        flag["stop"] = True
+
+    signal.signal(signal.SIGINT, handler)
+    signal.signal(signal.SIGTERM, handler)
+    return lambda: flag["stop"]
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run one floor process (see the module docstring)."""
+    import rclpy
+    from rclpy.signals import SignalHandlerOptions
+
+    parser = argparse.ArgumentParser(prog="python -m euc_ros.bench.relay", description=__doc__.splitlines()[0])
+    parser.add_argument("mode", choices=("source", "hop", "blast", "lockstep-sim", "lockstep-ctrl"))
+    parser.add_argument("--kind", choices=("state", "torque"), default="state", help="hop: which hop")
+    parser.add_argument("--rate", type=float, default=120.0, help="source: frame rate [Hz]")
+    parser.add_argument("--frames", type=int, default=1200, help="source: frames to publish")
+    parser.add_argument("--bodies", type=int, default=14, help="bodies per MocapFrame")
+    parser.add_argument("--wait-subscribers", type=int, default=1, help="subscriptions to wait for")
+    parser.add_argument("--start-delay", type=float, default=1.0, help="wait after the match [s]")
+    parser.add_argument("--linger", type=float, default=1.0, help="keep running after the end [s]")
+    parser.add_argument("--frame-rate", type=float, default=120.0, help="blast: frames per second")
+    parser.add_argument("--duration", type=float, default=5.0, help="blast: publishing time [s]")
+    parser.add_argument("--match-timeout", type=float, default=30.0, help="give up waiting for peers [s]")
+    parser.add_argument("--steps", type=int, default=1000, help="lockstep-sim: steps")
+    parser.add_argument("--dt", type=float, default=0.01, help="lockstep-sim: simulated step [s]")
+    parser.add_argument("--result", default=None, help="also write the JSON result to this file")
+    args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
+
+    rclpy.init(args=["relay", *ros_args], signal_handler_options=SignalHandlerOptions.NO)
+    stop = install_stop_handlers()
+    node = rclpy.create_node(f"bench_{args.mode.replace('-', '_')}" + (f"_{args.kind}" if args.mode == "hop" else ""))
+    result = None
+    try:
+        if args.mode in ("blast", "lockstep-sim"):
+            result = (_blast if args.mode == "blast" else _lockstep_sim)(node, args)
+        else:
+            {"source": _source, "hop": _hop, "lockstep-ctrl": _lockstep_ctrl}[args.mode](node, args)
+            spin_until_signal(node, stop)
+    except (KeyboardInterrupt, _Done):
+        pass
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown()
+    if result is not None:
+        line = json.dumps(result)
+        print(line, flush=True)
+        if args.result:
+            with open(args.result, "w", encoding="utf-8") as f:
+                f.write(line + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

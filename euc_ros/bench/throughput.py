@@ -1,0 +1,107 @@
+"""Benchmark 2: offline throughput of ``identify`` and ``residual`` on a 10-minute recording.
+
+Both commands run in process (``euc_ros.cli.main.main``, output discarded, no progress bar, no
+plots) on one simulated 120 Hz recording of 14 rigid bodies, once as a Motive CSV and once as a
+rosbag2 MCAP bag, each in a fresh interpreter pinned to one core (``os.sched_setaffinity``). The
+figure is recording-seconds per wall-second (``x real time``); the wall time covers reading the
+file, the state reconstruction and the analysis, not the interpreter start nor the one-time imports
+(each measurement first runs the same command, untimed, on a 10 s recording).
+
+Floor: loading the same recording alone (:func:`euc_ros.core.io.recordings.load_recording`) in a
+fresh interpreter on one core: neither command can be faster than reading its input. The ratio is
+the command's cost in units of that load. Target: identify at least 500x real time on one core.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+import time
+
+from euc_ros.bench.common import BenchContext, figure, pinned_to_one_core
+
+#: Recording lengths [s]: full and --quick.
+DURATION_S = {False: 600.0, True: 60.0}
+#: Length of the warm-up recording [s] (the one-time imports happen on it, untimed).
+WARMUP_S = 10.0
+#: Target of identify [x real time].
+TARGET_IDENTIFY = 500.0
+
+
+def measure_load(path: str, warmup_path: str | None = None) -> dict:
+    """Load a recording on one core (after an untimed load of ``warmup_path``); ``{"wall_s", "recording_s", ...}``."""
+    from euc_ros.core.io.recordings import load_recording
+
+    with pinned_to_one_core() as cpu:
+        if warmup_path:
+            load_recording(warmup_path)
+        t0 = time.perf_counter()
+        s = load_recording(path)
+        wall = time.perf_counter() - t0
+    return {"wall_s": wall, "recording_s": float(s.t[-1] - s.t[0]) + 1.0 / s.rate_hz, "frames": int(s.n_frames),
+            "cpu": cpu}
+
+
+def measure_command(argv: list[str], warmup_argv: list[str] | None = None) -> dict:
+    """Run ``euc-ros ARGV`` in process on one core; ``{"wall_s", "warmup_s", "exit_code", "cpu"}``.
+
+    ``warmup_argv`` (the same command on a short recording) runs first, untimed, so the one-time
+    imports (scipy.signal alone takes about 1 s) are not charged to the throughput.
+    """
+    from euc_ros.cli.main import main
+
+    sink = io.StringIO()
+    warm = float("nan")
+    with pinned_to_one_core() as cpu, contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+        if warmup_argv:
+            t0 = time.perf_counter()
+            main(list(warmup_argv))
+            warm = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        code = main(list(argv))
+        wall = time.perf_counter() - t0
+    return {"wall_s": wall, "warmup_s": warm, "exit_code": int(code), "cpu": cpu,
+            "output_tail": sink.getvalue()[-300:]}
+
+
+def run(ctx: BenchContext) -> dict:
+    """Benchmark 2 (see the module docstring)."""
+    from euc_ros.bench.data import ride_recording
+
+    duration = DURATION_S[ctx.quick]
+    rec = ride_recording(ctx.cache_dir, duration, bag=True, log=ctx.log)
+    warm = ride_recording(ctx.cache_dir, WARMUP_S, bag=True, log=ctx.log)
+    t_start = time.monotonic()
+    figures, rss, details = [], {}, {"recording_length_s": duration}
+    for kind in ("csv", "bag"):
+        path = str(rec[kind])
+        ctx.log(f"  load {kind} (floor)")
+        load = ctx.isolated("euc_ros.bench.throughput:measure_load", path=path, warmup_path=str(warm[kind]))
+        rec_s = load["recording_s"]
+        floor_rate = rec_s / load["wall_s"]
+        rss[f"load {kind}"] = load["peak_rss_mb"]
+        details[f"load_{kind}"] = load
+        for cmd in ("identify", "residual"):
+            ctx.log(f"  {cmd} {kind}")
+            argv = [cmd, str(rec["session"]), path, "--no-progress"]
+            warm_argv = [cmd, str(warm["session"]), str(warm[kind]), "--no-progress"]
+            if cmd == "residual":
+                argv += ["--json", str(ctx.tmp_dir / f"residual_{kind}.json")]
+                warm_argv += ["--json", str(ctx.tmp_dir / f"residual_warmup_{kind}.json")]
+            r = ctx.isolated("euc_ros.bench.throughput:measure_command", argv=argv, warmup_argv=warm_argv,
+                             timeout_s=1800.0)
+            if r["exit_code"] != 0:
+                from euc_ros.bench.common import BenchError
+
+                raise BenchError(f"euc-ros {' '.join(argv)} exited {r['exit_code']}: {r['output_tail']}")
+            rate = rec_s / r["wall_s"]
+            target = met = None
+            if cmd == "identify":
+                target, met = f">= {TARGET_IDENTIFY:g}x real time", rate >= TARGET_IDENTIFY
+            figures.append(figure(f"{cmd} on {kind}", rate, "x real time", floor=floor_rate, lower_is_better=False,
+                                  target=target, met=met,
+                                  note=f"{r['wall_s']:.2f} s for {rec_s:.0f} s of recording; load alone "
+                                       f"{load['wall_s']:.2f} s"))
+            rss[f"{cmd} {kind}"] = r["peak_rss_mb"]
+            details[f"{cmd}_{kind}"] = {k: v for k, v in r.items() if k != "output_tail"}
+    return {"name": "throughput", "title": f"Offline throughput on a {duration / 60:g}-minute recording (one core)",
+            "figures": figures, "peak_rss_mb": rss, "details": details, "wall_s": time.monotonic() - t_start}

@@ -1,0 +1,120 @@
+"""`euc-ros bench [--quick] --json OUT`: the benchmarks, each against a floor measured in the same run.
+
+Runs, in order: Motive CSV parse rate, offline throughput of identify and residual (CSV and bag),
+unicycle simulation real-time factor (in process and lockstep over topics), recorder messages per
+second into MCAP, live pipeline latency, and the NatNet/CSV fuzz job; each with its peak memory.
+Writes the results as JSON to OUT and as a Markdown table to OUT with the suffix ``.md`` (or
+``--markdown``), and prints the table. See ``docs/benchmarks.md``.
+
+The live benchmarks reserve a free ROS domain (domain_coordinator) and restrict discovery to this
+host, so a running ROS system is neither disturbed nor measured. Recordings are generated once into
+``--cache-dir`` (default ``~/.cache/euc_ros/bench``).
+
+Exit codes: 0 every benchmark ran (targets missed are reported, not errors); 1 a benchmark failed;
+2 a user error.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from euc_ros.core.errors import ConfigError
+
+HELP = "benchmarks against their floors (latency, throughput, parse, recorder, simulation, fuzz)"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``euc-ros bench``."""
+    from euc_ros.bench import BENCHMARKS
+    from euc_ros.bench.common import DEFAULT_CACHE
+
+    parser.add_argument("--quick", action="store_true", help="short variants (the whole run under 2 minutes)")
+    parser.add_argument("--json", metavar="OUT", required=True, type=Path, help="write the results as JSON to OUT")
+    parser.add_argument("--markdown", metavar="OUT.md", type=Path, default=None,
+                        help="Markdown table (default: OUT with the suffix .md)")
+    parser.add_argument("--only", nargs="+", choices=BENCHMARKS, metavar="NAME", default=None,
+                        help=f"run only these ({', '.join(BENCHMARKS)})")
+    parser.add_argument("--cache-dir", type=Path, default=DEFAULT_CACHE, metavar="DIR",
+                        help=f"generated recordings, reused between runs (default {DEFAULT_CACHE})")
+    parser.add_argument("--keep-tmp", action="store_true", help="keep the scratch directory (bags, probe files)")
+
+
+def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=None) -> dict:
+    """Run the named benchmarks; returns the result dict written as JSON (``benchmarks``, ``machine``...)."""
+    import importlib
+
+    from domain_coordinator import domain_id
+
+    from euc_ros.bench.common import BenchContext, machine_info
+
+    ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir))
+    if log is not None:
+        ctx.log = log
+    ctx.cache_dir.mkdir(parents=True, exist_ok=True)
+    result = {"quick": quick, "started_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+              "machine": machine_info(), "load_average_start": [round(x, 2) for x in os.getloadavg()],
+              "benchmarks": []}
+    t0 = time.monotonic()
+    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
+    with domain_id() as did:
+        os.environ["ROS_DOMAIN_ID"] = str(did)
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        try:
+            for name in names:
+                ctx.log(f"[bench] {name}")
+                tb = time.monotonic()
+                try:
+                    res = importlib.import_module(f"euc_ros.bench.{name}").run(ctx)
+                except Exception as exc:   # one failed benchmark must not lose the others
+                    res = {"name": name, "error": f"{type(exc).__name__}: {exc}", "figures": [], "peak_rss_mb": {}}
+                    ctx.log(f"[bench] {name} failed: {res['error']}")
+                res.setdefault("wall_s", time.monotonic() - tb)
+                ctx.log(f"[bench] {name} done in {res['wall_s']:.1f} s")
+                result["benchmarks"].append(res)
+        finally:
+            for k, v in saved.items():
+                if v is None:
+                    os.environ.pop(k, None)
+                else:
+                    os.environ[k] = v
+    result["wall_s"] = time.monotonic() - t0
+    result["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
+    return result
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the benchmarks, write JSON and Markdown, print the table."""
+    from euc_ros.bench import BENCHMARKS
+    from euc_ros.bench.report import to_markdown
+
+    names = [n for n in BENCHMARKS if args.only is None or n in args.only]
+    md_path = args.markdown or args.json.with_suffix(".md")
+    for p in (args.json, md_path):
+        if p.parent and not p.parent.exists():
+            try:
+                p.parent.mkdir(parents=True, exist_ok=True)
+            except OSError as exc:
+                raise ConfigError(f"cannot create the directory: {exc.strerror}", path=p.parent) from None
+    tmp = Path(tempfile.mkdtemp(prefix="euc_bench_"))
+    try:
+        result = run_benchmarks(names, quick=args.quick, cache_dir=args.cache_dir, tmp_dir=tmp)
+    finally:
+        if args.keep_tmp:
+            print(f"scratch kept in {tmp}", file=sys.stderr)
+        else:
+            shutil.rmtree(tmp, ignore_errors=True)
+    md = to_markdown(result)
+    try:
+        args.json.write_text(json.dumps(result, indent=1, default=str) + "\n", encoding="utf-8")
+        md_path.write_text(md, encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot write: {exc.strerror}", path=exc.filename) from None
+    print(md)
+    print(f"wrote {args.json} and {md_path}")
+    return 1 if any(b.get("error") for b in result["benchmarks"]) else 0
