@@ -158,7 +158,7 @@ def main(args: argparse.Namespace) -> int:
 
     if not args.skip_steer:
         _step(7, "autonomous unicycle: lane change at 1 m/s in closed loop over topics")
-        _cli(["steer", "--maneuver", "lane_change", "--speed", "1.0", "--out", str(out / "steer"),
+        _cli(["steer", "--maneuver", "lane_change", "--speed", "1.0", "--out", str(out / "steer"), "--overwrite",
               "--json", str(out / "steer.json")])
 
     print(f"\n=== done in {time.monotonic() - t_start:.0f} s. Outputs in {out}:")

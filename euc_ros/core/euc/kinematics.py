@@ -30,7 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, savgol_derivatives
+from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, savgol_derivatives, trim_edges
 from euc_ros.core.rotations import rotation_matrices, yaw_tilt_pitch_from_quat
 
 #: Default Savitzky-Golay window [s] and polynomial order, chosen by measurement on simulated rides
@@ -182,7 +182,9 @@ class RiderStates:
     has_euc, has_rider : ndarray (n,) of bool
         E tracked; all rider segments of non-zero mass tracked.
     valid : ndarray (n,) of bool
-        Every state and derivative finite and measured (not filled across a short gap).
+        Every state and derivative finite and measured (not filled across a short gap), and at least
+        half a filter window inside its gap-free stretch (the Savitzky-Golay ends extrapolate; the
+        online fixed-lag filter gives no state there either).
     phi_definition : str
         ``"hinge"`` or ``"eq3"``.
     window, polyorder : int
@@ -298,7 +300,8 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     x[~np.isfinite(x_dot)] = np.nan
     filled = d_gamma.filled | d_phi.filled | d_C.filled
     fields_ = (x_dot, x_ddot, d_gamma.y, d_gamma.y_dot, d_gamma.y_ddot, d_phi.y, d_phi.y_dot, d_phi.y_ddot)
-    valid = np.all(np.isfinite(np.stack(fields_)), axis=0) & ~filled
+    # measured samples at least half a window inside their stretch (where the SG fit interpolates)
+    valid = trim_edges(np.all(np.isfinite(np.stack(fields_)), axis=0), d_gamma.window // 2, frame, max_gap) & ~filled
     return RiderStates(
         name=series.name, t=t, frame=frame, x=x, x_dot=x_dot, x_ddot=x_ddot,
         gamma=d_gamma.y, gamma_dot=d_gamma.y_dot, gamma_ddot=d_gamma.y_ddot,

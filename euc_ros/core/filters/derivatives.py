@@ -368,3 +368,28 @@ class StreamingSavgol:
         self._last_frame = frame
         self._last_value = value
         return out
+
+
+def trim_edges(mask: np.ndarray, k: int, position: np.ndarray | None = None,
+               max_gap: int = DEFAULT_MAX_GAP) -> np.ndarray:
+    """Drop the samples within ``k`` frames of either end of every stretch of True in ``mask``.
+
+    Near the ends of a stretch a Savitzky-Golay fit extrapolates its polynomial, so its derivatives
+    are much less accurate than inside; the online fixed-lag filter never outputs those samples.
+    ``position`` gives each sample's frame number (rows may skip dropped frames; a skip of more than
+    ``max_gap`` frames ends a stretch, as in :func:`savgol_derivatives`); default: the row index.
+    """
+    mask = np.asarray(mask, dtype=bool)
+    if k <= 0:
+        return mask.copy()
+    pos = np.arange(mask.size) if position is None else np.asarray(position, dtype=np.int64)
+    out = np.zeros_like(mask)
+    rows = np.flatnonzero(mask)
+    if rows.size == 0:
+        return out
+    p = pos[rows]
+    breaks = np.flatnonzero((np.diff(rows) > 1) | (np.diff(p) > max_gap + 1)) + 1
+    for seg in np.split(np.arange(rows.size), breaks):
+        ps = p[seg]
+        out[rows[seg]] = (ps - ps[0] >= k) & (ps[-1] - ps >= k)
+    return out

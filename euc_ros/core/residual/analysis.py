@@ -79,28 +79,13 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
     return shift
 
 
-def trim_edges(valid: np.ndarray, k: int) -> np.ndarray:
-    """Drop ``k`` samples at both ends of every run of True in ``valid``."""
-    if k <= 0:
-        return valid.copy()
-    v = np.concatenate([[False], valid, [False]]).astype(int)
-    d = np.diff(v)
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    out = np.zeros_like(valid)
-    for a, b in zip(starts, ends):
-        if b - a > 2 * k:
-            out[a + k:b - k] = True
-    return out
-
-
 def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S
             ) -> list[Recording]:
     """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook)."""
     out = []
     for st in states:
         window = st.window if st.window and st.window % 2 == 1 else 9
-        # the Savitzky-Golay fits at the ends of a stretch extrapolate: drop half a window there
-        valid = trim_edges(np.asarray(st.valid, bool), window // 2)
+        valid = np.asarray(st.valid, bool).copy()   # already half a window inside each stretch
         dpsi = savgol_derivatives(st.t, np.unwrap(st.psi), window=window, polyorder=st.polyorder, frame=st.frame)
         valid &= np.isfinite(dpsi.y_dot) & np.isfinite(st.theta)
         ctx = ModelContext(

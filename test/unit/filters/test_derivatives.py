@@ -167,3 +167,15 @@ def test_online_resets_after_long_nan_run():
     assert f.push(float("nan"), frame=11) == []  # run of 2 > max_gap: reset
     assert f.push(12.0, frame=12) == []  # buffer restarted
     assert len(f.push(13.0, frame=13)) == 0
+
+
+def test_trim_edges_in_frames_and_stretches():
+    from euc_ros.core.filters.derivatives import trim_edges
+
+    mask = np.array([True] * 10 + [False] + [True] * 10)
+    out = trim_edges(mask, 2)
+    assert out.tolist() == [False] * 2 + [True] * 6 + [False] * 2 + [False] + [False] * 2 + [True] * 6 + [False] * 2
+    # rows skip a dropped frame (bridged) and a long gap (a new stretch)
+    frames = np.array([0, 1, 2, 4, 5, 6, 20, 21, 22, 23, 24])
+    out = trim_edges(np.ones(11, bool), 2, frames, max_gap=2)
+    assert out.tolist() == [False, False, True, True, False, False, False, False, True, False, False]
