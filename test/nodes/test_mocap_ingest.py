@@ -378,9 +378,13 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
         assert list(f.body_names) == ["E", "Head", "TL", "CHR"] and list(f.tracked) == [True, True, False, True]
         assert [f.poses[3].position.x, f.poses[3].position.y, f.poses[3].position.z] == [1.0, -3.0, 2.0]
         rig.spin_until(lambda: len(rig.probe.poses["CHR"]) == 1, what="pose of the new body")
+        # Motive restarted: the numbering starts again; a restart, not 1000 out-of-order frames
+        stream(enc.enc_frame(version, bodies=bodies, suffix=suffix, frame_number=3), 8)
+        stream(enc.enc_frame(version, bodies=bodies, suffix=suffix, frame_number=4), 9)
 
-        rig.spin_until(lambda: rig.probe.last_diag(lambda v: v["frames"] == "7") is not None, what="diagnostics")
-        vals = rig.probe.last_diag(lambda v: v["frames"] == "7")
+        rig.spin_until(lambda: rig.probe.last_diag(lambda v: v["frames"] == "9") is not None, what="diagnostics")
+        vals = rig.probe.last_diag(lambda v: v["frames"] == "9")
+        assert vals["restarts"] == "1" and vals["out_of_order_dropped"] == "0"
         assert vals["malformed_dropped"] == "2" and vals["duplicates_dropped"] == "1"
         assert vals["dropped_frames"] == "2" and vals["dropped_before_modeldef"] == "1"
         assert vals["natnet_version"] == f"{version[0]}.{version[1]}" and vals["input_errors"] == "0"
