@@ -262,7 +262,7 @@ def test_play_loop_until_sigint(bag, receiver):
     n = len(one_loop)
     assert list(got[:2 * n]) == one_loop.tolist() * 2                # the same messages again
     gap = arrivals[n] - arrivals[n - 1]
-    assert gap < 0.01                                                # next loop starts at once
+    assert gap < 0.03                                                # next loop starts at once
 
 
 def test_play_errors(bag, tmp_path):

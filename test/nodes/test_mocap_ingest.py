@@ -394,6 +394,42 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
         server.close()
 
 
+def test_natnet_source_multicast(rigs, natnet_kit):
+    import socket
+
+    ct, enc = natnet_kit
+    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+        s.bind(("", 0))
+        port = s.getsockname()[1]
+    group = "239.255.42.99"
+    server = ct.FakeMotive(version=(4, 1), multicast_group=group, data_port=port)
+    try:
+        try:
+            rig = rigs({"source": "natnet", "server_ip": "127.0.0.1", "local_ip": "127.0.0.1", "multicast": True,
+                        "multicast_group": group, "data_port": port, "command_port": server.port,
+                        "bodies": ["H", "E"]}, ["H", "E"])
+        except ConfigError as exc:
+            pytest.skip(f"multicast not available here: {exc}")
+        ing = rig.ingest
+        addr = server.wait_for(0)
+        server.send(enc.enc_server_info(natnet=(4, 1, 0, 0), freq=enc.FREQ, multicast=True, port=port), addr)
+        rig.spin_until(lambda: ing.client.server_info is not None, what="SERVERINFO")
+        server.wait_for(4)
+        server.send(_modeldef(enc, (4, 1), {1: "E", 2: "H", 7: "TL"}), addr)
+        rig.spin_until(lambda: ing.names_by_id, what="MODELDEF")
+        rig.spin_until(lambda: ing.frame_pub.get_subscription_count() >= 1)
+        rig.settle()
+        for k in range(3):
+            server.stream(enc.enc_frame((4, 1), frame_number=k), None)       # to the group, not to the client
+        rig.spin_until(lambda: len(rig.probe.frames) == 3, what="multicast frames")
+        f = rig.probe.frames[0]
+        assert list(f.body_names) == ["H", "E"] and list(f.tracked) == [True, True]   # configured order
+        assert [f.poses[1].position.x, f.poses[1].position.z] == pytest.approx([0.10, 0.65], abs=1e-7)
+        assert ing.client.stats["keepalives_sent"] == 0
+    finally:
+        server.close()
+
+
 # ---------------------------------------------------------------------------------------------------------------------
 # source: csv
 # ---------------------------------------------------------------------------------------------------------------------
