@@ -24,8 +24,8 @@ HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
-    from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S
-    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN
+    from euc_ros.core.residual.analysis import (DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER,
+                                                RESIDUAL_WINDOW_S)
     from euc_ros.core.residual.candidates import LIBRARY
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
@@ -41,10 +41,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--candidates", nargs="+", default=None, metavar="EFFECT",
                         help=f"restrict the library (default: all: {', '.join(LIBRARY)})")
     parser.add_argument("--max-effects", type=int, default=3, help="most effects to select (3)")
-    parser.add_argument("--window-s", type=float, default=DEFAULT_WINDOW_S, metavar="S",
-                        help=f"Savitzky-Golay window [s] ({DEFAULT_WINDOW_S})")
-    parser.add_argument("--polyorder", type=int, default=DEFAULT_SG_POLYORDER,
-                        help=f"Savitzky-Golay order ({DEFAULT_SG_POLYORDER})")
+    parser.add_argument("--window-s", type=float, default=RESIDUAL_WINDOW_S, metavar="S",
+                        help=f"Savitzky-Golay window [s] ({RESIDUAL_WINDOW_S}: less bias of the accelerations "
+                             "than identify's default; see README)")
+    parser.add_argument("--polyorder", type=int, default=RESIDUAL_POLYORDER,
+                        help=f"Savitzky-Golay order ({RESIDUAL_POLYORDER})")
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 

@@ -204,7 +204,13 @@ def pipes(ros_context):
         p.close()
 
 
+#: These tests cut a 4 s ride into short stretches; a 0.9 s quartic filter leaves states in each of
+#: them (the project default, 1.2 s / order 6, is exercised by the live-pipeline and core tests).
+TEST_FILTER = {"window_s": 0.9, "polyorder": 4}
+
+
 def rider_node(ctx, session_file, **params):
+    params = {**TEST_FILTER, **params}
     overrides = [Parameter("session_file", value=str(session_file))]
     overrides += [Parameter(k, value=v) for k, v in params.items()]
     return RiderStateNode(context=ctx, parameter_overrides=overrides)
@@ -212,7 +218,7 @@ def rider_node(ctx, session_file, **params):
 
 def core_states(series, session, frames=None, **kw):
     """The core estimator on the same frames, keyed by the capture stamp of each state's frame [ns]."""
-    est = RiderStateEstimator(session, 1 / session.rate_hz, **kw)
+    est = RiderStateEstimator(session, 1 / session.rate_hz, **{**TEST_FILTER, **kw})
     out = {}
     for k in range(series.n_frames) if frames is None else frames:
         for s in est.update(int(series.frame[k]), float(series.t[k]), series.position[:, k], series.quat[:, k],
@@ -244,7 +250,7 @@ def test_states_equal_the_core_and_carry_their_own_frames_stamp(pipes, ros_conte
         assert m.has_rider == s.has_rider and m.phi_definition == "hinge" and m.header.frame_id == "world"
         assert m.filter_lag == pytest.approx(54 / 120)
     # ... and away from the edges of each stretch, equal to the offline reconstruction
-    off = reconstruct_states(series, session)
+    off = reconstruct_states(series, session, **TEST_FILTER)
     idx = {T0_NS + int(round(float(t) * 1e9)): i for i, t in enumerate(series.t)}
     interior = [st for st, m in got.items() if off.valid[idx[st]] and np.isfinite(m.phi)]
     assert len(interior) > 80

@@ -34,10 +34,11 @@ from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, savgol_derivatives
 from euc_ros.core.rotations import rotation_matrices, yaw_tilt_pitch_from_quat
 
 #: Default Savitzky-Golay window [s] and polynomial order, chosen by measurement on simulated rides
-#: with the paper's noise level (0.2 mm, 0.5 deg per frame): the bias of h against the window is
-#: tabulated in docs/identification.md.
-DEFAULT_WINDOW_S = 0.9
-DEFAULT_SG_POLYORDER = 4
+#: with the paper's noise level (0.2 mm, 0.5 deg per frame), on the interior samples of each stretch:
+#: the bias of h and of inertia-type parameters against the window is tabulated in
+#: docs/identification.md.
+DEFAULT_WINDOW_S = 1.2
+DEFAULT_SG_POLYORDER = 6
 #: Rider pitch definitions: about the ankle hinge A (the model's) or about the wheel centre C (eq (3)).
 PHI_DEFINITIONS = ("hinge", "eq3")
 

@@ -19,12 +19,17 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy import optimize, stats
 
-from euc_ros.core.euc.kinematics import RiderStates, to_moving_frame
+from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, to_moving_frame
 from euc_ros.core.euc.model import EucParams, consistency_weights
 from euc_ros.core.euc.torque import torques
 from euc_ros.core.filters.derivatives import savgol_derivatives
 from euc_ros.core.residual.candidates import Candidate, ModelContext, make_candidates
 
+#: Savitzky-Golay settings of the residual analysis: the project defaults (measured: with a 0.9 s
+#: quartic the attenuation of the accelerations inflated inertia-type parameters, rider mass by
+#: +25-30 %; 1.2 s / order 6 keeps the noise floor with less bias, rider mass within 15 %).
+RESIDUAL_WINDOW_S = DEFAULT_WINDOW_S
+RESIDUAL_POLYORDER = DEFAULT_SG_POLYORDER
 #: Significance level of the selection test (family-wise over the candidates of one step).
 DEFAULT_ALPHA = 0.01
 #: A selected effect must cut the held-out RMSE by at least this fraction.

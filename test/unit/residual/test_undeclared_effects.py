@@ -12,7 +12,7 @@ import pytest
 
 from euc_ros.core.euc.kinematics import reconstruct_states
 from euc_ros.core.euc.model import EucParams
-from euc_ros.core.residual.analysis import DEFAULT_ALPHA, analyze
+from euc_ros.core.residual.analysis import DEFAULT_ALPHA, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S, analyze
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 
@@ -60,7 +60,8 @@ def _analyze(effects: dict, maneuvers, seed: int):
                                                                             for k, v in p.items()}),
                                        speed_scale=2.0 if turns else 1.0, path_scale=2.5 if turns else 1.0))
         session = res.session
-        states += [reconstruct_states(r.mocap, session) for r in res.runs]
+        states += [reconstruct_states(r.mocap, session, window_s=RESIDUAL_WINDOW_S, polyorder=RESIDUAL_POLYORDER)
+                   for r in res.runs]
     return analyze(states, EucParams.from_session(session)).to_json()
 
 
@@ -70,10 +71,12 @@ def _check_parameters(found: dict, truth: dict):
         assert found[name] == pytest.approx(value, rel=0.25), f"{name}: found {found[name]}, true {value}"
 
 
-@pytest.mark.parametrize("effect, params, maneuvers", CASES,
-                         ids=[f"{c[0] if isinstance(c, tuple) else c.values[0]}-"
-                              f"{'-'.join(f'{v:g}' for v in (c[1] if isinstance(c, tuple) else c.values[1]).values())}"
-                              for c in CASES])
+def _case_id(case) -> str:
+    values = getattr(case, "values", case)
+    return f"{values[0]}-" + "-".join(f"{v:g}" for v in values[1].values())
+
+
+@pytest.mark.parametrize("effect, params, maneuvers", CASES, ids=[_case_id(c) for c in CASES])
 def test_undeclared_effect_is_found(effect, params, maneuvers):
     out = _analyze({effect: params}, maneuvers, seed=11)
     assert out["effect"] == effect, out["candidates"][:4]
