@@ -305,7 +305,10 @@ def check_natnet(data: bytes, version) -> tuple[str, str | None]:
 
 
 def _plausible_series(s) -> bool:
-    if s.t.size != s.frame.size or (s.frame.size > 1 and (np.any(np.diff(s.frame) <= 0) or np.any(np.diff(s.t) <= 0))):
+    """Frames and times strictly increasing and finite; tracked poses finite, unit quaternions with w >= 0."""
+    if s.t.size != s.frame.size or not np.all(np.isfinite(s.t)):
+        return False
+    if s.frame.size > 1 and not (np.all(np.diff(s.frame) > 0) and np.all(np.diff(s.t) > 0)):
         return False
     tr = s.tracked
     if not np.all(np.isfinite(s.position[tr])) or not np.all(np.isfinite(s.quat[tr])):
