@@ -25,9 +25,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Iterable, Mapping, Sequence
 
-import yaml
-
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.yamlfile import load_yaml
 
 #: Grace periods of the shutdown escalation [s].
 SIGINT_GRACE_S = 5.0
@@ -264,14 +263,7 @@ def load_launch_file(path: str | Path) -> list[NodeSpec]:
     Relative ``params_file`` paths are resolved against the launch file's directory.
     """
     p = Path(path)
-    try:
-        data = yaml.safe_load(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ConfigError(f"cannot read launch file: {exc.strerror}", path=p) from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise ConfigError(f"not valid YAML: {getattr(exc, 'problem', exc)}", path=p,
-                          line=None if mark is None else mark.line + 1) from None
+    data = load_yaml(p, "launch file")
     if not isinstance(data, dict) or not isinstance(data.get("nodes"), list) or not data["nodes"]:
         raise ConfigError("expected a non-empty list under 'nodes'", path=p, key="nodes")
     specs = []

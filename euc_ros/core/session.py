@@ -22,6 +22,7 @@ import numpy as np
 import yaml
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.yamlfile import load_yaml
 
 #: Rigid bodies of the rider (EUC paper, Table 2), in a fixed order.
 SEGMENT_BODIES = ("H", "CHR", "CHL", "UAR", "UAL", "LAR", "LAL", "HR", "HL", "TR", "TL", "LR", "LL")
@@ -179,17 +180,7 @@ def parse_session(data: Any, source: str | Path | None = None) -> Session:
 def load_session(path: str | Path) -> Session:
     """Read and validate a session YAML file (spec section 4)."""
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"cannot read session file: {exc.strerror}", path=p) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise ConfigError(f"not valid YAML: {getattr(exc, 'problem', exc)}", path=p,
-                          line=None if mark is None else mark.line + 1,
-                          column=None if mark is None else mark.column + 1) from None
+    data = load_yaml(p, "session file")
     return parse_session(data, p)
 
 

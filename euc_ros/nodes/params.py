@@ -14,6 +14,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.yamlfile import load_yaml
 
 
 @dataclass(frozen=True)
@@ -111,19 +112,7 @@ def validate_params_file(path: str, node_name: str, specs: Sequence[ParamSpec]) 
         Missing or unreadable file, invalid YAML, wrong layout, an unknown key for this node, or a
         value of the wrong type.
     """
-    import yaml
-
-    try:
-        text = open(path, encoding="utf-8").read()
-    except OSError as exc:
-        raise ConfigError(f"cannot read params file: {exc.strerror}", path=path) from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise ConfigError(f"not valid YAML: {getattr(exc, 'problem', exc)}", path=path,
-                          line=None if mark is None else mark.line + 1,
-                          column=None if mark is None else mark.column + 1) from None
+    data = load_yaml(path, "params file")
     if not isinstance(data, dict):
         raise ConfigError("expected a mapping '<node name>: {ros__parameters: {...}}'", path=path)
     by_name = {s.name: s for s in specs}
