@@ -62,15 +62,14 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``euc-ros``; returns the exit code (2 for user errors, 130 on Ctrl-C)."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    command = next((a for a in argv if not a.startswith("-")), None)
-    if command not in COMMANDS:
-        command = None
-    parser = build_parser(command if command and "--help" not in argv[:1] and "-h" not in argv[:1] else None) \
-        if command else argparse.ArgumentParser(prog="euc-ros")
+    command = argv[0] if argv and argv[0] in COMMANDS else None
     if command is None:
         parser = build_parser_light()
-        parser.print_help() if not argv or argv[0] in ("-h", "--help") else parser.error(f"unknown command {argv[0]!r}")
-        return 0
+        if not argv or argv[0] in ("-h", "--help"):
+            parser.print_help()
+            return 0
+        parser.error(f"unknown command {argv[0]!r}")
+    parser = build_parser(command)
     args = parser.parse_args(argv)
     if not hasattr(args, "_main"):
         parser.error(f"command {command!r} is not available in this build")
