@@ -41,6 +41,11 @@ def test_wheel_body_friction_is_reported_undetectable():
     assert "wheel_body_friction" in out["undetectable"]
 
 
+def test_no_effect_in_aggressive_turns_gives_none():
+    out = run_scenario(CONTROLS[3])
+    assert out["effect"] == "none", out["selection_steps"]
+
+
 def test_two_effects_at_once():
     out = run_scenario(CONTROLS[2])
     ok, problems = verdict(CONTROLS[2], out)
