@@ -42,6 +42,9 @@ DETECTABILITY_TOL = 1e-6
 #: Another candidate is reported as ambiguous with the selected one unless the selected one is better
 #: than it at this one-sided level (paired block test).
 AMBIGUITY_ALPHA = 0.05
+#: A measured rolling radius (wheel-centre height over the floor) this far from the nominal one is a
+#: wheel_radius_error found by geometry [m] (tyre and ground-plane tolerances are a few mm).
+RADIUS_TOL_M = 0.005
 #: h bounds of the joint fits [m].
 H_BOUNDS = (0.05, 1.6)
 
@@ -263,6 +266,37 @@ def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 111)) -> 
     return float(res.x)
 
 
+def measured_rolling_radius(states: Sequence[RiderStates]) -> tuple[float, float, int]:
+    """Rolling radius from the wheel-centre height over the floor: median of C_z / cos(theta) [m].
+
+    Motive's ground plane is calibrated on the floor, so the world z of the wheel centre C of a wheel
+    tilted by theta is R cos(theta). Returns (median, robust standard deviation, samples).
+    """
+    vals = np.concatenate([st.C[st.valid, 2] / np.cos(st.theta[st.valid]) for st in states]) if states else []
+    vals = np.asarray(vals, float)
+    vals = vals[np.isfinite(vals)]
+    if vals.size == 0:
+        return float("nan"), float("nan"), 0
+    med = float(np.median(vals))
+    return med, float(1.4826 * np.median(np.abs(vals - med))), int(vals.size)
+
+
+class _MeasuredWheelRadius(Candidate):
+    """wheel_radius_error with its parameter measured (wheel-centre height), not fitted."""
+
+    name = "wheel_radius_error"
+    params = ()
+
+    def __init__(self, delta: float):
+        self.delta = float(delta)
+
+    def modify(self, ctx, theta):
+        ctx.overrides["R"] = ctx.params.R + self.delta
+
+    def report(self, theta):
+        return {"delta_r_m": self.delta}
+
+
 # --------------------------------------------------------------------------------------------
 # detectability
 # --------------------------------------------------------------------------------------------
@@ -443,6 +477,7 @@ class ResidualResult:
     base_heldout: HeldOut
     final_heldout: HeldOut
     final_model: Model
+    geometry: dict = field(default_factory=dict)
 
     def to_json(self) -> dict:
         """JSON per recording-format spec section 5 (plus the analysis settings and steps)."""
@@ -459,12 +494,14 @@ class ResidualResult:
                 "h_after_m": self.h_after, "candidates": table, "selection_steps": self.steps,
                 "significance_level": self.alpha, "min_relative_gain": self.min_gain,
                 "held_out": {"folds": self.folds, "kind": self.fold_kind},
+                "geometry": self.geometry,
                 "undetectable": [c.effect for c in self.candidates if not c.detectable]}
 
 
 def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Sequence[Candidate] | None = None,
             alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
-            n_folds: int = 3, progress: Callable[[str], None] | None = None) -> ResidualResult:
+            n_folds: int = 3, use_geometry: bool = True,
+            progress: Callable[[str], None] | None = None) -> ResidualResult:
     """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (greedy forward selection).
 
     Parameters
@@ -479,6 +516,9 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         Family-wise significance level of each selection step (Bonferroni over the candidates).
     min_gain : float
         Minimum relative cut of the held-out RMSE for a selection.
+    use_geometry : bool
+        Compare the measured rolling radius (wheel-centre height over the floor) with the nominal one
+        (needs a recording whose world z is height over the floor, as Motive calibrates it).
     """
     say = progress or (lambda _m: None)
     candidates = list(candidates) if candidates is not None else make_candidates()
@@ -537,6 +577,23 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     for c in candidates:
         if c not in detectable:
             rows[c.name] = CandidateResult(c.name, False, visible[c.name], base_ho.rmse, 1.0, {}, base_fit.h)
+    # geometry: the wheel-centre height measures the rolling radius, which the residual cannot separate
+    # from h (quasi-static riding); a significant difference is a wheel_radius_error found by geometry
+    r_meas, r_std, r_n = measured_rolling_radius(states) if use_geometry else (float("nan"), float("nan"), 0)
+    geometry = {"rolling_radius_measured_m": r_meas, "rolling_radius_std_m": r_std, "samples": r_n,
+                "rolling_radius_nominal_m": float(params.R), "used": False}
+    if (np.isfinite(r_meas) and abs(r_meas - params.R) > RADIUS_TOL_M
+            and "wheel_radius_error" not in [c.name for c in current.effects]
+            and any(c.name == "wheel_radius_error" for c in candidates)):
+        geo_model = Model(current.effects + [_MeasuredWheelRadius(r_meas - params.R)])
+        geo_fit = fit_model(geo_model, recs, h0, fixed=current_x)
+        geo_ho = held_out(geo_model, recs, h0, folds, start=geo_fit.x)
+        say(f"geometry: rolling radius {r_meas:.4f} m measured against {params.R:.4f} m nominal: "
+            f"wheel_radius_error by geometry (held-out RMSE {current_ho.rmse:.3f} -> {geo_ho.rmse:.3f} N m)")
+        steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": "wheel_radius_error",
+                      "evidence": "geometry: wheel-centre height over the floor", "rmse_after_nm": geo_ho.rmse})
+        geometry["used"] = True
+        current, current_ho, current_x = geo_model, geo_ho, geo_fit.x
     final_fit = fit_model(current, recs, h0, fixed=current_x) if current.effects else base_fit
     return ResidualResult(
         h_base=base_fit.h, rmse_train_base=base_fit.rmse, rmse_before=base_ho.rmse, rmse_after=current_ho.rmse,
@@ -544,4 +601,4 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         final_x=final_fit.x, selected=[c.name for c in current.effects], candidates=list(rows.values()),
         steps=steps, alpha=alpha, min_gain=min_gain, folds=len(folds),
         fold_kind="leave-runs-out" if len(recs) >= 2 else "segments of one run",
-        base_heldout=base_ho, final_heldout=current_ho, final_model=current)
+        base_heldout=base_ho, final_heldout=current_ho, final_model=current, geometry=geometry)
