@@ -46,6 +46,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "than identify's default; see README)")
     parser.add_argument("--polyorder", type=int, default=RESIDUAL_POLYORDER,
                         help=f"Savitzky-Golay order ({RESIDUAL_POLYORDER})")
+    parser.add_argument("--no-geometry", action="store_true",
+                        help="do not compare the wheel-centre height with the session's wheel radius (for recordings "
+                             "whose world z is not height over the floor)")
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
@@ -103,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
     params = EucParams.from_session(session)
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     result = analyze(states, params, candidates=candidates, alpha=args.alpha, min_gain=args.min_gain,
-                     max_effects=args.max_effects, progress=say)
+                     max_effects=args.max_effects, use_geometry=not args.no_geometry, progress=say)
     data = result.to_json()
     data["recordings"] = [st.name for st in states]
     data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
@@ -130,6 +133,10 @@ def format_summary(data: dict) -> str:
                      f"{data['rmse_before_nm']:.3f} -> {data['rmse_after_nm']:.3f} N m")
         if data.get("ambiguous_with"):
             lines.append(f"  not distinguishable on this data from: {', '.join(data['ambiguous_with'])}")
+    geo = data.get("geometry") or {}
+    if geo.get("samples"):
+        lines.append(f"rolling radius from the wheel-centre height: {geo['rolling_radius_measured_m']:.4f} m "
+                     f"(session {geo['rolling_radius_nominal_m']:.4f} m){' -> wheel_radius_error' if geo['used'] else ''}")
     lines.append(f"{'candidate':22s} {'held-out RMSE':>14s} {'p':>9s}  parameters")
     for c in data["candidates"]:
         p = "-" if c.get("p_value") is None else f"{c['p_value']:.2g}"
