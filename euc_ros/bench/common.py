@@ -28,7 +28,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, Iterable
+from typing import Any, Callable
 
 import numpy as np
 
@@ -62,7 +62,7 @@ def figure(metric: str, value: float, unit: str, *, floor: float | None = None, 
         The target as text (``"<= 2x floor"``); ``met`` says whether it was met.
     """
     ratio = None
-    if floor is not None and value is not None and np.isfinite(value) and np.isfinite(floor) and floor > 0 and value > 0:
+    if floor is not None and value is not None and 0 < value < np.inf and 0 < floor < np.inf:
         ratio = float(value / floor) if lower_is_better else float(floor / value)
     return {"metric": metric, "value": None if value is None else float(value), "unit": unit,
             "floor": None if floor is None else float(floor), "ratio": ratio, "target": target,
@@ -294,12 +294,3 @@ class BenchContext:
             tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-5:])
             raise BenchError(f"{target} failed (exit {proc.returncode}): {tail}")
         return json.loads(out.read_text(encoding="utf-8"))
-
-
-def summarize_rss(*parts: Iterable[tuple[str, float]]) -> dict[str, float]:
-    """Merge (label, MB) pairs into one dict, rounded to 0.1 MB."""
-    out: dict[str, float] = {}
-    for part in parts:
-        for label, mb in part:
-            out[label] = round(float(mb), 1)
-    return out

@@ -304,17 +304,28 @@ def check_natnet(data: bytes, version) -> tuple[str, str | None]:
     return "accepted", None
 
 
-def _plausible_series(s) -> bool:
-    """Frames and times strictly increasing and finite; tracked poses finite, unit quaternions with w >= 0."""
-    if s.t.size != s.frame.size or not np.all(np.isfinite(s.t)):
-        return False
-    if s.frame.size > 1 and not (np.all(np.diff(s.frame) > 0) and np.all(np.diff(s.t) > 0)):
-        return False
+def implausibility(s) -> str | None:
+    """Why an accepted series is implausible (None if it is fine).
+
+    Frames and times must be strictly increasing and times finite; tracked poses finite, with unit
+    quaternions of w >= 0; untracked poses NaN.
+    """
+    if s.t.size != s.frame.size:
+        return "t and frame differ in length"
+    if not np.all(np.isfinite(s.t)):
+        return "non-finite time"
+    if s.frame.size > 1 and not np.all(np.diff(s.frame) > 0):
+        return "frames not increasing"
+    if s.frame.size > 1 and not np.all(np.diff(s.t) > 0):
+        return "times not increasing"
     tr = s.tracked
     if not np.all(np.isfinite(s.position[tr])) or not np.all(np.isfinite(s.quat[tr])):
-        return False
-    norms = np.linalg.norm(s.quat[tr], axis=-1)
-    return bool(np.all(np.abs(norms - 1.0) < 1e-6)) and bool(np.all(s.quat[tr][..., 3] >= 0))
+        return "non-finite tracked pose"
+    if not np.all(np.abs(np.linalg.norm(s.quat[tr], axis=-1) - 1.0) < 1e-6) or not np.all(s.quat[tr][..., 3] >= 0):
+        return "quaternion not unit or w < 0"
+    if not np.all(np.isnan(s.position[~tr])):
+        return "untracked pose not NaN"
+    return None
 
 
 def check_csv(data: bytes, path: Path, world_up: str = "y") -> tuple[str, str | None]:
@@ -328,7 +339,8 @@ def check_csv(data: bytes, path: Path, world_up: str = "y") -> tuple[str, str | 
     except InputError as exc:
         clear = exc.path is not None and (exc.line is not None or exc.key is not None)
         return ("rejected" if clear else "unclear"), rejection_class(exc.detail)
-    return ("accepted" if _plausible_series(s) else "invalid"), None
+    why = implausibility(s)
+    return ("accepted", None) if why is None else ("invalid", why)
 
 
 # ---------------------------------------------------------------------------------------------------------------------
@@ -358,12 +370,14 @@ def fuzz(kind: str, n_inputs: int, *, time_budget_s: float = 60.0, seed: int = 0
     dict
         ``inputs``, ``wall_s``, ``inputs_per_s``, counts per outcome (``accepted``, ``rejected``,
         ``unclear``, ``invalid``, ``crash``, ``hang``), ``classes`` (rejection class -> count, most
-        common first), ``rejection_classes`` (their number), ``failures`` (up to 10:
-        outcome, error, base64 input), ``max_input_s``.
+        common first), ``rejection_classes`` (their number), ``invalid_classes`` (why accepted
+        results were implausible -> count), ``failures`` (up to 20: outcome, error, base64 input),
+        ``max_input_s``.
     """
     rng = random.Random(seed)
     counts = Counter()
     classes: Counter = Counter()
+    invalid: Counter = Counter()
     failures = []
     tmpdir = None
     if kind == "natnet":
@@ -413,7 +427,9 @@ def fuzz(kind: str, n_inputs: int, *, time_budget_s: float = 60.0, seed: int = 0
             counts[outcome] += 1
             if cls is not None and outcome in ("rejected", "unclear"):
                 classes[cls] += 1
-            if outcome in ("crash", "hang", "unclear", "invalid") and len(failures) < 10:
+            elif cls is not None and outcome == "invalid":
+                invalid[cls] += 1
+            if outcome in ("crash", "hang", "unclear", "invalid") and len(failures) < 20:
                 failures.append({"outcome": outcome, "error": err, "input_b64": base64.b64encode(data).decode()})
                 if crash_dir:
                     Path(crash_dir).mkdir(parents=True, exist_ok=True)
@@ -425,7 +441,8 @@ def fuzz(kind: str, n_inputs: int, *, time_budget_s: float = 60.0, seed: int = 0
     wall = time.perf_counter() - t0
     out = {"kind": kind, "inputs": n, "wall_s": wall, "inputs_per_s": n / wall if wall > 0 else 0.0,
            "max_input_s": max_input, "seeds": len(raw), "rejection_classes": len(classes),
-           "classes": dict(classes.most_common()), "failures": failures}
+           "classes": dict(classes.most_common()), "invalid_classes": dict(invalid.most_common()),
+           "failures": failures}
     for k in ("accepted", "rejected", "unclear", "invalid", "crash", "hang"):
         out[k] = int(counts[k])
     return out
@@ -452,12 +469,14 @@ def run(ctx) -> dict:
         r = ctx.isolated("euc_ros.bench.fuzz:fuzz", kind=kind, n_inputs=n, time_budget_s=budget, seed=1,
                          crash_dir=str(ctx.tmp_dir / "fuzz_failures"), timeout_s=budget + 120)
         bad = r["crash"] + r["hang"] + r["unclear"] + r["invalid"]
-        figures.append(figure(f"{kind}: inputs, failures", r["inputs"], "inputs", target="0 crash/hang/unclear",
-                              met=bad == 0,
+        figures.append(figure(f"{kind}: inputs, failures", r["inputs"], "inputs",
+                              target="0 crash, hang, unclear, invalid", met=bad == 0,
                               note=f"{r['inputs_per_s']:.0f} inputs/s; accepted {r['accepted']}, rejected "
                                    f"{r['rejected']} in {r['rejection_classes']} classes; crash {r['crash']}, hang "
-                                   f"{r['hang']}, unclear {r['unclear']}, invalid {r['invalid']}; slowest input "
-                                   f"{r['max_input_s'] * 1e3:.1f} ms"))
+                                   f"{r['hang']}, unclear {r['unclear']}, invalid {r['invalid']}"
+                                   + (f" ({', '.join(f'{k}: {v}' for k, v in r['invalid_classes'].items())})"
+                                      if r["invalid"] else "")
+                                   + f"; slowest input {r['max_input_s'] * 1e3:.1f} ms"))
         rss[f"fuzz {kind}"] = r["peak_rss_mb"]
         details[kind] = r
     total = sum(d["inputs"] for d in details.values())

@@ -225,7 +225,7 @@ def run(ctx: BenchContext) -> dict:
     figures = []
     for hop in HOPS:
         p, f = pipe["hops"][hop], floor["hops"][hop]
-        figures.append(figure(f"{hop} hop p50 / p99", p["p99"], "ms", floor=f["p99"],
+        figures.append(figure(f"{hop} hop p99", p["p99"], "ms", floor=f["p99"],
                               note=f"p50 {p['p50']:.2f} ms (floor {f['p50']:.2f}), max {p['max']:.1f} ms "
                                    f"(floor {f['max']:.1f})"))
     e, fe = pipe["end_to_end"], floor["end_to_end"]

@@ -4,8 +4,9 @@ The ``recorder`` node (its defaults: 1 MiB chunks, queue depth 1000) records the
 mix published by a bare rclpy process (:mod:`euc_ros.bench.relay` ``blast``): per frame one
 14-body MocapFrame, 14 PoseStamped, one TFMessage of 14 transforms, one RiderState and one
 TorqueEstimate (18 messages, 5.6 kB), on the pipeline's reliable QoS. The frame rate climbs a ladder
-(each step a fresh recorder and bag); a step is lossless when every topic's count in the closed
-bag equals what was published. The figure is the highest publish rate (messages/s) of a lossless
+(each step a fresh recorder and bag), then bisects twice between the last lossless and the first
+lossy rate; a step is lossless when every topic's count in the closed bag equals what was
+published. The figure is the highest publish rate (messages/s) of a lossless
 step; the ladder stops at the first loss or when the publisher cannot reach the rate asked.
 
 Floor: writing the same messages (CDR bytes serialized by rclpy) with rosbags' ``Writer``
@@ -25,6 +26,8 @@ from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figur
 LADDER = {False: (120, 240, 480, 960, 1920, 3840), True: (240, 960)}
 #: Publishing time per step [s]: full and --quick.
 STEP_S = {False: 5.0, True: 2.5}
+#: Bisection steps between the last lossless and the first lossy rate: full and --quick.
+BISECT = {False: 2, True: 0}
 #: A step whose publisher reached less than this fraction of the asked rate ends the ladder.
 SATURATION = 0.8
 
@@ -135,12 +138,24 @@ def run(ctx: BenchContext) -> dict:
         steps.append(step)
         if not step["lossless"] or step["achieved_msgs_per_s"] < SATURATION * step["asked_msgs_per_s"]:
             break
+    # bisect between the last lossless rate and the first lossy one
+    for _ in range(BISECT[ctx.quick]):
+        ok = [s["frame_rate"] for s in steps if s["lossless"]]
+        bad = [s["frame_rate"] for s in steps if not s["lossless"]]
+        if not ok or not bad:
+            break
+        rate = int(round((max(ok) + min(bad)) / 2))
+        if rate in (max(ok), min(bad)):
+            break
+        ctx.log(f"  recorder at {rate} frames/s ({rate * 18} msgs/s asked, bisecting)")
+        steps.append(measure_step(rate, STEP_S[ctx.quick], out))
     lossless = [s for s in steps if s["lossless"]]
     best = max(lossless, key=lambda s: s["achieved_msgs_per_s"]) if lossless else None
     n_floor = 20000 if ctx.quick else 60000   # 360k / 1.08M messages: long enough to time
     floor = ctx.isolated("euc_ros.bench.recording:measure_rosbags", n_frames=n_floor, out=str(out / "floor_bag"))
     value = best["achieved_msgs_per_s"] if best else 0.0
-    last = steps[-1]
+    lossy = [s for s in steps if not s["lossless"]]
+    last = min(lossy, key=lambda s: s["frame_rate"]) if lossy else steps[-1]
     if not last["lossless"]:
         why = (f"loss at {last['asked_msgs_per_s']:.0f} msgs/s asked ({sum(last['lost'].values())} of "
                f"{last['sent']} lost)")
