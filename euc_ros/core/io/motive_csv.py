@@ -317,6 +317,10 @@ def _group_bodies(columns: list[_Column], path: str, lines: dict[str, int], axis
     return list(groups.values())
 
 
+#: Plausible frame rates [Hz] (Motive exports 1 Hz to a few kHz); outside them times overflow or vanish.
+MIN_RATE_HZ, MAX_RATE_HZ = 1e-3, 1e6
+
+
 def _float_meta(hdr: _Header, key: str) -> float | None:
     value, col = hdr.get(key)
     if value is None or value == "":
@@ -327,6 +331,9 @@ def _float_meta(hdr: _Header, key: str) -> float | None:
         x = float("nan")
     if not np.isfinite(x) or x <= 0:
         raise InputError(f"{key} must be a positive number, got {value!r}", path=hdr.path, line=1, column=col, key=key)
+    if key.endswith("Frame Rate") and not MIN_RATE_HZ <= x <= MAX_RATE_HZ:
+        raise InputError(f"{key} must be between {MIN_RATE_HZ:g} and {MAX_RATE_HZ:g} Hz, got {value!r}",
+                         path=hdr.path, line=1, column=col, key=key)
     return x
 
 
