@@ -118,7 +118,7 @@ def analyze(data: dict, n_sent: int, rate_hz: float, warmup_s: float = WARMUP_S)
         frames_without_state = int(f_stamp.size)
     if t_stamp.size and s_stamp.size:
         t_sorted = np.sort(t_stamp)
-        in_t = (s_stamp >= t_sorted[0]) & (s_stamp <= t_sorted[-1])
+        in_t = s_stamp >= t_sorted[0]      # every state from the first torque on must have its torque
         states_without_torque = int((_match(s_stamp[in_t], t_sorted, tol) < 0).sum())
     else:
         states_without_torque = int(s_stamp.size)
