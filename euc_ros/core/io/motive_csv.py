@@ -53,9 +53,6 @@ from scipy.spatial.transform import Rotation
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.mocap import MocapSeries
 from euc_ros.core.rotations import (
-    canonical_quat,
-    y_up_to_z_up_position,
-    y_up_to_z_up_quat,
     z_up_to_y_up_position,
     z_up_to_y_up_quat,
 )
@@ -394,13 +391,18 @@ class _Block:
         while end > hdr.data_offset and raw[end - 1] in b"\r\n":  # trailing line ends and blank lines
             end -= 1
         self.terminated = end < len(raw)
-        data = raw[hdr.data_offset:end]
-        if b"\r" in data:
-            data = data.replace(b"\r\n", b"\n")
+        self.raw = raw[hdr.data_offset:end]   # as in the file (LF or CRLF)
+        self._data: bytes | None = None
         self.n_rows = 0
-        self.data = data
         self.hdr = hdr
         self.first_line = hdr.axis_line + 1
+
+    @property
+    def data(self) -> bytes:
+        """The rows with LF line ends (converted on first use: the fast path does not need it)."""
+        if self._data is None:
+            self._data = self.raw.replace(b"\r\n", b"\n") if b"\r" in self.raw else self.raw
+        return self._data
 
     def error(self, i: int, j: int, what: str, cell: bytes | None = None) -> InputError:
         col = self.hdr.columns[j].label if j < len(self.hdr.columns) else ""
@@ -463,7 +465,11 @@ def _fast(rows_bytes: bytes, n_rows: int, width: int) -> np.ndarray | None:
     Blank cells are filled with ``nan`` first, then numpy's C text reader (``np.loadtxt`` on an
     in-memory buffer, no comments, no quotes) converts the block.
     """
-    data = _fill_blanks(rows_bytes)
+    return _loadtxt(_fill_blanks(rows_bytes), n_rows, width)
+
+
+def _loadtxt(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
+    """numpy's C text reader on an in-memory block; None unless it gives exactly (n_rows, width)."""
     try:
         values = np.loadtxt(io.BytesIO(data), dtype=float, delimiter=",", comments=None, ndmin=2)
     except ValueError:
@@ -476,6 +482,17 @@ def _fast(rows_bytes: bytes, n_rows: int, width: int) -> np.ndarray | None:
 def _parse_block(block: _Block) -> np.ndarray:
     """Return the (n_rows, width) float matrix of the data rows (NaN for blank cells)."""
     width = block.hdr.width
+    raw = block.raw
+    # The common case (every cell numeric, every row full, no quotes, no blank line): numpy's C reader
+    # straight on the file's bytes; it reads LF and CRLF alike and rejects a blank cell, so anything odd
+    # (blank cells included) takes the checked path.
+    if raw and b'"' not in raw and b"\n\n" not in raw and b"\n\r\n" not in raw:
+        n_rows = raw.count(b"\n") + 1
+        if raw.count(b",") == n_rows * (width - 1):
+            m = _loadtxt(raw, n_rows, width)
+            if m is not None:
+                block.n_rows = n_rows
+                return m
     data = block.data
     if not data:
         block.n_rows = 0
@@ -730,10 +747,10 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     if not tracked.all():
         pos[~tracked] = np.nan
         quat[~tracked] = np.nan
-    if world_up == "y":
-        pos = y_up_to_z_up_position(pos)
-        quat = y_up_to_z_up_quat(quat)
-    quat = canonical_quat(quat)
+    if world_up == "y":  # in place: (X, Y, Z) -> (X, -Z, Y), (qx, qy, qz) -> (qx, -qz, qy)
+        pos[..., 1], pos[..., 2] = -pos[..., 2], pos[..., 1].copy()
+        quat[..., 1], quat[..., 2] = -quat[..., 2], quat[..., 1].copy()
+    quat[quat[..., 3] < 0] *= -1.0  # canonical sign: w >= 0
     err = np.full((b, n), np.nan)
     for k, g in enumerate(selected):
         if g.error is not None:
