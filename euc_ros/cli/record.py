@@ -15,7 +15,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("topics", nargs="*", help=f"topics to record (default: {' '.join(itf.PIPELINE_TOPICS)})")
     parser.add_argument("-a", "--all", action="store_true", help="record every topic that appears")
     parser.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds")
-    parser.add_argument("--chunk-size", type=int, default=1 << 20, metavar="BYTES",
+    parser.add_argument("--chunk-size", type=int, default=1 << 16, metavar="BYTES",
                         help="MCAP chunk size (smaller loses less if the recorder is killed)")
 
 
