@@ -35,7 +35,7 @@ def _load(command: str):
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
-    """Build the parser; only ``command``'s module is imported (all of them if None)."""
+    """Build the parser; only ``command``'s module is imported (all of them if None, none if ``""``)."""
     parser = argparse.ArgumentParser(
         prog="euc-ros",
         description="euc_ros: motion-capture processing and electric-unicycle monitoring (ROS 2 Jazzy).",
@@ -87,15 +87,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def build_parser_light() -> argparse.ArgumentParser:
     """Top-level parser listing the commands without importing any of them."""
-    parser = argparse.ArgumentParser(
-        prog="euc-ros",
-        description="euc_ros: motion-capture processing and electric-unicycle monitoring (ROS 2 Jazzy).",
-        epilog="Run 'euc-ros COMMAND --help' for a command's options.",
-    )
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name, (_, help_text) in COMMANDS.items():
-        sub.add_parser(name, help=help_text)
-    return parser
+    return build_parser(command="")
 
 
 if __name__ == "__main__":
