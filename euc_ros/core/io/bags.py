@@ -793,20 +793,27 @@ def posestamped_arrays(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray, np.nd
     for length in np.unique(lengths):
         idx = np.flatnonzero(lengths == length)
         arr = np.frombuffer(b"".join(raws[i] for i in idx), dtype=np.uint8).reshape(len(idx), int(length))
-        if length < 16 or np.any(arr[:, 1] != 1) or np.any(arr[:, 0] != 0):
-            raise InputError("PoseStamped CDR is not little-endian XCDR1 or is too short", key=POSE_STAMPED)
-        slen = arr[:, 12:16].copy().view("<u4")[:, 0].astype(np.int64)
-        pose_rel = (12 + slen + 7) // 8 * 8
-        if np.any(4 + pose_rel + 56 > length):
-            raise InputError("PoseStamped CDR shorter than its frame_id length implies", key=POSE_STAMPED)
-        sec = arr[:, 4:8].copy().view("<i4")[:, 0].astype(np.int64)
-        nsec = arr[:, 8:12].copy().view("<u4")[:, 0].astype(np.int64)
-        stamp[idx] = sec * 10**9 + nsec
-        for start in np.unique(pose_rel):
-            rows = np.flatnonzero(pose_rel == start)
-            block = arr[rows, 4 + int(start):4 + int(start) + 56].copy()
-            vals[idx[rows]] = block.view("<f8").reshape(len(rows), 7)
+        stamp[idx], vals[idx] = _posestamped_rows(arr)
     return stamp, vals[:, :3], vals[:, 3:]
+
+
+def _posestamped_rows(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps [ns] and (position, quaternion) values (m, 7) of PoseStamped CDR rows of one length (m, L)."""
+    m, length = arr.shape
+    if length < 16 or np.any(arr[:, 1] != 1) or np.any(arr[:, 0] != 0):
+        raise InputError("PoseStamped CDR is not little-endian XCDR1 or is too short", key=POSE_STAMPED)
+    slen = arr[:, 12:16].copy().view("<u4")[:, 0].astype(np.int64)
+    pose_rel = (12 + slen + 7) // 8 * 8
+    if np.any(4 + pose_rel + 56 > length):
+        raise InputError("PoseStamped CDR shorter than its frame_id length implies", key=POSE_STAMPED)
+    sec = arr[:, 4:8].copy().view("<i4")[:, 0].astype(np.int64)
+    nsec = arr[:, 8:12].copy().view("<u4")[:, 0].astype(np.int64)
+    vals = np.zeros((m, 7))
+    for start in np.unique(pose_rel):
+        rows = np.flatnonzero(pose_rel == start)
+        block = arr[rows, 4 + int(start):4 + int(start) + 56].copy()
+        vals[rows] = block.view("<f8").reshape(len(rows), 7)
+    return sec * 10**9 + nsec, vals
 
 
 def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None = "/mocap/frame",
@@ -889,13 +896,23 @@ def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", f
         return dict(writer.counts)
 
 
-def _custom_data(bag: Path) -> dict:
+def _bag_info(bag: Path) -> dict:
+    """metadata.yaml's ``rosbag2_bagfile_information`` mapping ({} when unreadable)."""
     import yaml
 
     try:
-        info = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-        return dict(info.get("custom_data") or {})
+        info = yaml.load((bag / "metadata.yaml").read_text(encoding="utf-8"),
+                         Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))["rosbag2_bagfile_information"]
+        return info if isinstance(info, dict) else {}
     except (OSError, yaml.YAMLError, KeyError, TypeError):
+        return {}
+
+
+def _custom_data(bag: Path, info: dict | None = None) -> dict:
+    info = _bag_info(bag) if info is None else info
+    try:
+        return dict(info.get("custom_data") or {})
+    except (TypeError, ValueError):
         return {}
 
 
@@ -928,24 +945,12 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
         holds it. Frame numbers from MocapFrame (``-1`` ones, and PoseStamped data, get
         ``round(t * rate)``). Samples without data are NaN with ``tracked == False``.
     """
-    from rosbags.highlevel import AnyReader
-
     bag = _require_bag(path)
-    custom = _custom_data(bag)
-    with AnyReader([bag], default_typestore=make_typestore()) as reader:
-        conns = reader.connections
-        frame_conns = [c for c in conns if c.msgtype == MOCAP_FRAME]
-        if frame_topic is not None:
-            chosen = [c for c in frame_conns if c.topic == frame_topic]
-            if not chosen:
-                have = ", ".join(sorted({c.topic for c in frame_conns})) or "none"
-                raise InputError(f"no {MOCAP_FRAME} topic {frame_topic} in the bag (MocapFrame topics: {have})",
-                                 path=bag, key="frame_topic")
-            frame_conns = chosen[:1]
-        if frame_conns:
-            series = _series_from_frames(reader, frame_conns[0], bag)
-        else:
-            series = _series_from_poses(reader, conns, prefix, bag, merge_tolerance)
+    info = _bag_info(bag)
+    custom = _custom_data(bag, info)
+    series = _read_mocap_fast(bag, info, prefix, frame_topic, merge_tolerance)
+    if series is None:
+        series = _read_mocap_rosbags(bag, prefix, frame_topic, merge_tolerance)
     start_ns = series.meta.pop("_first_ns")
     if CUSTOM_START_NS in custom:
         try:
@@ -965,6 +970,27 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
                                  else np.flatnonzero(unknown))
     if bodies is not None:
         series = series.select(list(bodies))
+    return series
+
+
+def _read_mocap_rosbags(bag: Path, prefix: str, frame_topic: str | None, merge_tolerance: float) -> MocapSeries:
+    """The general route of :func:`read_mocap_bag`: rosbags' reader and deserializer (any bag rosbags reads)."""
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([bag], default_typestore=make_typestore()) as reader:
+        conns = reader.connections
+        frame_conns = [c for c in conns if c.msgtype == MOCAP_FRAME]
+        if frame_topic is not None:
+            chosen = [c for c in frame_conns if c.topic == frame_topic]
+            if not chosen:
+                have = ", ".join(sorted({c.topic for c in frame_conns})) or "none"
+                raise InputError(f"no {MOCAP_FRAME} topic {frame_topic} in the bag (MocapFrame topics: {have})",
+                                 path=bag, key="frame_topic")
+            frame_conns = chosen[:1]
+        if frame_conns:
+            series = _series_from_frames(reader, frame_conns[0], bag)
+        else:
+            series = _series_from_poses(reader, conns, prefix, bag, merge_tolerance)
     return series
 
 
@@ -1034,6 +1060,11 @@ def _series_from_poses(reader, conns, prefix: str, bag: Path, merge_tolerance: f
             quat = np.array([(m.pose.orientation.x, m.pose.orientation.y, m.pose.orientation.z,
                               m.pose.orientation.w) for m in msgs]).reshape(-1, 4)
         per_body.append((stamp, pos, quat))
+    return _merge_poses(bodies, per_body, prefix, bag, merge_tolerance)
+
+
+def _merge_poses(bodies: list, per_body: list, prefix: str, bag: Path, merge_tolerance: float) -> MocapSeries:
+    """Align per-body PoseStamped ``(stamp_ns, position, quat)`` arrays on their header stamps."""
     all_stamps = np.unique(np.concatenate([s for s, _, _ in per_body]))
     # Merge stamps of one frame that differ by jitter: new frame where the gap exceeds the tolerance.
     periods = [np.median(np.diff(np.unique(s))) for s, _, _ in per_body if np.unique(s).size > 1]
@@ -1055,3 +1086,177 @@ def _series_from_poses(reader, conns, prefix: str, bag: Path, merge_tolerance: f
                        np.full((b, n), np.nan), name=bag.name,
                        meta={"path": str(bag), "source": f"{POSE_STAMPED} {prefix}/<Body>/pose",
                              "_stamps": frame_stamps, "_first_ns": int(frame_stamps[0])})
+
+
+# -- fast path: MCAP summary + message indexes, fixed-layout CDR decoded with numpy ---------------------------------
+
+def _align(pos: int, n: int) -> int:
+    return (pos + n - 1) // n * n
+
+
+def _mocapframe_layout(msg: bytes) -> dict | None:
+    """CDR layout of one little-endian ``euc_msgs/msg/MocapFrame`` message, or None if unsupported.
+
+    Offsets are row offsets (the 4-byte encapsulation header included); CDR alignment is relative to
+    the byte after that header. ``const`` lists the bytes that fix the layout (length and count
+    fields, body names): equal in every message, they make all messages share these offsets.
+    """
+    import struct
+
+    base = 4
+    if len(msg) < base + 12 or msg[0] != 0 or msg[1] != 1:
+        return None
+    const = [1, 0]                                 # encapsulation kind (checked separately), then fields
+
+    def u32(rel: int) -> int:
+        const.extend(range(base + rel, base + rel + 4))
+        return struct.unpack_from("<I", msg, base + rel)[0]
+
+    try:
+        flen = u32(8)                              # header.stamp sec @0, nanosec @4; frame_id length @8
+        pos = 12 + flen
+        out = {"stamp_source": base + pos}
+        pos = _align(pos + 1, 8)
+        out["frame_number"] = base + pos
+        pos = _align(pos + 8, 4)
+        k = u32(pos)
+        pos += 4
+        names = []
+        for _ in range(k):
+            pos = _align(pos, 4)
+            n = u32(pos)
+            const.extend(range(base + pos + 4, base + pos + 4 + n))
+            names.append(msg[base + pos + 4:base + pos + 4 + n].rstrip(b"\0").decode("utf-8"))
+            pos += 4 + n
+        pos = _align(pos, 4)
+        if u32(pos) != k or k == 0:
+            return None
+        pos = _align(pos + 4, 8)
+        out["poses"] = base + pos
+        pos = _align(pos + 56 * k, 4)
+        if u32(pos) != k:
+            return None
+        out["tracked"] = base + pos + 4
+        pos = _align(pos + 4 + k, 4)
+        n_err = u32(pos)
+        if n_err not in (0, k):
+            n_err = 0                              # the general route ignores errors of another length
+            out["err"] = None
+        else:
+            out["err"] = base + pos + 4 if n_err else None
+        pos += 4 + 4 * n_err
+    except (struct.error, UnicodeDecodeError):
+        return None
+    if base + pos > len(msg) or len(set(names)) != k:
+        return None
+    out.update(k=k, names=names, const=np.asarray(const[2:], np.int64))
+    return out
+
+
+def _frames_fast(msgs, topic: str, bag: Path) -> MocapSeries | None:
+    """MocapSeries from MocapFrame messages of one fixed layout (else None: use the general route)."""
+    if len(msgs) == 0:
+        return None
+    lengths = msgs.length
+    if np.any(lengths != lengths[0]):
+        return None
+    lay = _mocapframe_layout(msgs.raw(0))
+    if lay is None:
+        return None
+    rows = msgs.rows()                                         # (n, L) uint8
+    first = rows[0]
+    if np.any(rows[:, 0] != 0) or np.any(rows[:, 1] != 1) or \
+            not np.array_equal(rows[:, lay["const"]], np.broadcast_to(first[lay["const"]], (len(rows), lay["const"].size))):
+        return None
+    n, k = rows.shape[0], lay["k"]
+
+    def field(start: int, nbytes: int, dtype: str) -> np.ndarray:
+        return rows[:, start:start + nbytes].copy().view(dtype)
+
+    sec = field(4, 4, "<i4")[:, 0].astype(np.int64)
+    nsec = field(8, 4, "<u4")[:, 0].astype(np.int64)
+    stamps = sec * 10**9 + nsec
+    numbers = field(lay["frame_number"], 8, "<i8")[:, 0].astype(np.int64)
+    vals = field(lay["poses"], 56 * k, "<f8").reshape(n, k, 7).astype(float)
+    trk = rows[:, lay["tracked"]:lay["tracked"] + k] != 0
+    err = (field(lay["err"], 4 * k, "<f4").astype(float) if lay["err"] is not None else np.full((n, k), np.nan))
+    order = np.argsort(stamps, kind="stable")
+    trk_t = trk[order].T                                       # (k, n)
+    vals_t = vals[order].transpose(1, 0, 2)                    # (k, n, 7)
+    position = np.where(trk_t[..., None], vals_t[..., :3], np.nan)
+    quat = np.where(trk_t[..., None], vals_t[..., 3:], np.nan)
+    stamps_arr = stamps[order]
+    return MocapSeries(np.zeros(n), numbers[order], list(lay["names"]), position, quat, trk_t.copy(),
+                       np.ascontiguousarray(err[order].T), name=bag.name,
+                       meta={"path": str(bag), "source": f"{MOCAP_FRAME} {topic}",
+                             "_stamps": stamps_arr, "_first_ns": int(stamps_arr[0])})
+
+
+def _poses_fast(mcap, conns: list, prefix: str, bag: Path, merge_tolerance: float) -> MocapSeries | None:
+    """MocapSeries from PoseStamped topics read through the fast MCAP reader (None: use the general route)."""
+    pattern = re.compile("^" + re.escape(prefix.rstrip("/")) + r"/([^/]+)/pose$")
+    body_cids: dict[str, list] = {}
+    for topic, msgtype, cids in conns:
+        mt = pattern.match(topic)
+        if mt and msgtype == POSE_STAMPED:
+            body_cids.setdefault(mt.group(1), []).extend(cids)
+    if not body_cids:
+        return None                                            # the general route raises the error
+    bodies = list(body_cids)
+    per_body = []
+    for name in bodies:
+        msgs = mcap.messages(body_cids[name])
+        if msgs is None:
+            return None
+        n = len(msgs)
+        stamp, vals = np.zeros(n, np.int64), np.zeros((n, 7))
+        try:
+            for length in np.unique(msgs.length):
+                idx = np.flatnonzero(msgs.length == length)
+                stamp[idx], vals[idx] = _posestamped_rows(msgs.rows(idx))
+        except InputError:
+            return None
+        per_body.append((stamp, vals[:, :3], vals[:, 3:]))
+    return _merge_poses(bodies, per_body, prefix, bag, merge_tolerance)
+
+
+def _read_mocap_fast(bag: Path, info: dict, prefix: str, frame_topic: str | None,
+                     merge_tolerance: float) -> MocapSeries | None:
+    """:func:`read_mocap_bag` through :mod:`euc_ros.core.io.mcap_fast`; None when the bag needs rosbags.
+
+    Handles one uncompressed, indexed MCAP file whose MocapFrame messages share one CDR layout (or
+    PoseStamped topics). Topics are taken in metadata.yaml order, as rosbags lists its connections.
+    """
+    from euc_ros.core.io.mcap_fast import McapFile
+
+    try:
+        files = info.get("relative_file_paths") or []
+        topics = info.get("topics_with_message_count") or []
+        if len(files) != 1 or (info.get("compression_mode") or "").lower() not in ("", "none") or \
+                (info.get("storage_identifier") or "mcap") != "mcap":
+            return None
+        meta_conns = [(t["topic_metadata"]["name"], t["topic_metadata"]["type"],
+                       t["topic_metadata"].get("serialization_format", "cdr")) for t in topics]
+    except (AttributeError, KeyError, TypeError):
+        return None
+    if any(fmt != "cdr" for _, _, fmt in meta_conns):
+        return None
+    file = bag / str(files[0])
+    if not file.is_file():
+        return None
+    mcap = McapFile(file)
+    if mcap.summary is None:
+        return None
+    channels = mcap.channels.values()
+    conns = [(topic, msgtype, [c.id for c in channels if c.topic == topic and c.schema_name == msgtype])
+             for topic, msgtype, _ in meta_conns]
+    frame_conns = [c for c in conns if c[1] == MOCAP_FRAME]
+    if frame_topic is not None:
+        frame_conns = [c for c in frame_conns if c[0] == frame_topic][:1]
+        if not frame_conns:
+            return None                                        # the general route raises the error
+    if frame_conns:
+        topic, _, cids = frame_conns[0]
+        msgs = mcap.messages(cids)
+        return None if msgs is None else _frames_fast(msgs, topic, bag)
+    return _poses_fast(mcap, conns, prefix, bag, merge_tolerance)
