@@ -944,6 +944,14 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
         :func:`write_mocap_bag` stored in metadata.yaml, else the first stamp; ``meta['start_ns']``
         holds it. Frame numbers from MocapFrame (``-1`` ones, and PoseStamped data, get
         ``round(t * rate)``). Samples without data are NaN with ``tracked == False``.
+
+    Notes
+    -----
+    Bags with one uncompressed, indexed MCAP file are read by :mod:`euc_ros.core.io.mcap_fast`
+    (message indexes, no per-message Python work) and, when every MocapFrame has the same CDR
+    layout (same length, body names, counts), decoded with numpy at fixed offsets: ~0.15 s instead
+    of ~6 s for 10 min x 14 bodies at 120 Hz. Anything else (several files, compression, varying
+    body names...) takes the general rosbags route; both give identical series (see ``docs/mcap_fast.md``).
     """
     bag = _require_bag(path)
     info = _bag_info(bag)
