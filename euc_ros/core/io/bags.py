@@ -1172,9 +1172,8 @@ def _frames_fast(msgs, topic: str, bag: Path) -> MocapSeries | None:
     if lay is None:
         return None
     rows = msgs.rows()                                         # (n, L) uint8
-    first = rows[0]
-    if np.any(rows[:, 0] != 0) or np.any(rows[:, 1] != 1) or \
-            not np.array_equal(rows[:, lay["const"]], np.broadcast_to(first[lay["const"]], (len(rows), lay["const"].size))):
+    const = lay["const"]
+    if np.any(rows[:, 0] != 0) or np.any(rows[:, 1] != 1) or np.any(rows[:, const] != rows[0, const]):
         return None
     n, k = rows.shape[0], lay["k"]
 

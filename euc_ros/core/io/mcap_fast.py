@@ -244,7 +244,12 @@ class McapFile:
 
     def __init__(self, path) -> None:
         self.path = Path(path)
-        self.buf = np.memmap(self.path, dtype=np.uint8, mode="r")
+        self.summary = None
+        try:
+            self.buf = np.memmap(self.path, dtype=np.uint8, mode="r")
+        except (OSError, ValueError):               # unreadable or empty (numpy cannot map 0 bytes)
+            self.buf = np.zeros(0, np.uint8)
+            return
         try:
             self.summary = _parse_summary(self.buf)
         except (_Unsupported, struct.error, ValueError, UnicodeDecodeError):

@@ -177,6 +177,11 @@ def test_unindexed_or_compressed_mcap_is_not_read_fast(full_bag, tmp_path):
     (tmp_path / "nosummary.mcap").write_bytes(broken)
     assert McapFile(tmp_path / "nosummary.mcap").summary is None
     assert read_channels(tmp_path / "nosummary.mcap", [1]) is None
+    # Empty and truncated files.
+    (tmp_path / "empty.mcap").write_bytes(b"")
+    (tmp_path / "half.mcap").write_bytes(data[:len(data) // 2])
+    for name in ("empty.mcap", "half.mcap", "missing.mcap"):
+        assert read_channels(tmp_path / name, [1]) is None
     # A chunk marked compressed: declined for channels in that chunk.
     mcap = McapFile(bag / "full.mcap")
     chunk = mcap.summary.chunks[0]
