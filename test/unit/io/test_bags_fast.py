@@ -196,3 +196,35 @@ def test_fast_path_errors_match(full_bag):
 
     with pytest.raises(InputError, match="no euc_msgs/msg/MocapFrame topic /other"):
         read_mocap_bag(bag, frame_topic="/other")
+
+
+@pytest.mark.ros
+def test_rclpy_serialized_frames_take_the_fast_path(bag_dir):
+    """Recorder-style bags: rclpy's serializer leaves padding bytes unset; the layout check ignores padding."""
+    pytest.importorskip("rclpy")
+    euc_msg = pytest.importorskip("euc_msgs.msg")
+    from builtin_interfaces.msg import Time
+    from geometry_msgs.msg import Point, Pose, Quaternion
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Header
+
+    series = make_series(n=120, b=4, seed=12, dropped=(30,))
+    stamps = START_NS + np.round(series.t * 1e9).astype(np.int64)
+    bag = bag_dir / "rclpy"
+    with BagWriter(bag, chunk_size=4096) as w:
+        for i in range(series.n_frames):
+            trk = series.tracked[:, i]
+            msg = euc_msg.MocapFrame(
+                header=Header(stamp=Time(sec=int(stamps[i] // 10**9), nanosec=int(stamps[i] % 10**9)),
+                              frame_id="world"),
+                stamp_source=0, frame_number=int(series.frame[i]), body_names=list(series.bodies),
+                poses=[Pose(position=Point(x=float(p[0]), y=float(p[1]), z=float(p[2])),
+                            orientation=Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3])))
+                       for p, q in zip(series.position[:, i], series.quat[:, i])],
+                tracked=[bool(x) for x in trk], mean_marker_error=series.mean_marker_error[:, i].astype(np.float32))
+            w.write_raw("/mocap/frame", bags.MOCAP_FRAME, bytes(serialize_message(msg)), int(stamps[i]))
+    assert takes_fast_path(bag)
+    got = read_mocap_bag(bag)
+    assert_same(got, reference(bag))
+    np.testing.assert_array_equal(got.position, series.position)
+    np.testing.assert_array_equal(got.frame, series.frame)
