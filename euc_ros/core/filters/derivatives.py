@@ -36,9 +36,16 @@ from dataclasses import dataclass
 from typing import Iterator, NamedTuple
 
 import numpy as np
-from scipy.signal import savgol_coeffs, savgol_filter
 
 from euc_ros.core.errors import ConfigError, InputError
+
+
+def _signal():
+    """scipy.signal, imported on first use (it takes ~0.6 s; ``euc-ros --help`` should not pay it)."""
+    import scipy.signal
+
+    return scipy.signal
+
 
 #: Default polynomial order (cubic: unbiased second derivative for signals up to cubic in time).
 DEFAULT_POLYORDER = 3
@@ -232,7 +239,7 @@ def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int
         for c in range(y2.shape[1]):
             seg[:, c] = np.interp(grid, kk[v], y2[i0:i1 + 1][v, c])
         for d in range(3):
-            res = savgol_filter(seg, w, polyorder, deriv=d, delta=dt, axis=0, mode="interp")
+            res = _signal().savgol_filter(seg, w, polyorder, deriv=d, delta=dt, axis=0, mode="interp")
             out[d].reshape(n, -1)[i0:i1 + 1] = res[kk]
         filled[i0:i1 + 1] = ~v
     return Derivatives(out[0], out[1], out[2], filled, w, dt)
@@ -296,7 +303,7 @@ class StreamingSavgol:
         if not 0 <= self.lag <= half:
             raise ConfigError(f"lag must be in [0, {half}] frames, got {lag!r}", key="lag")
         pos = self.window - 1 - self.lag
-        self._coeffs = np.stack([savgol_coeffs(self.window, self.polyorder, deriv=d, delta=self.dt, pos=pos,
+        self._coeffs = np.stack([_signal().savgol_coeffs(self.window, self.polyorder, deriv=d, delta=self.dt, pos=pos,
                                                use="dot") for d in range(3)])
         self._buf: deque = deque(maxlen=self.window)
         self._last_frame: int | None = None
