@@ -4,11 +4,11 @@
 2. stream one run live through the pipeline, each node its own process over DDS:
    mocap_ingest (CSV replay) -> rider_state -> torque_estimator -> monitor, all recorded by recorder;
 3. read the bag back and summarise it;
-4. identify h offline (Figs 6-8 style figures);
-5. trace the residual M_d1 - M_d2 to the missing effect and report the error before and after;
-6. identify again with the selected effect in the model, and replay the run live with the extended
-   torque_estimator, so the live residual drops too;
-7. run a steering maneuver of the autonomous unicycle in closed loop over topics.
+4. run a steering maneuver of the autonomous unicycle in closed loop over topics;
+5. identify h offline (Figs 6-8 style figures);
+6. trace the residual M_d1 - M_d2 to the missing effect and report the error before and after;
+7. identify again with the selected effect in the model, and replay the run live with the extended
+   torque_estimator, so the live residual drops too.
 """
 from __future__ import annotations
 
@@ -133,11 +133,16 @@ def main(args: argparse.Namespace) -> int:
         _step(3, "read the bag back")
         results["live_before"] = _bag_summary(bag)
 
-    _step(4, "identify h offline (EUC paper Section 4)")
+    if not args.skip_steer:
+        _step(4, "autonomous unicycle: lane change at 1 m/s in closed loop over topics")
+        _cli(["steer", "--maneuver", "lane_change", "--speed", "1.0", "--out", str(out / "steer"), "--overwrite",
+              "--json", str(out / "steer.json")])
+
+    _step(5, "identify h offline (EUC paper Section 4)")
     _cli(["identify", str(session), *map(str, csvs), "--json", str(out / "identify.json"),
           "--plots", str(out / "identify"), "--no-progress"])
 
-    _step(5, "trace the residual M_d1 - M_d2 to the missing effect")
+    _step(6, "trace the residual M_d1 - M_d2 to the missing effect")
     _cli(["residual", str(session), *map(str, csvs), "--json", str(out / "residual.json"),
           "--plots", str(out / "residual"), "--report", str(out / "residual" / "report.md"), "--no-progress"])
     residual = json.loads((out / "residual.json").read_text())
@@ -145,7 +150,7 @@ def main(args: argparse.Namespace) -> int:
     print(f"  hidden truth: {truth['effect']} {truth['effect_parameters']}, h = {truth['h_m']} m")
     print(f"  found:        {residual['effect']} {residual['effect_parameters']}, h = {residual['h_after_m']:.3f} m")
 
-    _step(6, "the extended model: identify again, and stream live with the effect configured")
+    _step(7, "the extended model: identify again, and stream live with the effect configured")
     _cli(["identify", str(session), *map(str, csvs), "--from-residual", str(out / "residual.json"),
           "--json", str(out / "identify_extended.json"), "--no-progress"])
     if not args.skip_live and residual["effect"] != "none":
@@ -156,22 +161,28 @@ def main(args: argparse.Namespace) -> int:
                      {"effects": effects, "effect_parameters": assignments})
         results["live_after"] = _bag_summary(bag2)
 
-    if not args.skip_steer:
-        _step(7, "autonomous unicycle: lane change at 1 m/s in closed loop over topics")
-        _cli(["steer", "--maneuver", "lane_change", "--speed", "1.0", "--out", str(out / "steer"), "--overwrite",
-              "--json", str(out / "steer.json")])
-
     print(f"\n=== done in {time.monotonic() - t_start:.0f} s. Outputs in {out}:")
     for p in sorted(out.rglob("*")):
         if p.suffix in (".png", ".json", ".md") or p.name == "metadata.yaml":
             print(f"  {p.relative_to(out)}")
+    results["residual"] = {k: residual[k] for k in ("effect", "effect_parameters", "h_m", "h_after_m",
+                                                     "rmse_before_nm", "rmse_after_nm")}
+    results["truth"] = {"effect": truth["effect"], "effect_parameters": truth["effect_parameters"], "h_m": truth["h_m"]}
     (out / "demo_summary.json").write_text(json.dumps(results, indent=2, default=str) + "\n")
+    print(f"\n=== closing the loop: hidden {truth['effect']} {truth['effect_parameters']}; found {residual['effect']} "
+          f"{ {k: round(v, 4) for k, v in residual['effect_parameters'].items()} }")
+    print(f"    held-out RMSE of M_d1 - M_d2: {residual['rmse_before_nm']:.2f} -> {residual['rmse_after_nm']:.2f} N m; "
+          f"h {residual['h_m']:.3f} -> {residual['h_after_m']:.3f} m (true {truth['h_m']} m)")
+    if "live_before" in results and "live_after" in results:
+        print(f"    live residual RMS: {results['live_before'].get('live_residual_rms_nm', float('nan')):.2f} -> "
+              f"{results['live_after'].get('live_residual_rms_nm', float('nan')):.2f} N m")
     return 0
 
 
 def _belongs(effect: str, param: str) -> bool:
     from euc_ros.core.residual.candidates import LIBRARY
 
+    import numpy as np
+
     cand = LIBRARY[effect]()
-    names = set(cand.report(__import__("numpy").array([q.start for q in cand.params])))
-    return param in names
+    return param in cand.report(np.array([q.start for q in cand.params]))
