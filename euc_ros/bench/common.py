@@ -294,3 +294,19 @@ class BenchContext:
             tail = " | ".join((proc.stderr or proc.stdout).strip().splitlines()[-5:])
             raise BenchError(f"{target} failed (exit {proc.returncode}): {tail}")
         return json.loads(out.read_text(encoding="utf-8"))
+
+
+def run_launched(specs, timeout_s: float, log):
+    """Launch ``specs`` (euc_ros.launch), sampling each process' peak RSS, until done or ``timeout_s``.
+
+    Returns ``(launcher, finished, peaks_mb)``; the processes are stopped on return.
+    """
+    from euc_ros.launch import Launcher
+
+    launcher = Launcher(specs, stream=log)
+    with PeakRssSampler() as rss:
+        with launcher:
+            for label, proc in launcher.procs.items():
+                rss.add(label, proc.pid)
+            finished = launcher.wait(timeout=timeout_s)
+    return launcher, finished, rss.peaks_mb()

@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure, percentiles_ms
+from euc_ros.bench.common import BenchContext, BenchError, figure, percentiles_ms, run_launched
 
 #: Seconds at the start of a stream excluded from the percentiles (discovery, caches).
 WARMUP_S = 1.0
@@ -144,21 +144,14 @@ def _probe_spec(out: Path):
 
 def _run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO) -> dict[str, float]:
     """Run the processes until the source (required) exits; return the peak RSS per process [MB]."""
-    from euc_ros.launch import Launcher
-
-    launcher = Launcher(specs, stream=log)
-    with PeakRssSampler() as rss:
-        with launcher:
-            for label, proc in launcher.procs.items():
-                rss.add(label, proc.pid)
-            finished = launcher.wait(timeout=timeout_s)
+    launcher, finished, peaks = run_launched(specs, timeout_s, log)
     tail = " | ".join(log.getvalue().strip().splitlines()[-8:])
     if not finished:
         raise BenchError(f"the chain did not finish within {timeout_s:g} s: {tail}")
     bad = {k: v for k, v in launcher.exit_codes.items() if v not in (0, None)}
     if bad or not probe_out.exists():
         raise BenchError(f"a process failed ({bad}) or the probe wrote nothing: {tail}")
-    return rss.peaks_mb()
+    return peaks
 
 
 def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) -> dict:

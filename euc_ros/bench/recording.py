@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure
+from euc_ros.bench.common import BenchContext, BenchError, figure, run_launched
 
 #: Frame-rate ladders [frames/s] (x18 messages): full and --quick.
 LADDER = {False: (120, 240, 480, 960, 1920, 3840), True: (240, 960)}
@@ -49,7 +49,7 @@ def _bag_counts(bag: Path) -> dict[str, int]:
 
 def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s: float = 120.0) -> dict:
     """One ladder step: recorder + blaster; returns sent, recorded, lost, rate and the recorder's peak RSS."""
-    from euc_ros.launch import Launcher, NodeSpec
+    from euc_ros.launch import NodeSpec
 
     bag = out_dir / f"bag_{int(frame_rate)}"
     result = out_dir / f"blast_{int(frame_rate)}.json"
@@ -61,12 +61,7 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
                        str(duration_s), "--start-delay", "0.5", "--linger", "1.0", "--result", str(result)]),
     ]
     log = io.StringIO()
-    launcher = Launcher(specs, stream=log)
-    with PeakRssSampler() as rss:
-        with launcher:
-            for label, proc in launcher.procs.items():
-                rss.add(label, proc.pid)
-            finished = launcher.wait(timeout=timeout_s)
+    launcher, finished, peaks = run_launched(specs, timeout_s, log)
     tail = " | ".join(log.getvalue().strip().splitlines()[-6:])
     if not finished or not result.exists() or launcher.exit_codes.get("blast") != 0:
         raise BenchError(f"recorder step at {frame_rate:g} frames/s failed: {tail}")
@@ -80,7 +75,7 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     return {"frame_rate": frame_rate, "asked_msgs_per_s": frame_rate * len(sent),
             "achieved_msgs_per_s": blast["achieved_msgs_per_s"], "sent": blast["messages"],
             "recorded": sum(counts.values()), "lost": lost, "lossless": not lost, "bag_mb": size / 1e6,
-            "peak_rss_mb": rss.peaks_mb()}
+            "peak_rss_mb": peaks}
 
 
 def measure_rosbags(n_frames: int, out: str) -> dict:

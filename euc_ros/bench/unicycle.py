@@ -20,7 +20,8 @@ import json
 import sys
 import time
 
-from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure, pinned_to_one_core
+from euc_ros.bench.common import (BenchContext, BenchError, PeakRssSampler, figure, pinned_to_one_core,
+                                  run_launched)
 
 #: Simulated time [s] in process and over topics: full and --quick.
 IN_PROCESS_S = {False: 600.0, True: 100.0}
@@ -68,7 +69,7 @@ def measure_lockstep_floor(steps: int, out_dir, timeout_s: float = 120.0) -> dic
     """Bare rclpy lockstep ping-pong of ``steps`` steps: ``{"steps_per_s", "rtf", "peak_rss_mb"}``."""
     from pathlib import Path
 
-    from euc_ros.launch import Launcher, NodeSpec
+    from euc_ros.launch import NodeSpec
 
     result = Path(out_dir) / "lockstep_floor.json"
     relay = ["-m", "euc_ros.bench.relay"]
@@ -77,17 +78,12 @@ def measure_lockstep_floor(steps: int, out_dir, timeout_s: float = 120.0) -> dic
              NodeSpec(sys.executable, name="lockstep_sim", ros_args=False,
                       args=[*relay, "lockstep-sim", "--steps", str(steps), "--dt", str(DT), "--result", str(result)])]
     log = io.StringIO()
-    launcher = Launcher(specs, stream=log)
-    with PeakRssSampler() as rss:
-        with launcher:
-            for label, proc in launcher.procs.items():
-                rss.add(label, proc.pid)
-            finished = launcher.wait(timeout=timeout_s)
+    launcher, finished, peaks = run_launched(specs, timeout_s, log)
     if not finished or not result.exists():
         raise BenchError("lockstep floor failed: " + " | ".join(log.getvalue().strip().splitlines()[-6:]))
     r = json.loads(result.read_text(encoding="utf-8"))
     r["rtf"] = r["steps_per_s"] * DT
-    r["peak_rss_mb"] = rss.peaks_mb()
+    r["peak_rss_mb"] = peaks
     return r
 
 

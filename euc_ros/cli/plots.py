@@ -27,6 +27,18 @@ def pyplot():
     return plt
 
 
+def save_figure(fig, path: str | Path, title: str = "") -> Path:
+    """Title, tighten, write ``path`` (parent created) at :data:`DPI`, close the figure; return the path."""
+    if title:
+        fig.suptitle(title, fontsize=10)
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=DPI)
+    pyplot().close(fig)
+    return path
+
+
 def _deg(a) -> np.ndarray:
     return np.degrees(np.asarray(a, dtype=float))
 
@@ -64,14 +76,7 @@ def plot_ride_states(states_list: Sequence, torques: Sequence[tuple[np.ndarray, 
         ax.grid(True, alpha=0.3)
     axes[4].legend(loc="best", fontsize=8)
     axes[-1].set_xlabel("t [s]")
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)
 
 
 def plot_rmse_curves(h_grid: np.ndarray, panels: Mapping[str, Mapping[str, tuple[np.ndarray, float, float]]],
@@ -108,11 +113,4 @@ def plot_rmse_curves(h_grid: np.ndarray, panels: Mapping[str, Mapping[str, tuple
         ax.legend(fontsize=7)
     for ax in axes.ravel()[n:]:
         ax.set_visible(False)
-    if title:
-        fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, title)

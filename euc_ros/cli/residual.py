@@ -183,7 +183,7 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
 
 def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png."""
-    from euc_ros.cli.plots import DPI, pyplot
+    from euc_ros.cli.plots import pyplot, save_figure
     from euc_ros.core.residual.analysis import Model, prepare
 
     plt = pyplot()
@@ -205,10 +205,7 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
         ax.grid(alpha=0.3)
     axes[0, 0].legend(fontsize=8, loc="upper right")
     axes[-1, 0].set_xlabel("t [s]")
-    fig.tight_layout()
-    paths.append(out_dir / "residual_time.png")
-    fig.savefig(paths[-1], dpi=DPI)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "residual_time.png"))
 
     fig, ax = plt.subplots(figsize=(5.5, 5))
     if final.effects:
@@ -230,10 +227,7 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
         ax.set_xlabel("signature [N m]")
     ax.set_ylabel(f"residual of the 3-DoF model at h = {result.h_after:.3f} m [N m]")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    paths.append(out_dir / "residual_signature.png")
-    fig.savefig(paths[-1], dpi=DPI)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "residual_signature.png"))
 
     fig, ax = plt.subplots(figsize=(5, 3.5))
     ax.bar(["before\n(3-DoF)", f"after\n({final.name})"], [result.rmse_before, result.rmse_after],
@@ -241,10 +235,7 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     for i, v in enumerate([result.rmse_before, result.rmse_after]):
         ax.text(i, v, f"{v:.3f}", ha="center", va="bottom")
     ax.set_ylabel("held-out RMSE of M_d1 - M_d2 [N m]")
-    fig.tight_layout()
-    paths.append(out_dir / "rmse_before_after.png")
-    fig.savefig(paths[-1], dpi=DPI)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "rmse_before_after.png"))
 
     data = result.to_json()
     rows = [[c["effect"], "undetectable" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}",
@@ -261,8 +252,5 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
         if i > 0 and rows[i - 1][0] in result.selected:
             cell.set_facecolor("#d9ead3")
     ax.set_title(f"candidates (selected: {final.name})", fontsize=10)
-    fig.tight_layout()
-    paths.append(out_dir / "candidates.png")
-    fig.savefig(paths[-1], dpi=DPI)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "candidates.png"))
     return paths

@@ -99,4 +99,14 @@ def status(name: str, level: int, message: str, values: dict, hardware_id: str =
     return st
 
 
+def publish_status(node, publisher, name: str, level: int, message: str, values: dict) -> None:
+    """Publish one DiagnosticStatus in a DiagnosticArray stamped with the node's clock."""
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    arr = DiagnosticArray()
+    arr.header.stamp = node.get_clock().now().to_msg()
+    arr.status.append(status(name, level, message, values))
+    publisher.publish(arr)
+
+
 OK, WARN, ERROR, STALE = (DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE)

@@ -155,10 +155,7 @@ class RiderStateNode(Node):
             level, message = convert.WARN, f"{c['errors']} frame(s) could not be used"
         else:
             level, message = convert.OK, f"publishing states {self.estimator.lag_s:.3f} s after their frames"
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status.append(convert.status("rider_state: states", level, message, values))
-        self.diag_pub.publish(arr)
+        convert.publish_status(self, self.diag_pub, "rider_state: states", level, message, values)
 
 
 main = main_for(RiderStateNode)

@@ -154,10 +154,7 @@ class TorqueEstimatorNode(Node):
             level, message = convert.WARN, "states arrive but none is usable (rider missing?)"
         else:
             level, message = convert.OK, f"{self.estimator.model_name}: publishing torques"
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status.append(convert.status("torque_estimator: torques", level, message, values))
-        self.diag_pub.publish(arr)
+        convert.publish_status(self, self.diag_pub, "torque_estimator: torques", level, message, values)
 
 
 main = main_for(TorqueEstimatorNode)
