@@ -99,7 +99,7 @@ def test_pipeline_across_two_hosts_with_static_peers(ros_domain, two_hosts, shor
         _on(ns["B"], "rider_state", env_b, parameters={"session_file": str(session)}, required=False),
         _on(ns["A"], "mocap_ingest", env_a,
             parameters={"csv_path": str(csv), "exit_when_done": True, "rate_factor": 1.0, "wait_subscribers": 2,
-                        "start_delay": 1.0, "linger": 2.0}),
+                        "start_delay": 4.0, "linger": 2.0}),  # torque_estimator (not awaited) must be up too
     ]
     log = io.StringIO()
     with Launcher(specs, stream=log) as launcher:
