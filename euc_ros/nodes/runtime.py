@@ -6,6 +6,7 @@ In rclpy 7.1 (Jazzy) both SIGINT and SIGTERM end ``spin`` with ``ExternalShutdow
 from __future__ import annotations
 
 import sys
+import time
 from typing import Callable
 
 import rclpy
@@ -14,6 +15,9 @@ from rclpy.node import Node
 
 from euc_ros.core.errors import EucError
 from euc_ros.nodes.params import params_files_in, validate_params_file
+
+#: How long an exception raised inside spin waits for a signal-triggered shutdown to complete [s].
+SHUTDOWN_RACE_S = 0.5
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
@@ -43,6 +47,12 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
         print(f"{node_name or 'node'}: error: {exc}", file=sys.stderr)
         code = 2
     except Exception:
+        # A SIGINT/SIGTERM can land while rclpy is taking a message; the take then fails (e.g. a pybind
+        # RuntimeError) a moment before the signal handler has shut the context down. Give the shutdown
+        # that moment; only an error with the context still up is a real one.
+        deadline = time.monotonic() + SHUTDOWN_RACE_S
+        while rclpy.ok() and time.monotonic() < deadline:
+            time.sleep(0.01)
         if rclpy.ok():
             raise
     finally:
