@@ -265,24 +265,11 @@ def format_table(result) -> str:
     return "\n".join(lines)
 
 
-def _unique_names(names: list[str]) -> list[str]:
-    seen: dict[str, int] = {}
-    out = []
-    for nm in names:
-        k = seen.get(nm, 0)
-        seen[nm] = k + 1
-        out.append(nm if k == 0 else f"{nm}_{k + 1}")
-    return out
-
-
 def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
-    from tqdm import tqdm
-
+    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings
     from euc_ros.core.euc.identify import identify_h
-    from euc_ros.core.euc.kinematics import reconstruct_states
     from euc_ros.core.euc.model import EucParams
-    from euc_ros.core.io.recordings import load_recording, recording_kind
     from euc_ros.core.session import load_session
 
     grid = h_grid_from_args(args)
@@ -293,21 +280,8 @@ def main(args: argparse.Namespace) -> int:
         from euc_ros.core.residual.extended import ExtendedModel
 
         ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
-    for path in args.recordings:
-        recording_kind(path)  # fail early, before any long read
-    states = []
-    bar = tqdm(args.recordings, desc="identify", unit="rec", file=sys.stderr,
-               disable=args.no_progress or len(args.recordings) < 2)
-    for path in bar:
-        series = load_recording(path, session.world_up)
-        st = reconstruct_states(series, session, phi_definition=args.phi_definition, window_s=args.window_s,
-                                polyorder=args.polyorder)
-        if not st.valid.any():
-            raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
-                             path=path)
-        states.append(st)
-    for st, name in zip(states, _unique_names([s.name or Path(p).stem for s, p in zip(states, args.recordings)])):
-        st.name = name
+    states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
+                         phi_definition=args.phi_definition, progress=not args.no_progress, desc="identify")
     settings = {"session": str(args.session), "recordings": [str(p) for p in args.recordings],
                 "phi_definition": args.phi_definition, "window_s": args.window_s,
                 "window_samples": states[0].window, "polyorder": args.polyorder,
@@ -323,11 +297,15 @@ def main(args: argparse.Namespace) -> int:
         result.settings["effects"] = {k: dict(v) for k, v in effects.items()}
         result.settings["extended_model"] = name
         head = args.model or name
+    warnings = collect_warnings(states)
     print(format_table(result))
+    print_warnings(warnings)
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(json.dumps(result.to_json(head), indent=2) + "\n", encoding="utf-8")
+        data = result.to_json(head)
+        data["warnings"] = warnings
+        out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     if args.plots:
         write_plots(result, states, params, Path(args.plots))
     return 0

@@ -52,35 +52,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
-def load_states(session, paths, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
-                progress: bool = True, desc: str = "read"):
-    """Read recordings and reconstruct their states, with a progress bar over recordings."""
-    from tqdm import tqdm
-
-    from euc_ros.core.euc.kinematics import reconstruct_states
-    from euc_ros.core.io.recordings import load_recording, recording_kind
-
-    for path in paths:
-        recording_kind(path)  # fail early, before any long read
-    states = []
-    for path in tqdm(paths, desc=desc, unit="rec", file=sys.stderr, disable=not progress or len(paths) < 2):
-        series = load_recording(path, session.world_up)
-        st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
-                                polyorder=polyorder)
-        if not st.valid.any():
-            raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
-                             path=path)
-        st.name = st.name or Path(path).stem
-        states.append(st)
-    seen: dict[str, int] = {}
-    for st in states:  # unique names for the report
-        k = seen.get(st.name, 0)
-        seen[st.name] = k + 1
-        if k:
-            st.name = f"{st.name}#{k + 1}"
-    return states
-
-
 def _atomic_write(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
@@ -93,6 +64,7 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.euc.model import EucParams
     from euc_ros.core.residual.analysis import analyze
     from euc_ros.core.residual.candidates import make_candidates
+    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings
     from euc_ros.core.session import load_session
 
     if not 0 < args.alpha < 1:
@@ -109,10 +81,12 @@ def main(args: argparse.Namespace) -> int:
                      max_effects=args.max_effects, use_geometry=not args.no_geometry, progress=say)
     data = result.to_json()
     data["recordings"] = [st.name for st in states]
+    data["warnings"] = collect_warnings(states)
     data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
                         "candidates": [c.name for c in candidates]}
     _atomic_write(Path(args.json), json.dumps(data, indent=2) + "\n")
     print(format_summary(data))
+    print_warnings(data["warnings"])
     figures = []
     if args.plots:
         figures = write_plots(result, states, params, Path(args.plots))
