@@ -54,11 +54,20 @@ class MocapSeries:
 
     @property
     def rate_hz(self) -> float:
-        """Nominal frame rate [Hz] (from meta, else from the median frame spacing)."""
-        if "rate_hz" in self.meta:
-            return float(self.meta["rate_hz"])
-        dt = np.median(np.diff(self.t)) if self.n_frames > 1 else np.nan
-        return float(1.0 / dt)
+        """Frame rate [Hz] measured from the frames (:func:`euc_ros.core.rate.measured_rate_hz`).
+
+        The analysis uses this, not a rate a header or session states: the file's stated rate
+        (``meta["rate_hz"]``) is returned only when the frames agree with it within 0.1 % (stamps
+        carry round-off; the exact nominal value keeps window lengths in samples reproducible), and
+        with fewer than two frames.
+        """
+        from euc_ros.core.rate import measured_rate_hz
+
+        rate = measured_rate_hz(self.t, self.frame) if self.n_frames > 1 else float("nan")
+        stated = float(self.meta["rate_hz"]) if "rate_hz" in self.meta else float("nan")
+        if np.isfinite(stated) and stated > 0 and (not np.isfinite(rate) or abs(rate / stated - 1.0) <= 1e-3):
+            return stated
+        return rate
 
     def index(self, body: str) -> int:
         """Return the row of ``body``; InputError naming the body and the recording if absent."""

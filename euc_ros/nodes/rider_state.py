@@ -41,6 +41,7 @@ from euc_ros.core.session import load_session
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.params import ParamSpec, declare_params
+from euc_ros.nodes.rate_gate import NodeRateGate
 from euc_ros.nodes.runtime import main_for
 
 SPECS = (
@@ -52,7 +53,11 @@ SPECS = (
     ParamSpec("polyorder", DEFAULT_SG_POLYORDER, "Savitzky-Golay polynomial order", "", 2, 8),
     ParamSpec("max_gap", DEFAULT_MAX_GAP, "longest run of missing frames bridged (bridged frames give no state)",
               "frames", 0, 1000),
-    ParamSpec("rate_hz", 0.0, "mocap frame rate; 0 takes the session's rate_hz", "Hz", 0.0, 100000.0),
+    ParamSpec("rate_hz", 0.0, "expected mocap frame rate; 0 takes the session's rate_hz. The rate is measured "
+              "from the first rate_measure_s of frames; more than 1 % off is a diagnostics ERROR and the "
+              "measured rate is used", "Hz", 0.0, 100000.0),
+    ParamSpec("rate_measure_s", 0.3, "frames held to measure the frame rate before the filters start", "s",
+              0.05, 10.0),
     ParamSpec("restart_jump", 1.0, "stamps jumping back by more than this mean the source restarted", "s",
               0.001, 3600.0),
     ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
@@ -89,10 +94,10 @@ class RiderStateNode(Node):
             raise ConfigError("parameter 'session_file' is required", key=f"{self.NAME}.ros__parameters.session_file")
         self.session = load_session(cfg["session_file"])
         rate = cfg["rate_hz"] or self.session.rate_hz
-        self.estimator = RiderStateEstimator(self.session, 1.0 / rate, phi_definition=cfg["phi_definition"],
-                                             window_s=cfg["window_s"], polyorder=cfg["polyorder"],
-                                             max_gap=cfg["max_gap"])
-        self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
+        # the filters are built once the rate is measured (the frames meanwhile are held, not lost)
+        self._build(rate)
+        self.rate_gate = NodeRateGate(self, rate, self._build, lambda item: self._process(*item),
+                                      min_span_s=cfg["rate_measure_s"])
         self.counts = {"frames": 0, "states": 0, "no_euc": 0, "no_rider": 0, "errors": 0}
         self._origin_ns: int | None = None
         self._last_frame_wall: float | None = None
@@ -103,11 +108,26 @@ class RiderStateNode(Node):
         self.get_logger().info(f"session {cfg['session_file']}: {rate:g} Hz, phi {cfg['phi_definition']}, "
                                f"filter lag {self.estimator.lag_s:.3f} s")
 
+    def _build(self, rate: float) -> None:
+        cfg = self.config
+        self.estimator = RiderStateEstimator(self.session, 1.0 / rate, phi_definition=cfg["phi_definition"],
+                                             window_s=cfg["window_s"], polyorder=cfg["polyorder"],
+                                             max_gap=cfg["max_gap"])
+        self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
+
     def _on_frame(self, msg: MocapFrame) -> None:
         self.counts["frames"] += 1
         self._last_frame_wall = time.monotonic()
         try:
             frame = convert.msg_to_frame(msg)
+        except Exception as exc:   # never die on input
+            self.counts["errors"] += 1
+            self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+            return
+        self.rate_gate.push(frame.frame_number, frame.stamp_ns, (frame, msg.header.frame_id))
+
+    def _process(self, frame, frame_id: str) -> None:
+        try:
             action, number = self.sequencer.accept(frame.frame_number, frame.stamp_ns)
             if action == "drop":
                 return
@@ -126,7 +146,7 @@ class RiderStateNode(Node):
             self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
             return
         for s in samples:
-            self.state_pub.publish(self._to_msg(s, msg.header.frame_id))
+            self.state_pub.publish(self._to_msg(s, frame_id))
             self.counts["states"] += 1
             self.counts["no_rider"] += not s.has_rider
 
@@ -146,10 +166,15 @@ class RiderStateNode(Node):
 
     def _publish_diagnostics(self) -> None:
         c = self.counts
+        meter = self.rate_gate.meter
         values = dict(c, restarts=self.sequencer.restarts, dropped_frames=self.sequencer.dropped,
-                      filter_lag_s=self.estimator.lag_s, phi_definition=self.config["phi_definition"])
+                      filter_lag_s=self.estimator.lag_s, phi_definition=self.config["phi_definition"],
+                      expected_rate_hz=meter.nominal_hz, measured_rate_hz=meter.measured_hz,
+                      rate_used_hz=meter.rate_hz if meter.decided else float("nan"))
         stale = self._last_frame_wall is None or time.monotonic() - self._last_frame_wall > 1.0
-        if stale:
+        if meter.error:
+            level, message = convert.ERROR, self.rate_gate.error_message()
+        elif stale:
             level, message = convert.STALE, "no frames yet" if c["frames"] == 0 else "no frames for > 1 s"
         elif c["errors"]:
             level, message = convert.WARN, f"{c['errors']} frame(s) could not be used"

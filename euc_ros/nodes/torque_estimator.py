@@ -35,6 +35,7 @@ from euc_ros.core.session import load_session
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.params import ParamSpec, declare_params
+from euc_ros.nodes.rate_gate import NodeRateGate
 from euc_ros.nodes.runtime import main_for
 
 SPECS = (
@@ -49,7 +50,9 @@ SPECS = (
     ParamSpec("effects", [""], "effects of the residual analysis added to the 3-DoF model (e.g. ground_slope)"),
     ParamSpec("effect_parameters", [""], "their parameters as <effect>.<parameter>=<value> in the residual "
               "report's units (e.g. ground_slope.alpha_deg=2.9)"),
-    ParamSpec("rate_hz", 0.0, "state rate; 0 takes the session's rate_hz", "Hz", 0.0, 100000.0),
+    ParamSpec("rate_hz", 0.0, "expected state rate; 0 takes the session's rate_hz. Measured from the first "
+              "0.03 s of states; more than 1 % off is a diagnostics ERROR and the measured rate is used", "Hz",
+              0.0, 100000.0),
     ParamSpec("psi_rate_window_s", 0.3, "window of the causal yaw rate some effects need (tilt_gravity)", "s",
               0.01, 10.0),
     ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
@@ -88,10 +91,10 @@ class TorqueEstimatorNode(Node):
         model = extended_model_from_config(params, cfg["effects"], cfg["effect_parameters"],
                                            key=f"{key}.effect_parameters")
         rate = cfg["rate_hz"] or session.rate_hz
-        self.estimator = TorqueEstimator(params, 1.0 / rate, rmse_window_s=cfg["rmse_window_s"],
-                                         h_window_s=cfg["h_window_s"], h_update_every=cfg["h_update_every"],
-                                         min_sensitivity=cfg["min_sensitivity"], model=model,
-                                         psi_rate_window_s=cfg["psi_rate_window_s"])
+        self._params, self._model = params, model
+        # states are held until their rate is measured (the estimator's windows count samples)
+        self._build(rate)
+        self.rate_gate = NodeRateGate(self, rate, self._build, self._process, min_span_s=0.03, min_frames=4)
         self.published = 0
         self.errors = 0
         self.last = None
@@ -105,8 +108,24 @@ class TorqueEstimatorNode(Node):
         self.get_logger().info(f"model {self.estimator.model_name}, h = {cfg['h']:g} m, "
                                f"RMSE window {self.estimator.window_s:g} s")
 
+    def _build(self, rate: float) -> None:
+        cfg = self.config
+        self.estimator = TorqueEstimator(self._params, 1.0 / rate, rmse_window_s=cfg["rmse_window_s"],
+                                         h_window_s=cfg["h_window_s"], h_update_every=cfg["h_update_every"],
+                                         min_sensitivity=cfg["min_sensitivity"], model=self._model,
+                                         psi_rate_window_s=cfg["psi_rate_window_s"])
+
     def _on_state(self, msg: RiderState) -> None:
         self._last_state_wall = time.monotonic()
+        try:
+            stamp = convert.stamp_to_ns(msg.header.stamp)
+        except Exception as exc:   # never die on input
+            self.errors += 1
+            self.get_logger().warning(f"state dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+            return
+        self.rate_gate.push(-1, stamp, msg)
+
+    def _process(self, msg: RiderState) -> None:
         try:
             stamp = convert.stamp_to_ns(msg.header.stamp)
             if self._origin_ns is None:
@@ -144,11 +163,16 @@ class TorqueEstimatorNode(Node):
                   "errors": self.errors, "model": self.estimator.model_name, "h_m": float(self.estimator.params.h),
                   "rmse_window_nm": last.rmse_window_nm if last else nan,
                   "h_online_m": last.h_online_m if last else nan,
-                  "h_online_std_m": last.h_online_std_m if last else nan}
+                  "h_online_std_m": last.h_online_std_m if last else nan,
+                  "expected_rate_hz": self.rate_gate.meter.nominal_hz,
+                  "measured_rate_hz": self.rate_gate.meter.measured_hz}
         fresh = self.published - self._published_at_last_diag
         self._published_at_last_diag = self.published
         stale = self._last_state_wall is None or time.monotonic() - self._last_state_wall > 1.0
-        if stale:
+        meter = self.rate_gate.meter
+        if meter.error:
+            level, message = convert.ERROR, self.rate_gate.error_message()
+        elif stale:
             level, message = convert.STALE, "no states yet" if c["states"] == 0 else "no states for > 1 s"
         elif fresh == 0:
             level, message = convert.WARN, "states arrive but none is usable (rider missing?)"

@@ -8,9 +8,11 @@ from euc_ros.core.filters.derivatives import (
     StreamingSavgol,
     StreamSample,
     gap_stretches,
+    savgol_coefficients,
     savgol_derivatives,
     window_samples,
 )
 
-__all__ = ["Derivatives", "StreamSample", "StreamingSavgol", "gap_stretches", "savgol_derivatives",
+__all__ = ["Derivatives", "StreamSample", "StreamingSavgol", "gap_stretches", "savgol_coefficients",
+           "savgol_derivatives",
            "window_samples"]

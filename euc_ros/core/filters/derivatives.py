@@ -9,14 +9,23 @@ give identical numbers on identical data:
   that skip) ends a stretch, and nothing is ever interpolated across it. Shorter runs are filled by
   linear interpolation between their neighbours before filtering; those samples get values but are
   flagged (:attr:`Derivatives.filled`). Stretches shorter than the window give NaN, never garbage.
-  Inside a stretch, :func:`scipy.signal.savgol_filter` (``mode="interp"``) gives the value and the
-  derivatives ``deriv=1, 2`` with ``delta=dt``.
+  Inside a stretch the least-squares polynomial of every window gives the value and the
+  derivatives; the first and last ``(window - 1) / 2`` samples are evaluated on the polynomial of
+  the first and last full window (the response of ``scipy.signal.savgol_filter(mode="interp")``).
 * :class:`StreamingSavgol` (online): push one sample at a time and receive the smoothed value and
   derivatives of the sample ``lag`` frames earlier. With the default (centred) lag
   ``(window - 1) / 2`` it is the same least-squares polynomial as the offline filter evaluated at
   the centre, so the outputs equal the offline ones on the interior of every stretch (the samples
   at least ``lag`` frames away from both ends of the stretch) to round-off. A smaller lag trades
   noise for delay (``lag=0`` is causal: the fit evaluated at the newest sample).
+
+Both use :func:`savgol_coefficients`, which builds the fit in the normalised time
+``u = (j - c) / c`` on ``[-1, 1]`` (``c = (window - 1) / 2``) with a Legendre basis and a QR
+factorisation, and scales the d-th derivative by ``(1 / (c dt))**d`` afterwards. The conditioning
+is then that of a fixed well-posed problem whatever the rate, window or time unit, so the
+derivative coefficients sum to zero to round-off at any rate (``scipy.signal.savgol_coeffs`` builds
+the Vandermonde matrix in sample units and loses that cancellation for long windows: at 360 Hz with
+a 433-sample window and order 6 its second-derivative coefficients sum to ~50 instead of 0).
 
 Units: ``dt`` in seconds; derivatives are per second and per second squared of ``y``'s unit.
 
@@ -40,11 +49,11 @@ import numpy as np
 from euc_ros.core.errors import ConfigError, InputError
 
 
-def _signal():
-    """scipy.signal, imported on first use (it takes ~0.6 s; ``euc-ros --help`` should not pay it)."""
-    import scipy.signal
+def _correlate1d():
+    """scipy.ndimage.correlate1d, imported on first use (``euc-ros --help`` should not pay scipy)."""
+    from scipy.ndimage import correlate1d
 
-    return scipy.signal
+    return correlate1d
 
 
 #: Default polynomial order (cubic: unbiased second derivative for signals up to cubic in time).
@@ -93,6 +102,78 @@ def window_samples(dt: float, window_s: float | None = None, window: int | None 
     if w <= polyorder:
         raise ConfigError(f"window of {w} samples must be longer than polyorder {polyorder}", key=key)
     return w
+
+
+def savgol_coefficients(window: int, polyorder: int, dt: float, positions,
+                        derivs=(0, 1, 2)) -> np.ndarray:
+    """Savitzky-Golay coefficients: value and derivatives of the local fit at given positions.
+
+    The least-squares polynomial of order ``polyorder`` through ``window`` equally spaced samples,
+    evaluated (or differentiated) at ``positions``, is a linear combination of the samples; this
+    returns its weights. The fit is built in the normalised time ``u = (j - c) / c`` on ``[-1, 1]``
+    (``c = (window - 1) / 2``) with Legendre polynomials, solved by QR, and the d-th derivative is
+    scaled by ``(1 / (c dt))**d``: numerically sound at any rate and window length.
+
+    Parameters
+    ----------
+    window : int
+        Odd window length [samples], ``> polyorder``.
+    polyorder : int
+        Polynomial order.
+    dt : float
+        Sample spacing [s].
+    positions : array_like of float (m,)
+        Where to evaluate, in samples from the window's first sample (``c`` is the centre).
+    derivs : sequence of int
+        Derivative orders.
+
+    Returns
+    -------
+    ndarray (len(derivs), m, window)
+        ``out[i, j] @ samples`` is the ``derivs[i]``-th derivative [unit/s^d] at ``positions[j]``.
+
+    Examples
+    --------
+    >>> h = savgol_coefficients(433, 6, 1 / 360, [216])
+    >>> abs(float(h[2, 0].sum())) < 1e-9   # a constant has no acceleration, at any rate
+    True
+    """
+    from numpy.polynomial import legendre
+    from scipy.linalg import qr, solve_triangular
+
+    window = int(window)
+    c = (window - 1) / 2.0
+    u = (np.arange(window) - c) / c
+    q, r = qr(legendre.legvander(u, polyorder), mode="economic")
+    up = (np.atleast_1d(np.asarray(positions, dtype=float)) - c) / c
+    eye = np.eye(polyorder + 1)
+    out = np.empty((len(derivs), up.size, window))
+    for i, d in enumerate(derivs):
+        # row k of g: the d-th derivative of Legendre polynomial k at every position
+        g = np.stack([legendre.legval(up, legendre.legder(eye[k], d) if d else eye[k])
+                      for k in range(polyorder + 1)])
+        out[i] = (q @ solve_triangular(r, g, trans="T")).T / (c * dt) ** d
+    return out
+
+
+def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float) -> np.ndarray:
+    """Value and derivatives (3, L, k) of a gap-free stretch ``seg`` (L >= w, k columns)."""
+    half = (w - 1) // 2
+    length = seg.shape[0]
+    edges = np.arange(half)
+    coeffs = savgol_coefficients(w, polyorder, dt, np.concatenate(([half], edges, edges + half + 1)))
+    centre, head, tail = coeffs[:, 0], coeffs[:, 1:half + 1], coeffs[:, half + 1:]
+    out = np.empty((3,) + seg.shape)
+    # a constant offset cancels exactly in the derivatives; removing it keeps round-off at the
+    # scale of the motion, not of the distance from the origin
+    ref = seg[length // 2]
+    x = seg - ref
+    for d in range(3):
+        out[d] = _correlate1d()(x, centre[d], axis=0, mode="constant")
+        out[d, :half] = head[d] @ x[:w]
+        out[d, length - half:] = tail[d] @ x[length - w:]
+    out[0] += ref
+    return out
 
 
 @dataclass(frozen=True)
@@ -238,9 +319,9 @@ def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int
         seg = np.empty((length, y2.shape[1]))
         for c in range(y2.shape[1]):
             seg[:, c] = np.interp(grid, kk[v], y2[i0:i1 + 1][v, c])
+        res = _filter_stretch(seg, w, polyorder, dt)
         for d in range(3):
-            res = _signal().savgol_filter(seg, w, polyorder, deriv=d, delta=dt, axis=0, mode="interp")
-            out[d].reshape(n, -1)[i0:i1 + 1] = res[kk]
+            out[d].reshape(n, -1)[i0:i1 + 1] = res[d][kk]
         filled[i0:i1 + 1] = ~v
     return Derivatives(out[0], out[1], out[2], filled, w, dt)
 
@@ -303,8 +384,7 @@ class StreamingSavgol:
         if not 0 <= self.lag <= half:
             raise ConfigError(f"lag must be in [0, {half}] frames, got {lag!r}", key="lag")
         pos = self.window - 1 - self.lag
-        self._coeffs = np.stack([_signal().savgol_coeffs(self.window, self.polyorder, deriv=d, delta=self.dt, pos=pos,
-                                               use="dot") for d in range(3)])
+        self._coeffs = savgol_coefficients(self.window, self.polyorder, self.dt, [pos])[:, 0]
         self._buf: deque = deque(maxlen=self.window)
         self._last_frame: int | None = None
         self._last_value: np.ndarray | None = None
