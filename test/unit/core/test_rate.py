@@ -64,3 +64,16 @@ def test_rate_meter_decides_after_its_span_and_names_both_rates():
     for k in range(60):
         ok.add(-1, int(round(k * 1e9 / 120.5)))   # no frame numbers, within 1 %
     assert ok.rate_hz == 120.0 and ok.error is None
+
+
+@pytest.mark.shared
+def test_measured_rate_of_real_motive_exports_is_their_export_rate(shared_dir):
+    """Real exports from other labs (120, 360 Hz, and 240 Hz captured exported at 60 Hz)."""
+    from euc_ros.core.io.motive_csv import read_motive_csv
+
+    files = sorted((shared_dir / "data" / "motive_real").glob("*.csv"))
+    assert files
+    for f in files:
+        s = read_motive_csv(f, world_up="y")
+        assert measured_rate_hz(s.t, s.frame) == pytest.approx(s.meta["rate_hz"], rel=1e-9), f.name
+        assert s.rate_hz == s.meta["rate_hz"]
