@@ -118,7 +118,9 @@ def test_sigint_of_the_recorder_mid_stream_gives_a_complete_bag(ros_domain, ride
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert int(closed.group(1)) == meta["message_count"] == sum(1 for _ in read_bag(bag))
     frames = _frame_numbers(bag)
-    assert frames.size >= 2 * 120        # about 3 s of frames
+    # ~3 s of frames on a quiet machine; a loaded one delivers fewer in that wall time, so the
+    # assertion is about completeness (from the first frame, no hole), not about throughput
+    assert frames.size >= 30
     np.testing.assert_array_equal(frames, np.arange(frames.size))   # from the first frame, no hole
 
 
