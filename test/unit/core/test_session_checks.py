@@ -115,6 +115,20 @@ def test_duplicate_key_in_a_session_names_file_line_and_key(tmp_path):
     assert f"first at line {i + 1}" in str(e)
 
 
+def test_cli_refuses_a_duplicated_key_in_one_line(short_ride, tmp_path, capsys):
+    src, _ = short_ride
+    text = (src / "session.yaml").read_text().splitlines()
+    i = next(k for k, ln in enumerate(text) if ln.strip().startswith("mass:"))
+    text.insert(i + 1, text[i].replace("mass:", "mass: 80.0 #"))     # rider.mass given again
+    path = tmp_path / "session.yaml"
+    path.write_text("\n".join(text) + "\n")
+    assert main(["residual", str(path), str(src / "deceleration_01.csv"), "--json", str(tmp_path / "r.json"),
+                 "--no-progress"]) == 2
+    err = [ln for ln in capsys.readouterr().err.splitlines() if ln.strip()]
+    assert len(err) == 1 and f"{path}, line {i + 2}, column" in err[0] and "key 'rider.mass'" in err[0], err
+    assert "given twice" in err[0] and not (tmp_path / "r.json").exists()
+
+
 @pytest.mark.parametrize("text, line, key", [
     ("a: 1\nb: 2\na: 3\n", 3, "a"),
     ("x:\n  y: 1\n  z: 2\n  y: 4\n", 4, "x.y"),
@@ -160,3 +174,22 @@ def test_duplicate_key_in_a_node_params_file(tmp_path):
         validate_params_file(str(path), "rider_state", specs)
     assert (info.value.line, info.value.key) == (4, "rider_state.ros__parameters.window_s")
     assert str(path) in str(info.value)
+
+
+def test_the_documented_ranges_are_the_code_s():
+    """docs/session.md must stay true: its table of ranges is PLAUSIBLE."""
+    from pathlib import Path
+
+    doc = (Path(__file__).resolve().parents[3] / "docs" / "session.md").read_text(encoding="utf-8")
+    rows = {}
+    for line in doc.splitlines():
+        cells = [c.strip() for c in line.strip().strip("|").split("|")]
+        if len(cells) == 5 and cells[0].startswith("`") and " to " in cells[1]:
+            leaf = cells[0].strip("`").split(".")[-1]
+            lo, hi = cells[1].removeprefix("length ").split(" to ")
+            tlo, thi = cells[3].split(" to ")
+            rows[leaf] = (float(lo), float(hi), cells[2], (float(tlo), float(thi)),
+                          [u.strip() for u in cells[4].split(",")])
+    assert set(rows) == set(PLAUSIBLE)
+    for leaf, r in PLAUSIBLE.items():
+        assert rows[leaf] == (r.lo, r.hi, r.unit, r.typical, [name for _, name in r.slips]), leaf
