@@ -180,3 +180,19 @@ def test_wheel_centre_evidence_matches_an_independent_computation(files):
     info = infer_up_axis(s, session)
     # the same numbers through two rotation implementations: round-off of a 3x3 product on ~1 m values
     assert info["tests"]["wheel_centre"]["y"]["value"] == pytest.approx(np.median(C[:, 2]), abs=1e-12)
+
+
+def test_long_recordings_are_thinned_to_the_same_verdict(files, monkeypatch):
+    """Above MAX_FRAMES frames the tests run on evenly spaced frames: same inference, same refusal."""
+    import euc_ros.core.conventions as conv
+
+    session = load_session(files["session"]["z"])
+    series = load_recording(files["yup"], "z")
+    full = infer_up_axis(series, session)
+    monkeypatch.setattr(conv, "MAX_FRAMES", 60)
+    thin = infer_up_axis(series, session)
+    assert thin["inferred"] == full["inferred"] == "y" and thin["conclusive"]
+    assert thin["tests"]["wheel_centre"]["y"]["value"] == pytest.approx(full["tests"]["wheel_centre"]["y"]["value"],
+                                                                        abs=0.005)
+    with pytest.raises(ConfigError, match="suggest 'y'"):
+        check_recording(series, session, files["yup"])
