@@ -17,9 +17,11 @@ recording      recorder messages per second into MCAP with no loss (rosbags writ
                same messages directly)
 unicycle       unicycle simulation real-time factor in process and in lockstep over topics
                (the bare RK4 physics; a bare rclpy lockstep ping-pong)
+play           replay timing of ``euc-ros play`` per message, at rates 1 and 2 (a bare wait
+               loop on the same schedule)
 fuzz           NatNet packets and Motive CSV files: inputs, crashes, hangs, rejection classes
 =============  ==========================================================================
 """
 
 #: Benchmarks in the order they run (module names under euc_ros.bench).
-BENCHMARKS = ("csv_parse", "throughput", "unicycle", "recording", "latency", "fuzz")
+BENCHMARKS = ("csv_parse", "throughput", "unicycle", "recording", "latency", "play", "fuzz")

@@ -2,7 +2,8 @@
 
 Runs, in order: Motive CSV parse rate, offline throughput of identify and residual (CSV and bag),
 unicycle simulation real-time factor (in process and lockstep over topics), recorder messages per
-second into MCAP, live pipeline latency, and the NatNet/CSV fuzz job; each with its peak memory.
+second into MCAP, live pipeline latency, replay timing of ``euc-ros play``, and the NatNet/CSV fuzz
+job; each with its peak memory.
 Writes the results as JSON to OUT and as a Markdown table to OUT with the suffix ``.md`` (or
 ``--markdown``), and prints the table. See ``docs/benchmarks.md``.
 
@@ -26,7 +27,7 @@ from pathlib import Path
 
 from euc_ros.core.errors import ConfigError
 
-HELP = "benchmarks against their floors (latency, throughput, parse, recorder, simulation, fuzz)"
+HELP = "benchmarks against their floors (latency, throughput, parse, recorder, simulation, replay, fuzz)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -41,7 +41,8 @@ def is_bag(path: Path) -> bool:
     return (path.is_dir() and (path / "metadata.yaml").is_file()) or path.suffix.lower() == ".mcap"
 
 
-def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_source: str = "default") -> dict:
+def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_source: str = "default",
+                         session=None) -> dict:
     """Return the inspect summary of a Motive CSV export (JSON-ready; NaN become None).
 
     Parameters
@@ -52,8 +53,11 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
         Up axis the file is read with.
     world_up_source : str
         Where ``world_up`` came from (``"--world-up"``, ``"session"`` or ``"default"``), reported as is.
+    session : Session, optional
+        Adds the wheel-centre and EUC-axis evidence to the inferred up axis
+        (:func:`euc_ros.core.conventions.infer_up_axis`).
     """
-    from euc_ros.core.io.motive_csv import UP_AXIS_NOTE, infer_up_axis, read_motive_csv
+    from euc_ros.core.io.motive_csv import UP_AXIS_NOTE, read_motive_csv
 
     s = read_motive_csv(path, world_up=world_up)
     m = s.meta
@@ -73,7 +77,7 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
         "last_frame": int(s.frame[-1]) if n else None,
         "n_dropped": m["n_dropped"],
         "n_duplicates_dropped": m["n_duplicates_dropped"],
-        "up_axis": {"configured": world_up, "source": world_up_source, **infer_up_axis(s), "note": UP_AXIS_NOTE},
+        "up_axis": {"configured": world_up, "source": world_up_source, **_up_axis(s, session), "note": UP_AXIS_NOTE},
         "rotation_type": m.get("rotation_type"),
         "length_units": m.get("length_units"),
         "coordinate_space": m.get("coordinate_space"),
@@ -82,6 +86,14 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
         "n_partial_blank": dict(m["n_partial_blank"]),
         "warnings": list(m["warnings"]),
     }
+
+
+def _up_axis(series, session) -> dict:
+    """The inferred up axis: ``inferred``, ``reason``, ``conclusive`` (the per-test values stay in the core)."""
+    from euc_ros.core.conventions import infer_up_axis
+
+    info = infer_up_axis(series, session)
+    return {k: info[k] for k in ("inferred", "reason", "conclusive")}
 
 
 def summarize_bag(path: str | Path) -> dict:
@@ -214,14 +226,17 @@ def main(args: argparse.Namespace) -> int:
     elif path.is_dir():
         raise InputError("directory is not a rosbag2 bag (no metadata.yaml)", path=path)
     else:
+        session = None
+        if args.session is not None:
+            from euc_ros.core.session import load_session
+            session = load_session(args.session)
         if args.world_up is not None:
             world_up, source = args.world_up, "--world-up"
-        elif args.session is not None:
-            from euc_ros.core.session import load_session
-            world_up, source = load_session(args.session).world_up, f"session {args.session}"
+        elif session is not None:
+            world_up, source = session.world_up, f"session {args.session}"
         else:
             world_up, source = "y", "default (Motive's Y-up)"
-        summary = summarize_motive_csv(path, world_up=world_up, world_up_source=source)
+        summary = summarize_motive_csv(path, world_up=world_up, world_up_source=source, session=session)
     print(format_summary(summary))
     if args.json:
         write_json(summary, args.json)

@@ -102,6 +102,109 @@ _POSITIVE = {"rate_hz", "mass", "inertia_pitch", "wheel_radius", "wheel_mass", "
              "body_inertia"}
 
 
+@dataclass(frozen=True)
+class Plausible:
+    """Plausible range of a session quantity in SI, and the unit slips a value outside it may come from.
+
+    Attributes
+    ----------
+    lo, hi : float
+        Range of the value (of the vector's length for ``com_offset`` and ``pivot_to_wheel_center``).
+    unit : str
+        SI unit, as printed.
+    typical : (float, float)
+        Where real values usually lie (same measure as ``lo``/``hi``): a value outside the range is
+        explained by a unit slip only when the value converted back lands here.
+    slips : tuple of (float, str)
+        ``(factor, name)``: a value given in unit ``name`` is ``factor`` times too large in SI
+        (millimetres: 1000).
+    """
+
+    lo: float
+    hi: float
+    unit: str
+    typical: tuple[float, float]
+    slips: tuple[tuple[float, str], ...] = ()
+
+
+_LENGTH_SLIPS = ((1000.0, "millimetres"), (100.0, "centimetres"))
+_MASS_SLIPS = ((1000.0, "grams"),)
+_INERTIA_SLIPS = ((1000.0, "g m^2"), (1e4, "kg cm^2"), (1e6, "kg mm^2"))
+
+#: Plausible ranges of every session quantity, by leaf key, generous enough for any real EUC and rider
+#: (children to heavy riders with gear; 14" to 24" wheels; EUCs of 10 to 60 kg). A value outside its
+#: range is a :class:`ConfigError` naming the key; when the value divided by a unit factor falls in the
+#: typical range when the value converted back from a unit slip lands there (``wheel_radius: 200``,
+#: ``mass: 65000``), the message suggests that unit.
+PLAUSIBLE: dict[str, Plausible] = {
+    "rate_hz": Plausible(1.0, 10000.0, "Hz", (30.0, 2000.0), ((1e-3, "kHz"),)),
+    "mass": Plausible(20.0, 250.0, "kg", (30.0, 150.0), _MASS_SLIPS),                 # rider.mass
+    "inertia_pitch": Plausible(0.5, 150.0, "kg m^2", (3.0, 50.0), _INERTIA_SLIPS),   # about the rider's CoG
+    "com_offset": Plausible(0.0, 1.0, "m", (0.0, 0.5), _LENGTH_SLIPS),               # |offset| from the pivot
+    "wheel_radius": Plausible(0.05, 0.5, "m", (0.1, 0.35), _LENGTH_SLIPS),
+    "wheel_mass": Plausible(0.5, 50.0, "kg", (1.0, 25.0), _MASS_SLIPS),
+    "body_mass": Plausible(1.0, 150.0, "kg", (5.0, 60.0), _MASS_SLIPS),
+    "wheel_inertia": Plausible(1e-3, 10.0, "kg m^2", (0.02, 2.0), _INERTIA_SLIPS),
+    "body_inertia": Plausible(1e-3, 20.0, "kg m^2", (0.1, 5.0), _INERTIA_SLIPS),
+    "h0": Plausible(-1.0, 1.0, "m", (-0.2, 0.3), _LENGTH_SLIPS),                     # C to G0, signed
+    "l0": Plausible(-1.0, 1.0, "m", (0.0, 0.3), _LENGTH_SLIPS),                      # A to C, signed
+    "pivot_to_wheel_center": Plausible(0.0, 2.0, "m", (0.1, 1.0), _LENGTH_SLIPS),    # |E -> C|
+}
+_VECTORS = {"com_offset", "pivot_to_wheel_center"}
+
+
+def _fmt(v: Any) -> str:
+    """``0.2`` or ``[0, 0, -0.45]`` (numbers in ``%g``)."""
+    if isinstance(v, (tuple, list)):
+        return "[" + ", ".join(f"{x:g}" for x in v) + "]"
+    return f"{v:g}"
+
+
+def check_plausible(leaf: str, value: Any, *, key: str | None = None, source: str | Path | None = None) -> None:
+    """Raise :class:`ConfigError` if a session value lies outside :data:`PLAUSIBLE` (no-op for other keys).
+
+    Parameters
+    ----------
+    leaf : str
+        Key name in the session file (``wheel_radius``).
+    value : float or sequence of 3 floats
+        The value in SI as read.
+    key : str, optional
+        Dotted key for the message (default ``leaf``).
+    source : str or Path, optional
+        The session file.
+
+    Examples
+    --------
+    >>> try:
+    ...     check_plausible("wheel_radius", 200.0)
+    ... except ConfigError as exc:
+    ...     print(exc.detail)
+    wheel_radius = 200 m is not plausible (expected 0.05-0.5 m); the value looks like millimetres: 0.2
+    """
+    rng = PLAUSIBLE.get(leaf)
+    if rng is None:
+        return
+    vector = leaf in _VECTORS
+    size = float(np.linalg.norm(value)) if vector else float(value)
+    if rng.lo <= size <= rng.hi:
+        return
+    if vector:
+        expected = f"a length of at most {rng.hi:g} {rng.unit}" if rng.lo == 0 else \
+            f"a length of {rng.lo:g}-{rng.hi:g} {rng.unit}"
+    else:
+        expected = f"{rng.lo:g}{' to ' if rng.lo < 0 else '-'}{rng.hi:g} {rng.unit}"
+    hints = []
+    for factor, name in rng.slips:
+        if rng.typical[0] <= size / factor <= rng.typical[1]:
+            scaled = tuple(x / factor for x in value) if vector else size / factor
+            hints.append(f"{name}: {_fmt(scaled)}")
+    msg = f"{leaf} = {_fmt(value)} {rng.unit} is not plausible (expected {expected})"
+    if hints:
+        msg += "; the value looks like " + " or ".join(hints)
+    raise ConfigError(msg, path=None if source is None else str(source), key=key or leaf)
+
+
 def _check_keys(d: Any, spec: Mapping[str, type], prefix: str, src: str | None) -> None:
     if not isinstance(d, Mapping):
         raise ConfigError(f"expected a mapping, got {type(d).__name__}", path=src, key=prefix or None)
@@ -122,12 +225,15 @@ def _value(d: Mapping, k: str, typ: type, prefix: str, src: str | None) -> Any:
             raise ConfigError(f"expected a finite number, got {v!r}", path=src, key=key)
         if k in _POSITIVE and v <= 0:
             raise ConfigError(f"must be > 0, got {v!r}", path=src, key=key)
+        check_plausible(k, float(v), key=key, source=src)
         return float(v)
     if typ is list:
         if (not isinstance(v, list) or len(v) != 3
-                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) for x in v)):
-            raise ConfigError(f"expected a list of 3 numbers [x, y, z], got {v!r}", path=src, key=key)
-        return tuple(float(x) for x in v)
+                or not all(isinstance(x, (int, float)) and not isinstance(x, bool) and np.isfinite(x) for x in v)):
+            raise ConfigError(f"expected a list of 3 finite numbers [x, y, z], got {v!r}", path=src, key=key)
+        vec = tuple(float(x) for x in v)
+        check_plausible(k, vec, key=key, source=src)
+        return vec
     if not isinstance(v, typ):
         raise ConfigError(f"expected {typ.__name__}, got {v!r}", path=src, key=key)
     return v

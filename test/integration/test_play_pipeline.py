@@ -2,6 +2,8 @@
 
 Separate processes over DDS. The recorded MocapFrames must equal the Motive CSV: every frame, the
 capture stamps (start + frame / rate), the poses bit for bit (float64 all the way) and the gaps.
+
+Tolerances: float64 all the way, so the quaternions compare to 1e-15 (an exact copy).
 """
 from __future__ import annotations
 

@@ -1,6 +1,11 @@
 """Issue 6 closed loop over topics: `euc-ros steer` (simulator, controller, recorder as processes).
 
 The lockstep run read back from the bag must end where the in-process simulation ends (< 1 mm).
+
+Tolerances: the bag holds the float64 states and inputs of the lockstep run; the in-process
+reference integrates the same equations with the same steps, but the report's numbers pass through
+JSON and the input is recomputed from messages: 1e-6 (m, rad, N m) is far above their round-off
+(~1e-12) and far below any real difference; times 1e-12 s.
 """
 from __future__ import annotations
 

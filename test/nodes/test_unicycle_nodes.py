@@ -2,6 +2,10 @@
 
 Each test runs the real nodes in its own rclpy Context with a single-threaded executor; the test's
 own node plays the part of the missing peer (an observer or a controller that answers ``u = 0``).
+
+Tolerances: the nodes run the same core code as the in-process reference on the same doubles
+(messages carry float64), so they agree to the last bits: 1e-12 (1e-9 for the controller's input
+over a whole run, where the order of additions of the integrated states may differ by an ulp per step).
 """
 from __future__ import annotations
 

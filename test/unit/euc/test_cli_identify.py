@@ -1,4 +1,10 @@
-"""`euc-ros identify` in-process: CSV and bag recordings, JSON, figures, errors."""
+"""`euc-ros identify` in-process: CSV and bag recordings, JSON, figures, errors.
+
+Tolerances: a zero-strength effect fitted by direct torque evaluation against the paper's
+coefficient fit: the same residuals through two algebraic routes (~1e-12 relative, see
+test_identify.py); JSON floats are written with repr, exactly. rel 1e-9 on the RMSE leaves 1000x;
+h is a refined minimum whose position is sensitive to the curve's round-off (flat bottom), hence 1e-6 m.
+"""
 from __future__ import annotations
 
 import argparse

@@ -6,9 +6,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.euc.kinematics import frame_geometry, reconstruct_states, to_moving_frame
+from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, frame_geometry, reconstruct_states, to_moving_frame
 from euc_ros.core.euc.model import EucParams
 from euc_ros.core.session import default_session
+from euc_ros.testing import savgol_roundoff
 
 SESSION = default_session(world_up="z")
 
@@ -33,6 +34,8 @@ def test_frame_geometry_recovers_the_angles_and_points_it_was_built_from(rng, sy
     pos = np.concatenate([s.position[:, :1] for s in series], axis=1)
     quat = np.concatenate([s.quat[:, :1] for s in series], axis=1)
     geo = frame_geometry(pos, quat, None, SESSION, series[0].bodies)
+    # built and recovered through a few rotations of <= 3 m vectors and one arcsin/atan2 each: a few
+    # ulps (~1e-15); atol 1e-12 leaves >= 300x
     np.testing.assert_allclose(geo["psi"], psi, atol=1e-12)
     np.testing.assert_allclose(geo["theta"], theta, atol=1e-12)
     np.testing.assert_allclose(geo["gamma"], gamma, atol=1e-12)
@@ -52,6 +55,7 @@ def test_moving_frame_is_the_transpose_of_yaw_then_tilt(rng):
     psi, theta = rng.uniform(-3, 3, 20), rng.uniform(-1, 1, 20)
     v = rng.normal(size=(20, 3))
     T = Rotation.from_euler("ZX", np.column_stack([psi, theta])).as_matrix()
+    # two products of a unit rotation with O(1) vectors, in other orders: a few ulps
     np.testing.assert_allclose(to_moving_frame(v, psi, theta), np.einsum("nji,nj->ni", T, v), atol=1e-13)
 
 
@@ -111,10 +115,23 @@ def test_reconstructed_states_follow_the_built_motion_on_any_heading(synth):
     s, truth = _straight_series(synth, psi0=2.5)
     st = reconstruct_states(s, SESSION, window_s=0.2)
     inner = slice(20, -20)
-    np.testing.assert_allclose(st.x_dot[inner], truth["x_dot"][inner], atol=1e-9)
-    np.testing.assert_allclose(st.x_ddot[inner], 0.5, atol=1e-7)
+    # x(t) = 2 t + t^2 / 4 is a quadratic: the order-6 fit reproduces it exactly, so the errors of
+    # x_dot and x_ddot are round-off alone. C is 16 m from the origin at the end, and the filter sees
+    # C, not its variation: the bound scales with max|C| (savgol_roundoff: coefficients, the sum of
+    # the window's products, and the ~4 ulps of C rebuilt as E + R_E p from E = C - R_E p). For the
+    # 25-sample window at 120 Hz: 2.1e-9 m/s^2 on x_ddot (sum|h2| = 4.6e3 s^-2) and 2.9e-11 m/s on
+    # x_dot. The projection on the heading adds eps |a_C|, nothing at this scale.
+    scale = np.abs(s.position).max() + np.linalg.norm(SESSION.euc.pivot_to_wheel_center)
+    tol = {d: savgol_roundoff(st.window, DEFAULT_SG_POLYORDER, d, 1 / 120, scale) for d in (1, 2)}
+    np.testing.assert_allclose(st.x_dot[inner], truth["x_dot"][inner], rtol=0, atol=tol[1])
+    np.testing.assert_allclose(st.x_ddot[inner], 0.5, rtol=0, atol=tol[2])
+    # gamma and phi are sines: the smoothed values carry the fit's truncation error, of the order of
+    # the 8th-derivative term (omega T / 2)^8 / 8! * amplitude ~ 1e-13 rad; 1e-6 rad (5e-5 of the
+    # amplitudes) leaves room for the noise-free synthesis and is far below any real error.
     np.testing.assert_allclose(st.gamma[inner], truth["gamma"][inner], atol=1e-6)
     np.testing.assert_allclose(st.phi[inner], truth["phi"][inner], atol=1e-6)
+    # psi is one atan2 of rotation-matrix entries built from a unit quaternion: a few ulps of pi;
+    # 1e-12 rad is ~1000 times that.
     np.testing.assert_allclose(st.psi, 2.5, atol=1e-12)
     assert st.window == 25 and st.phi_definition == "hinge"
     eq3 = reconstruct_states(s, SESSION, window_s=0.2, phi_definition="eq3")
@@ -131,10 +148,14 @@ def test_longitudinal_acceleration_is_the_projection_of_a_C_on_a_circle(synth):
                          phi=np.full(n, 0.03), h=0.6)
     st = reconstruct_states(s, SESSION, window_s=0.2)
     inner = slice(20, -20)
+    # C moves on a circle: the order-6 fit over 0.2 s leaves a truncation error of the order of
+    # (omega T / 2)^7 / 7! |v| ~ 1e-12 m/s at omega = 0.75 rad/s, and a round-off of
+    # savgol_roundoff(25, 6, 1, 1/120, 8 m) = 1.4e-11 m/s: atol 1e-6 m/s (1e-4 m/s^2) only says "zero"
     np.testing.assert_allclose(st.x_dot[inner], v, atol=1e-6)
     np.testing.assert_allclose(st.x_ddot[inner], 0.0, atol=1e-4)
-    np.testing.assert_allclose(st.theta, -0.2, atol=1e-12)
-    np.testing.assert_allclose(np.diff(st.psi), v / radius / 120, atol=1e-12)  # unwrapped, no jumps
+    np.testing.assert_allclose(st.theta, -0.2, atol=1e-12)   # one arcsin of a rotation entry: a few ulps
+    # differences of psi up to 7.5 rad (ulp 9e-16): a few ulps; unwrapped, no jumps
+    np.testing.assert_allclose(np.diff(st.psi), v / radius / 120, atol=1e-12)
 
 
 def test_states_of_a_model_consistent_ride_match_the_exact_ones(symbolic, synth):

@@ -1,4 +1,10 @@
-"""Online estimator and sliding RMSE: agreement with the offline identification."""
+"""Online estimator and sliding RMSE: agreement with the offline identification.
+
+Tolerances: the sliding RMSE keeps a running sum of squares, recomputed every window length of
+pushes; against a direct mean over the same samples it differs by that sum's round-off, <= 2 w eps
+max(r^2) / mean(r^2) relative with w = 37 and max/mean ~4 for the normal samples here: ~7e-14
+(half that after the square root); rel 1e-12 leaves >= 10x, rel 1e-10 far more.
+"""
 from __future__ import annotations
 
 import numpy as np

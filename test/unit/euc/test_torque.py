@@ -1,4 +1,11 @@
-"""Closed forms of eqs (5)-(10) and (13) against the independent sympy derivation (conftest)."""
+"""Closed forms of eqs (5)-(10) and (13) against the independent sympy derivation (conftest).
+
+Tolerances: closed forms against lambdified sympy expressions of the same quantities, evaluated
+in other orders. Both are sums of ~50 products of terms up to ~1e3 N m (one ulp 1.1e-13), M_d2 and
+M_h divided by a denominator that stays >= ~1 % of its terms over the random states: the difference
+is a few hundred ulps at most, ~1e-11 relative. rtol 1e-10..1e-9 (with atol for values near zero)
+leaves >= 10x; rtol 1e-13 where the same code runs on broadcast and scalar parameters.
+"""
 from __future__ import annotations
 
 import numpy as np

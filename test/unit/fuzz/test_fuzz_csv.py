@@ -1,15 +1,19 @@
-"""Fast fuzz corpus for the Motive CSV reader: no crash, no hang, every rejection an InputError naming
-the file and a line (or key), and what is accepted is a plausible series.
+"""Fast fuzz corpus for the Motive CSV reader: no crash, every rejection an InputError naming the file
+and a line (or key), and what is accepted is a plausible series.
 
 Inputs come from hypothesis (derandomized): mutations of valid exports (quaternion with an occluded
 block, Euler XYZ in millimetres, CRLF with a BOM), cells replaced by hostile text, header values
-replaced, and raw random bytes. ``euc-ros bench`` runs the long job with the same mutators.
+replaced, and raw random bytes. ``euc-ros bench`` runs the long job with the same mutators, and it is
+there that slow inputs are found (a time limit per input, exceeded = a hang): a wall-clock bound has
+no place in a test, which must pass on a loaded machine; a true hang here is stopped by the test
+timeout.
+
+Tolerances: a quaternion the reader normalised has unit norm to a few ulps (atol 1e-9).
 """
 from __future__ import annotations
 
 import random
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -24,7 +28,6 @@ from euc_ros.core.io.motive_csv import read_motive_csv
 FAST = settings(max_examples=250, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 SEEDS = csv_seeds()
-MAX_PARSE_S = 1.0
 _DIR = tempfile.TemporaryDirectory(prefix="euc_fuzz_test_")
 PATH = Path(_DIR.name) / "take.csv"
 
@@ -32,7 +35,6 @@ PATH = Path(_DIR.name) / "take.csv"
 def read_checked(data: bytes, world_up: str = "y"):
     """Read ``data`` as a CSV file; a rejection must name the file and a line or key."""
     PATH.write_bytes(data)
-    t0 = time.perf_counter()
     try:
         s = read_motive_csv(PATH, world_up=world_up)
     except InputError as exc:
@@ -41,8 +43,6 @@ def read_checked(data: bytes, world_up: str = "y"):
         if exc.line is not None:
             assert 1 <= exc.line <= data.count(b"\n") + 2 and f"line {exc.line}" in str(exc), str(exc)
         return None
-    finally:
-        assert time.perf_counter() - t0 < MAX_PARSE_S
     # accepted: strictly increasing frames and times, finite unit quaternions with w >= 0 where tracked
     assert np.all(np.isfinite(s.t)) and np.all(np.diff(s.frame) > 0) and np.all(np.diff(s.t) > 0)
     tr = s.tracked
@@ -111,7 +111,8 @@ def test_subnormal_frame_rate_is_rejected():
 
 
 def test_the_bench_fuzzer_finds_no_failure_on_a_short_run():
-    r = fuzz("csv", 1500, seed=4, time_budget_s=30.0)
+    # every input runs (no wall-clock budget); "hang" = an input still parsing after 30 s, a timeout
+    r = fuzz("csv", 1500, seed=4, time_budget_s=float("inf"), per_input_timeout_s=30.0)
     assert r["inputs"] == 1500
     assert r["crash"] == r["hang"] == r["unclear"] == r["invalid"] == 0, r["failures"][:3]
     assert r["accepted"] > 0 and r["rejected"] > 500 and r["rejection_classes"] >= 10

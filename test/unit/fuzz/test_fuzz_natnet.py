@@ -1,15 +1,17 @@
-"""Fast fuzz corpus for the NatNet depacketizer: no crash, no hang, every rejection a located NatNetError.
+"""Fast fuzz corpus for the NatNet depacketizer: no crash, every rejection a located NatNetError.
 
 Inputs come from hypothesis (derandomized: the same few hundred inputs on every run): mutations of
 valid packets (the bench fuzzer's seeds and the golden packets of ``test/unit/io/data/natnet``),
 targeted overwrites of every count/size field position, and raw random bytes. ``euc-ros bench``
-runs the long job (hundreds of thousands of inputs) with the same mutators.
+runs the long job (hundreds of thousands of inputs) with the same mutators, and it is there that slow
+inputs are found: it gives every input a time limit and counts the ones that exceed it as hangs (a
+wall-clock bound has no place in a test, which must pass on a loaded machine; a true hang here is
+stopped by the test timeout).
 """
 from __future__ import annotations
 
 import random
 import struct
-import time
 from pathlib import Path
 
 import pytest
@@ -35,13 +37,10 @@ def _golden() -> list[tuple[bytes, tuple[int, int]]]:
 
 SEEDS = natnet_seeds() + _golden()
 RAW = [d for d, _ in SEEDS]
-#: Parsing one packet of at most 64 kB must never take longer than this [s].
-MAX_PARSE_S = 0.5
 
 
 def parse_checked(data: bytes, version) -> object | None:
     """Parse; a rejection must be a NatNetError naming a byte offset inside the packet and a field."""
-    t0 = time.perf_counter()
     try:
         return parse_packet(data, version)
     except NatNetError as exc:
@@ -50,8 +49,6 @@ def parse_checked(data: bytes, version) -> object | None:
         assert exc.field, str(exc)
         assert f"byte {exc.offset}" in str(exc)
         return None
-    finally:
-        assert time.perf_counter() - t0 < MAX_PARSE_S
 
 
 def test_seed_corpus_is_valid():
@@ -129,7 +126,8 @@ def test_accepted_mutants_are_well_formed():
 
 @pytest.mark.parametrize("seed", [1, 2])
 def test_the_bench_fuzzer_finds_no_failure_on_a_short_run(seed):
-    r = fuzz("natnet", 4000, seed=seed, time_budget_s=30.0)
+    # every input runs (no wall-clock budget); "hang" = an input still parsing after 30 s, a timeout
+    r = fuzz("natnet", 4000, seed=seed, time_budget_s=float("inf"), per_input_timeout_s=30.0)
     assert r["inputs"] == 4000
     assert r["crash"] == r["hang"] == r["unclear"] == r["invalid"] == 0, r["failures"][:3]
     assert r["accepted"] > 0 and r["rejected"] > 1000 and r["rejection_classes"] >= 20

@@ -1,4 +1,8 @@
-"""Bags: BagWriter round trips read back by two independent readers, structural checks, recovery, mocap series."""
+"""Bags: BagWriter round trips read back by two independent readers, structural checks, recovery, mocap series.
+
+Tolerances: stamps are stored in integer nanoseconds, so times read back differ by at most half a
+nanosecond plus one ulp of the time: atol 1e-9 s.
+"""
 from __future__ import annotations
 
 import json

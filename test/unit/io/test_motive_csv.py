@@ -4,6 +4,14 @@ Hand-made files with known poses are built here as text, independently of the pr
 Expected rotations are built from elementary rotation matrices multiplied by hand (not scipy's Euler
 code the reader uses), and the Y-up -> Z-up change of axes as a matrix similarity (not the component
 swap the reader uses).
+
+Tolerances come from the decimals of the file, which are the same on every machine: a cell written
+with 9 decimals (``f9``, and the writer's default) is within 0.5e-9 of its value, so a position is
+within 0.5e-9 m per axis (atol 1e-9 on round trips, 1e-8 for Euler angles in degrees whose 0.5e-9
+deg is 1e-11 rad) and a rotation matrix from four such quaternion components, renormalised, within
+sum_i |dR/dq_i| 0.5e-9 <= 4e-9 (atol 1e-8; 2e-9 on the quaternion itself). Time is frame / rate,
+recomputed exactly (atol 1e-12 s). Cells that are exact decimals (0, 1, 0.5, 1234.5) and a reader
+that only permutes, negates or scales them by a power of ten: a few ulps (atol/rtol 1e-12).
 """
 from __future__ import annotations
 
@@ -17,8 +25,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
+from euc_ros.core.conventions import infer_up_axis
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.io.motive_csv import infer_up_axis, read_motive_csv, read_motive_header, write_motive_csv
+from euc_ros.core.io.motive_csv import read_motive_csv, read_motive_header, write_motive_csv
 from euc_ros.core.mocap import MocapSeries
 from euc_ros.core.rotations import rotation_matrices
 
@@ -146,10 +155,10 @@ def test_yaw_left_in_y_up_file_is_yaw_left_in_z_up(tmp_path):
     p = put(tmp_path, motive_text(rb_columns("E"), [row(0, cells)]))
     s = read_motive_csv(p)
     np.testing.assert_allclose(s.position[0, 0], [1.0, 2.0, 0.5], atol=1e-12)
-    R = rotation_matrices(s.quat[0, 0])
-    np.testing.assert_allclose(R[:, 0], [0, 1, 0], atol=1e-9)  # body forward axis -> world +y
-    np.testing.assert_allclose(R[:, 1], [-1, 0, 0], atol=1e-9)  # body left axis -> world -x
-    np.testing.assert_allclose(R[:, 2], [0, 0, 1], atol=1e-9)  # still upright
+    R = rotation_matrices(s.quat[0, 0])   # two inexact 9-decimal cells: <= 2 * 2 * 0.5e-9 per entry
+    np.testing.assert_allclose(R[:, 0], [0, 1, 0], atol=2e-9)  # body forward axis -> world +y
+    np.testing.assert_allclose(R[:, 1], [-1, 0, 0], atol=2e-9)  # body left axis -> world -x
+    np.testing.assert_allclose(R[:, 2], [0, 0, 1], atol=2e-9)  # still upright
     assert s.mean_marker_error[0, 0] == pytest.approx(0.0002)
 
 
@@ -159,9 +168,9 @@ def test_pitch_forward_in_y_up_file(tmp_path):
     a = math.radians(20)
     cells = [f9(0), f9(0), f9(-math.sin(a / 2)), f9(math.cos(a / 2)), "0", "1", "0", ""]
     s = read_motive_csv(put(tmp_path, motive_text(rb_columns("E"), [row(0, cells)])))
-    R = rotation_matrices(s.quat[0, 0])
-    np.testing.assert_allclose(R[:, 2], [math.sin(a), 0, math.cos(a)], atol=1e-9)
-    np.testing.assert_allclose(R[:, 0], [math.cos(a), 0, -math.sin(a)], atol=1e-9)
+    R = rotation_matrices(s.quat[0, 0])   # two inexact 9-decimal cells: <= 2 * 2 * 0.5e-9 per entry
+    np.testing.assert_allclose(R[:, 2], [math.sin(a), 0, math.cos(a)], atol=2e-9)
+    np.testing.assert_allclose(R[:, 0], [math.cos(a), 0, -math.sin(a)], atol=2e-9)
     np.testing.assert_allclose(s.position[0, 0], [0, 0, 1], atol=1e-12)
     assert np.isnan(s.mean_marker_error[0, 0]) and s.tracked[0, 0]  # blank quality cell alone is no gap
 

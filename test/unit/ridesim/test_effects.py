@@ -4,6 +4,11 @@ Pattern: the paper's eqs (5)-(8), written by hand in conftest.py with the *nomin
 evaluated along a trajectory generated *with* the effect. Their residual ``M q_ddot + h - Q`` must
 equal the effect's generalized force dQ as documented in docs/ridesim.md (formulas written again
 here, by hand), to integration tolerance; and it must be large enough to matter.
+
+Tolerances: the accelerations along the trajectory are the simulator's own (evaluated at each
+state, not differentiated), so the residual equals dQ up to the round-off of two algebraic routes
+through terms of up to ~1e3 N m: ~1e-12 N m, far inside TOL = 1e-8 of max(|dQ|, 1 N m). Closed-form
+checks of geometry (a few operations on <= 1 m values) use 1e-12..1e-9, >= 1000 ulps.
 """
 from __future__ import annotations
 

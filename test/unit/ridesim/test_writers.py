@@ -1,4 +1,10 @@
-"""Files of a simulated ride: Motive CSV per spec section 1, session, truth, MCAP bag, CLI."""
+"""Files of a simulated ride: Motive CSV per spec section 1, session, truth, MCAP bag, CLI.
+
+Tolerances come from what the files store, the same on every machine: the Motive CSV has 6 decimals
+(a cell is within half a unit, 5e-7, of its value; +1e-8 for the ulps of the axis change), the truth
+CSV 12 significant digits (relative 5e-12: rtol 1e-11), bags integer nanoseconds (times within
+0.5e-9 s plus an ulp: atol 1e-9 s).
+"""
 from __future__ import annotations
 
 import csv
@@ -60,7 +66,7 @@ def test_csv_values_are_the_recorded_poses_in_y_up(written):
         _, _, data = _parse_csv(out / f"{run.name}.csv")
         rec = run.mocap
         np.testing.assert_array_equal(data[:, 0].astype(int), rec.frame)
-        np.testing.assert_allclose(data[:, 1], rec.frame / 120.0, atol=5e-7)
+        np.testing.assert_allclose(data[:, 1], rec.frame / 120.0, atol=5e-7)   # k / 120 to 6 decimals: <= 3.4e-7
         block = data[:, 2:].reshape(rec.n_frames, len(rec.bodies), 8).transpose(1, 0, 2)
         # Motive Y-up (X, Y, Z) = Z-up (x, z, -y); quaternion (qx, qy, qz) = (qx, qz, -qy)
         pos = np.stack([block[..., 4], -block[..., 6], block[..., 5]], -1)
