@@ -23,7 +23,11 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
     for path in paths:
         recording_kind(path)  # fail early, before any long read
     states = []
-    for path in tqdm(paths, desc=desc, unit="rec", file=sys.stderr, disable=not progress or len(paths) < 2):
+    # no bar on a non-terminal stderr (disable=None) and none for work that ends (or fails) within 0.5 s,
+    # so a refusal stays one line
+    bar = tqdm(paths, desc=desc, unit="rec", file=sys.stderr, delay=0.5,
+               disable=True if (not progress or len(paths) < 2) else None)
+    for path in bar:
         series = load_recording(path, session.world_up)
         warnings = check_recording(series, session, path)
         st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
