@@ -96,6 +96,9 @@ def main(args: argparse.Namespace) -> int:
 
     names = [n for n in BENCHMARKS if args.only is None or n in args.only]
     md_path = args.markdown or args.json.with_suffix(".md")
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--json", args.json), Output("--markdown", md_path)])
     for p in (args.json, md_path):
         if p.parent and not p.parent.exists():
             try:

@@ -133,6 +133,9 @@ def main(args: argparse.Namespace) -> int:
         raise InputError("no such file or directory", path=src)
     if out.exists():
         raise InputError("output exists already, not overwriting", path=out)
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("output", out, "file" if out.suffix.lower() == ".csv" else "dir")], [src])
     if _kind(src) == "csv":
         if out.suffix.lower() == ".csv":
             raise InputError("CSV -> bag: the output is a bag directory, not a .csv file", path=out)

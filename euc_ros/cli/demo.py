@@ -111,6 +111,9 @@ def _bag_summary(bag: Path) -> dict:
 
 def main(args: argparse.Namespace) -> int:
     """Run the demo; prints where every output is."""
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--out", args.out, "dir")])
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
     ride = out / "ride"
@@ -119,12 +122,12 @@ def main(args: argparse.Namespace) -> int:
 
     _step(1, f"simulate a ride with a hidden effect ({args.effect})")
     sim = ["simulate-ride", "--maneuver", "deceleration", "--runs", str(args.runs), "--seed", str(args.seed),
-           "--out", str(ride)]
+           "--out", str(ride), "--overwrite"]
     if args.effect and args.effect != "none":
         sim += ["--effect", args.effect] + [x for p in params for x in ("--param", p)]
     _cli(sim)
     session = ride / "session.yaml"
-    csvs = sorted(p for p in ride.glob("deceleration_*.csv") if not p.name.endswith("_truth.csv"))
+    csvs = sorted(ride.glob("deceleration_*.csv"))
 
     results: dict = {}
     if not args.skip_live:
@@ -146,7 +149,7 @@ def main(args: argparse.Namespace) -> int:
     _cli(["residual", str(session), *map(str, csvs), "--json", str(out / "residual.json"),
           "--plots", str(out / "residual"), "--report", str(out / "residual" / "report.md"), "--no-progress"])
     residual = json.loads((out / "residual.json").read_text())
-    truth = json.loads((ride / "truth.json").read_text())
+    truth = json.loads((ride / "truth" / "truth.json").read_text())
     print(f"  hidden truth: {truth['effect']} {truth['effect_parameters']}, h = {truth['h_m']} m")
     print(f"  found:        {residual['effect']} {residual['effect_parameters']}, h = {residual['h_after_m']:.3f} m")
 

@@ -272,6 +272,10 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.euc.model import EucParams
     from euc_ros.core.session import load_session
 
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
+                  [args.session, *args.recordings])
     grid = h_grid_from_args(args)
     effects = effects_from_args(args)
     session = load_session(args.session)

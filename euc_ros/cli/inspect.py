@@ -216,9 +216,12 @@ def write_json(summary: dict, out: str | Path) -> Path:
 
 def main(args: argparse.Namespace) -> int:
     """Run ``euc-ros inspect``; returns the exit code (InputError propagates to the dispatcher: 2)."""
+    from euc_ros.cli.outputs import Output, check_outputs
+
     path = Path(args.file)
     if not path.exists():
         raise InputError("no such file or directory", path=path)
+    check_outputs([Output("--json", args.json)], [path, getattr(args, "session", None)])
     rc = 0
     if is_bag(path):
         summary = summarize_bag(path)

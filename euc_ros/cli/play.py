@@ -287,6 +287,9 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--rate must be > 0, got {args.rate}", key="--rate")
     if args.clock is not None and not args.clock > 0:
         raise InputError(f"--clock must be > 0 Hz, got {args.clock}", key="--clock")
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--timing-log", args.timing_log)], [args.bag])
     source = BagSource(Path(args.bag), args.topics, args.start_offset)
     try:
         first = next(source.messages(), None)

@@ -21,6 +21,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the recorder until Ctrl-C or ``--duration``."""
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("output", args.output, "dir")])
     params = {"output": args.output, "all_topics": args.all, "chunk_size": args.chunk_size}
     if args.topics:
         params["topics"] = list(args.topics)

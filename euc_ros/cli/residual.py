@@ -67,6 +67,10 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.cli.loading import collect_warnings, load_states, print_warnings
     from euc_ros.core.session import load_session
 
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
+                   Output("--report", args.report)], [args.session, *args.recordings])
     if not 0 < args.alpha < 1:
         raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}", key="--alpha")
     if not 0 <= args.min_gain < 1:

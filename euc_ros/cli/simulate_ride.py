@@ -5,13 +5,16 @@ Example::
     euc-ros simulate-ride --maneuver deceleration --runs 3 --effect ground_slope \
         --param alpha_deg=3 --seed 7 --out DIR
 
-writes DIR/session.yaml (nominal), DIR/deceleration_0N.csv (Motive CSV, Y-up), their truth tables
-DIR/deceleration_0N_truth.csv, DIR/truth.json and, with --bag, MCAP bags. See docs/ridesim.md.
+writes DIR/session.yaml (nominal), DIR/deceleration_0N.csv (Motive CSV, Y-up), with --bag MCAP bags,
+and the hidden truth apart in DIR/truth/ (truth.json, deceleration_0N_truth.csv), so `DIR/*.csv`
+holds only recordings. DIR must be new or empty; --overwrite replaces a previous simulated ride
+(and nothing else). See docs/ridesim.md.
 """
 from __future__ import annotations
 
 import argparse
 import math
+import sys
 import time
 
 HELP = "generate synthetic OptiTrack recordings of a ridden EUC with known truth"
@@ -51,13 +54,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="multiply the figure-eight's length (wider turns) [1]")
     parser.add_argument("--session", default=None, metavar="FILE",
                         help="nominal session YAML (default: the paper's Table 3 with default segments)")
-    parser.add_argument("--out", required=True, metavar="DIR", help="output directory (created)")
+    parser.add_argument("--out", required=True, metavar="DIR",
+                        help="output folder: new or empty (the truth goes to DIR/truth/, apart from the recordings)")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace a previous simulated ride in DIR (nothing else is ever deleted)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bars on stderr")
     parser.add_argument("--bag", action="store_true", help="also write one MCAP bag per run")
     parser.add_argument("--no-noise", action="store_true", help="noise-free poses")
     parser.add_argument("--noise-pos-mm", type=float, default=0.2, help="position noise sigma per axis [mm] [0.2]")
     parser.add_argument("--noise-rot-deg", type=float, default=0.5, help="rotation noise rms angle [deg] [0.5]")
     parser.add_argument("--gaps", type=int, default=0, help="occlusion gaps per run [0]")
     parser.add_argument("--drop-rate", type=float, default=0.0, help="fraction of dropped frames [0]")
+
+
+def _progress_bar(args):
+    """``bar(desc, unit)`` -> a wrapper of iterables drawing a progress bar on stderr (or None)."""
+    if args.no_progress:
+        return lambda desc, unit: None
+    from tqdm import tqdm
+
+    return lambda desc, unit: (lambda it: tqdm(it, desc=desc, unit=unit, file=sys.stderr, delay=0.5, disable=None))
 
 
 def main(args: argparse.Namespace) -> int:
@@ -67,7 +83,12 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.ridesim.writers import write_ride
     from euc_ros.core.session import load_session
 
+    from euc_ros.cli.outputs import Output, check_outputs
+    from euc_ros.core.ridesim.writers import prepare_ride_dir
+
     t0 = time.perf_counter()
+    check_outputs([Output("--out", args.out, "dir")], [args.session])
+    prepare_ride_dir(args.out, overwrite=args.overwrite, dry_run=True)   # refuse before the simulation runs
     effects = make_effects(args.effect, parse_param_assignments(args.param))
     if args.no_noise:
         noise = MocapNoise(pos_sigma_m=0.0, rot_rms_deg=0.0, marker_error_m=0.0, gaps=args.gaps,
@@ -82,8 +103,9 @@ def main(args: argparse.Namespace) -> int:
                         session=None if args.session is None else load_session(args.session),
                         duration_s=args.duration, speed_scale=args.speed_scale,
                         path_scale=args.path_scale, noise=noise)
-    result = simulate_ride(config)
-    written = write_ride(result, args.out, bag=args.bag)
+    bar = _progress_bar(args)
+    result = simulate_ride(config, progress=bar("simulate", "run"))
+    written = write_ride(result, args.out, bag=args.bag, overwrite=args.overwrite, progress=bar("write", "run"))
     print(f"simulate-ride: {config.maneuver}, {len(result.runs)} run(s), effect {effects.label}, "
           f"h = {config.h:.3f} m, seed {config.seed}")
     for r in result.runs:

@@ -72,6 +72,9 @@ def main(args: argparse.Namespace) -> int:
     """Run the maneuver over topics, print the report; 0 ok, 1 domain stop or failure."""
     from euc_ros.cli.unicycle import _params
 
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--out", args.out, "dir"), Output("--json", args.json)])
     target = args.target
     if target is not None and args.maneuver == "turn":
         target = math.radians(target)

@@ -88,6 +88,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Dispatch to the subcommand."""
+    from euc_ros.cli.outputs import Output, check_outputs
+
+    check_outputs([Output("--json", getattr(args, "json", None)), Output("--out", getattr(args, "out", None), "dir")])
     return {"gains": _gains, "steady-states": _steady_states, "stability": _stability,
             "simulate": _simulate}[args.unicycle_command](args)
 

@@ -197,7 +197,7 @@ class RideResult:
             },
             "noise": c.noise.to_dict(),
             "runs": [{
-                "run": r.name, "csv": f"{r.name}.csv", "truth_csv": f"{r.name}_truth.csv",
+                "run": r.name, "csv": f"{r.name}.csv", "truth_csv": f"truth/{r.name}_truth.csv",
                 "duration_s": r.plan.duration_s, "psi0_rad": r.plan.path.psi0,
                 "v_start_m_per_s": float(r.q_dot[0, 0]), "v_end_m_per_s": float(r.q_dot[-1, 0]),
                 "frames": int(r.t.size), "frames_written": int(r.mocap.n_frames),
@@ -412,13 +412,15 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     )
 
 
-def simulate_ride(config: RideConfig) -> RideResult:
+def simulate_ride(config: RideConfig, progress=None) -> RideResult:
     """Simulate all runs of a ride and synthesize their mocap (no files written).
 
     Parameters
     ----------
     config : RideConfig
         Maneuver, number of runs, seed, true h, effects, nominal session, noise.
+    progress : callable, optional
+        ``progress(iterable)`` wraps the loop over runs (a progress bar).
 
     Returns
     -------
@@ -450,7 +452,7 @@ def simulate_ride(config: RideConfig) -> RideResult:
     seq = np.random.SeedSequence(config.seed)
     children = seq.spawn(2 * config.runs)
     runs = []
-    for k in range(config.runs):
+    for k in (progress(range(config.runs)) if progress else range(config.runs)):
         plan = plan_run(config.maneuver, k, np.random.default_rng(children[2 * k]), config.duration_s,
                         config.speed_scale, config.path_scale)
         runs.append(simulate_run(plan, config, params, skeleton, np.random.default_rng(children[2 * k + 1])))

@@ -5,10 +5,15 @@ Layout of ``write_ride(result, out_dir)``::
     out_dir/
       session.yaml                 nominal session (never the hidden truth), world_up: y
       <maneuver>_01.csv            Motive CSV 1.23, Y-up, one group of 8 columns per rigid body
-      <maneuver>_01_truth.csv      true states, accelerations, inputs, h and effect signals per frame
       ...
-      truth.json                   true h, effects and parameters, seed, per-run list
       <maneuver>_01_bag/           (with bag=True) rosbag2 MCAP of geometry_msgs/PoseStamped, Z-up
+      truth/                       the hidden truth, apart from the recordings (``*.csv`` globs stay safe)
+        truth.json                 true h, effects and parameters, seed, per-run list (paths relative
+                                   to out_dir)
+        <maneuver>_01_truth.csv    true states, accelerations, inputs, h and effect signals per frame
+
+:func:`prepare_ride_dir` refuses a folder that holds anything unless ``overwrite`` is given, and then
+only clears a previous ride's own files.
 
 The CSV writer is our own (it does not use the project's reader) and vectorized: the numeric block
 is built with numpy and formatted in one pass; untracked samples are blank cells, dropped frames are
@@ -183,29 +188,79 @@ def write_bag(series: MocapSeries, path: str | Path, start: datetime = CAPTURE_S
     return p
 
 
-def write_ride(result: RideResult, out_dir: str | Path, *, bag: bool = False) -> list[Path]:
-    """Write a simulated ride to ``out_dir`` (created if missing); returns the written paths.
+#: Folder of the truth files inside a ride folder.
+TRUTH_DIR = "truth"
 
-    Writes ``session.yaml`` (nominal values, ``world_up: y``), per run the Motive CSV and the truth
-    CSV, ``truth.json`` and, with ``bag=True``, one MCAP bag directory per run.
+
+def _ride_files(out: Path) -> list[Path]:
+    """The files and folders of a previous ride in ``out`` (what ``write_ride`` writes)."""
+    found = [p for p in (out / "session.yaml", out / TRUTH_DIR, out / "truth.json") if p.exists()]
+    found += [p for p in out.glob("*.csv") if p.is_file()]
+    found += [p for p in out.glob("*_bag") if p.is_dir() and (p / "metadata.yaml").exists()]
+    return found
+
+
+def prepare_ride_dir(out_dir: str | Path, *, overwrite: bool = False, dry_run: bool = False) -> Path:
+    """Make ``out_dir`` ready for :func:`write_ride`, never losing files that are not a ride's.
+
+    With ``dry_run`` only the checks run (nothing is deleted or created).
+
+    Raises
+    ------
+    InputError
+        ``out_dir`` is a file; or it holds files and ``overwrite`` is False; or, with ``overwrite``,
+        it holds files that are not a previous ride's (the message names one).
     """
     out = Path(out_dir)
     if out.exists() and not out.is_dir():
         raise InputError("output path exists and is not a directory", path=out)
-    out.mkdir(parents=True, exist_ok=True)
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise InputError("output folder is not empty: give an empty or new folder, or --overwrite to replace "
+                             "a previous simulated ride there", path=out)
+        ours = _ride_files(out)
+        if not (out / "session.yaml").exists() or not ((out / TRUTH_DIR / "truth.json").exists()
+                                                       or (out / "truth.json").exists()):
+            raise InputError("--overwrite replaces only a previous simulated ride (session.yaml and truth/), "
+                             "and this folder is not one: choose another folder", path=out)
+        other = sorted(set(out.iterdir()) - set(ours))
+        if other:
+            raise InputError(f"--overwrite would leave {other[0].name} (not written by simulate-ride) beside the "
+                             "new ride: move it or choose another folder", path=out)
+        if dry_run:
+            return out
+        for p in ours:
+            shutil.rmtree(p) if p.is_dir() else p.unlink()
+    if not dry_run:
+        out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def write_ride(result: RideResult, out_dir: str | Path, *, bag: bool = False, overwrite: bool = False,
+               progress=None) -> list[Path]:
+    """Write a simulated ride to ``out_dir`` (created if missing); returns the written paths.
+
+    Writes ``session.yaml`` (nominal values, ``world_up: y``), per run the Motive CSV, with
+    ``bag=True`` one MCAP bag directory per run, and the truth (``truth/truth.json``, per run
+    ``truth/<run>_truth.csv``). ``out_dir`` must be new or empty, or hold a previous ride and
+    ``overwrite`` be given (:func:`prepare_ride_dir`). ``progress(iterable)`` wraps the runs.
+    """
+    out = prepare_ride_dir(out_dir, overwrite=overwrite)
+    (out / TRUTH_DIR).mkdir()
     written = []
     session = dataclasses.replace(result.session, world_up="y")
     save_session(session, out / "session.yaml")
     written.append(out / "session.yaml")
-    for k, run in enumerate(result.runs):
+    runs = list(enumerate(result.runs))
+    for k, run in (progress(runs) if progress else runs):
         start = _capture_start(k)
         written.append(write_motive_csv(run.mocap, out / f"{run.name}.csv", total_frames=run.t.size, start=start))
-        written.append(write_truth_csv(run, out / f"{run.name}_truth.csv"))
+        written.append(write_truth_csv(run, out / TRUTH_DIR / f"{run.name}_truth.csv"))
         if bag:
             written.append(write_bag(run.mocap, out / f"{run.name}_bag", start=start))
     truth = result.truth_dict()
     truth["capture_start_utc"] = [_capture_start(k).isoformat() for k in range(len(result.runs))]
     truth["truth_columns"] = list(TRUTH_COLUMNS)
-    (out / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
-    written.append(out / "truth.json")
+    (out / TRUTH_DIR / "truth.json").write_text(json.dumps(truth, indent=2) + "\n", encoding="utf-8")
+    written.append(out / TRUTH_DIR / "truth.json")
     return written

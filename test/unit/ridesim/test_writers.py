@@ -108,7 +108,7 @@ def test_session_file_holds_nominal_values(written):
 
 def test_truth_files(written):
     ride, out, _ = written
-    truth = json.loads((out / "truth.json").read_text())
+    truth = json.loads((out / "truth" / "truth.json").read_text())
     assert truth["h_m"] == 0.61 and truth["seed"] == 4 and truth["effect"] == "rider_mass_error"
     assert truth["effect_parameters"] == {"delta_m_kg": 8.0}
     assert truth["true_parameters_that_differ"]["rider.mass"] == {"true": 73.0, "nominal": 65.0}
@@ -159,7 +159,7 @@ def test_cli_writes_a_deterministic_ride(tmp_path, capsys):
     assert "deceleration_01" in capsys.readouterr().out
     a, b = (tmp_path / d / "deceleration_01.csv" for d in "ab")
     assert a.read_bytes() == b.read_bytes()
-    truth = json.loads((tmp_path / "a" / "truth.json").read_text())
+    truth = json.loads((tmp_path / "a" / "truth" / "truth.json").read_text())
     assert truth["effect_parameters"] == {"alpha_deg": 3.0} and truth["seed"] == 7
 
 
