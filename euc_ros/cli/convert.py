@@ -22,6 +22,7 @@ import argparse
 import os
 import re
 import shutil
+import sys
 import tempfile
 from pathlib import Path
 
@@ -57,6 +58,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--rate", type=float, default=None, metavar="HZ",
                         help="bag -> CSV: frame rate to write (default: from the bag)")
     parser.add_argument("--chunk-size", type=int, default=1 << 20, metavar="BYTES", help="MCAP chunk size")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+
+
+class _Stages:
+    """A progress bar over the conversion's stages (read, write), shown on a terminal after 0.5 s."""
+
+    def __init__(self, args, names) -> None:
+        from tqdm import tqdm
+
+        self.bar = tqdm(total=len(names), desc=names[0], unit="step", file=sys.stderr, delay=0.5,
+                        disable=True if getattr(args, "no_progress", False) else None)
+        self.names = list(names)
+
+    def next(self) -> None:
+        self.bar.update(1)
+        done = int(self.bar.n)
+        if done < len(self.names):
+            self.bar.set_description(self.names[done])
+
+    def close(self) -> None:
+        self.bar.close()
 
 
 def _kind(path: Path) -> str:
@@ -73,7 +95,9 @@ def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
     from euc_ros.core.io.bags import write_mocap_bag
     from euc_ros.core.io.motive_csv import read_motive_csv
 
+    stages = _Stages(args, ["read CSV", "write bag"])
     series = read_motive_csv(src, world_up=args.world_up, bodies=args.bodies)
+    stages.next()
     poses = not args.no_poses
     frame_topic = (args.frame_topic or "/mocap/frame") if (args.frames or args.no_poses) else None
     if poses:
@@ -95,7 +119,9 @@ def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
         counts = write_mocap_bag(series, tmp / out.name, prefix=args.prefix.rstrip("/"), frame_topic=frame_topic,
                                  start_ns=int(start_ns), poses=poses, chunk_size=args.chunk_size)
         os.rename(tmp / out.name, out)
+        stages.next()
     finally:
+        stages.close()
         shutil.rmtree(tmp, ignore_errors=True)
     return counts
 
@@ -106,8 +132,11 @@ def bag_to_csv(src: Path, out: Path, args: argparse.Namespace) -> dict:
     from euc_ros.core.io.bags import read_mocap_bag
     from euc_ros.core.io.motive_csv import write_motive_csv
 
+    stages = _Stages(args, ["read bag", "write CSV"])
     series = read_mocap_bag(src, prefix=args.prefix.rstrip("/"), frame_topic=args.frame_topic, bodies=args.bodies)
+    stages.next()
     if series.n_frames == 0:
+        stages.close()
         raise InputError("no mocap frames in the bag", path=src)
     rate = args.rate
     if rate is None:
@@ -122,6 +151,8 @@ def bag_to_csv(src: Path, out: Path, args: argparse.Namespace) -> dict:
     start_ns = int(np.median(stamps - np.round(series.frame / rate * 1e9).astype(np.int64)))
     series.meta["start_time"] = format_capture_start(start_ns) if start_ns > 0 else ""
     write_motive_csv(series, out, world_up=args.world_up)
+    stages.next()
+    stages.close()
     return {"frames": series.n_frames, "bodies": list(series.bodies), "rate_hz": rate,
             "source": series.meta.get("source", "")}
 

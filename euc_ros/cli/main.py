@@ -21,6 +21,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "play": ("play", "replay a bag onto live topics"),
     "record": ("record", "record topics into a rosbag2 MCAP bag"),
     "convert": ("convert", "convert Motive CSV <-> bag"),
+    "recover": ("recover", "rebuild a readable bag from a truncated or metadata-less one (recorder killed)"),
     "identify": ("identify", "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"),
     "residual": ("residual", "trace the M_d1 - M_d2 residual to a missing physical effect"),
     "unicycle": ("unicycle", "autonomous unicycle: gains, steady states, stability maps"),

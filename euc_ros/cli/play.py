@@ -88,20 +88,25 @@ class BagSource:
 
         from euc_ros.core.io.msgdefs import make_typestore
 
-        path = bag.parent if bag.suffix == ".mcap" else bag
-        if not (path / "metadata.yaml").exists():
-            raise InputError("not a complete rosbag2 bag (no metadata.yaml; euc-ros inspect / recover_bag may help)",
-                             path=path)
+        from euc_ros.core.io.bags import readable_bag
+
         if start_offset < 0:
             raise InputError(f"--start-offset must be >= 0, got {start_offset}", key="--start-offset")
+        self._bag = readable_bag(bag)
+        path = self._bag.__enter__()   # left in close(): a standalone .mcap lives in a temporary bag
         self.path = path
         self.reader = AnyReader([path], default_typestore=make_typestore())
-        self.reader.open()
+        try:
+            self.reader.open()
+        except Exception as exc:   # damaged beyond the checks: one line, what to do
+            self._bag.__exit__(None, None, None)
+            raise InputError(f"cannot read the bag ({exc}); `euc-ros inspect {bag}` lists its problems, "
+                             f"`euc-ros recover {bag}` rebuilds what can be read", path=bag) from None
         have = {c.topic for c in self.reader.connections}
         if topics:
             missing = set(topics) - have
             if missing:
-                self.reader.close()
+                self.close()
                 raise InputError(f"topics not in the bag: {', '.join(sorted(missing))} "
                                  f"(bag has: {', '.join(sorted(have))})", path=path, key="--topics")
         self.connections = [c for c in self.reader.connections if not topics or c.topic in topics]
@@ -120,6 +125,7 @@ class BagSource:
     def close(self) -> None:
         """Close the bag."""
         self.reader.close()
+        self._bag.__exit__(None, None, None)
 
 
 def set_realtime(priority: int) -> str:

@@ -247,6 +247,116 @@ class BagWriter:
 # Reading
 # =====================================================================================================================
 
+def _listed_in_metadata(mcap: Path) -> bool:
+    """True when ``mcap`` sits in a bag directory whose metadata.yaml lists it."""
+    meta = mcap.parent / "metadata.yaml"
+    if not meta.is_file():
+        return False
+    info = _bag_info(mcap.parent)
+    return mcap.name in [Path(str(f)).name for f in (info.get("relative_file_paths") or [])] or not info
+
+
+def _require_readable_bag(path) -> Path:
+    """The bag directory of ``path``, checked for what makes readers fail with a traceback.
+
+    Raises a one-line InputError naming the file and the command that helps: no metadata.yaml, a
+    metadata.yaml that is not valid YAML or lacks ``rosbag2_bagfile_information``, a listed MCAP file
+    that is missing or truncated (no end magic: the writer was killed).
+    """
+    import yaml
+
+    bag = _bag_dir(path)
+    meta = bag / "metadata.yaml"
+    if not meta.is_file():
+        raise InputError(f"no metadata.yaml (the recorder was killed?): `euc-ros recover {bag}` rebuilds a bag from "
+                         "the MCAP's complete chunks", path=bag)
+    try:
+        doc = yaml.safe_load(meta.read_text(encoding="utf-8"))
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise InputError(f"not valid YAML ({getattr(exc, 'problem', None) or exc}): `euc-ros recover {bag}` "
+                         "rebuilds the bag and its metadata from the MCAP file",
+                         path=meta, line=None if mark is None else mark.line + 1) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise InputError(f"cannot read: {exc}", path=meta) from None
+    info = doc.get("rosbag2_bagfile_information") if isinstance(doc, dict) else None
+    if not isinstance(info, dict):
+        raise InputError(f"no rosbag2_bagfile_information mapping: `euc-ros recover {bag}` rebuilds the bag and "
+                         "its metadata from the MCAP file", path=meta, key="rosbag2_bagfile_information")
+    files = info.get("relative_file_paths") or [f.name for f in sorted(bag.glob("*.mcap"))]
+    for name in files if isinstance(files, list) else []:
+        f = bag / str(name)
+        if not f.is_file():
+            raise InputError("listed in metadata.yaml but missing", path=f)
+        if f.suffix.lower() == ".mcap" and not _has_end_magic(f):
+            raise InputError(f"truncated MCAP (no footer: the recorder was killed?): `euc-ros recover {bag}` "
+                             "rebuilds a bag from its complete chunks", path=f)
+    return bag
+
+
+def _has_end_magic(file: Path) -> bool:
+    try:
+        with open(file, "rb") as f:
+            f.seek(0, 2)
+            if f.tell() < 2 * len(MCAP_MAGIC):
+                return False
+            f.seek(-len(MCAP_MAGIC), 2)
+            return f.read(len(MCAP_MAGIC)) == MCAP_MAGIC
+    except OSError:
+        return False
+
+
+class readable_bag:
+    """Context manager: the bag directory to read for ``path``, checked (:func:`_require_readable_bag`).
+
+    A standalone ``.mcap`` file (no metadata.yaml listing it) is rebuilt into a temporary bag that
+    lives until the block ends.
+
+    Examples
+    --------
+    >>> with readable_bag("ride/run_bag") as bag:   # doctest: +SKIP
+    ...     reader = AnyReader([bag])
+    """
+
+    def __init__(self, path) -> None:
+        self.path = Path(path)
+        self._tmp = None
+
+    def __enter__(self) -> Path:
+        import tempfile
+
+        p = self.path
+        if p.suffix.lower() == ".mcap" and p.is_file() and not _listed_in_metadata(p):
+            if not _has_end_magic(p):
+                raise InputError(f"truncated MCAP (no footer): `euc-ros recover {p}` rebuilds a bag from its "
+                                 "complete chunks", path=p)
+            self._tmp = tempfile.TemporaryDirectory(prefix="euc_mcap_")
+            recover_bag(p, Path(self._tmp.name) / p.stem)
+            return Path(self._tmp.name) / p.stem
+        return _require_readable_bag(p)
+
+    def __exit__(self, *exc) -> bool:
+        if self._tmp is not None:
+            self._tmp.cleanup()
+        return False
+
+
+def _read_standalone_mcap(file: Path, **kw) -> MocapSeries:
+    """Read an .mcap file without a bag directory: rebuilt into a temporary bag, then read."""
+    import tempfile
+
+    if not _has_end_magic(file):
+        raise InputError(f"truncated MCAP (no footer): `euc-ros recover {file}` rebuilds a bag from its complete "
+                         "chunks", path=file)
+    with tempfile.TemporaryDirectory(prefix="euc_mcap_") as tmp:
+        recover_bag(file, Path(tmp) / "bag")
+        series = read_mocap_bag(Path(tmp) / "bag", **kw)
+    series.meta["path"] = str(file)
+    if not series.name or series.name == "bag":
+        series.name = file.stem
+    return series
+
+
 def _require_bag(path) -> Path:
     bag = _bag_dir(path)
     if not (bag / "metadata.yaml").is_file():
@@ -953,12 +1063,22 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
     of ~6 s for 10 min x 14 bodies at 120 Hz. Anything else (several files, compression, varying
     body names...) takes the general rosbags route; both give identical series (see ``docs/mcap_fast.md``).
     """
-    bag = _require_bag(path)
+    p = Path(path)
+    if p.suffix.lower() == ".mcap" and p.is_file() and not _listed_in_metadata(p):
+        return _read_standalone_mcap(p, prefix=prefix, frame_topic=frame_topic, bodies=bodies,
+                                     merge_tolerance=merge_tolerance)
+    bag = _require_readable_bag(path)
     info = _bag_info(bag)
     custom = _custom_data(bag, info)
-    series = _read_mocap_fast(bag, info, prefix, frame_topic, merge_tolerance)
-    if series is None:
-        series = _read_mocap_rosbags(bag, prefix, frame_topic, merge_tolerance)
+    try:
+        series = _read_mocap_fast(bag, info, prefix, frame_topic, merge_tolerance)
+        if series is None:
+            series = _read_mocap_rosbags(bag, prefix, frame_topic, merge_tolerance)
+    except InputError:
+        raise
+    except Exception as exc:   # a damaged bag the checks above did not catch: one line, what to do
+        raise InputError(f"cannot read the bag ({type(exc).__name__}: {exc}); `euc-ros inspect {bag}` lists its "
+                         f"problems, `euc-ros recover {bag}` rebuilds what can be read", path=bag) from None
     start_ns = series.meta.pop("_first_ns")
     if CUSTOM_START_NS in custom:
         try:
