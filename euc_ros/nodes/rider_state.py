@@ -37,6 +37,7 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.euc.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
+from euc_ros.core.presence import BodyPresence
 from euc_ros.core.session import load_session
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
@@ -99,6 +100,8 @@ class RiderStateNode(Node):
         self.rate_gate = NodeRateGate(self, rate, self._build, lambda item: self._process(*item),
                                       min_span_s=cfg["rate_measure_s"])
         self.counts = {"frames": 0, "states": 0, "no_euc": 0, "no_rider": 0, "errors": 0}
+        names, fractions, _ = self.session.segment_arrays()
+        self.presence = BodyPresence([self.session.euc.body] + [n for n, f in zip(names, fractions) if f > 0])
         self._origin_ns: int | None = None
         self._last_frame_wall: float | None = None
         self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS)
@@ -120,6 +123,7 @@ class RiderStateNode(Node):
         self._last_frame_wall = time.monotonic()
         try:
             frame = convert.msg_to_frame(msg)
+            self.presence.update(frame.bodies, frame.tracked)
         except Exception as exc:   # never die on input
             self.counts["errors"] += 1
             self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
@@ -171,11 +175,15 @@ class RiderStateNode(Node):
                       filter_lag_s=self.estimator.lag_s, phi_definition=self.config["phi_definition"],
                       expected_rate_hz=meter.nominal_hz, measured_rate_hz=meter.measured_hz,
                       rate_used_hz=meter.rate_hz if meter.decided else float("nan"))
+        missing = self.presence.report()
+        values["missing_bodies"] = ", ".join(self.presence.last_missing)
         stale = self._last_frame_wall is None or time.monotonic() - self._last_frame_wall > 1.0
         if meter.error:
             level, message = convert.ERROR, self.rate_gate.error_message()
         elif stale:
             level, message = convert.STALE, "no frames yet" if c["frames"] == 0 else "no frames for > 1 s"
+        elif missing:
+            level, message = convert.WARN, f"{missing} in the last {self.config['diagnostics_period']:g} s"
         elif c["errors"]:
             level, message = convert.WARN, f"{c['errors']} frame(s) could not be used"
         else:

@@ -104,6 +104,9 @@ class TorqueEstimatorNode(Node):
         self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS)
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
         self.create_subscription(RiderState, itf.RIDER_STATE, self._on_state, itf.RELIABLE_QOS)
+        # rider_state names the bodies it misses; a torque that cannot be computed then says which
+        self.upstream_missing = ""
+        self.create_subscription(DiagnosticArray, itf.DIAGNOSTICS, self._on_diagnostics, itf.DIAGNOSTICS_QOS)
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(f"model {self.estimator.model_name}, h = {cfg['h']:g} m, "
                                f"RMSE window {self.estimator.window_s:g} s")
@@ -149,10 +152,16 @@ class TorqueEstimatorNode(Node):
         m.window = out.window_s
         m.h_online = out.h_online_m
         m.h_online_std = out.h_online_std_m
+        m.h_online_status = out.h_online_status
         m.model = out.model
         self.torque_pub.publish(m)
         self.published += 1
         self.last = out
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for st in msg.status:
+            if st.name == "rider_state: states":
+                self.upstream_missing = next((kv.value for kv in st.values if kv.key == "missing_bodies"), "")
 
     def _publish_diagnostics(self) -> None:
         c = self.estimator.counts
@@ -164,6 +173,9 @@ class TorqueEstimatorNode(Node):
                   "rmse_window_nm": last.rmse_window_nm if last else nan,
                   "h_online_m": last.h_online_m if last else nan,
                   "h_online_std_m": last.h_online_std_m if last else nan,
+                  "h_online": (f"{last.h_online_m:.3f} m" if last.h_online_status == "ok" else last.h_online_status)
+                  if last else "not yet (no state)",
+                  "missing_bodies_upstream": self.upstream_missing,
                   "expected_rate_hz": self.rate_gate.meter.nominal_hz,
                   "measured_rate_hz": self.rate_gate.meter.measured_hz}
         fresh = self.published - self._published_at_last_diag
@@ -175,7 +187,9 @@ class TorqueEstimatorNode(Node):
         elif stale:
             level, message = convert.STALE, "no states yet" if c["states"] == 0 else "no states for > 1 s"
         elif fresh == 0:
-            level, message = convert.WARN, "states arrive but none is usable (rider missing?)"
+            level, message = convert.WARN, ("states arrive but none is usable: " + (
+                f"rider_state has no pose for {self.upstream_missing}" if self.upstream_missing
+                else "rider missing or derivatives not finite"))
         else:
             level, message = convert.OK, f"{self.estimator.model_name}: publishing torques"
         convert.publish_status(self, self.diag_pub, "torque_estimator: torques", level, message, values)

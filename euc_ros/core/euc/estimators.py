@@ -266,6 +266,8 @@ class TorqueSample:
         Length of that window [s].
     h_online_m, h_online_std_m : float
         Online estimate of h and its standard deviation [m] (NaN until enough excitation).
+    h_online_status : str
+        ``"ok"``, or ``"not yet (...)"`` saying what is missing (time of valid states, excitation).
     model : str
         ``"3dof"``, or ``"3dof+extra"`` with an extra generalized force.
     """
@@ -284,6 +286,7 @@ class TorqueSample:
     h_online_std_m: float
     model: str = "3dof"
     extra: dict = field(default_factory=dict)
+    h_online_status: str = ""
 
 
 class TorqueEstimator:
@@ -466,7 +469,8 @@ class TorqueEstimator:
         return TorqueSample(frame=int(getattr(state, "frame", -1)), t=t,
                             M_d1=d1, M_d2=d2, M_d1_2dof=e1, M_d2_2dof=e2, h_m=float(self.params.h),
                             residual_nm=d1 - d2, rmse_window_nm=rmse, window_s=self.window_s,
-                            h_online_m=est.h_m, h_online_std_m=est.h_std_m, model=self.model_name)
+                            h_online_m=est.h_m, h_online_std_m=est.h_std_m, model=self.model_name,
+                            h_online_status=self._h.status(self.dt, est))
 
 
 def extended_model_from_config(params: EucParams, effects: Sequence[str], assignments: Sequence[str],

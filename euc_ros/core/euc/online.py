@@ -191,6 +191,32 @@ class OnlineHEstimator:
         """The latest estimate."""
         return self._last
 
+    def status(self, dt: float, est: HEstimate | None = None) -> str:
+        """What the estimate is, in words: ``"ok"`` or ``"not yet (...)"`` with the reason.
+
+        Parameters
+        ----------
+        dt : float
+            Sample period [s] (to state the time still needed).
+        est : HEstimate, optional
+            The estimate to describe (default: the latest).
+
+        Examples
+        --------
+        >>> from euc_ros.core.euc.model import EucParams
+        >>> from euc_ros.core.session import default_session
+        >>> e = OnlineHEstimator(EucParams.from_session(default_session()), window=1200)
+        >>> e.status(1 / 120)
+        'not yet (0.0 of 2.5 s of valid states)'
+        """
+        est = self._last if est is None else est
+        if np.isfinite(est.h_m):
+            return "ok"
+        if est.n_samples < self.min_samples:
+            return f"not yet ({est.n_samples * dt:.1f} of {self.min_samples * dt:.1f} s of valid states)"
+        return (f"not yet (too little excitation: sensitivity {est.sensitivity_nm_per_m:.1f} < "
+                f"{self.min_sensitivity:g} N m/m)")
+
     def refresh(self) -> HEstimate:
         """Re-estimate now from the samples held (whatever ``update_every`` says) and return it."""
         self._last = self._estimate()

@@ -1,0 +1,75 @@
+"""Live nodes say what is wrong (issue 11, bullet 6): missing bodies by name, h_online "not yet"."""
+from __future__ import annotations
+
+import dataclasses
+import importlib.util
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+pytest.importorskip("rclpy")
+
+from euc_ros.nodes.convert import WARN  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+
+def _load(name):
+    path = Path(__file__).with_name(name)
+    spec = importlib.util.spec_from_file_location(name[:-3] + "_diag_helpers", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+H = _load("test_rider_state.py")
+T = _load("test_torque_estimator.py")
+ride = H.ride
+pipes = H.pipes
+
+
+def _status(pipe, name, level=None):
+    return [st for a in pipe.diag for st in a.status if st.name == name and (level is None or st.level == level)]
+
+
+def _without(series, body):
+    tracked = series.tracked.copy()
+    tracked[series.bodies.index(body)] = False
+    pos = series.position.copy()
+    pos[~tracked] = np.nan
+    return dataclasses.replace(series, tracked=tracked, position=pos)
+
+
+def test_missing_bodies_are_named_by_rider_state_and_torque_estimator(pipes, ros_context, ride):
+    series, _, path = ride
+    rs = H.rider_node(ros_context, path, diagnostics_period=0.2)
+    te = T.torque_node(ros_context, path, diagnostics_period=0.2)
+    pipe = pipes([rs, te])
+    pipe.feed(H.frame_msgs(_without(series, "CHL"), frames=range(300)))
+    pipe.spin_until(lambda: any("no pose for CHL (100 %" in st.message for st in _status(pipe, "rider_state: states",
+                                                                                           WARN)),
+                    what="rider_state naming CHL")
+    assert len(pipe.states) > 0 and not any(m.has_rider for m in pipe.states) and not pipe.torques
+    pipe.feed(H.frame_msgs(_without(series, "CHL"), frames=range(300, 340)))   # keep states coming
+    pipe.spin_until(lambda: any("no pose for CHL" in st.message for st in _status(pipe, "torque_estimator: torques",
+                                                                                   WARN)),
+                    what="torque_estimator naming CHL")
+    kv = {k.key: k.value for k in _status(pipe, "rider_state: states", WARN)[-1].values}
+    assert kv["missing_bodies"] == "CHL"
+
+
+def test_h_online_says_not_yet_until_its_window_holds_enough(pipes, ros_context, ride):
+    series, _, path = ride
+    rs = H.rider_node(ros_context, path)
+    te = T.torque_node(ros_context, path, h_window_s=2.0, h_update_every=1)
+    pipe = pipes([rs, te])
+    pipe.feed(H.frame_msgs(series))
+    statuses = [m.h_online_status for m in pipe.torques]
+    assert statuses[0].startswith("not yet (") and " of 0.5 s of valid states" in statuses[0]
+    for m in pipe.torques:
+        assert (m.h_online_status == "ok") == bool(np.isfinite(m.h_online)), m.h_online_status
+        assert m.h_online_status == "ok" or m.h_online_status.startswith("not yet (")
+    assert "ok" in statuses
+    kv = {k.key: k.value for st in _status(pipe, "torque_estimator: torques") for k in st.values}
+    assert kv.get("h_online", "").endswith(" m") or kv.get("h_online", "").startswith("not yet")
