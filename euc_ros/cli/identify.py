@@ -230,6 +230,13 @@ def _fmt(v: float, digits: int) -> str:
     return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
 
 
+def format_usage(usage: list[dict]) -> str:
+    """One line: the share of each recording's frames the analysis used."""
+    return "samples used: " + ", ".join(
+        f"{u['recording']} {100 * u['samples_used_fraction']:.0f} % ({u['samples_used']}/{u['frames']}"
+        + (f", {u['bridged_frames']} frames bridged" if u.get("bridged_frames") else "") + ")" for u in usage)
+
+
 def format_table(result) -> str:
     """The per-recording and pooled table printed by the command (an extended model adds two columns)."""
     extra = [m for m in result.pooled if m not in ("3dof", "2dof")]
@@ -267,7 +274,7 @@ def format_table(result) -> str:
 
 def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
-    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings
+    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings, usage_table
     from euc_ros.core.euc.identify import identify_h
     from euc_ros.core.euc.model import EucParams
     from euc_ros.core.session import load_session
@@ -303,11 +310,15 @@ def main(args: argparse.Namespace) -> int:
         head = args.model or name
     warnings = collect_warnings(states)
     print(format_table(result))
+    print(format_usage(usage_table(states)))
     print_warnings(warnings)
     if args.json:
         out = Path(args.json)
         out.parent.mkdir(parents=True, exist_ok=True)
         data = result.to_json(head)
+        usage = {u["recording"]: u for u in usage_table(states)}
+        for rec in data.get("per_recording", []):
+            rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
         data["warnings"] = warnings
         out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     if args.plots:

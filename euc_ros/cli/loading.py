@@ -36,6 +36,12 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
             raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
                              path=path)
         st.name = st.name or Path(path).stem
+        used = samples_used(st)
+        st.meta["samples"] = used
+        if used["samples_used_fraction"] < LOW_USE_FRACTION:
+            warnings.append(f"only {used['samples_used']} of {used['frames']} frames "
+                            f"({100 * used['samples_used_fraction']:.0f} %) give usable states (bodies lost for "
+                            f"more than max_gap frames, or stretches shorter than the filter window)")
         st.meta.setdefault("warnings", []).extend(warnings)
         states.append(st)
     seen: dict[str, int] = {}
@@ -45,6 +51,26 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
         if k:
             st.name = f"{st.name}#{k + 1}"
     return states
+
+
+#: Below this fraction of a recording's frames used, the analysis warns.
+LOW_USE_FRACTION = 0.5
+
+
+def samples_used(st) -> dict:
+    """How much of a recording the analysis uses: ``frames`` (its frame span, dropped frames
+    included), ``samples_used`` (valid states), ``samples_used_fraction``, ``bridged_frames`` (frames
+    with a body bridged across a short gap)."""
+    frames = int(st.frame[-1] - st.frame[0] + 1) if st.n else 0
+    used = int(st.valid.sum())
+    return {"frames": frames, "samples_used": used,
+            "samples_used_fraction": used / frames if frames else 0.0,
+            "bridged_frames": int(st.meta.get("bridged_frames", 0))}
+
+
+def usage_table(states) -> list[dict]:
+    """Per recording: name plus :func:`samples_used`."""
+    return [{"recording": st.name, **st.meta.get("samples", samples_used(st))} for st in states]
 
 
 def collect_warnings(states) -> list[str]:

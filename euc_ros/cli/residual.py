@@ -64,7 +64,8 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.euc.model import EucParams
     from euc_ros.core.residual.analysis import analyze
     from euc_ros.core.residual.candidates import make_candidates
-    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings
+    from euc_ros.cli.identify import format_usage
+    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings, usage_table
     from euc_ros.core.session import load_session
 
     from euc_ros.cli.outputs import Output, check_outputs
@@ -85,11 +86,13 @@ def main(args: argparse.Namespace) -> int:
                      max_effects=args.max_effects, use_geometry=not args.no_geometry, progress=say)
     data = result.to_json()
     data["recordings"] = [st.name for st in states]
+    data["per_recording"] = usage_table(states)
     data["warnings"] = collect_warnings(states)
     data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
                         "candidates": [c.name for c in candidates]}
     _atomic_write(Path(args.json), json.dumps(data, indent=2) + "\n")
     print(format_summary(data))
+    print(format_usage(data["per_recording"]))
     print_warnings(data["warnings"])
     figures = []
     if args.plots:

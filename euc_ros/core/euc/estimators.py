@@ -29,6 +29,7 @@ from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, 
 from euc_ros.core.euc.model import EucParams
 from euc_ros.core.euc.online import OnlineHEstimator, SlidingRmse
 from euc_ros.core.euc.torque import torques, torques_2dof
+from euc_ros.core.bridging import PoseBridge
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
 
 if TYPE_CHECKING:
@@ -97,19 +98,25 @@ class RiderStateEstimator:
         window = window_samples(self.dt, window_s=window_s, polyorder=polyorder)
         self._euc = StreamingSavgol(window, polyorder, self.dt, max_gap=max_gap)
         self._rider = StreamingSavgol(window, polyorder, self.dt, max_gap=max_gap)
+        # each body's short gaps are bridged before the geometry, max_gap frames late (as offline)
+        self._bridge = PoseBridge(max_gap)
+        #: Body samples bridged so far.
+        self.bridged_samples = 0
         self._raw: dict[int, tuple] = {}
         self._x = 0.0
         self._last: tuple[int, float] | None = None  # (frame, x_dot) of the previous output
 
     @property
     def lag_s(self) -> float:
-        """Output delay [s]."""
+        """Output delay [s] (the filter's centred lag; right after a body's gap of k frames the
+        bridge adds up to k frames once)."""
         return self._euc.lag_s
 
     def reset(self) -> None:
         """Forget everything (e.g. on a jump back in time)."""
         self._euc.reset()
         self._rider.reset()
+        self._bridge.reset()
         self._raw.clear()
         self._x = 0.0
         self._last = None
@@ -131,6 +138,13 @@ class RiderStateEstimator:
         bodies : sequence of str
             Names of the b rows.
         """
+        out = []
+        for f, t_f, pos, q, trk, bridged in self._bridge.push(frame, t, position, quat, tracked, bodies):
+            self.bridged_samples += int(bridged.sum())
+            out += self._update_bridged(f, t_f, pos, q, trk, bodies)
+        return out
+
+    def _update_bridged(self, frame: int, t: float, position, quat, tracked, bodies) -> list[RiderStateSample]:
         geo = frame_geometry(position, quat, tracked, self.session, bodies)
         phi_raw = geo["phi_hinge"] if self.phi_definition == "hinge" else geo["phi_eq3"]
         frame = int(frame)

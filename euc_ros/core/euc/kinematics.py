@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.bridging import bridge_series
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, savgol_derivatives, trim_edges
 from euc_ros.core.rotations import rotation_matrices, yaw_tilt_pitch_from_quat
 
@@ -280,8 +281,10 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     absent = [nm for nm, f in zip(names, fractions) if f > 0 and nm not in series.bodies]
     if absent:
         raise InputError(f"rider segment(s) {', '.join(absent)} of the session not in recording", path=src)
-    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies)
     dt = 1.0 / series.rate_hz
+    # each body's short gaps are bridged before any geometry (as the live estimator does)
+    series, bridged = bridge_series(series, max_gap)
+    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies)
     frame = np.asarray(series.frame, dtype=np.int64)
     sg = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, frame=frame)
     d_gamma = savgol_derivatives(dt, geo["gamma"], **sg)
@@ -292,7 +295,14 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     fin = np.isfinite(psi)
     if fin.any():
         psi[fin] = np.unwrap(psi[fin])
-    e_x = np.stack([np.cos(geo["psi"]), np.sin(geo["psi"])], -1)
+    # Heading of the bridged frames (a body missing for at most max_gap frames): interpolated like the
+    # filter interpolates gamma and C, so a blank frame costs that frame only (as live), not the
+    # half-windows on both sides of a NaN that would split the stretch.
+    psi_x = geo["psi"].copy()
+    gap = ~fin & d_C.filled
+    if gap.any() and fin.sum() >= 2:
+        psi_x[gap] = np.interp(frame[gap], frame[fin], psi[fin])
+    e_x = np.stack([np.cos(psi_x), np.sin(psi_x)], -1)
     x_dot = np.sum(e_x * d_C.y_dot[:, :2], -1)
     x_ddot = np.sum(e_x * d_C.y_ddot[:, :2], -1)
     t = np.asarray(series.t, dtype=float)
@@ -310,5 +320,6 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         phi_eq3=geo["phi_eq3"], phi_hinge=geo["phi_hinge"], psi=psi, theta=geo["theta"],
         C=d_C.y, G=geo["G"], has_euc=geo["has_euc"], has_rider=geo["has_rider"], valid=valid,
         phi_definition=phi_definition, window=d_gamma.window, polyorder=polyorder, dt=dt,
-        meta={"source": src},
+        meta={"source": src, "bridged_samples": int(bridged.sum()),
+              "bridged_frames": int(bridged.any(axis=0).sum())},
     )

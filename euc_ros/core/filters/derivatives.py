@@ -59,7 +59,7 @@ def _correlate1d():
 #: Default polynomial order (cubic: unbiased second derivative for signals up to cubic in time).
 DEFAULT_POLYORDER = 3
 #: Default longest run of missing frames filled by interpolation [frames].
-DEFAULT_MAX_GAP = 2
+DEFAULT_MAX_GAP = 5
 
 
 def window_samples(dt: float, window_s: float | None = None, window: int | None = None,

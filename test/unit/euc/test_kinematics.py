@@ -8,6 +8,7 @@ from scipy.spatial.transform import Rotation
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, frame_geometry, reconstruct_states, to_moving_frame
 from euc_ros.core.euc.model import EucParams
+from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.session import default_session
 from euc_ros.testing import savgol_roundoff
 
@@ -72,15 +73,31 @@ def _straight_series(synth, rng=None, n=600, psi0=0.7, **noise):
 def test_missing_segment_gives_no_cog_for_that_frame_only(synth):
     s, _ = _straight_series(synth, )
     j = s.bodies.index("CHL")
+    gap = DEFAULT_MAX_GAP + 1                 # longer than the bridge: really missing
+    s.tracked[j, 100:100 + gap] = False
+    s.position[j, 100:100 + gap] = np.nan
+    geo = frame_geometry(s.position, s.quat, s.tracked, SESSION, s.bodies)
+    sl = slice(100, 100 + gap)
+    assert not geo["has_rider"][sl].any() and geo["has_rider"][:100].all() and geo["has_rider"][100 + gap:].all()
+    assert np.isnan(geo["G"][sl]).all() and np.isnan(geo["phi_hinge"][sl]).all()
+    assert np.isfinite(geo["gamma"][sl]).all()  # the EUC is still there
+    st = reconstruct_states(s, SESSION, window_s=0.2)
+    assert not st.valid[sl].any()
+    assert st.valid[200:400].all()
+
+
+def test_a_short_segment_loss_is_bridged_and_costs_nothing(synth):
+    """Bridged per body before the geometry (core.bridging): the states there are valid and equal
+    the unbroken ones to the interpolation error of a 3-frame slerp of a smooth motion."""
+    s, _ = _straight_series(synth, )
+    ref = reconstruct_states(s, SESSION, window_s=0.2)
+    j = s.bodies.index("CHL")
     s.tracked[j, 100:103] = False
     s.position[j, 100:103] = np.nan
-    geo = frame_geometry(s.position, s.quat, s.tracked, SESSION, s.bodies)
-    assert not geo["has_rider"][100:103].any() and geo["has_rider"][:100].all() and geo["has_rider"][103:].all()
-    assert np.isnan(geo["G"][100:103]).all() and np.isnan(geo["phi_hinge"][100:103]).all()
-    assert np.isfinite(geo["gamma"][100:103]).all()  # the EUC is still there
     st = reconstruct_states(s, SESSION, window_s=0.2)
-    assert not st.valid[100:103].any()
-    assert st.valid[200:400].all()
+    np.testing.assert_array_equal(st.valid, ref.valid)
+    assert st.meta["bridged_samples"] == 3
+    assert np.nanmax(np.abs(st.phi - ref.phi)) < 1e-3     # rad; interpolation over 25 ms of a ~1 Hz motion
 
 
 def test_zero_mass_segment_may_be_missing(synth):

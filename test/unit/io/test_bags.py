@@ -76,7 +76,7 @@ def make_messages(ts, rng):
         out.append(("/torque", "euc_msgs/msg/TorqueEstimate", T["euc_msgs/msg/TorqueEstimate"](
             header=hdr, valid=bool(i % 2), m_d1=rng.normal(), m_d2=rng.normal(), m_d1_2dof=np.nan, m_d2_2dof=-0.0,
             h=0.61, residual=rng.normal(), rmse_window=1.5, window=2.0, h_online=0.6, h_online_std=np.inf,
-            model="3dof+ground_slope"), stamp + 3))
+            model="3dof+ground_slope", h_online_status="not yet (1.2 of 7.5 s of valid states)"), stamp + 3))
     rs = T["euc_msgs/msg/RiderState"]
     kw = {name: float(k) for k, name in enumerate(
         ["x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "phi_eq3",
