@@ -57,6 +57,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--from-residual", metavar="RESIDUAL.json", default=None,
                         help="add the effect(s) and parameters selected by 'euc-ros residual --json'")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
+    parser.add_argument("--tolerance", action="append", default=[], metavar="KEY=VALUE",
+                        help="tolerance of a nominal session value for the h range, e.g. rider.mass=2 or "
+                             "euc.body_inertia=20%% (repeatable; defaults: 1 kg for masses, 10 %% for inertias, "
+                             "5 mm for h0 and l0, 2 mm for the wheel radius, 1 cm for the segment CoM offsets)")
+    parser.add_argument("--no-uncertainty", action="store_true",
+                        help="skip the confidence interval, the errors-in-variables bias and the budget (faster)")
 
 
 def h_grid_from_args(args: argparse.Namespace) -> np.ndarray:
@@ -230,6 +236,59 @@ def _fmt(v: float, digits: int) -> str:
     return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
 
 
+def uncertainty(states, session, params, result, args, tolerances) -> dict:
+    """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready)."""
+    from euc_ros.core.euc import uncertainty as U
+    from euc_ros.core.euc.identify import _coefficients_for
+
+    fit = result.pooled["3dof"]
+    series = [st.meta.get("series") for st in states]
+    out = {}
+    bias = float("nan")
+    if np.isfinite(fit.h_m) and all(s is not None for s in series):
+        bias = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
+                          phi_definition=args.phi_definition)
+    coefs = _coefficients_for(states, params, "3dof", None)
+    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
+                    h_bounds=(args.h_min, args.h_max), turning_ms2=U.turning_rms(states))
+    out.update(iv.to_json())
+    lo, hi = iv.bootstrap_ci95_m
+    out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
+    if np.isfinite(fit.h_m) and all(s is not None for s in series):
+        b = U.budget(series, states, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
+                     phi_definition=args.phi_definition, tolerances=tolerances)
+        out["h_range_m"] = b["h_range_m"]
+        out["uncertainty_budget"] = b
+    out["_h_m"] = fit.h_m
+    return out
+
+
+def format_uncertainty(unc: dict) -> str:
+    """The verdict on h: interval and sharpness, or why h is not identifiable, and the budget."""
+    u = unc["uncertainty"]
+    lo, hi = unc["h_ci95_m"]
+    h = unc["_h_m"]
+    ci = "[-, -]" if lo is None or hi is None else f"[{lo:.3f}, {hi:.3f}]"
+    bias = u.get("eiv_bias_m")
+    how = (f"block bootstrap over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
+           + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else ""))
+    sharp = "-" if u.get("sharpness") is None else f"{u['sharpness']:.2f}"
+    if unc["identifiable"]:
+        lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
+    else:
+        lines = [f"h is NOT identifiable from these recordings: {unc['identifiability_reason']}",
+                 f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
+    b = unc.get("uncertainty_budget")
+    if b:
+        rows = sorted(b["sensitivity"].items(), key=lambda kv: -(kv[1]["dh_m"] or 0.0))
+        lines.append("h depends on nominal values no residual can check (dh for the stated tolerance; --tolerance):")
+        lines += [f"  {k:<28} {v['dh_dp']:+9.4f} {v['unit']:<14} x {v['tolerance']:g} -> {1e3 * v['dh_m']:5.1f} mm"
+                  for k, v in rows[:6] if v["dh_dp"] is not None]
+        lo2, hi2 = b["h_range_m"]
+        lines.append(f"  h range for these tolerances: [{lo2:.3f}, {hi2:.3f}] m")
+    return "\n".join(lines)
+
+
 def format_usage(usage: list[dict]) -> str:
     """One line: the share of each recording's frames the analysis used."""
     return "samples used: " + ", ".join(
@@ -237,7 +296,7 @@ def format_usage(usage: list[dict]) -> str:
         + (f", {u['bridged_frames']} frames bridged" if u.get("bridged_frames") else "") + ")" for u in usage)
 
 
-def format_table(result) -> str:
+def format_table(result, identifiable: bool | None = None) -> str:
     """The per-recording and pooled table printed by the command (an extended model adds two columns)."""
     extra = [m for m in result.pooled if m not in ("3dof", "2dof")]
     head = (f"{'recording':<28} {'samples':>8}  {'3-DoF h [m]':>11} {'RMSE [Nm]':>10}  "
@@ -266,8 +325,8 @@ def format_table(result) -> str:
     lines.append("-" * len(head))
     pooled_n = next(iter(result.pooled.values())).n_samples if result.pooled else 0
     lines.append(row("pooled", pooled_n, result.pooled))
-    if any(f.at_bound for rec in result.per_recording for f in rec.fits.values()) or \
-            any(f.at_bound for f in result.pooled.values()):
+    if identifiable is not False and (any(f.at_bound for rec in result.per_recording for f in rec.fits.values())
+                                      or any(f.at_bound for f in result.pooled.values())):
         lines.append("* optimum at the end of the h grid: widen --h-min/--h-max")
     return "\n".join(lines)
 
@@ -283,6 +342,9 @@ def main(args: argparse.Namespace) -> int:
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
+    from euc_ros.core.euc.uncertainty import parse_tolerances
+
+    tolerances = parse_tolerances(args.tolerance)
     grid = h_grid_from_args(args)
     effects = effects_from_args(args)
     session = load_session(args.session)
@@ -292,7 +354,8 @@ def main(args: argparse.Namespace) -> int:
 
         ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
     states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
-                         phi_definition=args.phi_definition, progress=not args.no_progress, desc="identify")
+                         phi_definition=args.phi_definition, progress=not args.no_progress, desc="identify",
+                         keep_series=not args.no_uncertainty)
     settings = {"session": str(args.session), "recordings": [str(p) for p in args.recordings],
                 "phi_definition": args.phi_definition, "window_s": args.window_s,
                 "window_samples": states[0].window, "polyorder": args.polyorder,
@@ -309,7 +372,10 @@ def main(args: argparse.Namespace) -> int:
         result.settings["extended_model"] = name
         head = args.model or name
     warnings = collect_warnings(states)
-    print(format_table(result))
+    unc = None if args.no_uncertainty else uncertainty(states, session, params, result, args, tolerances)
+    print(format_table(result, identifiable=None if unc is None else unc["identifiable"]))
+    if unc is not None:
+        print(format_uncertainty(unc))
     print(format_usage(usage_table(states)))
     print_warnings(warnings)
     if args.json:
@@ -319,6 +385,9 @@ def main(args: argparse.Namespace) -> int:
         usage = {u["recording"]: u for u in usage_table(states)}
         for rec in data.get("per_recording", []):
             rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
+        if unc is not None:
+            data["h_std_formal_m"] = data.get("h_std_m")
+            data.update({k: v for k, v in unc.items() if not k.startswith("_")})
         data["warnings"] = warnings
         out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     if args.plots:

@@ -8,7 +8,7 @@ from euc_ros.core.errors import InputError
 
 
 def load_states(session, paths, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
-                progress: bool = True, desc: str = "read"):
+                progress: bool = True, desc: str = "read", keep_series: bool = False):
     """Read recordings, check them against the session and reconstruct their states.
 
     Every recording is first checked by :func:`euc_ros.core.checks.check_recording`; its warnings are
@@ -36,6 +36,8 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
             raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
                              path=path)
         st.name = st.name or Path(path).stem
+        if keep_series:
+            st.meta["series"] = series
         used = samples_used(st)
         st.meta["samples"] = used
         if used["samples_used_fraction"] < LOW_USE_FRACTION:

@@ -1,0 +1,417 @@
+"""How well the data determine h: a confidence interval that respects correlation, identifiability,
+and an uncertainty budget over the session's nominal values.
+
+Three sources of error, three tools:
+
+* **Random error, correlated.** The Savitzky-Golay filter correlates neighbouring samples over its
+  window, so the formal curvature-based ``h_std_m`` (independent samples) is far too small (a
+  25-minute ride gave +-0.4 mm). :func:`block_bootstrap` resamples whole blocks of consecutive
+  samples (a moving-block bootstrap with non-overlapping blocks); the block length comes from the
+  residual's measured autocorrelation (twice its first zero crossing, at least one filter window).
+  Each block's SSE(h) is computed once on a fine grid, so a replicate is a weighted sum: 1000
+  replicates cost one matrix product.
+* **Errors in variables.** Pose noise reaches the accelerations the regressors are built from, which
+  biases h (low: a noisy CoG looks lower), independently of the recording's length. The bias is
+  proportional to the noise variance, so simulation-extrapolation (SIMEX) measures it on the data:
+  the noise of every body is estimated from the recording itself (third differences of positions
+  and of rotation increments), the same amount is added again, and the change of h is the bias of
+  the data as recorded (:func:`eiv_bias`). The interval is widened to contain the bias-corrected h.
+* **Nominal values no residual can check.** Masses, inertias, l0, h0 and the segment CoM offsets
+  enter the model as given; h moves with them while the residual stays at its floor.
+  :func:`budget` measures dh/dp for each (re-identifying with the value perturbed) and the h range
+  that stated tolerances imply.
+
+h is **not identifiable** (``identifiable: false`` with a reason) when the recording is too short,
+the RMSE curve too flat (too little excitation), or the interval reaches the edge of the search
+range or is wider than :data:`MAX_CI_WIDTH_M`.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError
+
+#: Shortest total duration of valid samples for an identifiable h [s].
+MIN_DURATION_S = 4.0
+#: Smallest sharpness (relative RMSE rise at h* +- 0.1 m) for an identifiable h. Measured on the
+#: simulator (noise 0.2 mm, 0.5 deg): deceleration and acceleration rides 1.2-1.3, constant speed
+#: 0.5-0.7 (their h is biased by 1-2 cm by the filter and errors in variables, beyond any interval).
+MIN_SHARPNESS = 0.8
+#: Largest RMS centripetal acceleration x_dot psi_dot for the planar model to hold [m/s^2].
+MAX_TURNING_MS2 = 0.5
+#: Widest 95 % interval still reported as an identification [m].
+MAX_CI_WIDTH_M = 0.15
+#: Half-width of the fine grid around h* for the bootstrap [m] and its step [m].
+LOCAL_HALF_WIDTH_M = 0.3
+LOCAL_STEP_M = 5e-4
+
+#: Default tolerances of the session's nominal values for the h range (user-overridable).
+DEFAULT_TOLERANCES = {
+    "rider.mass": 1.0,                 # kg
+    "rider.inertia_pitch": "10%",
+    "euc.body_mass": 1.0,              # kg
+    "euc.body_inertia": "10%",
+    "euc.wheel_mass": 0.2,             # kg
+    "euc.wheel_inertia": "10%",
+    "euc.wheel_radius": 0.002,         # m
+    "euc.h0": 0.005,                   # m
+    "euc.l0": 0.005,                   # m
+    "rider.segments.com_offset": 0.01,  # m, every segment's CoM offset along its body z axis
+}
+
+
+@dataclass
+class Interval:
+    """The 95 % interval of h and what it is made of.
+
+    Attributes
+    ----------
+    h_m : float
+        The identified h [m].
+    ci95_m : tuple of float
+        The interval [m] (bootstrap percentiles, widened to contain ``h_m - eiv_bias_m``).
+    bootstrap_ci95_m : tuple of float
+        The bootstrap percentiles alone [m].
+    block_s : float
+        Block length [s].
+    n_blocks : int
+    eiv_bias_m : float
+        Errors-in-variables bias of h measured by SIMEX [m] (NaN when not measured).
+    identifiable : bool
+    reason : str
+        Why not ("" when identifiable).
+    sharpness : float
+        Relative RMSE rise at h* +- 0.1 m.
+    """
+
+    h_m: float
+    ci95_m: tuple
+    bootstrap_ci95_m: tuple
+    block_s: float
+    n_blocks: int
+    eiv_bias_m: float
+    identifiable: bool
+    reason: str
+    sharpness: float
+    extra: dict = field(default_factory=dict)
+
+    def to_json(self) -> dict:
+        f = _f
+        return {"h_ci95_m": [f(v) for v in self.ci95_m], "identifiable": bool(self.identifiable),
+                "identifiability_reason": self.reason or None,
+                "uncertainty": {"bootstrap_ci95_m": [f(v) for v in self.bootstrap_ci95_m], "block_s": f(self.block_s),
+                                "n_blocks": int(self.n_blocks), "eiv_bias_m": f(self.eiv_bias_m),
+                                "sharpness": f(self.sharpness), **self.extra}}
+
+
+def _f(v):
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def residuals_at(coef: np.ndarray, h: float) -> np.ndarray:
+    """Per-sample residual ``e(h) = c (a0 + a1 h + a2 h^2) / (d0 + d1 h)`` [N m]."""
+    c, a0, a1, a2, d0, d1 = coef
+    return c * (a0 + h * (a1 + h * a2)) / (d0 + d1 * h)
+
+
+def first_zero_crossing(e: np.ndarray, max_lag: int) -> int:
+    """Lag [samples] where the autocorrelation of ``e`` first drops to zero (``max_lag`` if never)."""
+    e = np.asarray(e, dtype=float) - np.mean(e)
+    n = e.size
+    if n < 4:
+        return 1
+    m = 1 << int(np.ceil(np.log2(2 * n)))
+    spec = np.fft.rfft(e, m)
+    acf = np.fft.irfft(spec * np.conj(spec), m)[:min(max_lag, n - 1) + 1]
+    if acf[0] <= 0:
+        return 1
+    below = np.flatnonzero(acf <= 0)
+    return int(below[0]) if below.size else int(min(max_lag, n - 1))
+
+
+def block_length(coefs: Sequence[np.ndarray], h: float, window: int) -> int:
+    """Block length [samples]: twice the residual's first ACF zero crossing, at least one filter window."""
+    lags = [first_zero_crossing(residuals_at(c, h), 20 * window) for c in coefs if c.shape[1] > 8]
+    k0 = int(np.median(lags)) if lags else window
+    return max(int(window), 2 * k0)
+
+
+def block_sse(coefs: Sequence[np.ndarray], length: int, grid: np.ndarray) -> np.ndarray:
+    """SSE(h) of every block of ``length`` consecutive samples of each recording: (n_blocks, g)."""
+    from euc_ros.core.euc.identify import _sse_grid
+
+    rows = []
+    for c in coefs:
+        n = c.shape[1]
+        if n == 0:
+            continue
+        k = max(1, n // length)
+        edges = np.linspace(0, n, k + 1).astype(int)      # k blocks of ~length (the rest spread)
+        for a, b in zip(edges[:-1], edges[1:]):
+            rows.append(_sse_grid(c[:, a:b], grid))
+    return np.array(rows).reshape(-1, grid.size)
+
+
+def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: float, *, n_boot: int = 1000,
+                    seed: int = 0, h_bounds=(0.1, 1.2)):
+    """Moving-block bootstrap of h: ``(h replicates, block length [samples], n_blocks, grid)``.
+
+    Replicates whose optimum sits on the fine grid's edge are returned as +-inf (the data do not
+    bound h there).
+    """
+    length = block_length(coefs, h, window)
+    lo = max(h_bounds[0], h - LOCAL_HALF_WIDTH_M)
+    hi = min(h_bounds[1], h + LOCAL_HALF_WIDTH_M)
+    grid = np.arange(lo, hi + LOCAL_STEP_M / 2, LOCAL_STEP_M)
+    S = block_sse(coefs, length, grid)
+    nb = S.shape[0]
+    rng = np.random.default_rng(seed)
+    W = rng.multinomial(nb, np.full(nb, 1.0 / nb), size=n_boot).astype(float)
+    boot = W @ S
+    k = np.argmin(boot, axis=1)
+    hb = grid[k].astype(float)
+    hb[k == 0] = -np.inf
+    hb[k == grid.size - 1] = np.inf
+    return hb, length, nb, grid
+
+
+def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
+    """Per-body white pose noise estimated from the recording: (position sigma per axis [m],
+    rotation sigma per axis [rad]), each (b,).
+
+    Third differences of a smooth motion sampled at 100+ Hz are tiny; those of white noise have
+    variance 20 sigma^2. Rotation: the increments between consecutive orientations (a first
+    difference of the noise) differenced twice more. Robust: the median absolute deviation.
+    """
+    from scipy.spatial.transform import Rotation
+
+    b = len(series.bodies)
+    sp, sr = np.full(b, np.nan), np.full(b, np.nan)
+    consecutive = np.diff(series.frame) == 1
+    for i in range(b):
+        ok = series.tracked[i] & np.all(np.isfinite(series.position[i]), axis=1)
+        pair = ok[1:] & ok[:-1] & consecutive
+        if pair.sum() < 20:
+            continue
+        p = series.position[i]
+        d3 = np.diff(p, n=3, axis=0)
+        good3 = pair[2:] & pair[1:-1] & pair[:-2]
+        if good3.sum() >= 10:
+            sp[i] = 1.4826 * np.median(np.abs(d3[good3] - np.median(d3[good3], axis=0))) / np.sqrt(20)
+        q = series.quat[i]
+        qa = np.where(ok[:, None], q, [0, 0, 0, 1.0])
+        inc = (Rotation.from_quat(qa[:-1]).inv() * Rotation.from_quat(qa[1:])).as_rotvec()
+        d2 = np.diff(inc, n=2, axis=0)
+        if good3.sum() >= 10:
+            sr[i] = 1.4826 * np.median(np.abs(d2[good3] - np.median(d2[good3], axis=0))) / np.sqrt(20)
+    return sp, sr
+
+
+def add_pose_noise(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
+    """A copy of ``series`` with white noise of the given per-body sigmas added to every pose."""
+    from scipy.spatial.transform import Rotation
+
+    pos = series.position.copy()
+    quat = series.quat.copy()
+    for i in range(len(series.bodies)):
+        if np.isfinite(sigma_pos[i]):
+            pos[i] = pos[i] + rng.normal(0.0, sigma_pos[i], pos[i].shape)
+        if np.isfinite(sigma_rot[i]):
+            ok = np.all(np.isfinite(quat[i]), axis=1)
+            dq = Rotation.from_rotvec(rng.normal(0.0, sigma_rot[i], (int(ok.sum()), 3)))
+            quat[i, ok] = (Rotation.from_quat(quat[i, ok]) * dq).as_quat()
+    return dataclasses.replace(series, position=pos, quat=quat)
+
+
+def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyorder: int,
+             phi_definition: str = "hinge", replicates: int = 2, seed: int = 1) -> float:
+    """Errors-in-variables bias of h by SIMEX [m]: ``mean(h with the noise doubled) - h``.
+
+    The noise of the recordings as given is estimated (:func:`estimate_pose_noise`); adding the same
+    again doubles its variance, and the bias is linear in the variance, so the change of h equals
+    the bias already in ``h``. NaN when the noise cannot be estimated.
+    """
+    from euc_ros.core.euc.identify import identify_h
+    from euc_ros.core.euc.kinematics import reconstruct_states
+
+    rng = np.random.default_rng(seed)
+    noise = [estimate_pose_noise(s) for s in series_list]
+    if all(not np.isfinite(sp).any() for sp, _ in noise):
+        return float("nan")
+    hs = []
+    for _ in range(replicates):
+        states = [reconstruct_states(add_pose_noise(s, sp, sr, rng), session, phi_definition=phi_definition,
+                                     window_s=window_s, polyorder=polyorder)
+                  for s, (sp, sr) in zip(series_list, noise)]
+        hs.append(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
+    return float(np.nanmean(hs) - h)
+
+
+def turning_rms(states) -> float:
+    """RMS centripetal acceleration ``x_dot psi_dot`` over the valid samples [m/s^2]."""
+    from euc_ros.core.filters.derivatives import savgol_derivatives
+
+    vals = []
+    for st in states:
+        psi = np.asarray(st.psi, dtype=float)
+        ok = np.asarray(st.valid, bool) & np.isfinite(psi)
+        if ok.sum() < st.window:
+            continue
+        psi_dot = savgol_derivatives(st.t, psi, window=st.window, polyorder=3, frame=st.frame).y_dot
+        ok &= np.isfinite(psi_dot)
+        vals.append((st.x_dot * psi_dot)[ok])
+    v = np.concatenate(vals) if vals else np.array([])
+    return float(np.sqrt(np.mean(v ** 2))) if v.size else 0.0
+
+
+def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bias_m: float = float("nan"),
+             h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0, turning_ms2: float = 0.0) -> Interval:
+    """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples in time order.
+    fit : ModelFit
+        The pooled fit (``h_m``, ``sharpness``).
+    window : int
+        Savitzky-Golay window [samples] (the shortest block).
+    dt : float
+        Sample period [s].
+    eiv_bias_m : float
+        SIMEX bias (NaN: not included).
+    """
+    h = float(fit.h_m)
+    n = sum(c.shape[1] for c in coefs)
+    duration = n * dt
+    reasons = []
+    if not np.isfinite(h):
+        return Interval(h, (np.nan, np.nan), (np.nan, np.nan), np.nan, 0, eiv_bias_m, False, "no valid sample",
+                        float("nan"))
+    if duration < MIN_DURATION_S:
+        reasons.append(f"too short: {duration:.1f} s of usable states (at least {MIN_DURATION_S:g} s needed)")
+    hb, length, nb, grid = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
+    lo, hi = np.percentile(hb, [2.5, 97.5]) if nb >= 2 else (-np.inf, np.inf)
+    boot = (float(lo), float(hi))
+    lo2, hi2 = boot
+    if np.isfinite(eiv_bias_m):
+        lo2, hi2 = min(lo2, lo2 - eiv_bias_m), max(hi2, hi2 - eiv_bias_m)
+    if turning_ms2 > MAX_TURNING_MS2:
+        reasons.append(f"the ride turns (RMS centripetal acceleration {turning_ms2:.1f} m/s^2 > {MAX_TURNING_MS2:g}): "
+                       "the planar model lacks the turning terms; see `euc-ros residual`")
+    if nb < 4:
+        reasons.append(f"too few independent blocks ({nb} of {length * dt:.1f} s)")
+    if fit.sharpness < MIN_SHARPNESS:
+        reasons.append(f"too little excitation: the RMSE curve rises only {100 * fit.sharpness:.0f} % at h +- 0.1 m "
+                       f"(at least {100 * MIN_SHARPNESS:.0f} % needed; ride with speed changes)")
+    if not (np.isfinite(lo2) and np.isfinite(hi2)):
+        reasons.append("the data do not bound h: bootstrap optima reach the edge of the search range")
+    elif hi2 - lo2 > MAX_CI_WIDTH_M:
+        reasons.append(f"the 95 % interval is {100 * (hi2 - lo2):.0f} cm wide")
+    return Interval(h, (lo2, hi2), boot, length * dt, nb, eiv_bias_m, not reasons, "; ".join(reasons),
+                    float(fit.sharpness), {"turning_rms_ms2": _f(turning_ms2)})
+
+
+# --------------------------------------------------------------------------------------------------------------------
+# Budget over the nominal values
+# --------------------------------------------------------------------------------------------------------------------
+
+#: Budget keys -> (EucParams field, session path) for the values that enter the model only.
+_PARAM_KEYS = {
+    "rider.mass": "m", "rider.inertia_pitch": "J", "euc.body_mass": "m0", "euc.body_inertia": "J0",
+    "euc.wheel_mass": "mw", "euc.wheel_inertia": "Jw", "euc.wheel_radius": "R", "euc.h0": "h0", "euc.l0": "l0",
+}
+
+
+def parse_tolerances(items: Sequence[str] | None) -> dict:
+    """``["rider.mass=2", "euc.body_inertia=20%"]`` over :data:`DEFAULT_TOLERANCES`; ConfigError naming the key."""
+    tol = dict(DEFAULT_TOLERANCES)
+    for item in items or ():
+        key, sep, value = item.partition("=")
+        key = key.strip()
+        if not sep or key not in DEFAULT_TOLERANCES:
+            raise ConfigError(f"expected KEY=VALUE with KEY one of {', '.join(DEFAULT_TOLERANCES)}, got {item!r}",
+                              key="--tolerance")
+        v = value.strip()
+        try:
+            num = float(v[:-1]) if v.endswith("%") else float(v)
+        except ValueError:
+            raise ConfigError(f"{key}: {v!r} is not a number (give e.g. {key}=0.01 or {key}=5%)",
+                              key="--tolerance") from None
+        if not num >= 0:
+            raise ConfigError(f"{key}: a tolerance must be >= 0, got {v}", key="--tolerance")
+        tol[key] = f"{num:g}%" if v.endswith("%") else num
+    return tol
+
+
+def _nominal(session, key: str) -> float:
+    if key.startswith("rider.") and key != "rider.segments.com_offset":
+        return float(getattr(session.rider, key.split(".", 1)[1]))
+    if key.startswith("euc."):
+        return float(getattr(session.euc, key.split(".", 1)[1]))
+    return float("nan")
+
+
+def _absolute(tol, nominal: float) -> float:
+    return abs(nominal) * float(tol[:-1]) / 100.0 if isinstance(tol, str) else float(tol)
+
+
+def budget(series_list, states, session, params, h: float, *, window_s: float, polyorder: int,
+           phi_definition: str = "hinge", tolerances: dict | None = None) -> dict:
+    """dh/dp for every nominal value and the h range for the tolerances.
+
+    Model-only values are perturbed in :class:`EucParams` on the reconstructed states; the segment CoM
+    offsets enter the geometry, so the recordings are reconstructed again with every offset moved
+    along its body's z axis.
+
+    Returns
+    -------
+    dict
+        ``{"sensitivity": {key: {"dh_dp": [m per unit], "unit", "tolerance", "dh_m"}}, "h_range_m": [lo, hi]}``
+    """
+    from euc_ros.core.euc.identify import identify_h
+    from euc_ros.core.euc.kinematics import reconstruct_states
+
+    tolerances = tolerances or dict(DEFAULT_TOLERANCES)
+
+    def h_of(st, p):
+        return identify_h(st, p, models=("3dof",)).pooled["3dof"].h_m
+
+    out = {}
+    total = 0.0
+    for key, fld in _PARAM_KEYS.items():
+        nominal = float(getattr(params, fld))
+        step = max(abs(nominal) * 0.02, 1e-4)
+        hp = h_of(states, dataclasses.replace(params, **{fld: nominal + step}))
+        hm = h_of(states, dataclasses.replace(params, **{fld: nominal - step}))
+        d = (hp - hm) / (2 * step)
+        tol = _absolute(tolerances[key], nominal)
+        unit = {"m": "kg", "m0": "kg", "mw": "kg", "J": "kg m^2", "J0": "kg m^2", "Jw": "kg m^2"}.get(fld, "m")
+        out[key] = {"dh_dp": _f(d), "unit": f"m per {unit}", "nominal": nominal, "tolerance": tol,
+                    "dh_m": _f(abs(d) * tol)}
+        total += abs(d) * tol if np.isfinite(d) else 0.0
+    step = 0.01
+    segs = session.rider.segments
+
+    def shifted(dz):
+        new = {name: dataclasses.replace(seg, com_offset=tuple(np.add(seg.com_offset, (0.0, 0.0, dz))))
+               for name, seg in segs.items()}
+        return dataclasses.replace(session, rider=dataclasses.replace(session.rider, segments=new))
+
+    hs = []
+    for dz in (step, -step):
+        s2 = shifted(dz)
+        st2 = [reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s, polyorder=polyorder)
+               for s in series_list]
+        hs.append(h_of(st2, params))
+    d = (hs[0] - hs[1]) / (2 * step)
+    tol = _absolute(tolerances["rider.segments.com_offset"], 0.0)
+    out["rider.segments.com_offset"] = {"dh_dp": _f(d), "unit": "m per m (all offsets along the body z axis)",
+                                        "nominal": None, "tolerance": tol, "dh_m": _f(abs(d) * tol)}
+    total += abs(d) * tol if np.isfinite(d) else 0.0
+    return {"sensitivity": out, "h_range_m": [_f(h - total), _f(h + total)], "tolerances": {
+        k: v for k, v in tolerances.items()}}
