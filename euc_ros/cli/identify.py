@@ -279,7 +279,7 @@ def format_uncertainty(unc: dict) -> str:
         lines = [f"h is NOT identifiable from these recordings: {unc['identifiability_reason']}",
                  f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
     b = unc.get("uncertainty_budget")
-    if b:
+    if b and unc["identifiable"]:
         rows = sorted(b["sensitivity"].items(), key=lambda kv: -(kv[1]["dh_m"] or 0.0))
         lines.append("h depends on nominal values no residual can check (dh for the stated tolerance; --tolerance):")
         lines += [f"  {k:<28} {v['dh_dp']:+9.4f} {v['unit']:<14} x {v['tolerance']:g} -> {1e3 * v['dh_m']:5.1f} mm"
