@@ -236,27 +236,32 @@ def _fmt(v: float, digits: int) -> str:
     return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
 
 
-def uncertainty(states, session, params, result, args, tolerances) -> dict:
-    """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready)."""
+def uncertainty(states, session, params, result, args, tolerances, *, with_budget: bool = True) -> dict:
+    """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
+
+    ``args`` needs ``window_s``, ``polyorder``, and optionally ``phi_definition``, ``h_min``, ``h_max``.
+    """
     from euc_ros.core.euc import uncertainty as U
     from euc_ros.core.euc.identify import _coefficients_for
 
     fit = result.pooled["3dof"]
+    phi_definition = getattr(args, "phi_definition", "hinge")
+    h_bounds = (getattr(args, "h_min", 0.1), getattr(args, "h_max", 1.2))
     series = [st.meta.get("series") for st in states]
     out = {}
     bias = float("nan")
     if np.isfinite(fit.h_m) and all(s is not None for s in series):
         bias = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                          phi_definition=args.phi_definition)
+                          phi_definition=phi_definition)
     coefs = _coefficients_for(states, params, "3dof", None)
     iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
-                    h_bounds=(args.h_min, args.h_max), turning_ms2=U.turning_rms(states))
+                    h_bounds=h_bounds, turning_ms2=U.turning_rms(states))
     out.update(iv.to_json())
     lo, hi = iv.bootstrap_ci95_m
     out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
-    if np.isfinite(fit.h_m) and all(s is not None for s in series):
+    if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
         b = U.budget(series, states, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                     phi_definition=args.phi_definition, tolerances=tolerances)
+                     phi_definition=phi_definition, tolerances=tolerances)
         out["h_range_m"] = b["h_range_m"]
         out["uncertainty_budget"] = b
     out["_h_m"] = fit.h_m

@@ -79,12 +79,22 @@ def main(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     candidates = make_candidates(args.candidates)
     states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
-                         progress=not args.no_progress)
+                         progress=not args.no_progress, keep_series=True)
     params = EucParams.from_session(session)
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     result = analyze(states, params, candidates=candidates, alpha=args.alpha, min_gain=args.min_gain,
                      max_effects=args.max_effects, use_geometry=not args.no_geometry, progress=say)
     data = result.to_json()
+    # how well the data determine the base model's h (identify's interval and identifiability)
+    from euc_ros.cli.identify import uncertainty
+    from euc_ros.core.euc.identify import identify_h
+    from euc_ros.core.euc.uncertainty import DEFAULT_TOLERANCES
+
+    base = uncertainty(states, session, params, identify_h(states, params, models=("3dof",)), args,
+                       DEFAULT_TOLERANCES, with_budget=False)
+    for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
+        data.setdefault(k, base[k])
+    data["uncertainty"] = base["uncertainty"]
     data["recordings"] = [st.name for st in states]
     data["per_recording"] = usage_table(states)
     data["warnings"] = collect_warnings(states)
@@ -92,6 +102,10 @@ def main(args: argparse.Namespace) -> int:
                         "candidates": [c.name for c in candidates]}
     _atomic_write(Path(args.json), json.dumps(data, indent=2) + "\n")
     print(format_summary(data))
+    if not data["identifiable"]:
+        print(f"h (base model) is NOT identifiable from these recordings: {data['identifiability_reason']}")
+    elif data.get("h_ci95_m") and None not in data["h_ci95_m"]:
+        print(f"h (base model) 95 % interval [{data['h_ci95_m'][0]:.3f}, {data['h_ci95_m'][1]:.3f}] m")
     print(format_usage(data["per_recording"]))
     print_warnings(data["warnings"])
     figures = []
