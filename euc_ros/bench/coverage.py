@@ -36,10 +36,10 @@ def run_case(maneuver: str, runs: int, duration_s, seed: int, h_true: float = 0.
     series = [r.mocap for r in ride.runs]
     states = [reconstruct_states(s, ride.session) for s in series]
     fit = identify_h(states, params, models=("3dof",)).pooled["3dof"]
-    bias = U.eiv_bias(series, ride.session, params, fit.h_m, window_s=states[0].window * states[0].dt,
-                      polyorder=states[0].polyorder) if np.isfinite(fit.h_m) else float("nan")
+    bias, err = U.eiv_bias(series, ride.session, params, fit.h_m, window_s=states[0].window * states[0].dt,
+                           polyorder=states[0].polyorder, with_error=True) if np.isfinite(fit.h_m) else (np.nan, np.nan)
     iv = U.interval(_coefficients_for(states, params, "3dof", None), fit, window=states[0].window, dt=states[0].dt,
-                    eiv_bias_m=bias, turning_ms2=U.turning_rms(states))
+                    eiv_bias_m=bias, eiv_bias_err_m=err, turning_ms2=U.turning_rms(states))
     lo, hi = iv.ci95_m
     return {"h_m": fit.h_m, "ci95_m": (lo, hi), "identifiable": iv.identifiable, "reason": iv.reason,
             "covered": bool(lo <= h_true <= hi), "eiv_bias_m": bias}

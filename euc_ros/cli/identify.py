@@ -249,12 +249,12 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     h_bounds = (getattr(args, "h_min", 0.1), getattr(args, "h_max", 1.2))
     series = [st.meta.get("series") for st in states]
     out = {}
-    bias = float("nan")
+    bias = err = float("nan")
     if np.isfinite(fit.h_m) and all(s is not None for s in series):
-        bias = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                          phi_definition=phi_definition)
+        bias, err = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
+                               phi_definition=phi_definition, with_error=True)
     coefs = _coefficients_for(states, params, "3dof", None)
-    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
+    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias, eiv_bias_err_m=err,
                     h_bounds=h_bounds, turning_ms2=U.turning_rms(states))
     out.update(iv.to_json())
     lo, hi = iv.bootstrap_ci95_m
