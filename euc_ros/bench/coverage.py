@@ -52,7 +52,7 @@ def study(cases: Sequence = CASES, seeds: Sequence[int] = range(10), progress=No
         n_seeds = 2 if duration and duration > 600 else len(seeds)
         res = [run_case(maneuver, runs, duration, s) for s in list(seeds)[:n_seeds]]
         ident = [r for r in res if r["identifiable"]]
-        reasons = sorted({r["reason"].split(":")[0] for r in res if not r["identifiable"]})
+        reasons = sorted({r["reason"].split(":")[0].split(" (")[0] for r in res if not r["identifiable"]})
         rows.append({"case": label, "rides": len(res), "identifiable": len(ident),
                      "covered": sum(r["covered"] for r in ident),
                      "median_width_mm": float(np.median([1e3 * (r["ci95_m"][1] - r["ci95_m"][0]) for r in ident]))
