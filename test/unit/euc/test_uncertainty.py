@@ -128,3 +128,12 @@ def test_coverage_over_seeds():
     covered = sum(r["covered"] for r in ident)
     assert covered >= len(ident) - 1, [(r["h_m"], r["ci95_m"]) for r in res]
     assert binom.cdf(covered, len(ident), 0.95) > 0.01
+
+
+@pytest.mark.slow
+def test_a_25_minute_ride_is_not_a_confident_wrong_number():
+    """Before: 0.569 +- 0.0004 (truth 0.61, 100 sigma off). A long ride shrinks the random error but
+    not the bias of a weakly excited ride: it is refused, or its interval contains the truth."""
+    r = run_case("deceleration", 1, 1500.0, 0)
+    assert (not r["identifiable"]) or r["covered"], r
+    assert r["identifiable"] or "excitation" in r["reason"]
