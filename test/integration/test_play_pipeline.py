@@ -46,7 +46,7 @@ def test_csv_bag_play_ingest_record(ros_domain, short_ride, tmp_path):
         played = subprocess.run([str(exe), "play", str(lab_bag), "--wait-timeout", "20", "--realtime"],
                                 capture_output=True, text=True, timeout=60)
         assert played.returncode == 0, played.stdout + played.stderr
-        launcher.wait(timeout=2.0)                      # the last partial frames leave after sync_timeout
+        launcher.wait(timeout=4.0)                      # the last partial frames leave after sync_timeout
     assert launcher.exit_codes["recorder"] == 0, log.getvalue()
     assert check_bag(out_bag) == []
 
