@@ -36,7 +36,9 @@ class ParamSpec:
         if self.choices:
             text += f" (one of: {', '.join(self.choices)})"
         d = ParameterDescriptor(description=text, read_only=self.read_only)
-        d.dynamic_typing = False
+        # a string with choices such as y/n: the ROS command line and YAML 1.1 read a bare y as true;
+        # accept the bool and map it back (yaml_bool_to_choice) instead of refusing the natural spelling
+        d.dynamic_typing = bool(self.choices) and isinstance(self.default, str)
         if self.low is not None and self.high is not None:
             if isinstance(self.default, bool):
                 pass
@@ -68,6 +70,23 @@ def _param_type(default: Any) -> Parameter.Type:
     raise TypeError(f"unsupported parameter default {default!r}")
 
 
+_YAML_TRUE = ("y", "yes", "on", "true")
+_YAML_FALSE = ("n", "no", "off", "false")
+
+
+def yaml_bool_to_choice(value, choices) -> Any:
+    """Map a bool that YAML 1.1 made of a bare ``y``/``n``/``yes``/``on``... back to the choice it spelt.
+
+    >>> yaml_bool_to_choice(True, ("y", "z")), yaml_bool_to_choice("z", ("y", "z"))
+    ('y', 'z')
+    """
+    if isinstance(value, bool) and choices:
+        for word in (_YAML_TRUE if value else _YAML_FALSE):
+            if word in choices:
+                return word
+    return value
+
+
 def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """Declare every spec on ``node`` and return validated values by name.
 
@@ -87,10 +106,15 @@ def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
         value = param.value
         if isinstance(value, tuple):
             value = list(value)
+        if spec.choices and isinstance(spec.default, str):
+            value = yaml_bool_to_choice(value, spec.choices)
+            if value != param.value:
+                node.set_parameters([Parameter(spec.name, value=value)])
         if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
         if spec.choices and value not in spec.choices:
-            raise ConfigError(f"must be one of {', '.join(spec.choices)}, got {value!r}",
+            hint = " (a bare y/n/yes/no/on/off is read as a boolean)" if isinstance(value, bool) else ""
+            raise ConfigError(f"must be one of {', '.join(spec.choices)}, got {value!r}{hint}",
                               key=f"{node.get_name()}.ros__parameters.{spec.name}")
         if isinstance(value, (int, float)) and not isinstance(value, bool):
             if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
@@ -135,6 +159,8 @@ def validate_params_file(path: str, node_name: str, specs: Sequence[ParamSpec]) 
                 raise ConfigError(f"unknown parameter for node '{node_name}' (known: {', '.join(by_name)})",
                                   path=path, key=full)
             spec = by_name[key]
+            if spec.choices and isinstance(spec.default, str):
+                value = yaml_bool_to_choice(value, spec.choices)
             want = _param_type(spec.default)
             ok = {
                 Parameter.Type.BOOL: isinstance(value, bool),
