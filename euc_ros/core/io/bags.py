@@ -234,6 +234,7 @@ class BagWriter:
             return
         self._closed = True
         self._writer.close()
+        _set_ros_distro(self.path / "metadata.yaml")
 
     def __enter__(self) -> BagWriter:
         return self
@@ -241,6 +242,25 @@ class BagWriter:
     def __exit__(self, exc_type, exc, tb) -> bool:
         self.close()   # also on exceptions: keep what was recorded
         return False
+
+
+#: The distribution rosbag2 names in ``ros_distro`` (it writes the ROS_DISTRO it runs on).
+ROS_DISTRO = "jazzy"
+
+
+def _set_ros_distro(meta: Path) -> None:
+    """rosbags writes ``ros_distro: rosbags``; rosbag2 writes the distribution: say ``jazzy`` (atomically)."""
+    import os
+
+    try:
+        text = meta.read_text(encoding="utf-8")
+    except OSError:
+        return
+    new = text.replace("\n  ros_distro: rosbags\n", f"\n  ros_distro: {ROS_DISTRO}\n", 1)
+    if new != text:
+        tmp = meta.with_name(meta.name + ".tmp")
+        tmp.write_text(new, encoding="utf-8")
+        os.replace(tmp, meta)
 
 
 # =====================================================================================================================

@@ -514,3 +514,16 @@ def test_rclpy_deserializes_our_mocap_frames(series, tmp_path):
         ts = make_typestore()
         assert_msg_equal(ts.deserialize_cdr(raw, "euc_msgs/msg/MocapFrame"),
                          ts.deserialize_cdr(theirs, "euc_msgs/msg/MocapFrame"), "rclpy")
+
+
+def test_metadata_names_the_ros_distribution_as_rosbag2_does(tmp_path):
+    """rosbag2 writes the ROS_DISTRO it runs on (issue 14, bullet 5); rosbags' writer says "rosbags"."""
+    import yaml
+
+    from euc_ros.core.io.bags import BagWriter, check_bag
+
+    with BagWriter(tmp_path / "b") as w:
+        w.write_raw("/chatter", "std_msgs/msg/String", bytes([0, 1, 0, 0, 3, 0, 0, 0, 104, 105, 0, 0]), 5)
+    info = yaml.safe_load((tmp_path / "b" / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert info["ros_distro"] == "jazzy" and info["version"] == 9
+    assert check_bag(tmp_path / "b") == []
