@@ -52,7 +52,9 @@ def test_a_healthy_ride_is_ok_everywhere_and_published(pipes, ros_context, short
     ride_dir, result = short_ride                 # 3 s, nothing lost
     series = result.runs[0].mocap
     path = ride_dir / "session.yaml"
-    mon = monitor(ros_context, expected_rate_hz=10.0, period=0.05, timeout_s=5.0)
+    # period 60 s: the timer must not take the peaks between the last state and evaluate() below (on a
+    # loaded host it did, and the rider lean read "not tracked"); report() is called by hand instead
+    mon = monitor(ros_context, expected_rate_hz=10.0, period=60.0, timeout_s=5.0)
     te = TorqueEstimatorNode(context=ros_context, parameter_overrides=[Parameter("session_file", value=str(path))])
     pipe = pipes([H.rider_node(ros_context, path), te, mon])
     pipe.feed(H.frame_msgs(series, frames=range(0, 200)))
@@ -63,7 +65,8 @@ def test_a_healthy_ride_is_ok_everywhere_and_published(pipes, ros_context, short
     assert health["monitor: mocap"].values["total_frames"] == 200
     assert health["monitor: model consistency"].values["rmse_window_nm"] == pytest.approx(
         pipe.torques[-1].rmse_window)
-    # The timer publishes the five statuses on /diagnostics.
+    # report() (the timer's callback) publishes the five statuses on /diagnostics.
+    mon.report()
     pipe.spin_until(lambda: any({s.name for s in a.status} >= set(STATUS_NAMES) for a in pipe.diag),
                     what="a monitor report")
     arr = next(a for a in pipe.diag if {s.name for s in a.status} >= set(STATUS_NAMES))
