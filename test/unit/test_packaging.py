@@ -1,0 +1,39 @@
+"""The ament_python layout colcon installs (issue 14, bullet 2): `ros2 run euc_ros <node>` finds the
+node executables in lib/euc_ros, the package is indexed, and its config is in share/euc_ros.
+
+colcon-python-setup-py installs with `setup.py install --single-version-externally-managed`; this
+runs that step on a copy of the package into a temporary prefix.
+"""
+from __future__ import annotations
+
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def test_setup_py_install_puts_the_nodes_where_ros2_run_looks(tmp_path):
+    pytest.importorskip("setuptools")
+    src = tmp_path / "src"
+    src.mkdir()
+    for name in ("setup.py", "setup.cfg", "package.xml"):
+        shutil.copy(REPO / name, src / name)
+    for name in ("resource", "config", "euc_ros"):
+        shutil.copytree(REPO / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
+    prefix = tmp_path / "install"
+    r = subprocess.run([sys.executable, "setup.py", "-q", "install", "--prefix", str(prefix),
+                        "--single-version-externally-managed", "--record", str(tmp_path / "record.txt")],
+                       cwd=src, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout + r.stderr
+    from euc_ros.nodes.registry import NODES
+
+    lib = prefix / "lib" / "euc_ros"
+    assert sorted(p.name for p in lib.iterdir() if p.name in NODES) == sorted(NODES)
+    assert (lib / "euc-ros").exists()
+    assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / "euc_ros").exists()
+    assert (prefix / "share" / "euc_ros" / "package.xml").exists()
+    assert {p.name for p in (prefix / "share" / "euc_ros" / "config").glob("*.yaml")} >= {f"{n}.yaml" for n in NODES}
