@@ -15,6 +15,7 @@ Examples
 from __future__ import annotations
 
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -254,18 +255,118 @@ def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[
     return launcher.return_code()
 
 
-_SPEC_KEYS = {"executable", "name", "params_file", "parameters", "remaps", "namespace", "required", "env", "args"}
+_SPEC_KEYS = {"executable", "name", "params_file", "parameters", "remaps", "namespace", "required", "env", "args",
+              "ros_args", "if", "unless"}
+_ARG = re.compile(r"\$\(arg ([A-Za-z_][A-Za-z0-9_]*)\)")
 
 
-def load_launch_file(path: str | Path) -> list[NodeSpec]:
-    """Read a launch YAML: ``nodes: [{executable, name, params_file, parameters, remaps, ...}]``.
+@dataclass
+class LaunchArgument:
+    """A launch argument (``ros2 launch`` DeclareLaunchArgument): ``name:=value`` on the command line."""
 
-    Relative ``params_file`` paths are resolved against the launch file's directory.
+    name: str
+    default: str | None = None
+    description: str = ""
+    choices: tuple[str, ...] = ()
+
+
+def launch_arguments(path: str | Path) -> list[LaunchArgument]:
+    """The ``arguments:`` a launch YAML declares, in file order."""
+    p = Path(path)
+    data = load_yaml(p, "launch file")
+    raw = data.get("arguments") or {} if isinstance(data, dict) else {}
+    if not isinstance(raw, dict):
+        raise ConfigError("expected a mapping of argument names", path=p, key="arguments")
+    out = []
+    for name, decl in raw.items():
+        decl = decl or {}
+        if not isinstance(decl, dict) or set(decl) - {"default", "description", "choices"}:
+            raise ConfigError("expected {default, description, choices}", path=p, key=f"arguments.{name}")
+        default = decl.get("default")
+        out.append(LaunchArgument(str(name), None if default is None else _arg_text(default),
+                                  str(decl.get("description", "")), tuple(str(c) for c in decl.get("choices") or ())))
+    return out
+
+
+def _arg_text(value: Any) -> str:
+    """A YAML default back to the text a command line would give (``true``, ``1.0``, ``['a']``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return value if isinstance(value, str) else repr(value)
+
+
+def parse_launch_arguments(items: Sequence[str]) -> dict[str, str]:
+    """``['source:=csv', 'bag:=out']`` -> ``{'source': 'csv', 'bag': 'out'}`` (ros2 launch syntax)."""
+    out = {}
+    for item in items:
+        name, sep, value = item.partition(":=")
+        if not sep or not name:
+            raise ConfigError(f"launch arguments are written name:=value, got {item!r}", key=item)
+        out[name] = value
+    return out
+
+
+def _substitute(value: Any, args: Mapping[str, str], p: Path, key: str, *, typed: bool) -> Any:
+    """Replace ``$(arg NAME)``; a value that is only a substitution is read as YAML when ``typed`` (as
+    launch_ros reads parameter values: ``1.0`` a double, ``['a', 'b']`` a list)."""
+    if isinstance(value, dict):
+        return {k: _substitute(v, args, p, f"{key}.{k}", typed=typed) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_substitute(v, args, p, f"{key}[{i}]", typed=typed) for i, v in enumerate(value)]
+    if not isinstance(value, str) or "$(" not in value:
+        return value
+
+    def one(match: re.Match) -> str:
+        if match.group(1) not in args:
+            raise ConfigError(f"$(arg {match.group(1)}) is not a declared argument", path=p, key=key)
+        return args[match.group(1)]
+
+    whole = _ARG.fullmatch(value)
+    text = _ARG.sub(one, value)
+    if "$(" in text:
+        raise ConfigError(f"unknown substitution in {value!r} (only $(arg NAME) is supported)", path=p, key=key)
+    if whole and typed:
+        import yaml
+
+        try:
+            return yaml.safe_load(text) if text.strip() else ""
+        except yaml.YAMLError:
+            return text
+    return text
+
+
+def _truthy(text: str) -> bool:
+    return text.strip().lower() not in ("", "false", "0", "no", "off")
+
+
+def load_launch_file(path: str | Path, arguments: Mapping[str, str] | None = None) -> list[NodeSpec]:
+    """Read a launch YAML: ``arguments: {name: {default, description, choices}}`` and
+    ``nodes: [{executable, name, params_file, parameters, remaps, if, unless, ...}]``.
+
+    ``$(arg NAME)`` in any value is replaced by the argument (``arguments`` overrides the defaults);
+    a node with ``if: $(arg bag)`` starts only when that is non-empty and not false, ``unless`` the
+    opposite. Relative ``params_file`` paths are resolved against the launch file's directory.
     """
     p = Path(path)
     data = load_yaml(p, "launch file")
     if not isinstance(data, dict) or not isinstance(data.get("nodes"), list) or not data["nodes"]:
         raise ConfigError("expected a non-empty list under 'nodes'", path=p, key="nodes")
+    declared = {a.name: a for a in launch_arguments(p)}
+    given = dict(arguments or {})
+    for name in given:
+        if name not in declared:
+            raise ConfigError(f"no launch argument {name!r} (declared: {', '.join(declared) or 'none'})",
+                              path=p, key=name)
+    values = {}
+    for name, decl in declared.items():
+        value = given.get(name, decl.default)
+        if value is None:
+            raise ConfigError(f"launch argument {name!r} is required ({decl.description}): add {name}:=VALUE",
+                              path=p, key=name)
+        if decl.choices and value not in decl.choices:
+            raise ConfigError(f"launch argument {name!r} must be one of {', '.join(decl.choices)}, got {value!r}",
+                              path=p, key=name)
+        values[name] = value
     specs = []
     for i, entry in enumerate(data["nodes"]):
         if not isinstance(entry, dict):
@@ -276,12 +377,19 @@ def load_launch_file(path: str | Path) -> list[NodeSpec]:
                               key=f"nodes[{i}].{sorted(unknown)[0]}")
         if "executable" not in entry:
             raise ConfigError("missing required key", path=p, key=f"nodes[{i}].executable")
-        kw = dict(entry)
+        kw = {k: _substitute(v, values, p, f"nodes[{i}].{k}", typed=(k == "parameters")) for k, v in entry.items()}
+        if "if" in kw and not _truthy(str(kw.pop("if"))):
+            continue
+        if "unless" in kw and _truthy(str(kw.pop("unless"))):
+            continue
+        kw.pop("if", None), kw.pop("unless", None)
         if kw.get("params_file"):
             pf = Path(kw["params_file"])
             kw["params_file"] = str(pf if pf.is_absolute() else (p.parent / pf))
             if not Path(kw["params_file"]).exists():
                 raise ConfigError(f"params file {kw['params_file']} does not exist", path=p,
                                   key=f"nodes[{i}].params_file")
+        if "args" in kw:
+            kw["args"] = [str(a) for a in kw["args"]]
         specs.append(NodeSpec(**kw))
     return specs

@@ -57,6 +57,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="wait at most S seconds for the subscriptions, then play anyway")
     parser.add_argument("--delay", type=float, default=0.3, metavar="S",
                         help="wait S seconds more after the subscriptions matched (discovery settles)")
+    parser.add_argument("--linger", type=float, default=0.0, metavar="S",
+                        help="stay S seconds after the last message (when a launch ends with the player, the "
+                             "nodes downstream get time to process the tail)")
     parser.add_argument("--realtime", type=int, nargs="?", const=10, default=None, metavar="PRIO",
                         help="run the player with the SCHED_FIFO real-time priority PRIO (default 10 when given; "
                              "needs CAP_SYS_NICE) so that other processes cannot delay messages")
@@ -103,7 +106,8 @@ class BagSource:
             raise InputError(f"cannot read the bag ({exc}); `euc-ros inspect {bag}` lists its problems, "
                              f"`euc-ros recover {bag}` rebuilds what can be read", path=bag) from None
         have = {c.topic for c in self.reader.connections}
-        if topics:
+        if topics:   # a relative name resolves in the root namespace, as ROS does: mocap/frame = /mocap/frame
+            topics = [t if t in have or ("/" + t.lstrip("/")) not in have else "/" + t.lstrip("/") for t in topics]
             missing = set(topics) - have
             if missing:
                 self.close()
@@ -291,6 +295,8 @@ def main(args: argparse.Namespace) -> int:
 
     if not args.rate > 0:
         raise InputError(f"--rate must be > 0, got {args.rate}", key="--rate")
+    if not args.linger >= 0:
+        raise InputError(f"--linger must be >= 0 s, got {args.linger}", key="--linger")
     if args.clock is not None and not args.clock > 0:
         raise InputError(f"--clock must be > 0 Hz, got {args.clock}", key="--clock")
     from euc_ros.cli.outputs import Output, check_outputs
@@ -322,6 +328,8 @@ def main(args: argparse.Namespace) -> int:
                     node.get_logger().warning(f"not acknowledged by every subscriber after {ACK_TIMEOUT_S:g} s: "
                                               f"{', '.join(unacked)}")
                 print(player.summary() + (" (stopped)" if stop.is_set() else ""), flush=True)
+                if args.linger > 0:
+                    stop.wait(args.linger)
                 if args.timing_log:
                     player.write_log(args.timing_log)
             finally:

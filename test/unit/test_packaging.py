@@ -22,7 +22,7 @@ def test_setup_py_install_puts_the_nodes_where_ros2_run_looks(tmp_path):
     src.mkdir()
     for name in ("setup.py", "setup.cfg", "package.xml"):
         shutil.copy(REPO / name, src / name)
-    for name in ("resource", "config", "euc_ros"):
+    for name in ("resource", "config", "launch", "euc_ros"):
         shutil.copytree(REPO / name, src / name, ignore=shutil.ignore_patterns("__pycache__", "*.pyc"))
     prefix = tmp_path / "install"
     r = subprocess.run([sys.executable, "setup.py", "-q", "install", "--prefix", str(prefix),
@@ -34,6 +34,11 @@ def test_setup_py_install_puts_the_nodes_where_ros2_run_looks(tmp_path):
     lib = prefix / "lib" / "euc_ros"
     assert sorted(p.name for p in lib.iterdir() if p.name in NODES) == sorted(NODES)
     assert (lib / "euc-ros").exists()
+    assert (prefix / "bin" / "euc-ros").exists()             # the CLI stays on the sourced PATH
+    assert str(prefix / "bin" / "euc-ros") in (tmp_path / "record.txt").read_text()   # uninstallable
+    launch = prefix / "share" / "euc_ros" / "launch"
+    assert {p.name for p in launch.iterdir()} == {p.name for p in (REPO / "launch").iterdir()
+                                                  if p.name.endswith((".launch.py", ".yaml"))}
     assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / "euc_ros").exists()
     assert (prefix / "share" / "euc_ros" / "package.xml").exists()
     assert {p.name for p in (prefix / "share" / "euc_ros" / "config").glob("*.yaml")} >= {f"{n}.yaml" for n in NODES}
