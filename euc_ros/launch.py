@@ -45,17 +45,33 @@ def _format_value(value: Any) -> str:
     return repr(value)
 
 
+def _package_lib_dirs() -> list[Path]:
+    """Where ``ros2 run euc_ros X`` would look: ``<prefix>/lib/euc_ros`` of the install this module comes
+    from (a colcon install space: ``<prefix>/lib/python3.X/site-packages/euc_ros``), then of every
+    ``AMENT_PREFIX_PATH`` entry that indexes the package."""
+    here = Path(__file__).resolve().parent
+    dirs = []
+    if here.parent.name in ("site-packages", "dist-packages"):
+        dirs.append(here.parents[3] / "lib" / "euc_ros")
+    for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
+        if (Path(prefix) / "share" / "ament_index" / "resource_index" / "packages" / "euc_ros").exists():
+            dirs.append(Path(prefix) / "lib" / "euc_ros")
+    return dirs
+
+
 def resolve_executable(executable: str) -> str:
-    """Find a console script: next to this Python first (the venv's bin), then on PATH."""
+    """Find a node executable or console script: in this install's ``lib/euc_ros`` (colcon, as ``ros2
+    run`` does), next to this Python (the venv's bin, pip installs), then on PATH."""
     if os.sep in executable:
         return executable
-    candidate = Path(sys.executable).parent / executable
-    if candidate.exists():
-        return str(candidate)
+    candidates = [d / executable for d in _package_lib_dirs()] + [Path(sys.executable).parent / executable]
+    for candidate in candidates:
+        if candidate.exists():
+            return str(candidate)
     found = shutil.which(executable)
     if found is None:
-        raise ConfigError(f"executable {executable!r} not found in {candidate.parent} or on PATH",
-                          key="executable")
+        raise ConfigError(f"executable {executable!r} not found in {', '.join(str(c.parent) for c in candidates)} "
+                          "or on PATH", key="executable")
     return found
 
 
