@@ -38,6 +38,21 @@ SPECS = (
 _SKIP = {"/rosout", "/parameter_events"}
 
 
+def bag_qos(profile) -> "Qos":
+    """A publisher's offered QoS (rclpy) as rosbag2 stores it in ``offered_qos_profiles`` (rosbags' Qos:
+    the same policy numbers as rmw; durations as sec/nsec, infinite = rmw's 9223372036 s 854775807 ns)."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    def duration(d) -> QosTime:
+        ns = int(d.nanoseconds)
+        return QosTime(ns // 1_000_000_000, ns % 1_000_000_000)
+
+    return Qos(QosHistory(int(profile.history)), int(profile.depth), QosReliability(int(profile.reliability)),
+               QosDurability(int(profile.durability)), duration(profile.deadline), duration(profile.lifespan),
+               QosLiveliness(int(profile.liveliness)), duration(profile.liveliness_lease_duration),
+               bool(profile.avoid_ros_namespace_conventions))
+
+
 def _msg_class(type_name: str):
     pkg, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
@@ -79,6 +94,8 @@ class Recorder(Node):
             best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs)
             qos = QoSProfile(depth=self.config["queue_depth"],
                              reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
+            # as ros2 bag record does: the publishers' offered QoS go into metadata.yaml (a player uses them)
+            self.writer.connection(topic, types[0], offered_qos_profiles=[bag_qos(p.qos_profile) for p in pubs])
             self._subs[topic] = self.create_subscription(
                 cls, topic, lambda data, t=topic, n=types[0]: self._on_message(t, n, data), qos, raw=True)
             self.get_logger().info(f"subscribed {topic} [{types[0]}]{' best effort' if best_effort else ''}")

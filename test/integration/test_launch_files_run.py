@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv
@@ -19,6 +20,16 @@ from euc_ros.core.io.motive_csv import read_motive_csv
 pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH = REPO / "launch"
+
+
+def _metadata_check():
+    import importlib.util
+
+    path = REPO / "test" / "unit" / "io" / "test_rosbag2_metadata.py"
+    spec = importlib.util.spec_from_file_location("rosbag2_metadata_check", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.assert_like_rosbag2_jazzy
 
 
 def euc_ros(*args, timeout=150):
@@ -61,6 +72,11 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
                 "exit_when_done:=true", f"bag:={first}")
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert check_bag(first) == []
+    _metadata_check()(first / "metadata.yaml")      # the recorder node's bag is laid out as rosbag2's
+    meta = yaml.safe_load((first / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    offered = {t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
+               for t in meta["topics_with_message_count"]}
+    assert offered["/mocap/frame"] and all(q["reliability"] == "reliable" for q in offered["/mocap/frame"])
     counts = topic_counts(first)
     frames = counts.get("/mocap/frame", 0)
     assert frames == len(read_motive_csv(csv).t), counts

@@ -464,6 +464,34 @@ class _Meta:
         return None if sub is None else self.get(sub, field, f"{where}.{key}" if where else key, "uint")
 
 
+#: rosbag2 Jazzy's QoS policy words (rosbag2_storage/qos.cpp decodes these, or their rmw numbers).
+_QOS_POLICIES = {
+    "history": ("system_default", "keep_last", "keep_all", "unknown"),
+    "reliability": ("system_default", "reliable", "best_effort", "unknown", "best_available"),
+    "durability": ("system_default", "transient_local", "volatile", "unknown", "best_available"),
+    "liveliness": ("system_default", "automatic", "manual_by_node", "manual_by_topic", "unknown", "best_available"),
+}
+
+
+def _check_qos(q: dict, where: str, problems: list[str]) -> None:
+    """One ``offered_qos_profiles`` entry as the Jazzy decoder reads it (policy word or number, int depth,
+    {sec, nsec} durations, bool)."""
+    for key, words in _QOS_POLICIES.items():
+        v = q.get(key)
+        if v is not None and not (_is_int(v) or v in words):
+            problems.append(f"metadata.yaml: '{where}.{key}' is {v!r}, not one of {', '.join(words)}")
+    if "depth" in q and not _is_int(q["depth"]):
+        problems.append(f"metadata.yaml: '{where}.depth' must be an integer")
+    for key in ("deadline", "lifespan", "liveliness_lease_duration"):
+        v = q.get(key)
+        if v is not None and not (isinstance(v, dict) and all(_is_int(v.get(f)) and v.get(f) >= 0
+                                                                  for f in ("sec", "nsec"))):
+            problems.append(f"metadata.yaml: '{where}.{key}' must be {{sec, nsec}} (unsigned integers)")
+    v = q.get("avoid_ros_namespace_conventions")
+    if v is not None and not isinstance(v, bool):
+        problems.append(f"metadata.yaml: '{where}.avoid_ros_namespace_conventions' must be true or false")
+
+
 def _check_metadata(bag: Path, problems: list[str]) -> dict | None:
     """Validate metadata.yaml; return the information block (or None when unusable)."""
     import yaml
@@ -513,6 +541,7 @@ def _check_metadata(bag: Path, problems: list[str]) -> dict | None:
                 missing = [key for key in _QOS_KEYS if key not in q]
                 if missing:
                     problems.append(f"metadata.yaml: '{tmw}.offered_qos_profiles[{k}]' lacks {', '.join(missing)}")
+                _check_qos(q, f"{tmw}.offered_qos_profiles[{k}]", problems)
         elif version >= 4:
             m.get(tm, "offered_qos_profiles", tmw, "scalar")
         if version >= 7:
