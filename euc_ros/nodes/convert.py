@@ -90,8 +90,9 @@ def pose_from_msg(msg: PoseStamped) -> tuple[int, np.ndarray, np.ndarray]:
     return stamp_to_ns(msg.header.stamp), np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
 
 
-def status(name: str, level: int, message: str, values: dict, hardware_id: str = "") -> DiagnosticStatus:
-    """A DiagnosticStatus with key/value pairs (floats printed with 4 significant digits)."""
+def status(name: str, level: int, message: str, values: dict, hardware_id: str) -> DiagnosticStatus:
+    """A DiagnosticStatus as diagnostic_updater makes them: ``name`` = ``"<node>: <check>"``, the
+    ``hardware_id`` it concerns, key/value pairs (floats printed with 4 significant digits)."""
     st = DiagnosticStatus(level=bytes([level]) if isinstance(level, int) else level, name=name,
                           message=message, hardware_id=hardware_id)
     st.values = [KeyValue(key=k, value=(f"{v:.4g}" if isinstance(v, float) and not math.isnan(v) else str(v)))
@@ -99,13 +100,13 @@ def status(name: str, level: int, message: str, values: dict, hardware_id: str =
     return st
 
 
-def publish_status(node, publisher, name: str, level: int, message: str, values: dict) -> None:
+def publish_status(node, publisher, name: str, level: int, message: str, values: dict, hardware_id: str) -> None:
     """Publish one DiagnosticStatus in a DiagnosticArray stamped with the node's clock."""
     from diagnostic_msgs.msg import DiagnosticArray
 
     arr = DiagnosticArray()
     arr.header.stamp = node.get_clock().now().to_msg()
-    arr.status.append(status(name, level, message, values))
+    arr.status.append(status(name, level, message, values, hardware_id))
     publisher.publish(arr)
 
 

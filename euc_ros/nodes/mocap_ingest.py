@@ -26,6 +26,7 @@ Subscribes
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
@@ -84,7 +85,7 @@ SPECS = (
               0.0, 10.0),
     ParamSpec("poll_period", 0.001, "how often the NatNet sockets are drained", "s", 0.0002, 0.1),
     ParamSpec("frame_id", "world", "world frame of the published poses (REP-105)"),
-    ParamSpec("publish_poses", True, "publish one PoseStamped per body"),
+    ParamSpec("publish_poses", True, "publish one PoseStamped per body", live=True),
     ParamSpec("publish_tf", True, "publish world -> body transforms on /tf"),
     ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
 )
@@ -134,6 +135,9 @@ class MocapIngest(Node):
         self.client = None
         self.sync = None
         getattr(self, f"_setup_{cfg['source']}")()
+        #: what the stream diagnostics concern (diagnostic_updater's hardware_id): the capture system
+        self.hardware_id = {"natnet": f"natnet://{cfg['server_ip']}", "csv": f"csv:{Path(cfg['csv_path']).name}",
+                            "topics": f"topics:{cfg['topic_prefix']}"}.get(cfg["source"], cfg["source"])
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
 
     # -- csv -------------------------------------------------------------------------------------
@@ -380,7 +384,8 @@ class MocapIngest(Node):
             level, message = convert.STALE, "no frames yet" if stats.frames == 0 else "no frames for > 1 s"
         else:
             level, message = convert.OK, "receiving"
-        arr.status.append(convert.status("mocap_ingest: stream", level, message, values))
+        arr.status.append(convert.status("mocap_ingest: stream", level, message, values,
+                                         self.hardware_id))
         rates, lost = stats.tracking_rate(), stats.lost()
         for i, body in enumerate(stats.bodies):
             arr.status.append(convert.status(

@@ -38,22 +38,22 @@ from euc_ros.nodes.runtime import main_for
 
 SPECS = (
     ParamSpec("period", 1.0, "period of the diagnostics", "s", 0.02, 60.0),
-    ParamSpec("timeout_s", 1.0, "a stream silent for longer than this is STALE", "s", 0.01, 3600.0),
-    ParamSpec("expected_rate_hz", 120.0, "nominal mocap frame rate", "Hz", 0.0, 100000.0),
+    ParamSpec("timeout_s", 1.0, "a stream silent for longer than this is STALE", "s", 0.01, 3600.0, live=True),
+    ParamSpec("expected_rate_hz", 120.0, "nominal mocap frame rate", "Hz", 0.0, 100000.0, live=True),
     ParamSpec("rate_tolerance", 0.1, "relative shortfall of the rate before a warning (error below half)", "",
-              0.0, 1.0),
+              0.0, 1.0, live=True),
     ParamSpec("rate_window_s", 2.0, "window of the rate, dropout and tracking statistics", "s", 0.1, 600.0),
     ParamSpec("max_dropout_fraction", 0.01, "share of dropped frames before a warning (error at 10x)", "",
-              0.0, 1.0),
+              0.0, 1.0, live=True),
     ParamSpec("max_untracked_fraction", 0.1, "share of frames a body may be untracked in before a warning", "",
-              0.0, 1.0),
+              0.0, 1.0, live=True),
     ParamSpec("rmse_threshold_nm", 5.0, "sliding RMSE of M_d1 - M_d2 above which the model is inconsistent "
-              "(error above twice it)", "N m", 0.0, 1e6),
-    ParamSpec("max_phi_deg", 20.0, "limit of the rider lean abs(phi)", "deg", 0.0, 180.0),
-    ParamSpec("max_gamma_deg", 15.0, "limit of the EUC pitch abs(gamma)", "deg", 0.0, 180.0),
-    ParamSpec("max_tilt_deg", 30.0, "limit of the EUC tilt abs(theta)", "deg", 0.0, 180.0),
-    ParamSpec("motor_limit_nm", 120.0, "limit of the estimated motor torque abs(M_d1)", "N m", 0.0, 1e6),
-    ParamSpec("warn_fraction", 0.8, "a quantity above this fraction of its limit is a warning", "", 0.0, 1.0),
+              "(error above twice it)", "N m", 0.0, 1e6, live=True),
+    ParamSpec("max_phi_deg", 20.0, "limit of the rider lean abs(phi)", "deg", 0.0, 180.0, live=True),
+    ParamSpec("max_gamma_deg", 15.0, "limit of the EUC pitch abs(gamma)", "deg", 0.0, 180.0, live=True),
+    ParamSpec("max_tilt_deg", 30.0, "limit of the EUC tilt abs(theta)", "deg", 0.0, 180.0, live=True),
+    ParamSpec("motor_limit_nm", 120.0, "limit of the estimated motor torque abs(M_d1)", "N m", 0.0, 1e6, live=True),
+    ParamSpec("warn_fraction", 0.8, "a quantity above this fraction of its limit is a warning", "", 0.0, 1.0, live=True),
 )
 
 STATUS_NAMES = ("monitor: mocap", "monitor: model consistency", "monitor: rider lean", "monitor: EUC attitude",
@@ -167,7 +167,8 @@ class Monitor(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         for name in STATUS_NAMES:
             h = health[name]
-            arr.status.append(convert.status(name, h.level, h.message, h.values))
+            arr.status.append(convert.status(name, h.level, h.message, h.values,
+                                             "mocap" if name == "monitor: mocap" else "euc"))
         self.diag_pub.publish(arr)
         self.reports += 1
 

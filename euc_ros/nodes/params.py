@@ -28,14 +28,18 @@ class ParamSpec:
     low: float | None = None
     high: float | None = None
     choices: tuple[str, ...] | None = None
-    read_only: bool = True
+    #: ``ros2 param set`` takes effect while the node runs (the node reacts); otherwise a set is refused
+    #: with the reason (the value is read at start-up)
+    live: bool = False
 
     def descriptor(self) -> ParameterDescriptor:
         """Return the ROS parameter descriptor (description, unit, range, read-only)."""
         text = self.description + (f" [{self.unit}]" if self.unit else "")
         if self.choices:
             text += f" (one of: {', '.join(self.choices)})"
-        d = ParameterDescriptor(description=text, read_only=self.read_only)
+        text += "; settable while running" if self.live else "; read at start-up (a set is refused: restart)"
+        # not read_only: rcl would refuse a set before our callback could say why (watch_params)
+        d = ParameterDescriptor(description=text, read_only=False)
         # a string with choices such as y/n: the ROS command line and YAML 1.1 read a bare y as true;
         # accept the bool and map it back (yaml_bool_to_choice) instead of refusing the natural spelling
         d.dynamic_typing = bool(self.choices) and isinstance(self.default, str)
@@ -103,25 +107,67 @@ def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
                                            spec.descriptor())
         except Exception as exc:  # rclpy raises several types for bad overrides
             raise ConfigError(f"invalid value: {exc}", key=f"{node.get_name()}.ros__parameters.{spec.name}") from None
-        value = param.value
-        if isinstance(value, tuple):
-            value = list(value)
-        if spec.choices and isinstance(spec.default, str):
-            value = yaml_bool_to_choice(value, spec.choices)
-            if value != param.value:
-                node.set_parameters([Parameter(spec.name, value=value)])
-        if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
-        if spec.choices and value not in spec.choices:
-            hint = " (a bare y/n/yes/no/on/off is read as a boolean)" if isinstance(value, bool) else ""
-            raise ConfigError(f"must be one of {', '.join(spec.choices)}, got {value!r}{hint}",
-                              key=f"{node.get_name()}.ros__parameters.{spec.name}")
-        if isinstance(value, (int, float)) and not isinstance(value, bool):
-            if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
-                raise ConfigError(f"must be in [{spec.low}, {spec.high}], got {value!r}",
-                                  key=f"{node.get_name()}.ros__parameters.{spec.name}")
+        try:
+            value = check_value(spec, param.value)
+        except ValueError as exc:
+            raise ConfigError(str(exc), key=f"{node.get_name()}.ros__parameters.{spec.name}") from None
+        if spec.choices and isinstance(spec.default, str) and value != param.value:
+            node.set_parameters([Parameter(spec.name, value=value)])
         values[spec.name] = value
+    watch_params(node, specs, values, getattr(node, "on_parameter", None))
     return values
+
+
+def check_value(spec: ParamSpec, value: Any) -> Any:
+    """The value of ``spec`` as the node uses it (choice spelt by YAML as a bool mapped back, int to float
+    for a double); ValueError saying what is accepted when it is outside the choices or range."""
+    if isinstance(value, tuple):
+        value = list(value)
+    if spec.choices and isinstance(spec.default, str):
+        value = yaml_bool_to_choice(value, spec.choices)
+    if isinstance(spec.default, float) and isinstance(value, int) and not isinstance(value, bool):
+        value = float(value)
+    if spec.choices and value not in spec.choices:
+        hint = " (a bare y/n/yes/no/on/off is read as a boolean)" if isinstance(value, bool) else ""
+        raise ValueError(f"must be one of {', '.join(spec.choices)}, got {value!r}{hint}")
+    if isinstance(value, (int, float)) and not isinstance(value, bool):
+        if (spec.low is not None and value < spec.low) or (spec.high is not None and value > spec.high):
+            raise ValueError(f"must be in [{spec.low}, {spec.high}], got {value!r}")
+    return value
+
+
+def watch_params(node: Node, specs: Sequence[ParamSpec], config: dict[str, Any], apply=None) -> None:
+    """React to ``ros2 param set`` (the parameter services): a ``live`` parameter is checked against its
+    declaration, stored in ``config`` and passed to ``apply(name, value)`` (which may raise ConfigError
+    or ValueError to refuse); any other is refused with the reason. rcl has already checked the type."""
+    from rcl_interfaces.msg import SetParametersResult
+
+    by_name = {s.name: s for s in specs}
+
+    def on_set(params) -> SetParametersResult:
+        checked = []
+        for p in params:
+            spec = by_name.get(p.name)
+            if spec is None:
+                continue   # use_sim_time and the like: rclpy's own
+            if not spec.live:
+                return SetParametersResult(successful=False, reason=(
+                    f"'{p.name}' is read at start-up: restart {node.get_name()} with -p {p.name}:=VALUE "
+                    "(or set it in its params file)"))
+            try:
+                checked.append((p.name, check_value(spec, p.value)))
+            except ValueError as exc:
+                return SetParametersResult(successful=False, reason=f"'{p.name}' {exc}")
+        for name, value in checked:
+            try:
+                if apply is not None:
+                    apply(name, value)
+            except (ConfigError, ValueError) as exc:
+                return SetParametersResult(successful=False, reason=f"'{name}': {exc}")
+            config[name] = value
+        return SetParametersResult(successful=True)
+
+    node.add_on_set_parameters_callback(on_set)
 
 
 def validate_params_file(path: str, node_name: str, specs: Sequence[ParamSpec]) -> None:

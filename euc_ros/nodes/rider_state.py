@@ -28,6 +28,7 @@ Publishes
 from __future__ import annotations
 
 import time
+from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import MocapFrame, RiderState
@@ -94,6 +95,7 @@ class RiderStateNode(Node):
         if not cfg["session_file"]:
             raise ConfigError("parameter 'session_file' is required", key=f"{self.NAME}.ros__parameters.session_file")
         self.session = load_session(cfg["session_file"])
+        self.hardware_id = f"session:{Path(cfg['session_file']).name}"   # the rider and EUC of this session
         rate = cfg["rate_hz"] or self.session.rate_hz
         # the filters are built once the rate is measured (the frames meanwhile are held, not lost)
         self._build(rate)
@@ -188,7 +190,8 @@ class RiderStateNode(Node):
             level, message = convert.WARN, f"{c['errors']} frame(s) could not be used"
         else:
             level, message = convert.OK, f"publishing states {self.estimator.lag_s:.3f} s after their frames"
-        convert.publish_status(self, self.diag_pub, "rider_state: states", level, message, values)
+        convert.publish_status(self, self.diag_pub, "rider_state: states", level, message, values,
+                               self.hardware_id)
 
 
 main = main_for(RiderStateNode)

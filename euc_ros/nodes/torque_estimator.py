@@ -22,6 +22,7 @@ Publishes
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from types import SimpleNamespace
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -41,7 +42,7 @@ from euc_ros.nodes.runtime import main_for
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider and EUC parameters (required)"),
     ParamSpec("h", 0.61, "rider CoG height above the ankle hinge A used for the torques (the identified value)",
-              "m", 0.05, 3.0),
+              "m", 0.05, 3.0, live=True),
     ParamSpec("rmse_window_s", 5.0, "window of the sliding RMSE of M_d1 - M_d2", "s", 0.01, 3600.0),
     ParamSpec("h_window_s", 30.0, "window of the online h estimate", "s", 0.1, 3600.0),
     ParamSpec("h_update_every", 12, "re-estimate h every this many states", "states", 1, 1_000_000),
@@ -87,6 +88,7 @@ class TorqueEstimatorNode(Node):
         if not cfg["session_file"]:
             raise ConfigError("parameter 'session_file' is required", key=f"{key}.session_file")
         session = load_session(cfg["session_file"])
+        self.hardware_id = f"session:{Path(cfg['session_file']).name}"   # the rider and EUC of this session
         params = EucParams.from_session(session, cfg["h"])
         model = extended_model_from_config(params, cfg["effects"], cfg["effect_parameters"],
                                            key=f"{key}.effect_parameters")
@@ -110,6 +112,13 @@ class TorqueEstimatorNode(Node):
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(f"model {self.estimator.model_name}, h = {cfg['h']:g} m, "
                                f"RMSE window {self.estimator.window_s:g} s")
+
+    def on_parameter(self, name: str, value) -> None:
+        """``ros2 param set /torque_estimator h 0.58``: torques use the new h from the next state on."""
+        if name == "h":
+            self.estimator.set_h(value)
+            self._params = self.estimator.params      # kept if the estimator is rebuilt at the measured rate
+            self.get_logger().info(f"h set to {value:g} m: torques use it from the next state; RMSE window restarts")
 
     def _build(self, rate: float) -> None:
         cfg = self.config
@@ -192,7 +201,8 @@ class TorqueEstimatorNode(Node):
                 else "rider missing or derivatives not finite"))
         else:
             level, message = convert.OK, f"{self.estimator.model_name}: publishing torques"
-        convert.publish_status(self, self.diag_pub, "torque_estimator: torques", level, message, values)
+        convert.publish_status(self, self.diag_pub, "torque_estimator: torques", level, message, values,
+                               self.hardware_id)
 
 
 main = main_for(TorqueEstimatorNode)

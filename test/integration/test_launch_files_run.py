@@ -77,6 +77,15 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
     offered = {t["topic_metadata"]["name"]: t["topic_metadata"]["offered_qos_profiles"]
                for t in meta["topics_with_message_count"]}
     assert offered["/mocap/frame"] and all(q["reliability"] == "reliable" for q in offered["/mocap/frame"])
+    # diagnostics as diagnostic_updater publishes them: "<node>: <check>", a hardware_id, key/values
+    seen = set()
+    for topic, _, _, msg in read_bag(first):
+        for st in msg.status if topic == "/diagnostics" else ():
+            node, sep, check = st.name.partition(": ")
+            assert sep and node in {"mocap_ingest", "rider_state", "torque_estimator", "monitor"} and check, st.name
+            assert st.hardware_id and st.values, (st.name, st.hardware_id)
+            seen.add(node)
+    assert seen == {"mocap_ingest", "rider_state", "torque_estimator", "monitor"}
     counts = topic_counts(first)
     frames = counts.get("/mocap/frame", 0)
     assert frames == len(read_motive_csv(csv).t), counts

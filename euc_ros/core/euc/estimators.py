@@ -19,7 +19,7 @@ A node only converts messages and calls these (functional core, imperative shell
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
@@ -392,6 +392,23 @@ class TorqueEstimator:
         self._psi_prev = None
         self._frame = 0
         self.counts["resets"] += 1
+
+    def set_h(self, h: float) -> None:
+        """Use ``h`` [m] from the next state on (a value identified while the stream runs). The sliding
+        RMSE starts again: residuals under two values of h do not mix.
+
+        Raises
+        ------
+        ConfigError
+            For an extended model (its parameters, h among them, are fitted together: restart with them).
+        """
+        if self.model is not None:
+            raise ConfigError(f"h of the extended model {self.model.name} is fitted with its effects; restart the "
+                              "node with the new h and effect_parameters", key="h")
+        if not (np.isfinite(h) and h > 0):
+            raise ConfigError(f"h must be a positive length in m, got {h!r}", key="h")
+        self.params = replace(self.params, h=float(h))
+        self._rmse.reset()
 
     def _age(self, n: int) -> None:
         for _ in range(n):
