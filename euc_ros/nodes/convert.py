@@ -90,6 +90,16 @@ def pose_from_msg(msg: PoseStamped) -> tuple[int, np.ndarray, np.ndarray]:
     return stamp_to_ns(msg.header.stamp), np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
 
 
+def rigid_bodies_arrays(msg) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """mocap4r2_msgs/RigidBodies -> (names, positions (n, 3), quaternions (n, 4) x, y, z, w); markers ignored."""
+    bodies = msg.rigidbodies
+    names = [b.rigid_body_name for b in bodies]
+    pos = np.array([(b.pose.position.x, b.pose.position.y, b.pose.position.z) for b in bodies], float).reshape(-1, 3)
+    quat = np.array([(b.pose.orientation.x, b.pose.orientation.y, b.pose.orientation.z, b.pose.orientation.w)
+                     for b in bodies], float).reshape(-1, 4)
+    return names, pos, quat
+
+
 def status(name: str, level: int, message: str, values: dict, hardware_id: str) -> DiagnosticStatus:
     """A DiagnosticStatus as diagnostic_updater makes them: ``name`` = ``"<node>: <check>"``, the
     ``hardware_id`` it concerns, key/value pairs (floats printed with 4 significant digits)."""

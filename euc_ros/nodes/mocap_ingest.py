@@ -41,6 +41,7 @@ from euc_ros.core.ingest import (
     PoseSynchronizer,
     TrackingStats,
     capture_start_ns,
+    frame_from_named_poses,
     frame_from_natnet,
     natnet_capture_stamp,
     replay_schedule,
@@ -53,7 +54,8 @@ from euc_ros.nodes.runtime import main_for
 SPECS = (
     ParamSpec("source", "csv", "where poses come from", choices=("csv", "topics", "natnet")),
     ParamSpec("csv_path", "", "Motive CSV export to replay (source csv)"),
-    ParamSpec("world_up", "y", "up axis of the Motive world, CSV and NatNet (Motive's default is y)",
+    ParamSpec("world_up", "y", "up axis of the Motive world: CSV, NatNet and rigid_bodies topics (Motive's default "
+              "is y)",
               choices=("y", "z")),
     ParamSpec("bodies", [""], "rigid bodies to publish, in order (empty: all in the source; required for topics)"),
     ParamSpec("rate_factor", 1.0, "replay speed relative to real time (source csv)", "", 0.01, 1000.0),
@@ -65,6 +67,11 @@ SPECS = (
               "(source csv)", "", 0, 1000),
     ParamSpec("exit_when_done", False, "exit (code 0) after the CSV replay ends and linger has passed"),
     ParamSpec("linger", 1.0, "time to keep running after the last CSV frame", "s", 0.0, 3600.0),
+    ParamSpec("topic_type", "pose_stamped", "message of source topics: one geometry_msgs/PoseStamped per body "
+              "(vrpn_mocap), or mocap4r2_msgs/RigidBodies per frame (the MOCAP4ROS2 OptiTrack driver)",
+              choices=("pose_stamped", "rigid_bodies")),
+    ParamSpec("rigid_bodies_topic", "/rigid_bodies", "mocap4r2_msgs/RigidBodies input (source topics, topic_type "
+              "rigid_bodies)"),
     ParamSpec("topic_prefix", itf.VRPN_PREFIX, "prefix of the per-body PoseStamped inputs (source topics)"),
     ParamSpec("sync_tolerance", 0.002, "poses closer than this belong to one frame (source topics)", "s",
               0.0, 1.0),
@@ -224,6 +231,8 @@ class MocapIngest(Node):
     # -- topics ----------------------------------------------------------------------------------
     def _setup_topics(self) -> None:
         cfg = self.config
+        if cfg["topic_type"] == "rigid_bodies":
+            return self._setup_rigid_bodies()
         if not self.bodies:
             raise ConfigError("parameter 'bodies' must list the rigid bodies with source 'topics'", key="bodies")
         self.stamp_source = MocapFrame.STAMP_SOURCE_HEADER
@@ -250,6 +259,39 @@ class MocapIngest(Node):
             for frame in self.sync.flush(time.monotonic_ns()):
                 self._publish(frame)
         except Exception as exc:
+            self._input_error(exc)
+
+    def _setup_rigid_bodies(self) -> None:
+        cfg = self.config
+        try:
+            from mocap4r2_msgs.msg import RigidBodies
+        except ImportError:
+            raise ConfigError("topic_type 'rigid_bodies' needs the mocap4r2_msgs interfaces: install them "
+                              "(ros-jazzy-mocap4r2-msgs, or ./run setup builds extra_interfaces/mocap4r2_msgs)",
+                              key="topic_type") from None
+        self.stamp_source = MocapFrame.STAMP_SOURCE_HEADER
+        self.unknown_bodies: set[str] = set()
+        if self.bodies:
+            self._set_bodies(self.bodies)
+        self.create_subscription(RigidBodies, cfg["rigid_bodies_topic"], self._on_rigid_bodies,
+                                 itf.MOCAP_INPUT_QOS)
+        which = ", ".join(self.bodies) if self.bodies else "the bodies of the first message"
+        self.get_logger().info(f"frames of {which} from {cfg['rigid_bodies_topic']} (mocap4r2_msgs/RigidBodies, "
+                               f"world {cfg['world_up']}-up)")
+
+    def _on_rigid_bodies(self, msg) -> None:
+        self.received += 1
+        try:
+            names, pos, quat = convert.rigid_bodies_arrays(msg)
+            if not self.bodies:               # the first message names the bodies (their order kept)
+                self._set_bodies(list(dict.fromkeys(names)))
+            frame, unknown = frame_from_named_poses(convert.stamp_to_ns(msg.header.stamp), int(msg.frame_number),
+                                                    names, pos, quat, self.bodies, self.config["world_up"])
+            if unknown and not set(unknown) <= self.unknown_bodies:
+                self.unknown_bodies.update(unknown)
+                self.get_logger().warning(f"ignoring bodies not in 'bodies': {', '.join(sorted(self.unknown_bodies))}")
+            self._publish(frame)
+        except Exception as exc:   # never die on input
             self._input_error(exc)
 
     # -- natnet ----------------------------------------------------------------------------------

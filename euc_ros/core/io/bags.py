@@ -44,6 +44,7 @@ DEFAULT_CHUNK_SIZE = 1 << 20
 MCAP_MAGIC = b"\x89MCAP0\r\n"
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 MOCAP_FRAME = "euc_msgs/msg/MocapFrame"
+RIGID_BODIES = "mocap4r2_msgs/msg/RigidBodies"     # the MOCAP4ROS2 drivers: one message per frame
 #: MocapFrame.stamp_source value for offline data (capture start + frame / rate).
 STAMP_FILE_TIME = 1
 #: custom_data keys write_mocap_bag stores in metadata.yaml to make the round trip exact.
@@ -1164,8 +1165,11 @@ def _read_mocap_rosbags(bag: Path, prefix: str, frame_topic: str | None, merge_t
                 raise InputError(f"no {MOCAP_FRAME} topic {frame_topic} in the bag (MocapFrame topics: {have})",
                                  path=bag, key="frame_topic")
             frame_conns = chosen[:1]
+        rigid = [c for c in conns if c.msgtype == RIGID_BODIES]
         if frame_conns:
             series = _series_from_frames(reader, frame_conns[0], bag)
+        elif rigid:
+            series = _series_from_rigid_bodies(reader, rigid[0], bag)
         else:
             series = _series_from_poses(reader, conns, prefix, bag, merge_tolerance)
     return series
@@ -1211,6 +1215,41 @@ def _series_from_frames(reader, conn, bag: Path) -> MocapSeries:
     return MocapSeries(np.zeros(n), np.asarray(numbers, np.int64)[order], bodies, position, quat, tracked, err,
                        name=bag.name, meta={"path": str(bag), "source": f"{MOCAP_FRAME} {conn.topic}",
                                             "_stamps": stamps_arr, "_first_ns": int(stamps_arr[0])})
+
+
+def _series_from_rigid_bodies(reader, conn, bag: Path) -> MocapSeries:
+    """mocap4r2_msgs/RigidBodies (one message per frame, bodies by name) as stored: the driver's axes.
+
+    Bodies are taken in order of first appearance; a body missing from a message, or with a pose that
+    is not finite with a unit quaternion, is a gap (NaN, untracked)."""
+    from euc_ros.core.ingest import frame_from_named_poses
+
+    msgs = [reader.deserialize(data, conn.msgtype) for _, _, data in reader.messages(connections=[conn])]
+    if not msgs:
+        raise InputError(f"topic {conn.topic} holds no messages", path=bag)
+    per = []
+    for m in msgs:
+        names = [b.rigid_body_name for b in m.rigidbodies]
+        pos = np.array([(b.pose.position.x, b.pose.position.y, b.pose.position.z) for b in m.rigidbodies],
+                       float).reshape(-1, 3)
+        quat = np.array([(b.pose.orientation.x, b.pose.orientation.y, b.pose.orientation.z, b.pose.orientation.w)
+                         for b in m.rigidbodies], float).reshape(-1, 4)
+        per.append((int(m.header.stamp.sec) * 10**9 + int(m.header.stamp.nanosec), int(m.frame_number),
+                    names, pos, quat))
+    bodies = list(dict.fromkeys(name for p in per for name in p[2]))
+    order = np.argsort(np.array([p[0] for p in per], np.int64), kind="stable")
+    n, b = len(per), len(bodies)
+    position, quat = np.full((b, n, 3), np.nan), np.full((b, n, 4), np.nan)
+    tracked = np.zeros((b, n), bool)
+    for i, src in enumerate(order):
+        frame, _ = frame_from_named_poses(per[src][0], per[src][1], per[src][2], per[src][3], per[src][4], bodies,
+                                          world_up="z")
+        position[:, i], quat[:, i], tracked[:, i] = frame.position, frame.quat, frame.tracked
+    stamps = np.array([per[k][0] for k in order], np.int64)
+    numbers = np.array([per[k][1] for k in order], np.int64)
+    return MocapSeries(np.zeros(n), numbers, bodies, position, quat, tracked, np.full((b, n), np.nan),
+                       name=bag.name, meta={"path": str(bag), "source": f"{RIGID_BODIES} {conn.topic}",
+                                            "_stamps": stamps, "_first_ns": int(stamps[0])})
 
 
 def _series_from_poses(reader, conns, prefix: str, bag: Path, merge_tolerance: float) -> MocapSeries:
@@ -1435,4 +1474,6 @@ def _read_mocap_fast(bag: Path, info: dict, prefix: str, frame_topic: str | None
         topic, _, cids = frame_conns[0]
         msgs = mcap.messages(cids)
         return None if msgs is None else _frames_fast(msgs, topic, bag)
+    if any(c[1] == RIGID_BODIES for c in conns):
+        return None                                            # driver messages: the general route
     return _poses_fast(mcap, conns, prefix, bag, merge_tolerance)

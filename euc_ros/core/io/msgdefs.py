@@ -9,6 +9,7 @@ This module is ROS-free: it imports rosbags only, never rclpy or euc_msgs.
 """
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
@@ -53,6 +54,24 @@ def euc_msgs_definitions() -> dict[str, str]:
                      path=" or ".join(str(d) for d in msg_dirs()))
 
 
+#: Interface packages of the mocap drivers whose messages are read from bags when their definitions are
+#: installed (or in the repository's extra_interfaces/, written from their specification).
+DRIVER_PACKAGES = ("mocap4r2_msgs",)
+REPO_EXTRA_DIR = Path(__file__).resolve().parents[3] / "extra_interfaces"
+
+
+def package_definitions(package: str) -> dict[str, str]:
+    """The ``.msg`` texts of an installed interface package (this prefix, then AMENT_PREFIX_PATH, then the
+    repository's extra_interfaces/); empty when none holds it."""
+    prefixes = [Path(sys.prefix)] + [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    dirs = [pre / "share" / package / "msg" for pre in prefixes] + [REPO_EXTRA_DIR / package / "msg"]
+    for directory in dirs:
+        files = sorted(directory.glob("*.msg")) if directory.is_dir() else []
+        if files:
+            return {f"{package}/msg/{f.stem}": f.read_text(encoding="utf-8") for f in files}
+    return {}
+
+
 def make_typestore():
     """Return a rosbags typestore for ROS 2 Jazzy with the euc_msgs types registered.
 
@@ -68,5 +87,8 @@ def make_typestore():
     types: dict = {}
     for name, text in euc_msgs_definitions().items():
         types.update(get_types_from_msg(text, name))
+    for package in DRIVER_PACKAGES:
+        for name, text in package_definitions(package).items():
+            types.update(get_types_from_msg(text, name))
     store.register(types)
     return store
