@@ -11,6 +11,7 @@ model, which ``identify --from-residual`` and the ``torque_estimator`` node (``e
 from __future__ import annotations
 
 import argparse
+import math
 import json
 import sys
 from pathlib import Path
@@ -129,9 +130,17 @@ def format_summary(data: dict) -> str:
         if data.get("ambiguous_with"):
             lines.append(f"  not distinguishable on this data from: {', '.join(data['ambiguous_with'])}")
     geo = data.get("geometry") or {}
-    if geo.get("samples"):
-        lines.append(f"rolling radius from the wheel-centre height: {geo['rolling_radius_measured_m']:.4f} m "
+    floor = geo.get("floor")
+    if floor:
+        lines.append(f"floor from the wheel's contact path: slope {floor['slope_along_travel_deg']:+.2f} deg along "
+                     f"travel, rises {floor['rise_m'] * 1e3:.1f} mm over {floor['extent_m']:.1f} m, deviation "
+                     f"{floor['deviation_m'] * 1e3:.1f} mm, scatter {floor['scatter_m'] * 1e3:.2f} mm"
+                     f"{' (flat)' if floor['flat'] else ''}")
+    if geo.get("samples") and math.isfinite(geo.get("rolling_radius_measured_m", float("nan"))):
+        lines.append(f"rolling radius from the contact path: {geo['rolling_radius_measured_m']:.4f} m "
                      f"(session {geo['rolling_radius_nominal_m']:.4f} m){' -> wheel_radius_error' if geo['used'] else ''}")
+    elif geo.get("rolling_radius_reason"):
+        lines.append(f"rolling radius: not measured: {geo['rolling_radius_reason']}")
     lines.append(f"{'candidate':22s} {'held-out RMSE':>14s} {'p':>9s}  parameters")
     for c in data["candidates"]:
         p = "-" if c.get("p_value") is None else f"{c['p_value']:.2g}"

@@ -24,6 +24,7 @@ from euc_ros.core.euc.model import EucParams, consistency_weights
 from euc_ros.core.euc.torque import torques
 from euc_ros.core.filters.derivatives import savgol_derivatives
 from euc_ros.core.residual.candidates import Candidate, ModelContext, make_candidates
+from euc_ros.core.residual.floor import fit_floor, rolling_radius_from_floor
 
 #: Savitzky-Golay settings of the residual analysis: the project defaults (measured: with a 0.9 s
 #: quartic the attenuation of the accelerations inflated inertia-type parameters, rider mass by
@@ -264,6 +265,17 @@ def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 111)) -> 
     res = optimize.minimize_scalar(lambda h: float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)),
                                    bounds=(lo, hi), method="bounded")
     return float(res.x)
+
+
+def floor_from_states(states: Sequence[RiderStates], radius: float):
+    """The floor fit (:func:`euc_ros.core.residual.floor.fit_floor`) of the contact path of every run."""
+    if not states:
+        return None
+    C = np.concatenate([st.C for st in states])
+    theta = np.concatenate([st.theta for st in states])
+    valid = np.concatenate([st.valid for st in states])
+    seg = np.concatenate([np.full(len(st.t), i) for i, st in enumerate(states)])
+    return fit_floor(C, theta, valid, radius, seg)
 
 
 def measured_rolling_radius(states: Sequence[RiderStates]) -> tuple[float, float, int]:
@@ -577,12 +589,18 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     for c in candidates:
         if c not in detectable:
             rows[c.name] = CandidateResult(c.name, False, visible[c.name], base_ho.rmse, 1.0, {}, base_fit.h)
-    # geometry: the wheel-centre height measures the rolling radius, which the residual cannot separate
-    # from h (quasi-static riding); a significant difference is a wheel_radius_error found by geometry
-    r_meas, r_std, r_n = measured_rolling_radius(states) if use_geometry else (float("nan"), float("nan"), 0)
-    geometry = {"rolling_radius_measured_m": r_meas, "rolling_radius_std_m": r_std, "samples": r_n,
-                "rolling_radius_nominal_m": float(params.R), "used": False}
-    if (np.isfinite(r_meas) and abs(r_meas - params.R) > RADIUS_TOL_M
+    # geometry: the contact path measures the floor; only a flat floor measures the rolling radius, which
+    # the residual cannot separate from h (quasi-static riding): a significant offset of a flat floor is a
+    # wheel_radius_error found by geometry; a sloped or uneven floor is reported, never read as a radius
+    floor = floor_from_states(states, params.R) if use_geometry else None
+    r_meas, r_significant, r_reason = rolling_radius_from_floor(floor, params.R, RADIUS_TOL_M)
+    geometry = {"rolling_radius_measured_m": r_meas, "rolling_radius_std_m": floor.scatter_m if floor else float("nan"),
+                "samples": floor.samples if floor else 0, "rolling_radius_nominal_m": float(params.R),
+                "rolling_radius_reason": r_reason if use_geometry else "geometry not used",
+                "floor": floor.as_dict() if floor else None, "used": False}
+    if floor is not None and not floor.flat:
+        say(f"geometry: {r_reason}")
+    if (np.isfinite(r_meas) and r_significant
             and "wheel_radius_error" not in [c.name for c in current.effects]
             and any(c.name == "wheel_radius_error" for c in candidates)):
         geo_model = Model(current.effects + [_MeasuredWheelRadius(r_meas - params.R)])

@@ -1,0 +1,165 @@
+"""The floor under the wheel, measured from the wheel's contact path (issue 12, bullet 1, first part).
+
+The wheel touches the floor at ``P = C - R (z - (z.a) a) / cos(theta)`` (wheel centre C, radius R,
+axle a tilted by theta from the horizontal): its height is ``C_z - R cos(theta)`` in the mocap world.
+Over a ride those points trace the floor. Fitted here: a plane ``z = b0 + bx x + by y`` (robustly), a
+smooth deviation from it along the path (a bump, a step: the running median over
+:data:`DEVIATION_WINDOW_M` of path), and the scatter left after both (pose noise, tyre).
+
+What the fit can say, and what it cannot:
+
+* a floor **tilted in the mocap frame** (a ramp in a level-calibrated lab) shows as a plane slope, known
+  without any dynamics (``slope_along_travel_rad``, signed: positive uphill);
+* a **mocap frame tilted against gravity** (Motive's ground plane set on a sloped floor) leaves the
+  floor flat at z = 0 in the data: geometry sees nothing, it stays a dynamic candidate;
+* a **wheel-radius error** lifts every contact point by the same amount, indistinguishable from the
+  ground plane set a little high or low; it is inferred only from a floor that is flat (no slope
+  and no deviation beyond the scatter) and whose scatter is small against the offset
+  (:func:`rolling_radius_from_floor`). A radius is never inferred from a floor the fit cannot explain.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy import ndimage, optimize
+
+#: Length of path over which the smooth deviation from the plane is the running median [m].
+DEVIATION_WINDOW_M = 0.5
+#: Baseline of the direction of travel [m] (each side of a sample).
+HEADING_BASELINE_M = 0.05
+#: Least path length and contact points for a floor fit.
+MIN_EXTENT_M = 1.0
+MIN_SAMPLES = 50
+#: A floor is flat when its plane rises less than this many scatters over the path, and its smooth
+#: deviation stays within this many scatters.
+FLAT_SIGMAS = 3.0
+#: Floor features below this are flat whatever the scatter (tyre compression, marker placement) [m].
+FLAT_FLOOR_M = 0.002
+#: A rolling radius is inferred only when the floor offset exceeds this many scatters.
+RADIUS_SIGMAS = 3.0
+
+
+@dataclass
+class FloorFit:
+    """The floor under a ride (every length in m, angles in rad)."""
+
+    samples: int
+    extent_m: float                 # horizontal length of the contact path (end to end of its span)
+    plane: tuple[float, float, float]   # b0, bx, by of z = b0 + bx x + by y
+    offset_m: float                 # median contact height / cos(theta) (0 on the calibrated floor at R)
+    slope_rad: float                # steepest slope of the plane
+    slope_along_travel_rad: float   # mean slope along the direction of travel, positive uphill
+    rise_m: float                   # height the plane rises over the path
+    deviation_m: float              # largest smooth deviation from the plane (bump, step)
+    scatter_m: float                # robust std of what is left (noise)
+    flat: bool                      # no slope and no deviation beyond the scatter
+
+    def as_dict(self) -> dict:
+        d = asdict(self)
+        d["plane"] = list(self.plane)
+        d["slope_deg"] = math.degrees(self.slope_rad)
+        d["slope_along_travel_deg"] = math.degrees(self.slope_along_travel_rad)
+        return d
+
+
+def contact_heights(C: np.ndarray, theta: np.ndarray, radius: float) -> np.ndarray:
+    """Height of the wheel's contact point [m]: ``C_z - R cos(theta)`` (theta: the wheel's tilt)."""
+    return np.asarray(C, float)[:, 2] - float(radius) * np.cos(np.asarray(theta, float))
+
+
+def _robust_std(r: np.ndarray) -> float:
+    return float(1.4826 * np.median(np.abs(r - np.median(r))))
+
+
+def fit_floor(C: np.ndarray, theta: np.ndarray, valid: np.ndarray, radius: float,
+              segments: np.ndarray | None = None) -> FloorFit | None:
+    """Fit the floor to the contact points of one or more runs; None when the path is too short.
+
+    Parameters
+    ----------
+    C : ndarray (n, 3)
+        Wheel centre [m], Z-up mocap world.
+    theta : ndarray (n,)
+        Wheel tilt [rad].
+    valid : ndarray (n,) of bool
+    radius : float
+        Nominal wheel radius [m].
+    segments : ndarray (n,) of int, optional
+        Run index of each sample (the path is continuous within a run only).
+    """
+    C = np.asarray(C, float)
+    seg = np.zeros(len(C), int) if segments is None else np.asarray(segments)
+    z = contact_heights(C, theta, radius)
+    ok = np.asarray(valid, bool) & np.all(np.isfinite(C), axis=1) & np.isfinite(z)
+    if ok.sum() < MIN_SAMPLES:
+        return None
+    xy, z, seg = C[ok, :2], z[ok], seg[ok]
+    cos_theta = np.cos(np.asarray(theta, float)[ok])
+    extent = float(np.linalg.norm(xy.max(axis=0) - xy.min(axis=0)))
+    if extent < MIN_EXTENT_M:
+        return None
+    centre = xy.mean(axis=0)
+    A = np.column_stack([np.ones(len(z)), xy - centre])
+    # robust plane: soft-L1 loss with the noise scale from a first least-squares pass
+    b_ls = np.linalg.lstsq(A, z, rcond=None)[0]
+    f_scale = max(_robust_std(z - A @ b_ls), 1e-5)
+    b = optimize.least_squares(lambda p: A @ p - z, b_ls, loss="soft_l1", f_scale=f_scale).x
+    resid = z - A @ b
+    # smooth deviation along each run's path: running median over DEVIATION_WINDOW_M of path length
+    smooth = np.zeros_like(resid)
+    for s in np.unique(seg):
+        m = seg == s
+        step = np.linalg.norm(np.diff(xy[m], axis=0), axis=1)
+        ds = float(np.median(step[step > 0])) if np.any(step > 0) else 0.0
+        if ds <= 0:
+            continue
+        size = max(3, int(round(DEVIATION_WINDOW_M / ds)) | 1)
+        smooth[m] = ndimage.median_filter(resid[m], size=min(size, max(3, (m.sum() // 2) | 1)), mode="nearest")
+    scatter = _robust_std(resid - smooth)
+    grad = b[1:]
+    # direction of travel, sample by sample; the slope along it, averaged over the path
+    # (over HEADING_BASELINE_M of path: per-sample differences of noisy positions would bias the cosine)
+    heading = np.zeros_like(xy)
+    for s in np.unique(seg):
+        m = np.flatnonzero(seg == s)
+        if len(m) < 3:
+            continue
+        step = np.linalg.norm(np.diff(xy[m], axis=0), axis=1)
+        ds = float(np.median(step)) if step.size else 0.0
+        k = int(np.clip(round(HEADING_BASELINE_M / ds), 1, (len(m) - 1) // 2)) if ds > 0 else 1
+        idx = np.arange(len(m))
+        heading[m] = xy[m[np.minimum(idx + k, len(m) - 1)]] - xy[m[np.maximum(idx - k, 0)]]
+    norm = np.linalg.norm(heading, axis=1)
+    moving = norm > 0
+    along = float(np.mean(heading[moving] @ grad / norm[moving])) if moving.any() else float("nan")
+    pred = A[:, 1:] @ grad
+    rise = float(pred.max() - pred.min())
+    deviation = float(np.max(np.abs(smooth)))
+    limit = max(FLAT_SIGMAS * scatter, FLAT_FLOOR_M)
+    return FloorFit(samples=int(len(z)), extent_m=extent, plane=(float(b[0] - grad @ centre), float(grad[0]),
+                                                                float(grad[1])),
+                    offset_m=float(np.median(z / cos_theta)), slope_rad=float(math.atan(np.linalg.norm(grad))),
+                    slope_along_travel_rad=float(math.atan(along)), rise_m=rise, deviation_m=deviation,
+                    scatter_m=scatter, flat=bool(rise <= limit and deviation <= limit))
+
+
+def rolling_radius_from_floor(fit: FloorFit | None, radius: float, tolerance: float) -> tuple[float, bool, str]:
+    """The rolling radius a floor fit implies: ``(radius [m] or NaN, significant, reason)``.
+
+    Only a flat floor (Motive's ground plane on it, z = 0) measures the radius: a contact path lying
+    ``d`` above z = 0 everywhere means a rolling radius ``R + d``. A floor that slopes or is uneven
+    explains any offset as well, so it is reported as the floor, never as a radius (NaN). An offset
+    within ``tolerance`` or :data:`RADIUS_SIGMAS` scatters is measured but not significant.
+    """
+    if fit is None:
+        return float("nan"), False, "path too short for a floor fit"
+    if not fit.flat:
+        return float("nan"), False, (
+            f"floor not flat (rises {fit.rise_m * 1e3:.1f} mm over {fit.extent_m:.1f} m, slope "
+            f"{math.degrees(fit.slope_along_travel_rad):+.2f} deg along travel, deviation {fit.deviation_m * 1e3:.1f} "
+            f"mm, scatter {fit.scatter_m * 1e3:.1f} mm): no radius inferred from it")
+    significant = abs(fit.offset_m) > max(tolerance, RADIUS_SIGMAS * fit.scatter_m)
+    return radius + fit.offset_m, significant, (
+        f"flat floor, contact path {fit.offset_m * 1e3:+.1f} mm from z = 0 (scatter {fit.scatter_m * 1e3:.1f} mm)")
