@@ -32,6 +32,15 @@ MOCAP_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=400, reliabi
                              durability=DurabilityPolicy.VOLATILE)
 #: Derived estimates and frames we publish: reliable so the recorder and the next stage lose nothing
 #: on a healthy host; depth covers ~2 s at 120 Hz of a slow subscriber.
+def mocap_input_qos(reliability: str) -> QoSProfile:
+    """The live mocap input's QoS: :data:`MOCAP_INPUT_QOS`, or reliable (``"reliable"``) when every publisher
+    is reliable (a bag replayed by ``euc-ros play``): then nothing is dropped, even on a starved host."""
+    if reliability == "reliable":
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=MOCAP_INPUT_QOS.depth,
+                          reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)
+    return MOCAP_INPUT_QOS
+
+
 RELIABLE_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=256, reliability=ReliabilityPolicy.RELIABLE,
                           durability=DurabilityPolicy.VOLATILE)
 #: Lockstep simulation: every message matters and late joiners must still get the first step.

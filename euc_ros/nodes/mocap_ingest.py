@@ -72,6 +72,9 @@ SPECS = (
               choices=("pose_stamped", "rigid_bodies")),
     ParamSpec("rigid_bodies_topic", "/rigid_bodies", "mocap4r2_msgs/RigidBodies input (source topics, topic_type "
               "rigid_bodies)"),
+    ParamSpec("input_reliability", "best_effort", "QoS of the source topics: best_effort matches every driver; "
+              "reliable loses nothing on a loaded host but matches reliable publishers only (euc-ros play)",
+              choices=("best_effort", "reliable")),
     ParamSpec("topic_prefix", itf.VRPN_PREFIX, "prefix of the per-body PoseStamped inputs (source topics)"),
     ParamSpec("sync_tolerance", 0.002, "poses closer than this belong to one frame (source topics)", "s",
               0.0, 1.0),
@@ -241,7 +244,8 @@ class MocapIngest(Node):
         prefix = cfg["topic_prefix"].rstrip("/")
         for body in self.bodies:
             self.create_subscription(PoseStamped, f"{prefix}/{body}/pose",
-                                     lambda msg, b=body: self._on_pose(b, msg), itf.MOCAP_INPUT_QOS)
+                                     lambda msg, b=body: self._on_pose(b, msg),
+                                     itf.mocap_input_qos(cfg["input_reliability"]))
         self.create_timer(min(cfg["sync_timeout"] / 2, 0.01), self._flush)
         self.get_logger().info(f"assembling frames of {', '.join(self.bodies)} from {prefix}/<Body>/pose")
 
@@ -274,7 +278,7 @@ class MocapIngest(Node):
         if self.bodies:
             self._set_bodies(self.bodies)
         self.create_subscription(RigidBodies, cfg["rigid_bodies_topic"], self._on_rigid_bodies,
-                                 itf.MOCAP_INPUT_QOS)
+                                 itf.mocap_input_qos(cfg["input_reliability"]))
         which = ", ".join(self.bodies) if self.bodies else "the bodies of the first message"
         self.get_logger().info(f"frames of {which} from {cfg['rigid_bodies_topic']} (mocap4r2_msgs/RigidBodies, "
                                f"world {cfg['world_up']}-up)")

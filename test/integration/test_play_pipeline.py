@@ -38,7 +38,9 @@ def test_csv_bag_play_ingest_record(ros_domain, short_ride, tmp_path):
                  parameters={"output": str(out_bag), "topics": ["/mocap/frame"]}, required=False),
         NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"),
                  # sync_timeout: a loaded CI host can stall the player by ~0.3 s
-                 parameters={"source": "topics", "bodies": list(series.bodies), "sync_timeout": 1.0}),
+                 # reliable input (the player publishes reliable): no pose may be lost, however loaded the host
+                 parameters={"source": "topics", "bodies": list(series.bodies), "sync_timeout": 1.0,
+                             "input_reliability": "reliable"}),
     ]
     with Launcher(specs, stream=log) as launcher:
         assert launcher.wait(timeout=30, until=lambda: "subscribed /mocap/frame" in log.getvalue()), log.getvalue()
