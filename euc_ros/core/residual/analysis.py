@@ -23,8 +23,8 @@ from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, 
 from euc_ros.core.euc.model import EucParams, consistency_weights
 from euc_ros.core.euc.torque import torques
 from euc_ros.core.filters.derivatives import savgol_derivatives
-from euc_ros.core.residual.candidates import Candidate, ModelContext, make_candidates
-from euc_ros.core.residual.floor import fit_floor, rolling_radius_from_floor
+from euc_ros.core.residual.candidates import Candidate, FloorGeometry, ModelContext, make_candidates
+from euc_ros.core.residual.floor import FloorFit, fit_floor, rolling_radius_from_floor, slope_along_path
 
 #: Savitzky-Golay settings of the residual analysis: the project defaults (measured: with a 0.9 s
 #: quartic the attenuation of the accelerations inflated inertia-type parameters, rider mass by
@@ -88,9 +88,14 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
     return shift
 
 
-def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S
-            ) -> list[Recording]:
-    """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook)."""
+def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S,
+            floor: FloorFit | None = None) -> list[Recording]:
+    """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook).
+
+    With a ``floor`` that is not flat, each context also carries the floor's slope along travel under
+    the wheel (``extras['floor_a']``) and the wheel centre's vertical acceleration (``extras['c_zdd']``,
+    the states' derivative filter) for :class:`~euc_ros.core.residual.candidates.FloorGeometry`.
+    """
     out = []
     for st in states:
         window = st.window if st.window and st.window % 2 == 1 else 9
@@ -104,6 +109,11 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
             psi_dot=dpsi.y_dot[valid], theta=st.theta[valid], params=params)
         if st.phi_definition == "hinge":
             ctx.extras["phi_shift"] = _phi_shift_fn(st, params, window, st.polyorder, valid)
+        if floor is not None and not floor.flat:
+            a = slope_along_path(st.C, st.theta, st.psi, st.valid, params.R, floor)
+            czz = savgol_derivatives(st.t, st.C[:, 2], window=window, polyorder=st.polyorder, frame=st.frame).y_ddot
+            ctx.extras["floor_a"] = np.nan_to_num(a[valid])
+            ctx.extras["c_zdd"] = np.nan_to_num(czz[valid])
         dt = st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t)))
         block = np.floor((st.t[valid] - st.t[0]) / max(block_s, dt)).astype(int)
         out.append(Recording(st.name, ctx, block))
@@ -382,6 +392,9 @@ def _subset(rec: Recording, sl: slice, name: str) -> Recording:
     shift = c.extras.get("phi_shift")
     if shift is not None:
         sub.extras["phi_shift"] = lambda dt, f=shift: tuple(a[sl] for a in f(dt))
+    for k, v in c.extras.items():
+        if isinstance(v, np.ndarray) and v.shape[:1] == c.t.shape:
+            sub.extras[k] = v[sl]
     return Recording(name, sub, rec.block[sl])
 
 
@@ -534,7 +547,9 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     """
     say = progress or (lambda _m: None)
     candidates = list(candidates) if candidates is not None else make_candidates()
-    recs = prepare(states, params)
+    # geometry first: the contact path measures the floor (plane, smooth deviation, scatter)
+    floor = floor_from_states(states, params.R) if use_geometry else None
+    recs = prepare(states, params, floor=floor)
     folds = folds_of(recs, n_folds)
     h0 = fit_base_h(recs)
     base_fit = fit_model(Model(), recs, h0)
@@ -553,6 +568,24 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     rows: dict[str, CandidateResult] = {}
     steps = []
     remaining = list(detectable)
+    if floor is not None and not floor.flat:
+        # a floor tilted or uneven in the mocap frame (level-calibrated lab): known from geometry, in the
+        # model before any dynamic candidate; the dynamic ground_slope (a mocap frame tilted against
+        # gravity) then has nothing left to explain on this floor
+        geo = FloorGeometry(math.degrees(math.atan(floor.plane[1])), math.degrees(math.atan(floor.plane[2])))
+        geo_model = Model([geo])
+        geo_fit = fit_model(geo_model, recs, h0)
+        geo_ho = held_out(geo_model, recs, h0, folds, start=geo_fit.x)
+        say(f"geometry: floor slope {math.degrees(floor.slope_along_travel_rad):+.2f} deg along travel, deviation "
+            f"{floor.deviation_m * 1e3:.1f} mm: in the model (held-out RMSE {current_ho.rmse:.3f} -> "
+            f"{geo_ho.rmse:.3f} N m)")
+        steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": "ground_slope",
+                      "evidence": "geometry: floor measured from the wheel's contact path (level lab)",
+                      "rmse_after_nm": geo_ho.rmse})
+        rows["ground_slope"] = CandidateResult("ground_slope", True, 1.0, geo_ho.rmse, 0.0,
+                                               geo_model.report(geo_fit.x), geo_fit.h)
+        current, current_ho, current_x = geo_model, geo_ho, geo_fit.x
+        remaining = [c for c in remaining if c.name != "ground_slope"]
     while remaining and len(current.effects) < max_effects:
         trials = []
         for c in remaining:
@@ -562,7 +595,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             p = paired_block_test(current_ho, ho)
             trials.append((c, model, ho, p, full))
             say(f"  + {c.name}: held-out RMSE {ho.rmse:.3f} N m (p = {p:.2g})")
-            if not current.effects:
+            if c.name not in rows:
                 rows[c.name] = CandidateResult(c.name, True, visible[c.name], ho.rmse, p,
                                                model.report(full.x), full.h)
         threshold = alpha / max(len(remaining), 1)
@@ -592,7 +625,6 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     # geometry: the contact path measures the floor; only a flat floor measures the rolling radius, which
     # the residual cannot separate from h (quasi-static riding): a significant offset of a flat floor is a
     # wheel_radius_error found by geometry; a sloped or uneven floor is reported, never read as a radius
-    floor = floor_from_states(states, params.R) if use_geometry else None
     r_meas, r_significant, r_reason = rolling_radius_from_floor(floor, params.R, RADIUS_TOL_M)
     geometry = {"rolling_radius_measured_m": r_meas, "rolling_radius_std_m": floor.scatter_m if floor else float("nan"),
                 "samples": floor.samples if floor else 0, "rolling_radius_nominal_m": float(params.R),

@@ -36,6 +36,7 @@ G = A + h (sin phi, cos phi), so ``J_G = [[1, -l0 cos gamma, h cos phi], [0, l0 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -325,6 +326,71 @@ class WheelBodyFriction(Candidate):
         return np.stack([tau / p.R, -tau, np.zeros_like(tau)], axis=1)
 
 
+class FloorGeometry(Candidate):
+    """The floor measured from the contact path, in a lab whose vertical is gravity's (issue 12).
+
+    A floor tilted in the mocap frame (a ramp or a bump in a level-calibrated lab) is known without
+    dynamics: the wheel centre C moves along it with slope ``a(t)`` along travel (measured) and vertical
+    acceleration ``C_zdd`` (measured), while gamma and phi are angles from gravity's vertical. Newton's
+    law projected on the path's tangent (s: arc length, ``s_ddot = cos a x_ddot + sin a C_zdd`` with
+    x_ddot the horizontal acceleration the states carry) and on gamma, phi in the frame translating with
+    C give, against the level model:
+
+    * gamma, phi rows: gravity ``g -> g + C_zdd`` (the frame of C accelerates vertically);
+    * x row: ``dQ_x = m_eq (x_ddot - s_ddot) + (1 - cos a) P_x - sin a P_z - m_tot g sin a``, with
+      ``P = d2/dt2 (m0 rho_0 + m rho_G)`` the rate of the body and rider's momentum relative to C
+      (``P_x = k (cos g g_dd - sin g g_d^2) + m h (cos p p_dd - sin p p_d^2)``, ``P_z = -k (sin g g_dd +
+      cos g g_d^2) - m h (sin p p_dd + cos p p_d^2)``, ``k = m0 h0 - m l0``).
+
+    No parameter is fitted: the signals come from the recording (``ctx.extras['floor_a']``,
+    ``ctx.extras['c_zdd']``). A mocap frame tilted against gravity (ground plane set on a sloped floor)
+    leaves the floor flat in the data: that stays :class:`GroundSlope`, a dynamic candidate.
+    """
+
+    name = "ground_slope"
+    params = ()
+    formula = "floor measured: g -> g + C_zdd (gamma, phi); dQ_x = m_eq (x_dd - s_dd) + (1 - cos a) P_x - sin a P_z - m_tot g sin a"
+    geometric = True
+
+    def __init__(self, alpha_x_deg: float = float("nan"), alpha_y_deg: float = float("nan")):
+        self.alpha_x_deg, self.alpha_y_deg = float(alpha_x_deg), float(alpha_y_deg)
+
+    def _signals(self, ctx):
+        """Slope along travel and C_zdd: measured (extras), or of the plane ``alpha`` (a configured model:
+        ``tan a = tan(alpha_x) cos psi + tan(alpha_y) sin psi``, ``C_zdd = x_ddot tan a``)."""
+        a, czz = ctx.extras.get("floor_a"), ctx.extras.get("c_zdd")
+        if a is None:
+            tx, ty = (math.tan(math.radians(v)) if math.isfinite(v) else 0.0 for v in (self.alpha_x_deg,
+                                                                                       self.alpha_y_deg))
+            a = np.arctan(tx * np.cos(ctx.psi) + ty * np.sin(ctx.psi)) + 0.0 * ctx.x_dot
+        if czz is None:
+            czz = ctx.x_ddot * np.tan(a)
+        return a, czz
+
+    def modify(self, ctx, theta):
+        _, czz = self._signals(ctx)
+        ctx.overrides["g"] = ctx.params.g + czz
+
+    def force(self, ctx, theta):
+        a, czz = self._signals(ctx)
+        p = ctx.p()
+        g0 = float(ctx.params.g)
+        h = np.asarray(p.h, float)
+        k = p.m0 * p.h0 - p.m * p.l0
+        cg, sg, cp, sp_ = np.cos(ctx.gamma), np.sin(ctx.gamma), np.cos(ctx.phi), np.sin(ctx.phi)
+        gd2, pd2 = ctx.gamma_dot ** 2, ctx.phi_dot ** 2
+        Px = k * (cg * ctx.gamma_ddot - sg * gd2) + p.m * h * (cp * ctx.phi_ddot - sp_ * pd2)
+        Pz = -k * (sg * ctx.gamma_ddot + cg * gd2) - p.m * h * (sp_ * ctx.phi_ddot + cp * pd2)
+        ca, sa = np.cos(a), np.sin(a)
+        m_tot = p.m + p.m0 + p.mw
+        m_eq = m_tot + p.Jw / np.asarray(p.R, float) ** 2
+        s_dd = ca * ctx.x_ddot + sa * czz
+        return _x_force(m_eq * (ctx.x_ddot - s_dd) + (1 - ca) * Px - sa * Pz - m_tot * g0 * sa)
+
+    def report(self, theta):
+        return {"alpha_deg": self.alpha_x_deg, "alpha_y_deg": self.alpha_y_deg, "level_lab": 1.0}
+
+
 def _x_force(F: np.ndarray) -> np.ndarray:
     z = np.zeros_like(F)
     return np.stack([F, z, z], axis=1)
@@ -351,6 +417,8 @@ def theta_from_report(candidate: Candidate, values: dict[str, float]) -> np.ndar
     """Inverse of :meth:`Candidate.report`: parameters from reported values (for configured models)."""
     from euc_ros.core.errors import ConfigError
 
+    if isinstance(candidate, FloorGeometry):
+        return np.zeros(0)
     if isinstance(candidate, TimeVaryingH):
         a = float(values.get("amplitude_m", 0.0))
         T = float(values.get("period_s", 5.0))

@@ -20,7 +20,7 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.euc.model import EucParams
-from euc_ros.core.residual.candidates import ModelContext, make_candidates, theta_from_report
+from euc_ros.core.residual.candidates import FloorGeometry, ModelContext, make_candidates, theta_from_report
 
 #: Effects that need the recording's geometry (future samples) and are offline only.
 OFFLINE_ONLY = {"mocap_time_offset"}
@@ -72,6 +72,13 @@ class ExtendedModel:
         self.params = params
         effects = dict(effects or {})
         self.candidates = make_candidates(list(effects))
+        # a ground slope measured as the floor of a level lab (residual JSON: level_lab = 1) is the floor
+        # geometry model, not gravity tilted against the mocap frame
+        for k, c in enumerate(self.candidates):
+            vals = effects[c.name]
+            if c.name == "ground_slope" and float(vals.get("level_lab", 0.0)):
+                self.candidates[k] = FloorGeometry(float(vals.get("alpha_deg", 0.0)),
+                                                   float(vals.get("alpha_y_deg", 0.0)))
         if online:
             bad = [c.name for c in self.candidates if c.name in OFFLINE_ONLY]
             if bad:

@@ -32,6 +32,9 @@ HEADING_BASELINE_M = 0.05
 #: Least path length and contact points for a floor fit.
 MIN_EXTENT_M = 1.0
 MIN_SAMPLES = 50
+#: Spread of the path (std along a principal axis) below which the floor's slope along that axis is not
+#: fitted [m] (runs along a line say nothing about the slope across it).
+MIN_CROSS_SPREAD_M = 0.1
 #: A floor is flat when its plane rises less than this many scatters over the path, and its smooth
 #: deviation stays within this many scatters.
 FLAT_SIGMAS = 3.0
@@ -101,12 +104,19 @@ def fit_floor(C: np.ndarray, theta: np.ndarray, valid: np.ndarray, radius: float
     if extent < MIN_EXTENT_M:
         return None
     centre = xy.mean(axis=0)
-    A = np.column_stack([np.ones(len(z)), xy - centre])
+    # principal axes of the path: a slope across a path that is nearly a line is not measured (it is
+    # set to 0 rather than fitted to whatever the floor does along the line)
+    _, sv, axes = np.linalg.svd(xy - centre, full_matrices=False)
+    spread = sv / math.sqrt(len(xy))
+    keep = [k for k in range(2) if spread[k] >= MIN_CROSS_SPREAD_M]
+    uv = (xy - centre) @ axes[keep].T
+    A = np.column_stack([np.ones(len(z)), uv])
     # robust plane: soft-L1 loss with the noise scale from a first least-squares pass
     b_ls = np.linalg.lstsq(A, z, rcond=None)[0]
     f_scale = max(_robust_std(z - A @ b_ls), 1e-5)
-    b = optimize.least_squares(lambda p: A @ p - z, b_ls, loss="soft_l1", f_scale=f_scale).x
-    resid = z - A @ b
+    b_uv = optimize.least_squares(lambda p: A @ p - z, b_ls, loss="soft_l1", f_scale=f_scale).x
+    resid = z - A @ b_uv
+    b = np.concatenate([[b_uv[0]], b_uv[1:] @ axes[keep] if keep else np.zeros(2)])
     # smooth deviation along each run's path: running median over DEVIATION_WINDOW_M of path length
     smooth = np.zeros_like(resid)
     for s in np.unique(seg):
@@ -134,7 +144,7 @@ def fit_floor(C: np.ndarray, theta: np.ndarray, valid: np.ndarray, radius: float
     norm = np.linalg.norm(heading, axis=1)
     moving = norm > 0
     along = float(np.mean(heading[moving] @ grad / norm[moving])) if moving.any() else float("nan")
-    pred = A[:, 1:] @ grad
+    pred = (xy - centre) @ grad
     rise = float(pred.max() - pred.min())
     deviation = float(np.max(np.abs(smooth)))
     limit = max(FLAT_SIGMAS * scatter, FLAT_FLOOR_M)
@@ -163,3 +173,44 @@ def rolling_radius_from_floor(fit: FloorFit | None, radius: float, tolerance: fl
     significant = abs(fit.offset_m) > max(tolerance, RADIUS_SIGMAS * fit.scatter_m)
     return radius + fit.offset_m, significant, (
         f"flat floor, contact path {fit.offset_m * 1e3:+.1f} mm from z = 0 (scatter {fit.scatter_m * 1e3:.1f} mm)")
+
+
+def slope_along_path(C: np.ndarray, theta: np.ndarray, psi: np.ndarray, valid: np.ndarray, radius: float,
+                     fit: FloorFit) -> np.ndarray:
+    """Slope of the floor under the wheel along its heading, sample by sample [rad] (positive uphill).
+
+    The plane's slope along the heading ``psi`` plus the slope of the smooth deviation along the
+    path: the deviation (running median over :data:`DEVIATION_WINDOW_M` of path) resampled on a 1 cm
+    grid of path length and differentiated by a Savitzky-Golay filter over the same length (so a
+    wheel at rest keeps the slope of where it stands). One run per call; NaN where invalid.
+    """
+    from scipy.signal import savgol_filter
+
+    C = np.asarray(C, float)
+    psi = np.asarray(psi, float)
+    bx, by = fit.plane[1], fit.plane[2]
+    out = np.arctan(bx * np.cos(psi) + by * np.sin(psi))
+    z = contact_heights(C, theta, radius) - (fit.plane[0] + bx * C[:, 0] + by * C[:, 1])
+    ok = np.asarray(valid, bool) & np.all(np.isfinite(C), axis=1) & np.isfinite(z) & np.isfinite(psi)
+    idx = np.flatnonzero(ok)
+    if idx.size < MIN_SAMPLES:
+        return np.where(ok, out, np.nan)
+    step = np.linalg.norm(np.diff(C[idx, :2], axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(step)])
+    grid_ds = 0.01
+    if s[-1] < 2 * DEVIATION_WINDOW_M:
+        return np.where(ok, out, np.nan)
+    ds = float(np.median(step[step > 0])) if np.any(step > 0) else grid_ds
+    size = max(3, int(round(DEVIATION_WINDOW_M / ds)) | 1)
+    dev = ndimage.median_filter(z[idx], size=min(size, max(3, (idx.size // 2) | 1)), mode="nearest")
+    grid = np.arange(0.0, s[-1] + grid_ds, grid_ds)
+    keep = np.concatenate([[True], np.diff(s) > 0])
+    dev_g = np.interp(grid, s[keep], dev[keep])
+    win = max(5, int(round(DEVIATION_WINDOW_M / grid_ds)) | 1)
+    ddev = savgol_filter(dev_g, window_length=min(win, grid.size - 1 + grid.size % 2), polyorder=2, deriv=1,
+                         delta=grid_ds, mode="interp")
+    # the deviation's slope is along the path; travel along the heading (forward riding)
+    slope_dev = np.interp(s, grid, ddev)
+    res = np.full(len(C), np.nan)
+    res[idx] = np.arctan(np.tan(out[idx]) + slope_dev)
+    return res

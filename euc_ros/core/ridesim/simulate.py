@@ -32,15 +32,16 @@ from euc_ros.core.errors import ConfigError, EucError
 from euc_ros.core.mocap import MocapSeries
 from euc_ros.core.ridesim.controllers import EucBalanceController, RiderLeanController
 from euc_ros.core.ridesim.effects import AIR_DENSITY, ROLLING_SIGN_SPEED, EffectSet
+from euc_ros.core.ridesim.floors import FloorProfile
 from euc_ros.core.ridesim.maneuvers import MANEUVERS, RunPlan, plan_run
 from euc_ros.core.ridesim.mocap_synth import MocapNoise, corrupt, rotations_to_quats
 from euc_ros.core.ridesim.skeleton import Skeleton
-from euc_ros.core.ridesim.truth_model import PlanarModel, PlanarParams
+from euc_ros.core.ridesim.truth_model import FloorModel, PlanarModel, PlanarParams
 from euc_ros.core.rotations import quat_from_yaw_tilt_pitch, rotation_matrices
 from euc_ros.core.session import Session, default_session
 
 #: State vector of the ODE.
-STATE_NAMES = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "X", "Y", "z")
+STATE_NAMES = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "X", "Y", "z", "Z")
 #: Default true rider CoG height (EUC paper, Fig. 6: h = 0.61 m).
 DEFAULT_H_M = 0.61
 
@@ -79,6 +80,10 @@ class RideConfig:
         ``(k_p [N m/rad], k_d [N m s/rad], k_speed [rad s/m], k_int [rad/m])`` of the rider.
     rtol, atol : float
         Integration tolerances of ``solve_ivp`` (DOP853).
+    floor : FloorProfile, optional
+        A floor that is not level in a level lab (:mod:`.floors`): the dynamics follow it
+        (:class:`~euc_ros.core.ridesim.truth_model.FloorModel`, x is then the arc length of the wheel
+        centre's path) and the recorded positions are lab positions (not re-centred).
     """
 
     maneuver: str = "deceleration"
@@ -96,6 +101,7 @@ class RideConfig:
     rider_gains: tuple[float, float, float, float] = (800.0, 150.0, 0.12, 0.05)
     rtol: float = 1e-10
     atol: float = 1e-10
+    floor: FloorProfile | None = None
 
     def nominal_session(self) -> Session:
         """The session written to session.yaml (nominal values)."""
@@ -196,6 +202,7 @@ class RideResult:
                 "rider": dict(zip(("k_p", "k_d", "k_speed", "k_int"), c.rider_gains)),
             },
             "noise": c.noise.to_dict(),
+            "floor": c.floor.to_dict() if c.floor is not None else None,
             "runs": [{
                 "run": r.name, "csv": f"{r.name}.csv", "truth_csv": f"truth/{r.name}_truth.csv",
                 "duration_s": r.plan.duration_s, "psi0_rad": r.plan.path.psi0,
@@ -234,6 +241,13 @@ class _RunDynamics:
         self.c_wb = effects.get("wheel_body_friction", "c_wb")
         self.k_aero = 0.5 * AIR_DENSITY * effects.get("aero_drag", "cda_m2")
         self.normal_force = p.total_mass * p.g
+        self.floor = None
+
+    def slope(self, X, psi, kappa):
+        """Floor slope along travel and its rate along the path (0, 0 on a level floor)."""
+        if self.floor is None:
+            return 0.0 * X, 0.0 * X
+        return self.floor.slope_along(X, psi, kappa)
 
     # --- pieces ---
     def h_profile(self, t):
@@ -260,8 +274,9 @@ class _RunDynamics:
         if self.tilt_gain:
             g_n = g_n + self.tilt_gain * (g_n * np.cos(theta) - a_c * np.sin(theta) - g_n)
         g_x = -self.p.g * self.sin_a * np.cos(psi)
+        a, a1 = self.slope(y[6], psi, kappa)
         return {"psi": psi, "kappa": kappa, "psi_dot": kappa * xd, "theta": theta, "a_c": a_c,
-                "g_x": g_x + 0.0 * xd, "g_z": -g_n + 0.0 * xd}
+                "g_x": g_x + 0.0 * xd, "g_z": -g_n + 0.0 * xd, "floor_a": a, "floor_a1": a1}
 
     def inputs(self, t, y, env):
         """True M_d and M_h [N m]."""
@@ -303,10 +318,17 @@ class _RunDynamics:
         Q0 = M_d / R + dQ[0]
         Q1 = M_h - M_d + dQ[1]
         Q2 = -M_h + dQ[2]
-        a = self.model.accel_scalar(gam, phi, xd, gd, pd, h, hd, hdd, float(env["g_x"]), float(env["g_z"]),
-                                    float(Q0), float(Q1), float(Q2))
         psi = env["psi"]
-        return [xd, gd, pd, a[0], a[1], a[2], xd * math.cos(psi), xd * math.sin(psi), float(v_ref) - xd]
+        if self.floor is None:
+            a = self.model.accel_scalar(gam, phi, xd, gd, pd, h, hd, hdd, float(env["g_x"]), float(env["g_z"]),
+                                        float(Q0), float(Q1), float(Q2))
+            return [xd, gd, pd, a[0], a[1], a[2], xd * math.cos(psi), xd * math.sin(psi), float(v_ref) - xd, 0.0]
+        fa = float(env["floor_a"])
+        a = self.model.accel_scalar(gam, phi, xd, gd, pd, h, hd, hdd, float(env["g_x"]), float(env["g_z"]), fa,
+                                    float(env["floor_a1"]), float(Q0), float(Q1), float(Q2))
+        vh = xd * math.cos(fa)
+        return [xd, gd, pd, a[0], a[1], a[2], vh * math.cos(psi), vh * math.sin(psi), float(v_ref) - xd,
+                xd * math.sin(fa)]
 
     def sample(self, t: np.ndarray, Y: np.ndarray) -> dict:
         """All truth signals at sample times t (n,) for states Y (8, n), vectorized."""
@@ -319,7 +341,11 @@ class _RunDynamics:
         dQ, parts = self.effect_forces(Y, h, hd, vel, jac)
         R = self.p.R
         Q = np.stack([M_d / R + dQ[0], M_h - M_d + dQ[1], -M_h + dQ[2]], -1)
-        qdd = self.model.accelerations(gam, phi, xd, gd, pd, h, hd, hdd, env["g_x"], env["g_z"], Q)
+        if self.floor is None:
+            qdd = self.model.accelerations(gam, phi, xd, gd, pd, h, hd, hdd, env["g_x"], env["g_z"], Q)
+        else:
+            qdd = self.model.accelerations(gam, phi, xd, gd, pd, h, hd, hdd, env["g_x"], env["g_z"], env["floor_a"],
+                                           env["floor_a1"], Q)
         return {"env": env, "M_d": M_d, "M_h": M_h, "v_ref": v_ref, "h": h, "h_dot": hd, "h_ddot": hdd,
                 "dQ": np.stack(dQ, -1), "parts": parts, "q_ddot": qdd}
 
@@ -330,7 +356,7 @@ class _RunDynamics:
         psi, theta = env["psi"], env["theta"]
         h = self.h_profile(t)[0]
         n = np.size(t)
-        C = np.stack([Y[6] - xy_offset[0], Y[7] - xy_offset[1], self.p.R * np.cos(theta)], -1).reshape(n, 3)
+        C = np.stack([Y[6] - xy_offset[0], Y[7] - xy_offset[1], Y[9] + self.p.R * np.cos(theta)], -1).reshape(n, 3)
         R_E = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, gam)).reshape(n, 3, 3)
         R_L = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, phi)).reshape(n, 3, 3)
         p = np.asarray(session.euc.pivot_to_wheel_center, float)
@@ -344,14 +370,18 @@ def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
     """State at t0 with zero accelerations at the reference speed (unknowns gamma, phi, z)."""
     v0 = float(dyn.plan.speed.reference(t0, dyn.plan.path.kappa(0.0), dyn.plan.path.dkappa(0.0), 0.0)[0])
     guess = np.array([-dyn.euc.k_v * v0 / dyn.euc.k_p, 0.0, 0.0])
+    X0 = Z0 = 0.0
+    if dyn.floor is not None:     # runs start at -run_start_m heading +X, at +run_start_m heading -X
+        X0 = -dyn.floor.run_start_m * math.copysign(1.0, math.cos(dyn.plan.path.psi0))
+        Z0 = float(dyn.floor.evaluate(X0)[0])
 
     def acc(u):
-        y = [0.0, u[0], u[1], v0, 0.0, 0.0, 0.0, 0.0, u[2]]
+        y = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
         return dyn.rhs(t0, y)[3:6]
 
     sol, _, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
     u = sol if ok == 1 and np.all(np.abs(sol[:2]) < 0.5) else guess
-    return np.array([0.0, u[0], u[1], v0, 0.0, 0.0, 0.0, 0.0, u[2]])
+    return np.array([0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0])
 
 
 def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
@@ -359,12 +389,13 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     """Simulate one planned run (see :func:`simulate_ride`)."""
     session = config.nominal_session()
     effects = config.effects
-    model = PlanarModel(params)
+    model = PlanarModel(params) if config.floor is None else FloorModel(params)
     m_eq = params.total_mass + params.Jw / params.R ** 2
     k_p, k_d, k_speed, k_int = config.rider_gains
     rider = RiderLeanController.for_rider(params.m, config.h, params.g, params.R, m_eq,
                                           k_p=k_p, k_d=k_d, k_speed=k_speed, k_int=k_int)
     dyn = _RunDynamics(plan, model, effects, config.h, config.euc_controller, rider)
+    dyn.floor = config.floor
     rate = session.rate_hz
     n = int(round(plan.duration_s * rate))
     frame = np.arange(n, dtype=np.int64)
@@ -384,7 +415,7 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     env = s["env"]
     # centre the recorded C track in the capture volume
     xy = Y[6:8]
-    xy_offset = 0.5 * (xy.min(axis=1) + xy.max(axis=1))
+    xy_offset = 0.5 * (xy.min(axis=1) + xy.max(axis=1)) if config.floor is None else np.zeros(2)
     w = dyn.world(t, Y, xy_offset, session)
     # rider at t - dt for the mocap_time_offset effect (measurement only)
     w_rider = w if dt_off == 0 else dyn.world(t - dt_off, sol.sol(t - dt_off), xy_offset, session)
@@ -400,6 +431,7 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     q = Y[:3].T.copy()
     qd = Y[3:6].T.copy()
     signals = {"a_c": env["a_c"], "g_x": env["g_x"], "g_z": env["g_z"], "v_ref": s["v_ref"],
+               "floor_slope": np.broadcast_to(env["floor_a"], t.shape).astype(float),
                "dQ_x": s["dQ"][:, 0], "dQ_gamma": s["dQ"][:, 1], "dQ_phi": s["dQ"][:, 2],
                **{k: np.broadcast_to(v, t.shape).astype(float) for k, v in s["parts"].items()}}
     return RunResult(

@@ -292,6 +292,137 @@ class PlanarModel:
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
 
 
+@lru_cache(maxsize=1)
+def _derive_floor() -> _Compiled:
+    """Lagrange's equations on a floor of varying slope, gravity along the mocap's vertical (level lab).
+
+    A second geometry, written independently of :func:`_derive` and of the estimator: the wheel centre
+    moves along a curve of the vertical plane of travel with tangent angle ``a(s)`` (positive uphill)
+    at arc length ``s``: ``C_dot = s_dot (cos a, sin a)``; the EUC body and rider angles gamma, phi are
+    measured from the vertical (gravity), as a level-calibrated mocap measures them::
+
+        A  = C + l0 (-sin gamma, -cos gamma),  G0 = C + h0 (sin gamma, cos gamma),
+        G  = A + h(t) (sin phi, cos phi)
+
+    The wheel spins at ``s_dot / R`` (rolling on the floor; the floor's curvature changes the spin by
+    ``R da/ds`` relative, below 1e-3 for any floor a person rides). ``a`` depends on ``s``:
+    ``dT/ds = dT/da a1`` with ``a1 = da/ds``, and ``d/dt a = a1 s_dot``. Gravity ``(g_x, g_z)`` is a
+    uniform field (nominally ``(0, -g)``): its force on s is ``m_tot (g_x cos a + g_z sin a)``.
+    The equations are ``M(q, a) q_ddot + b(q, q_dot, h..., g, a, a1) = Q_nc`` with the same inputs as
+    :func:`_derive` (``M_d/R`` on s, ``M_h - M_d`` on gamma, ``-M_h`` on phi).
+    """
+    import sympy as sp
+
+    t = sp.Symbol("t")
+    m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
+    gx, gz = sp.symbols("g_x g_z")
+    sf, gf, pf, hf, af = (sp.Function(n)(t) for n in ("s", "gamma", "phi", "h", "a"))
+    vC = sf.diff(t) * sp.Matrix([sp.cos(af), sp.sin(af)])
+    rho_A = l0 * sp.Matrix([-sp.sin(gf), -sp.cos(gf)])
+    rho_0 = h0 * sp.Matrix([sp.sin(gf), sp.cos(gf)])
+    rho_G = rho_A + hf * sp.Matrix([sp.sin(pf), sp.cos(pf)])
+    g_vec = sp.Matrix([gx, gz])
+
+    def ke(v, mass):
+        return sp.Rational(1, 2) * mass * (v.T * v)[0]
+
+    T = (ke(vC, mw) + sp.Rational(1, 2) * Jw * (sf.diff(t) / R) ** 2
+         + ke(vC + rho_0.diff(t), m0) + sp.Rational(1, 2) * J0 * gf.diff(t) ** 2
+         + ke(vC + rho_G.diff(t), m) + sp.Rational(1, 2) * J * pf.diff(t) ** 2)
+    V_rel = -(m0 * (g_vec.T * rho_0)[0] + m * (g_vec.T * rho_G)[0])
+    L = T - V_rel
+    a, a1 = sp.symbols("a a1")
+    x, gam, phi, xd, gd, pd, xdd, gdd, pdd = sp.symbols("x gamma phi x_d gamma_d phi_d x_dd gamma_dd phi_dd")
+    h, hd, hdd = sp.symbols("h h_d h_dd")
+    eom = [sp.diff(sp.diff(L, sf.diff(t)), t) - sp.diff(L, af) * a1
+           - (m + m0 + mw) * (gx * sp.cos(af) + gz * sp.sin(af))]
+    eom += [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in (gf, pf)]
+    subs = {}
+    for f, s0, s1, s2 in ((sf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)):
+        subs[f.diff(t, 2)] = s2
+        subs[f.diff(t)] = s1
+        subs[f] = s0
+
+    def plain(e):
+        e = e.subs(af.diff(t), a1 * sf.diff(t))
+        for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
+            e = e.subs(k, subs[k])
+        return sp.expand(e.subs(af, a))
+
+    eom_s = [plain(e) for e in eom]
+    qdd = [xdd, gdd, pdd]
+    M = sp.Matrix(3, 3, lambda i, j: sp.diff(eom_s[i], qdd[j]))
+    b = sp.Matrix([sp.expand(eom_s[i] - sum(M[i, j] * qdd[j] for j in range(3))) for i in range(3)])
+    pars = (m, m0, mw, Jw, J0, J, R, l0, h0)
+    mass_args = (gam, phi, h, a) + pars
+    bias_args = (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1) + pars
+    m_entries = [M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2]]
+
+    def lam(args, expr, module):
+        return sp.lambdify(args, expr, modules=module, cse=True)
+
+    base = _derive()
+    return _Compiled(
+        mass_s=lam(mass_args, m_entries, "math"), bias_s=lam(bias_args, list(b), "math"),
+        jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
+        mass_v=lam(mass_args, m_entries, "numpy"), bias_v=lam(bias_args, list(b), "numpy"),
+        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b,
+        syms={"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
+              "g": (gx, gz), "floor": (a, a1), "params": pars},
+    )
+
+
+class FloorModel:
+    """The planar truth model on a floor of slope ``a(s)`` in a level lab (:func:`_derive_floor`).
+
+    Same call pattern as :class:`PlanarModel` with the floor's slope ``a`` [rad] and its rate along the
+    path ``a1 = da/ds`` [rad/m] as extra arguments.
+    """
+
+    def __init__(self, params: PlanarParams) -> None:
+        self.params = params
+        self._p = params.as_tuple()
+        self._c = _derive_floor()
+        self._plain = PlanarModel(params)
+
+    def accel_scalar(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, Q0, Q1, Q2):
+        """``(s_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc."""
+        p = self._p
+        m_ = self._c.mass_s(gam, phi, h, a, *p)
+        b = self._c.bias_s(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, *p)
+        return solve3(m_[0], m_[1], m_[2], m_[3], m_[4], m_[5], Q0 - b[0], Q1 - b[1], Q2 - b[2])
+
+    def mass_matrix(self, gam, phi, h, a) -> np.ndarray:
+        """M(q, a) (..., 3, 3)."""
+        gam, phi, h, a = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, h, a)))
+        e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.mass_v(gam, phi, h, a, *self._p)]
+        return np.stack([np.stack([e[0], e[1], e[2]], -1), np.stack([e[1], e[3], e[4]], -1),
+                         np.stack([e[2], e[4], e[5]], -1)], -2)
+
+    def bias(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1) -> np.ndarray:
+        """b (..., 3): velocity, rheonomic and floor-curvature terms minus gravity."""
+        args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a,
+                                                                     a1)))
+        e = self._c.bias_v(*args, *self._p)
+        return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
+
+    def accelerations(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, Q) -> np.ndarray:
+        """Generalized accelerations (..., 3) for generalized forces Q (..., 3)."""
+        M = self.mass_matrix(gam, phi, h, a)
+        rhs = np.asarray(Q, float) - self.bias(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1)
+        return np.linalg.solve(M, rhs[..., None])[..., 0]
+
+    def g_point_scalar(self, *args):
+        """Rider CoG Jacobian and velocity relative to C's plane of travel (as :class:`PlanarModel`)."""
+        return self._plain.g_point_scalar(*args)
+
+    def rider_cog_jacobian(self, *args):
+        return self._plain.rider_cog_jacobian(*args)
+
+    def rider_cog_velocity(self, *args):
+        return self._plain.rider_cog_velocity(*args)
+
+
 def input_directions(R: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Generalized-force directions of the internal torques: ``b_d = (1/R, -1, 0)``, ``b_h = (0, 1, -1)``.
 
@@ -307,5 +438,5 @@ def wheel_rate(x_dot, R):
     return x_dot / R
 
 
-__all__ = ["COORDINATES", "G_M_PER_S2", "PlanarModel", "PlanarParams", "input_directions", "solve3",
+__all__ = ["COORDINATES", "FloorModel", "G_M_PER_S2", "PlanarModel", "PlanarParams", "input_directions", "solve3",
            "symbolic_model", "wheel_rate"]
