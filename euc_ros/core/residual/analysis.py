@@ -48,6 +48,16 @@ AMBIGUITY_ALPHA = 0.05
 RADIUS_TOL_M = 0.005
 #: h bounds of the joint fits [m].
 H_BOUNDS = (0.05, 1.6)
+#: Plausible rider CoG heights above the ankle hinge [m] (adult riders standing on pedals: the paper's
+#: 0.61 m, +-0.3 m for build, posture and session geometry); a model whose h leaves it is not selected.
+H_PLAUSIBLE = (0.3, 1.2)
+#: A model may move h from the base model's by at most this much [m] without a geometric reason (a rider
+#: inertia or mass error moves it by up to ~0.2 m; a model moving it further is fitting something else).
+H_MAX_SHIFT_M = 0.25
+#: The residual is above its noise floor when its held-out RMSE exceeds this many noise floors.
+NOISE_FLOOR_FACTOR = 1.5
+#: A parameter closer than this fraction of its range to a bound is "on the bound".
+AT_BOUND_FRACTION = 1e-3
 
 
 # --------------------------------------------------------------------------------------------
@@ -60,6 +70,7 @@ class Recording:
     name: str
     ctx: ModelContext
     block: np.ndarray  # block index of each sample (for the paired test and single-run folds)
+    index: np.ndarray | None = None  # sample index in the recording of each valid sample
 
 
 def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: int, valid: np.ndarray
@@ -116,7 +127,12 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
             ctx.extras["c_zdd"] = np.nan_to_num(czz[valid])
         dt = st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t)))
         block = np.floor((st.t[valid] - st.t[0]) / max(block_s, dt)).astype(int)
-        out.append(Recording(st.name, ctx, block))
+        xd = np.nan_to_num(st.x_dot)
+        s_path = np.concatenate([[0.0], np.cumsum(0.5 * (xd[1:] + xd[:-1]) * np.diff(st.t))])
+        ctx.extras["path_s"] = s_path[valid]
+        ctx.extras["lab_x"] = np.nan_to_num(st.C[valid, 0])
+        ctx.extras["lab_y"] = np.nan_to_num(st.C[valid, 1])
+        out.append(Recording(st.name, ctx, block, np.flatnonzero(valid)))
     return out
 
 
@@ -147,8 +163,10 @@ class Model:
             k += c.n_params
         return float(x[0]), out
 
-    def residual(self, rec: Recording, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``."""
+    def residual(self, rec: Recording, x: np.ndarray, extra_dQ: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``
+        (``extra_dQ``: a further generalized force, for the discovery's sensitivities)."""
         h, thetas = self.split(x)
         ctx = rec.ctx.copy()
         ctx.overrides["h"] = h
@@ -163,6 +181,8 @@ class Model:
             dQ = c.force(ctx, th)
             if dQ is not None:
                 ctx.add_force(dQ)
+        if extra_dQ is not None:
+            ctx.add_force(extra_dQ)
         m1, m2 = self.torques(ctx)
         # M_d1 - M_d2 = R m11 (x_ddot - x_ddot*): compare models on the acceleration mismatch scaled by the
         # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
@@ -433,6 +453,28 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
     return HeldOut(model, np.concatenate(res), np.concatenate(blocks), params)
 
 
+def admissibility(model: Model, x: np.ndarray, h_base: float) -> str | None:
+    """Why a fitted model cannot be selected (None when it can): a parameter on its physical bound
+    explains nothing, an h outside :data:`H_PLAUSIBLE` or moved more than :data:`H_MAX_SHIFT_M` from the
+    base model's is not a rider."""
+    lo, hi = model.bounds()
+    span = hi - lo
+    k = 1
+    for c in model.effects:
+        for q in c.params:
+            v = float(x[k])
+            if q.reported and (v - q.low <= AT_BOUND_FRACTION * span[k] or q.high - v <= AT_BOUND_FRACTION * span[k]):
+                # a lower bound of 0 reached means "no effect", an upper bound "more than physical"
+                return f"{c.name}: {q.name} = {v:.4g} {q.unit} on its physical bound [{q.low:g}, {q.high:g}]"
+            k += 1
+    h = float(x[0])
+    if not H_PLAUSIBLE[0] <= h <= H_PLAUSIBLE[1]:
+        return f"h = {h:.3f} m outside the plausible range [{H_PLAUSIBLE[0]}, {H_PLAUSIBLE[1]}] m"
+    if abs(h - h_base) > H_MAX_SHIFT_M:
+        return f"moves h from {h_base:.3f} to {h:.3f} m (more than {H_MAX_SHIFT_M} m without a geometric reason)"
+    return None
+
+
 def _implausibility(candidate: Candidate, theta) -> float:
     """Size of a candidate's reported-scale parameters in units of their typical magnitude."""
     th = np.asarray(theta, float)
@@ -472,12 +514,16 @@ class CandidateResult:
     p_value: float
     parameters: dict
     h_m: float
+    inadmissible: str | None = None
 
     def to_dict(self) -> dict:
         """JSON row."""
-        return {"effect": self.effect, "rmse_after_nm": self.rmse_after_nm, "p_value": self.p_value,
-                "detectable": self.detectable, "visibility": self.visibility, "effect_parameters": self.parameters,
-                "h_m": self.h_m}
+        d = {"effect": self.effect, "rmse_after_nm": self.rmse_after_nm, "p_value": self.p_value,
+             "detectable": self.detectable, "visibility": self.visibility, "effect_parameters": self.parameters,
+             "h_m": self.h_m}
+        if self.inadmissible:
+            d["inadmissible"] = self.inadmissible
+        return d
 
 
 @dataclass
@@ -503,6 +549,14 @@ class ResidualResult:
     final_heldout: HeldOut
     final_model: Model
     geometry: dict = field(default_factory=dict)
+    warnings: list = field(default_factory=list)
+    h_range: tuple = (float("nan"), float("nan"))
+    tied: list = field(default_factory=list)
+    residual_significant: bool = False
+    unexplained: bool = False
+    discovered: list = field(default_factory=list)
+    discovery: dict = field(default_factory=dict)
+    noise_floor_nm: float = float("nan")
 
     def to_json(self) -> dict:
         """JSON per recording-format spec section 5 (plus the analysis settings and steps)."""
@@ -520,12 +574,18 @@ class ResidualResult:
                 "significance_level": self.alpha, "min_relative_gain": self.min_gain,
                 "held_out": {"folds": self.folds, "kind": self.fold_kind},
                 "geometry": self.geometry,
-                "undetectable": [c.effect for c in self.candidates if not c.detectable]}
+                "undetectable": [c.effect for c in self.candidates if not c.detectable],
+                "h_range_m": [float(self.h_range[0]), float(self.h_range[1])], "tied_models": self.tied,
+                "residual_significant": bool(self.residual_significant), "unexplained": bool(self.unexplained),
+                "discovered": self.discovered, "discovery": self.discovery,
+                "noise_floor_nm": None if not math.isfinite(self.noise_floor_nm) else self.noise_floor_nm,
+                "analysis_warnings": list(self.warnings)}
 
 
 def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Sequence[Candidate] | None = None,
             alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
-            n_folds: int = 3, use_geometry: bool = True,
+            n_folds: int = 3, use_geometry: bool = True, discover: bool = True,
+            noise_floor_of: Callable[[Model, np.ndarray], float] | None = None,
             progress: Callable[[str], None] | None = None) -> ResidualResult:
     """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (greedy forward selection).
 
@@ -542,8 +602,14 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     min_gain : float
         Minimum relative cut of the held-out RMSE for a selection.
     use_geometry : bool
-        Compare the measured rolling radius (wheel-centre height over the floor) with the nominal one
-        (needs a recording whose world z is height over the floor, as Motive calibrates it).
+        Measure the floor from the wheel's contact path: a floor tilted or uneven in the mocap frame goes
+        into the model as geometry; a flat one may measure the rolling radius.
+    discover : bool
+        After the named effects, look for structure left in the residual (:mod:`.discovery`).
+    noise_floor_of : callable, optional
+        ``(model, x) -> RMS [N m]``: the residual's noise floor for a fitted model (the recordings' pose
+        noise propagated, :func:`euc_ros.core.residual.noise.noise_floor`); without it the significance
+        of the residual rests on the held-out test of the discovery step alone.
     """
     say = progress or (lambda _m: None)
     candidates = list(candidates) if candidates is not None else make_candidates()
@@ -567,6 +633,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     current_x = base_fit.x
     rows: dict[str, CandidateResult] = {}
     steps = []
+    warnings: list[str] = []
     remaining = list(detectable)
     if floor is not None and not floor.flat:
         # a floor tilted or uneven in the mocap frame (level-calibrated lab): known from geometry, in the
@@ -593,15 +660,23 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             full = fit_model(model, recs, h0, fixed=current_x)
             ho = held_out(model, recs, h0, folds, start=full.x)
             p = paired_block_test(current_ho, ho)
-            trials.append((c, model, ho, p, full))
-            say(f"  + {c.name}: held-out RMSE {ho.rmse:.3f} N m (p = {p:.2g})")
+            why = admissibility(model, full.x, base_fit.h)
+            trials.append((c, model, ho, p, full, why))
+            say(f"  + {c.name}: held-out RMSE {ho.rmse:.3f} N m (p = {p:.2g})" + (f"; not admissible: {why}" if why
+                                                                                else ""))
             if c.name not in rows:
                 rows[c.name] = CandidateResult(c.name, True, visible[c.name], ho.rmse, p,
-                                               model.report(full.x), full.h)
+                                               model.report(full.x), full.h, why)
         threshold = alpha / max(len(remaining), 1)
-        ok = [t for t in trials if t[3] < threshold and t[2].rmse <= (1 - min_gain) * current_ho.rmse]
+        passing = [t for t in trials if t[3] < threshold and t[2].rmse <= (1 - min_gain) * current_ho.rmse]
+        ok = [t for t in passing if t[5] is None]
+        for t in passing:
+            if t[5] is not None:
+                warnings.append(f"{t[0].name} would cut the held-out RMSE {current_ho.rmse:.3f} -> {t[2].rmse:.3f} "
+                                f"N m but is not admissible: {t[5]}")
         step = {"model": current.name, "rmse_nm": current_ho.rmse, "threshold_p": threshold,
-                "tried": [{"effect": t[0].name, "rmse_after_nm": t[2].rmse, "p_value": t[3]} for t in trials]}
+                "tried": [{"effect": t[0].name, "rmse_after_nm": t[2].rmse, "p_value": t[3], "h_m": t[4].h,
+                           **({"inadmissible": t[5]} if t[5] else {})} for t in trials]}
         if not ok:
             step["selected"] = None
             steps.append(step)
@@ -615,6 +690,8 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         step["selected"] = best[0].name
         ambiguous = [t[0].name for t in tied if t is not best]
         step["ambiguous_with"] = ambiguous
+        step["tied"] = [{"effect": t[0].name, "h_m": t[4].h, "rmse_after_nm": t[2].rmse,
+                         "effect_parameters": t[1].report(t[4].x)} for t in tied]
         steps.append(step)
         say(f"selected {best[0].name}: held-out RMSE {current_ho.rmse:.3f} -> {best[2].rmse:.3f} N m")
         current, current_ho, current_x = best[1], best[2], best[4].x
@@ -644,11 +721,133 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
                       "evidence": "geometry: wheel-centre height over the floor", "rmse_after_nm": geo_ho.rmse})
         geometry["used"] = True
         current, current_ho, current_x = geo_model, geo_ho, geo_fit.x
+    # what is left: structure above the noise floor? (discovery: held-out, consistent across runs)
+    named_model, named_ho, named_x = current, current_ho, current_x
+    disc_info: dict = {"run": False}
+    discovered_rows: list[dict] = []
+    p_disc = 1.0
+    if discover:
+        say("discovery: sparse basis forces on what the named effects leave")
+        disc = discover_terms(current, current_x, recs, folds, h0, current_ho)
+        disc_info = disc.pop("info")
+        if disc.get("model") is not None:
+            p_disc = paired_block_test(current_ho, disc["heldout"])
+            gain_ok = disc["heldout"].rmse <= (1 - min_gain) * current_ho.rmse
+            why = admissibility(disc["model"], disc["x"], base_fit.h)
+            disc_info.update({"p_value": p_disc, "rmse_after_nm": disc["heldout"].rmse, "threshold_p": alpha,
+                              "inadmissible": why})
+            say(f"discovery: {disc['model'].effects[-1].describe(disc['x'][-disc['model'].effects[-1].n_params:])[0]['formula']}"
+                f"{' ...' if disc['model'].effects[-1].n_params > 1 else ''}: held-out RMSE {current_ho.rmse:.3f} -> "
+                f"{disc['heldout'].rmse:.3f} N m (p = {p_disc:.2g})")
+            if p_disc < alpha and gain_ok and why is None:
+                d_eff = disc["model"].effects[-1]
+                discovered_rows = d_eff.describe(disc["x"][-d_eff.n_params:])
+                for row in discovered_rows:
+                    row["rmse_after_nm"] = disc["heldout"].rmse
+                steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": "discovered",
+                              "p_value": p_disc, "rmse_after_nm": disc["heldout"].rmse,
+                              "terms": [r["formula"] for r in discovered_rows]})
+                current, current_ho, current_x = disc["model"], disc["heldout"], disc["x"]
+            elif why is not None and p_disc < alpha:
+                warnings.append(f"discovered terms would cut the held-out RMSE but are not admissible: {why}")
+    noise = float("nan")
+    if noise_floor_of is not None:
+        try:
+            noise = float(noise_floor_of(named_model, named_x))
+        except Exception as exc:  # noqa: BLE001 - a floor we cannot measure is reported, not fatal
+            warnings.append(f"noise floor not measured: {exc}")
+    above_noise = math.isfinite(noise) and named_ho.rmse > NOISE_FLOOR_FACTOR * noise
+    residual_significant = bool(p_disc < alpha or above_noise)
+    still_above = math.isfinite(noise) and current_ho.rmse > NOISE_FLOOR_FACTOR * noise
+    unexplained = bool(residual_significant and (not discovered_rows or still_above))
     final_fit = fit_model(current, recs, h0, fixed=current_x) if current.effects else base_fit
+    # h of every model the data cannot tell apart from the selected one
+    tied = [t for s_ in steps for t in s_.get("tied", []) if s_.get("selected")]
+    hs = [final_fit.h] + [t["h_m"] for t in tied]
+    h_range = (float(min(hs)), float(max(hs)))
+    if h_range[1] - h_range[0] > 0.01:
+        warnings.append(f"tied models imply h from {h_range[0]:.3f} to {h_range[1]:.3f} m: h is not determined "
+                        f"better than that by these recordings")
+    effect = current.name
+    if discovered_rows:
+        effect = "+".join([c.name for c in current.effects if c.name != "discovered"] + ["discovered"])
+    if unexplained and not discovered_rows:
+        effect = "+".join([c.name for c in current.effects] + ["unexplained"])
     return ResidualResult(
         h_base=base_fit.h, rmse_train_base=base_fit.rmse, rmse_before=base_ho.rmse, rmse_after=current_ho.rmse,
-        effect=current.name, effect_parameters=current.report(final_fit.x), h_after=final_fit.h,
+        effect=effect, effect_parameters=current.report(final_fit.x), h_after=final_fit.h,
         final_x=final_fit.x, selected=[c.name for c in current.effects], candidates=list(rows.values()),
         steps=steps, alpha=alpha, min_gain=min_gain, folds=len(folds),
         fold_kind="leave-runs-out" if len(recs) >= 2 else "segments of one run",
-        base_heldout=base_ho, final_heldout=current_ho, final_model=current, geometry=geometry)
+        base_heldout=base_ho, final_heldout=current_ho, final_model=current, geometry=geometry, warnings=warnings,
+        h_range=h_range, tied=tied, residual_significant=residual_significant, unexplained=unexplained,
+        discovered=discovered_rows, discovery=disc_info, noise_floor_nm=noise)
+
+
+def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recording], folds, h0: float,
+                   current_ho: HeldOut) -> dict:
+    """The discovery step (:mod:`euc_ros.core.residual.discovery`): terms by forward selection within each
+    fold's training data, their number by held-out error, then the chosen terms fitted jointly with h.
+
+    Returns ``{"model", "x", "heldout", "info"}`` (model None when no number of terms beats none).
+    """
+    from euc_ros.core.residual.discovery import DiscoveredEffect, forward_select, sensitivities
+
+    def res(rec, x, dQ):
+        r, m = current.residual(rec, x, dQ)
+        return np.where(m, r, 0.0)
+
+    per_k: dict[int, list[np.ndarray]] = {}
+    for (train, test), x_fold in zip(folds, current_ho.params):
+        r0, B, terms = sensitivities(res, train, x_fold)
+        sets = forward_select(r0, B)
+        r0t, Bt, _ = sensitivities(res, test, x_fold)
+        per_k.setdefault(0, []).append(r0t)
+        for k, cols in enumerate(sets, start=1):
+            c, *_ = np.linalg.lstsq(B[:, cols], -r0, rcond=None)
+            per_k.setdefault(k, []).append(r0t + Bt[:, cols] @ c)
+    complete = {k: np.concatenate(v) for k, v in per_k.items() if len(v) == len(folds)}
+    rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
+    info = {"run": True, "heldout_rmse_by_terms": [rmse[k] for k in sorted(rmse)]}
+    best_k = min(rmse, key=lambda k: (rmse[k], k))
+    # the fewest terms within 2 % of the best held-out error (parsimony)
+    best_k = min(k for k in rmse if rmse[k] <= 1.02 * rmse[best_k])
+    info["terms"] = best_k
+    if best_k == 0:
+        return {"model": None, "x": None, "heldout": None, "info": info}
+    r0, B, terms = sensitivities(res, recs, current_x)
+    cols = forward_select(r0, B, best_k)[-1]
+    c, *_ = np.linalg.lstsq(B[:, cols], -r0, rcond=None)
+    scales = [max(abs(v), 1e-6) for v in c]
+    eff = DiscoveredEffect([terms[j] for j in cols], scales, start=c)
+    model = Model(current.effects + [eff])
+    full = fit_model(model, recs, h0, fixed=current_x)
+    ho = held_out(model, recs, h0, folds, start=full.x)
+    return {"model": model, "x": full.x, "heldout": ho, "info": info}
+
+
+def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
+                     seed: int = 0) -> Callable[[Model, np.ndarray], float]:
+    """``noise_floor_of`` for :func:`analyze`: the recordings' own pose noise propagated through the
+    reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`)."""
+    from euc_ros.core.residual.noise import noise_floor
+
+    floor = floor_from_states(states, params.R)
+    st0 = states[0]
+    window_s = st0.window * st0.dt if st0.window and np.isfinite(st0.dt) else None
+
+    def of(model: Model, x: np.ndarray) -> float:
+        def residual_of(st_list):
+            recs = prepare(st_list, params, floor=floor)
+            out = []
+            for rec, st in zip(recs, st_list):
+                r, m = model.residual(rec, x)
+                full, mask = np.zeros(len(st.t)), np.zeros(len(st.t), bool)
+                full[rec.index], mask[rec.index] = r, m
+                out.append((full, mask))
+            return out
+
+        return noise_floor(series_list, states, session, residual_of, seed=seed, window_s=window_s,
+                           polyorder=st0.polyorder)
+
+    return of

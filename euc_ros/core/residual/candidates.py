@@ -53,6 +53,10 @@ ROLLING_SIGN_SPEED = 0.05
 class ParamInfo:
     """One fitted parameter: reported name, unit, bounds, start value and typical magnitude.
 
+    ``low``/``high`` are the physical range: resistances, drag areas and the tilt coupling are not
+    negative (a negative drag area is a force that pushes the rider, not drag), a mass or an inertia
+    stays positive. A fit that ends on a bound explains nothing (the analysis does not select it).
+
     ``scale`` is the parameter's typical magnitude in practice: it scales the least-squares problem and
     is the prior scale of the tie-break between candidates the data cannot tell apart (a Motive system
     stamps all rigid bodies of a frame together, so a rider/EUC time offset is typically ~0; a tyre's
@@ -148,7 +152,7 @@ class RollingResistance(Candidate):
     """Coulomb-like rolling resistance at the contact: dQ = [-c_rr N tanh(x_dot / v0), 0, 0]."""
 
     name = "rolling_resistance"
-    params = (ParamInfo("c_rr", "-", -0.2, 0.2, 0.0, 0.01),)
+    params = (ParamInfo("c_rr", "-", 0.0, 0.1, 0.0, 0.01),)
     formula = "dQ = [-c_rr (m+m0+mw) g tanh(x_dot/0.05), 0, 0]"
 
     def force(self, ctx, theta):
@@ -161,7 +165,7 @@ class ViscousFriction(Candidate):
     """Viscous friction at the contact: dQ = [-c_v x_dot, 0, 0]."""
 
     name = "viscous_friction"
-    params = (ParamInfo("c_v", "N s/m", -200.0, 200.0, 0.0, 10.0),)
+    params = (ParamInfo("c_v", "N s/m", 0.0, 200.0, 0.0, 10.0),)
     formula = "dQ = [-c_v x_dot, 0, 0]"
 
     def force(self, ctx, theta):
@@ -172,7 +176,7 @@ class AeroDrag(Candidate):
     """Aerodynamic drag on the rider at G: dQ = J_G^T F with F = -rho/2 cda |v_G| v_G."""
 
     name = "aero_drag"
-    params = (ParamInfo("cda_m2", "m^2", -10.0, 10.0, 0.0, 0.5),)
+    params = (ParamInfo("cda_m2", "m^2", 0.0, 3.0, 0.0, 0.5),)
     formula = "dQ = J_G^T F, F = -0.5 rho cda |v_G| v_G"
 
     def force(self, ctx, theta):
@@ -210,7 +214,7 @@ class WheelRadiusError(Candidate):
     """Rolling radius different from nominal: R -> R + delta."""
 
     name = "wheel_radius_error"
-    params = (ParamInfo("delta_r_m", "m", -0.1, 0.1, 0.0, 0.01),)
+    params = (ParamInfo("delta_r_m", "m", -0.08, 0.08, 0.0, 0.01),)
     formula = "R -> R + delta_r"
 
     def modify(self, ctx, theta):
@@ -243,7 +247,7 @@ class TiltGravity(Candidate):
     """Tilt-gravity coupling in turns: the in-plane gravity of a tilted, turning rider."""
 
     name = "tilt_gravity"
-    params = (ParamInfo("gain", "-", -20.0, 20.0, 0.0, 1.0),)
+    params = (ParamInfo("gain", "-", 0.0, 10.0, 0.0, 1.0),)
     formula = "g -> g + gain (g cos(theta) - a_c sin(theta) - g), a_c = psi_dot x_dot"
 
     def modify(self, ctx, theta):
@@ -317,7 +321,7 @@ class WheelBodyFriction(Candidate):
     """Friction torque between wheel and body; acts along the M_d direction (undetectable)."""
 
     name = "wheel_body_friction"
-    params = (ParamInfo("c_wb", "N m s/rad", -10.0, 10.0, 0.0, 0.5),)
+    params = (ParamInfo("c_wb", "N m s/rad", 0.0, 10.0, 0.0, 0.5),)
     formula = "dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]"
 
     def force(self, ctx, theta):

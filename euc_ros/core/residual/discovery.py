@@ -1,0 +1,150 @@
+"""Discovery: a sparse combination of physically typed basis forces for what no named effect explains.
+
+After the named effects, the residual may still carry structure. The basis is built from measured
+signals and applied at physical points, each column a generalized force derived by virtual power:
+
+* points and directions: **x at the contact** (``dQ = [F, 0, 0]``), **x at the rider CoG** and **z at
+  the rider CoG** (``dQ = J_G^T F``, J_G of the Appendix-A geometry);
+* functions (with units): ``1``, ``x_dot``, ``x_dot |x_dot|``, ``tanh(x_dot / 0.05)`` (a sign),
+  ``x_ddot``, ``sin(s/R)``, ``cos(s/R)`` (the wheel's rotation, s the path length), ``psi_dot x_dot``
+  (lateral acceleration in turns), ``X``, ``Y`` (lab position), ``t``, ``phi``, ``phi_dot``, ``gamma``.
+
+Forces along the input directions (hinge torque, motor torque) cannot show in the residual and are not
+in the basis. The terms are chosen by greedy forward selection (orthogonal matching pursuit on the
+residual's sensitivity to each column), the number of terms by held-out error over the analysis'
+folds; the chosen terms are then fitted jointly with h (:class:`DiscoveredEffect`) like any candidate.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from euc_ros.core.residual.candidates import Candidate, ParamInfo, jacobian_G
+
+#: Most terms a discovered model may have.
+MAX_TERMS = 4
+#: Speed scale of the sign function [m/s].
+SIGN_SPEED = 0.05
+
+#: (name, unit) of the functions, in basis order.
+FUNCTIONS = (("1", "1"), ("x_dot", "m/s"), ("x_dot|x_dot|", "m^2/s^2"), ("tanh(x_dot/0.05)", "1"),
+             ("x_ddot", "m/s^2"), ("sin(s/R)", "1"), ("cos(s/R)", "1"), ("psi_dot x_dot", "m/s^2"),
+             ("X", "m"), ("Y", "m"), ("t", "s"), ("phi", "rad"), ("phi_dot", "rad/s"), ("gamma", "rad"))
+#: (name, force unit) of the points and directions.
+POINTS = (("x at the contact", "N"), ("x at the rider CoG", "N"), ("z at the rider CoG", "N"))
+
+
+def feature_matrix(ctx) -> np.ndarray:
+    """The functions of :data:`FUNCTIONS` for one context (n, len(FUNCTIONS))."""
+    p = ctx.p()
+    s = ctx.extras.get("path_s")
+    if s is None:
+        s = np.concatenate([[0.0], np.cumsum(0.5 * (ctx.x_dot[1:] + ctx.x_dot[:-1]) * np.diff(ctx.t))])
+    X = ctx.extras.get("lab_x", np.zeros_like(ctx.t))
+    Y = ctx.extras.get("lab_y", np.zeros_like(ctx.t))
+    R = float(np.mean(p.R))
+    v = ctx.x_dot
+    cols = [np.ones_like(v), v, v * np.abs(v), np.tanh(v / SIGN_SPEED), ctx.x_ddot, np.sin(s / R), np.cos(s / R),
+            ctx.psi_dot * v, X, Y, ctx.t, ctx.phi, ctx.phi_dot, ctx.gamma]
+    return np.stack(cols, axis=1)
+
+
+def basis_forces(ctx, columns) -> np.ndarray:
+    """Generalized forces (n, 3) of a combination: ``columns`` = list of (point index, function index, coef)."""
+    F = feature_matrix(ctx)
+    n = ctx.t.shape[0]
+    dQ = np.zeros((n, 3))
+    jx = jz = None
+    for point, func, coef in columns:
+        f = coef * F[:, func]
+        if point == 0:
+            dQ[:, 0] += f
+        else:
+            if jx is None:
+                jx, jz = jacobian_G(ctx, ctx.p())
+            dQ += (jx if point == 1 else jz) * f[:, None]
+    return dQ
+
+
+@dataclass(frozen=True)
+class Term:
+    """One discovered term: function ``func`` times a coefficient, acting at ``point``."""
+
+    point: int
+    func: int
+
+    @property
+    def label(self) -> str:
+        return f"{FUNCTIONS[self.func][0]} on {POINTS[self.point][0]}"
+
+    def coef_unit(self) -> str:
+        fu = FUNCTIONS[self.func][1]
+        return "N" if fu == "1" else f"N/({fu})"
+
+    def formula(self, coef: float) -> str:
+        f = FUNCTIONS[self.func][0]
+        return f"{coef:+.4g} {'' if f == '1' else f + ' '}N on {POINTS[self.point][0]}".replace("  ", " ")
+
+
+class DiscoveredEffect(Candidate):
+    """A discovered combination of basis terms, fitted like a named candidate (coefficients free)."""
+
+    name = "discovered"
+
+    def __init__(self, terms: list[Term], scales: list[float], start=None):
+        self.terms = list(terms)
+        self._start = np.zeros(len(terms)) if start is None else np.asarray(start, float)
+        self.params = tuple(ParamInfo(f"c{k}_{t.label}", t.coef_unit(), -1e6, 1e6, 0.0, max(sc, 1e-9))
+                            for k, (t, sc) in enumerate(zip(terms, scales)))
+
+    def starts(self):
+        return [self._start.copy()]
+
+    def force(self, ctx, theta):
+        return basis_forces(ctx, [(t.point, t.func, c) for t, c in zip(self.terms, theta)])
+
+    def report(self, theta):
+        return {f"discovered_{k + 1}": float(c) for k, c in enumerate(theta)}
+
+    def describe(self, theta) -> list[dict]:
+        """JSON rows: name, formula with units, point, coordinate, parameter."""
+        out = []
+        for k, (t, c) in enumerate(zip(self.terms, theta)):
+            point, coord = POINTS[t.point][0].split(" at the ")[1], POINTS[t.point][0].split(" at ")[0]
+            out.append({"name": f"discovered_{k + 1}", "formula": t.formula(float(c)), "function": FUNCTIONS[t.func][0],
+                        "function_unit": FUNCTIONS[t.func][1], "point": point, "coordinate": coord,
+                        "coefficient": float(c), "coefficient_unit": t.coef_unit()})
+        return out
+
+
+def sensitivities(model_residual, recs, x) -> tuple[np.ndarray, np.ndarray, list[Term]]:
+    """For every basis column, the change of the stacked residual per unit coefficient (linear), with the
+    current residual: ``(r0 (n,), B (n, k), terms)``. ``model_residual(rec, x, extra_dQ)`` -> residual."""
+    terms = [Term(p, f) for p in range(len(POINTS)) for f in range(len(FUNCTIONS))]
+    r0 = np.concatenate([model_residual(r, x, None) for r in recs])
+    cols = []
+    for t in terms:
+        cols.append(np.concatenate([model_residual(r, x, basis_forces(r.ctx, [(t.point, t.func, 1.0)])) for r in recs])
+                    - r0)
+    return r0, np.stack(cols, axis=1), terms
+
+
+def forward_select(r0: np.ndarray, B: np.ndarray, max_terms: int = MAX_TERMS) -> list[list[int]]:
+    """Orthogonal matching pursuit: the column sets of 1..max_terms terms minimising ||r0 + B c||."""
+    norms = np.linalg.norm(B, axis=0)
+    usable = norms > 1e-12 * (norms.max() if norms.size else 1.0)
+    chosen: list[int] = []
+    out = []
+    resid = r0.copy()
+    for _ in range(max_terms):
+        score = np.where(usable, np.abs(B.T @ resid) / np.where(usable, norms, 1.0), -np.inf)
+        score[chosen] = -np.inf
+        k = int(np.argmax(score))
+        if not np.isfinite(score[k]):
+            break
+        chosen.append(k)
+        c, *_ = np.linalg.lstsq(B[:, chosen], -r0, rcond=None)
+        resid = r0 + B[:, chosen] @ c
+        out.append(list(chosen))
+    return out

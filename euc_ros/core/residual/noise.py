@@ -1,0 +1,89 @@
+"""The residual's noise floor: the pose noise of the recording propagated through the whole chain.
+
+``M_d1 - M_d2`` of a perfect model is not zero: the poses carry noise, the derivative filter turns
+it into noisy accelerations, and the two torque expressions weigh them differently. Its size is
+measured on the data itself, not assumed:
+
+1. the pose noise of every body is estimated from the recording: the fourth difference of a smooth
+   signal sampled at 100+ Hz is negligible, that of white noise has variance ``70 sigma^2``
+   (robust: median absolute deviation), for positions and quaternion components alike;
+2. the recording is reconstructed once more with a second, independent noise of that size added
+   (same filter, same session), and the residual of the same model recomputed;
+3. the RMS of the change is the contribution of one realisation of the recording's own noise: the
+   noise floor of the residual.
+
+Limits: noise that is coloured (slow marker sliding) has little fourth-difference energy, so it is
+under-estimated here and shows as structure instead; the discovery step and the cross-run test
+(:mod:`.discovery`) are what judge that.
+"""
+from __future__ import annotations
+
+import dataclasses
+from typing import Sequence
+
+import numpy as np
+
+#: Variance of the fourth difference of unit white noise: 1 + 16 + 36 + 16 + 1.
+_D4_VAR = 70.0
+
+
+def pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
+    """Per body, the white pose noise ``(position sigma [m], quaternion-component sigma [-])``."""
+    out_p, out_q = [], []
+    for b in range(series.position.shape[0]):
+        ok = np.all(np.isfinite(series.position[b]), axis=1) & np.all(np.isfinite(series.quat[b]), axis=1)
+        if ok.sum() < 20:
+            out_p.append(0.0)
+            out_q.append(0.0)
+            continue
+        # consecutive valid frames only: differences across a gap are not noise
+        d4p = np.diff(np.where(ok[:, None], series.position[b], np.nan), n=4, axis=0)
+        q = series.quat[b].copy()
+        q *= np.sign(np.sum(q * np.roll(q, 1, axis=0), axis=1, keepdims=True) + 1e-300)   # same hemisphere
+        d4q = np.diff(np.where(ok[:, None], q, np.nan), n=4, axis=0)
+        out_p.append(_mad_sigma(d4p))
+        out_q.append(_mad_sigma(d4q))
+    return np.array(out_p), np.array(out_q)
+
+
+def _mad_sigma(d4: np.ndarray) -> float:
+    v = d4[np.all(np.isfinite(d4), axis=1)]
+    if v.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(v - np.median(v, axis=0))) / np.sqrt(_D4_VAR))
+
+
+def renoise(series, rng: np.random.Generator):
+    """The recording with a second, independent realisation of its own white pose noise added."""
+    sp, sq = pose_noise(series)
+    pos = series.position + rng.normal(size=series.position.shape) * sp[:, None, None]
+    quat = series.quat + rng.normal(size=series.quat.shape) * sq[:, None, None]
+    quat /= np.linalg.norm(quat, axis=2, keepdims=True)
+    return dataclasses.replace(series, position=pos, quat=quat)
+
+
+def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *, seed: int = 0,
+                window_s: float | None = None, polyorder: int | None = None) -> float:
+    """RMS [N m] of the residual's change when the recordings' own pose noise is added once more.
+
+    ``residual_of(states_list) -> list of (residual, mask)`` computes the residual of a fixed model
+    (e.g. the selected one) on reconstructed states; ``states`` are the states of ``series_list``.
+    """
+    from euc_ros.core.euc.kinematics import reconstruct_states
+
+    rng = np.random.default_rng(seed)
+    noisy = []
+    for series, st in zip(series_list, states):
+        kw = {}
+        if window_s is not None:
+            kw["window_s"] = window_s
+        if polyorder is not None:
+            kw["polyorder"] = polyorder
+        noisy.append(reconstruct_states(renoise(series, rng), session, phi_definition=st.phi_definition, **kw))
+    diffs = []
+    for (r0, m0), (r1, m1) in zip(residual_of(states), residual_of(noisy)):
+        n = min(len(r0), len(r1))
+        m = m0[:n] & m1[:n]
+        diffs.append((r1[:n] - r0[:n])[m])
+    d = np.concatenate(diffs) if diffs else np.zeros(0)
+    return float(np.sqrt(np.mean(d ** 2))) if d.size else float("nan")
