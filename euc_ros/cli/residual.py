@@ -47,6 +47,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "than identify's default; see README)")
     parser.add_argument("--polyorder", type=int, default=RESIDUAL_POLYORDER,
                         help=f"Savitzky-Golay order ({RESIDUAL_POLYORDER})")
+    parser.add_argument("--no-discovery", action="store_true",
+                        help="skip the discovery step (sparse basis forces for what no named effect explains)")
     parser.add_argument("--no-geometry", action="store_true",
                         help="do not compare the wheel-centre height with the session's wheel radius (for recordings "
                              "whose world z is not height over the floor)")
@@ -63,7 +65,7 @@ def _atomic_write(path: Path, text: str) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
     from euc_ros.core.euc.model import EucParams
-    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.analysis import analyze, make_noise_floor
     from euc_ros.core.residual.candidates import make_candidates
     from euc_ros.cli.identify import format_usage
     from euc_ros.cli.loading import collect_warnings, load_states, print_warnings, usage_table
@@ -83,8 +85,11 @@ def main(args: argparse.Namespace) -> int:
                          progress=not args.no_progress, keep_series=True)
     params = EucParams.from_session(session)
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
+    series = [st.meta.get("series") for st in states]
+    noise_of = make_noise_floor(series, states, session, params) if all(s is not None for s in series) else None
     result = analyze(states, params, candidates=candidates, alpha=args.alpha, min_gain=args.min_gain,
-                     max_effects=args.max_effects, use_geometry=not args.no_geometry, progress=say)
+                     max_effects=args.max_effects, use_geometry=not args.no_geometry,
+                     discover=not args.no_discovery, noise_floor_of=noise_of, progress=say)
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
     from euc_ros.cli.identify import uncertainty
@@ -108,7 +113,7 @@ def main(args: argparse.Namespace) -> int:
     elif data.get("h_ci95_m") and None not in data["h_ci95_m"]:
         print(f"h (base model) 95 % interval [{data['h_ci95_m'][0]:.3f}, {data['h_ci95_m'][1]:.3f}] m")
     print(format_usage(data["per_recording"]))
-    print_warnings(data["warnings"])
+    print_warnings(list(data["warnings"]) + list(data.get("analysis_warnings", [])))
     figures = []
     if args.plots:
         figures = write_plots(result, states, params, Path(args.plots))
@@ -122,13 +127,24 @@ def format_summary(data: dict) -> str:
     lines = [f"h (3-DoF, no effect) = {data['h_m']:.3f} m; held-out RMSE of M_d1 - M_d2: "
              f"{data['rmse_before_nm']:.3f} N m ({data['held_out']['kind']}, {data['held_out']['folds']} folds)"]
     if data["effect"] == "none":
-        lines.append("effect: none (no candidate beats chance at the stated significance)")
+        lines.append("effect: none (the residual is at its noise floor; no candidate beats chance)")
     else:
         params = ", ".join(f"{k} = {v:.4g}" for k, v in data["effect_parameters"].items())
         lines.append(f"effect: {data['effect']} ({params}); h = {data['h_after_m']:.3f} m; held-out RMSE "
                      f"{data['rmse_before_nm']:.3f} -> {data['rmse_after_nm']:.3f} N m")
         if data.get("ambiguous_with"):
             lines.append(f"  not distinguishable on this data from: {', '.join(data['ambiguous_with'])}")
+    lo, hi = data.get("h_range_m") or (None, None)
+    if lo is not None and hi - lo > 0.001:
+        lines.append(f"  h range over the models the data cannot tell apart: [{lo:.3f}, {hi:.3f}] m ("
+                     + ", ".join(f"{t['effect']}: {t['h_m']:.3f}" for t in data.get("tied_models", [])) + ")")
+    for d in data.get("discovered", []):
+        lines.append(f"  discovered: {d['formula']} ({d['coefficient_unit']}); held-out RMSE after "
+                     f"{d['rmse_after_nm']:.3f} N m")
+    nf = data.get("noise_floor_nm")
+    lines.append(f"residual after: {'above' if data.get('residual_significant') else 'at'} its noise floor"
+                 + (f" (pose noise propagated: {nf:.3f} N m)" if nf is not None else "")
+                 + ("; UNEXPLAINED: nothing named or discovered explains it" if data.get("unexplained") else ""))
     geo = data.get("geometry") or {}
     floor = geo.get("floor")
     if floor:
@@ -168,6 +184,28 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
         if data.get("ambiguous_with"):
             out.append(f"The held-out data cannot tell it apart from: {', '.join(data['ambiguous_with'])} "
                        "(the choice among them is the one needing the most typical parameter values).")
+    lo, hi = data.get("h_range_m") or (None, None)
+    if lo is not None and hi - lo > 0.001:
+        out.append(f"h range over the models the data cannot tell apart: **[{lo:.3f}, {hi:.3f}] m** ("
+                   + ", ".join(f"{t['effect']}: {t['h_m']:.3f} m" for t in data.get("tied_models", [])) + ").")
+    out.append(f"Residual after the model: {'above' if data.get('residual_significant') else 'at'} its noise floor"
+               + (f" ({data['noise_floor_nm']:.3f} N m, the recordings' pose noise propagated)"
+                  if data.get("noise_floor_nm") is not None else "")
+               + ("; **unexplained**: nothing named or discovered explains it." if data.get("unexplained") else "."))
+    if data.get("discovered"):
+        out += ["", "### Discovered terms", "", "| term | formula | point | coordinate | coefficient |",
+                "|---|---|---|---|---|"]
+        out += [f"| {d['name']} | {d['formula']} | {d['point']} | {d['coordinate']} | {d['coefficient']:.4g} "
+                f"{d['coefficient_unit']} |" for d in data["discovered"]]
+    floor = (data.get("geometry") or {}).get("floor")
+    if floor:
+        out += ["", "### Floor from the wheel's contact path", "",
+                f"Plane slope {floor['slope_deg']:.2f} deg ({floor['slope_along_travel_deg']:+.2f} deg along travel on "
+                f"average), rises {floor['rise_m'] * 1e3:.1f} mm over {floor['extent_m']:.1f} m, smooth deviation "
+                f"{floor['deviation_m'] * 1e3:.1f} mm, scatter {floor['scatter_m'] * 1e3:.2f} mm: "
+                f"{'flat' if floor['flat'] else 'not flat (in the model as measured geometry)'}."]
+    if data.get("analysis_warnings"):
+        out += ["", "### Warnings", ""] + [f"- {w}" for w in data["analysis_warnings"]]
     out += ["", "| | h [m] | held-out RMSE [N m] |", "|---|---|---|",
             f"| before (3-DoF model) | {data['h_m']:.3f} | {data['rmse_before_nm']:.3f} |",
             f"| after ({data['effect']}) | {data['h_after_m']:.3f} | {data['rmse_after_nm']:.3f} |", "",
@@ -186,16 +224,48 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
 
 
 def write_plots(result, states, params, out_dir: Path) -> list[Path]:
-    """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png."""
+    """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png, floor.png (the
+    floor measured from the contact path) and h_range.png (h of every model the data cannot tell apart)."""
     from euc_ros.cli.plots import pyplot, save_figure
     from euc_ros.core.residual.analysis import Model, prepare
+    from euc_ros.core.residual.floor import contact_heights
 
     plt = pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)
-    recs = prepare(states, params)
+    recs = prepare(states, params, floor=result.floor_fit)
+    paths = []
+    fl = result.floor_fit
+    if fl is not None:
+        fig, ax = plt.subplots(figsize=(9, 3.6))
+        for st in states:
+            v = st.valid
+            z = contact_heights(st.C[v], st.theta[v], params.R)
+            ax.plot(st.C[v, 0], 1e3 * z, ".", ms=1.5, alpha=0.6, label=st.name)
+            plane = fl.plane[0] + fl.plane[1] * st.C[v, 0] + fl.plane[2] * st.C[v, 1]
+            ax.plot(st.C[v, 0], 1e3 * plane, "k-", lw=0.8)
+        ax.set_xlabel("lab x [m]")
+        ax.set_ylabel("contact height C_z - R cos(theta) [mm]")
+        ax.set_title(f"floor from the contact path: plane slope {np.degrees(fl.slope_rad):.2f} deg, deviation "
+                     f"{1e3 * fl.deviation_m:.1f} mm, scatter {1e3 * fl.scatter_m:.2f} mm"
+                     f" ({'flat' if fl.flat else 'not flat'}); black: fitted plane", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, markerscale=4, loc="best")
+        paths.append(save_figure(fig, out_dir / "floor.png"))
+    tied = result.tied
+    if tied:
+        fig, ax = plt.subplots(figsize=(6, 0.45 * len(tied) + 1.4))
+        names = [t["effect"] for t in tied]
+        ax.barh(range(len(tied)), [t["h_m"] for t in tied], color="tab:blue", alpha=0.7)
+        ax.axvspan(result.h_range[0], result.h_range[1], color="tab:orange", alpha=0.2, label="h range")
+        ax.axvline(result.h_base, color="k", ls="--", lw=1, label=f"base model {result.h_base:.3f} m")
+        ax.set_yticks(range(len(tied)), names)
+        ax.set_xlim(min(result.h_range[0], result.h_base) - 0.05, max(result.h_range[1], result.h_base) + 0.05)
+        ax.set_xlabel("h implied [m]")
+        ax.set_title("models the held-out data cannot tell apart", fontsize=9)
+        ax.legend(fontsize=8)
+        paths.append(save_figure(fig, out_dir / "h_range.png"))
     base_x = np.array([result.h_base])
     final = result.final_model
-    paths = []
 
     fig, axes = plt.subplots(len(recs), 1, figsize=(9, 2.2 * len(recs) + 0.6), squeeze=False, sharex=False)
     for ax, rec in zip(axes[:, 0], recs):

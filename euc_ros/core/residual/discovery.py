@@ -6,8 +6,15 @@ signals and applied at physical points, each column a generalized force derived 
 * points and directions: **x at the contact** (``dQ = [F, 0, 0]``), **x at the rider CoG** and **z at
   the rider CoG** (``dQ = J_G^T F``, J_G of the Appendix-A geometry);
 * functions (with units): ``1``, ``x_dot``, ``x_dot |x_dot|``, ``tanh(x_dot / 0.05)`` (a sign),
-  ``x_ddot``, ``sin(s/R)``, ``cos(s/R)`` (the wheel's rotation, s the path length), ``psi_dot x_dot``
-  (lateral acceleration in turns), ``X``, ``Y`` (lab position), ``t``, ``phi``, ``phi_dot``, ``gamma``.
+  ``sin(s/R)``, ``cos(s/R)`` (the wheel's rotation, s the path length), ``psi_dot x_dot``
+  (lateral acceleration in turns), ``cos(psi)``, ``X cos(psi)``, ``sin(psi)``, ``Y sin(psi)`` (a force
+  fixed in the lab, constant or growing with lab position, as the heading sees it), ``s`` (position
+  along the path), ``t``, ``phi_dot``.
+
+Not in the basis: the accelerations and the pitch angles themselves. The residual is linear in the
+measured accelerations and angles, so terms in them (a mass, an inertia, a gravity torque) can cancel
+the residual's own noise on held-out data too (measured: 4 such terms took a no-effect ride's held-out
+RMSE from 0.34 to 0.03 N m, below its noise floor): those are the named parameter candidates' job.
 
 Forces along the input directions (hinge torque, motor torque) cannot show in the residual and are not
 in the basis. The terms are chosen by greedy forward selection (orthogonal matching pursuit on the
@@ -29,8 +36,9 @@ SIGN_SPEED = 0.05
 
 #: (name, unit) of the functions, in basis order.
 FUNCTIONS = (("1", "1"), ("x_dot", "m/s"), ("x_dot|x_dot|", "m^2/s^2"), ("tanh(x_dot/0.05)", "1"),
-             ("x_ddot", "m/s^2"), ("sin(s/R)", "1"), ("cos(s/R)", "1"), ("psi_dot x_dot", "m/s^2"),
-             ("X", "m"), ("Y", "m"), ("t", "s"), ("phi", "rad"), ("phi_dot", "rad/s"), ("gamma", "rad"))
+             ("sin(s/R)", "1"), ("cos(s/R)", "1"), ("psi_dot x_dot", "m/s^2"),
+             ("cos(psi)", "1"), ("X cos(psi)", "m"), ("sin(psi)", "1"), ("Y sin(psi)", "m"), ("s", "m"), ("t", "s"),
+             ("phi_dot", "rad/s"))
 #: (name, force unit) of the points and directions.
 POINTS = (("x at the contact", "N"), ("x at the rider CoG", "N"), ("z at the rider CoG", "N"))
 
@@ -45,8 +53,9 @@ def feature_matrix(ctx) -> np.ndarray:
     Y = ctx.extras.get("lab_y", np.zeros_like(ctx.t))
     R = float(np.mean(p.R))
     v = ctx.x_dot
-    cols = [np.ones_like(v), v, v * np.abs(v), np.tanh(v / SIGN_SPEED), ctx.x_ddot, np.sin(s / R), np.cos(s / R),
-            ctx.psi_dot * v, X, Y, ctx.t, ctx.phi, ctx.phi_dot, ctx.gamma]
+    c, sn = np.cos(ctx.psi), np.sin(ctx.psi)
+    cols = [np.ones_like(v), v, v * np.abs(v), np.tanh(v / SIGN_SPEED), np.sin(s / R), np.cos(s / R),
+            ctx.psi_dot * v, c, X * c, sn, Y * sn, s, ctx.t, ctx.phi_dot]
     return np.stack(cols, axis=1)
 
 

@@ -84,6 +84,9 @@ class RideConfig:
         A floor that is not level in a level lab (:mod:`.floors`): the dynamics follow it
         (:class:`~euc_ros.core.ridesim.truth_model.FloorModel`, x is then the arc length of the wheel
         centre's path) and the recorded positions are lab positions (not re-centred).
+    external : tuple of ExternalForce
+        Forces outside the residual analysis' library (:mod:`.external`: a rope held in the hand, a
+        headwind, motor torque ripple).
     """
 
     maneuver: str = "deceleration"
@@ -102,6 +105,7 @@ class RideConfig:
     rtol: float = 1e-10
     atol: float = 1e-10
     floor: FloorProfile | None = None
+    external: tuple = ()
 
     def nominal_session(self) -> Session:
         """The session written to session.yaml (nominal values)."""
@@ -203,6 +207,7 @@ class RideResult:
             },
             "noise": c.noise.to_dict(),
             "floor": c.floor.to_dict() if c.floor is not None else None,
+            "external": [f.to_dict() for f in c.external],
             "runs": [{
                 "run": r.name, "csv": f"{r.name}.csv", "truth_csv": f"truth/{r.name}_truth.csv",
                 "duration_s": r.plan.duration_s, "psi0_rad": r.plan.path.psi0,
@@ -242,6 +247,16 @@ class _RunDynamics:
         self.k_aero = 0.5 * AIR_DENSITY * effects.get("aero_drag", "cda_m2")
         self.normal_force = p.total_mass * p.g
         self.floor = None
+        self.external = ()
+
+    def external_forces(self, y, env, h):
+        """Sum of the external forces' generalized forces (dQ_x, dQ_gamma, dQ_phi)."""
+        out = [0.0 * y[3], 0.0 * y[3], 0.0 * y[3]]
+        for f in self.external:
+            q = f.generalized(x=y[0], gamma=y[1], phi=y[2], x_dot=y[3], gamma_dot=y[4], phi_dot=y[5], h=h, X=y[6],
+                              psi=env["psi"], R=self.p.R, l0=self.p.l0)
+            out = [a + b for a, b in zip(out, q)]
+        return out
 
     def slope(self, X, psi, kappa):
         """Floor slope along travel and its rate along the path (0, 0 on a level floor)."""
@@ -314,6 +329,8 @@ class _RunDynamics:
         else:
             jac = vel = None
         dQ, _ = self.effect_forces(y, h, hd, vel, jac)
+        if self.external:
+            dQ = tuple(a + float(b) for a, b in zip(dQ, self.external_forces(y, env, h)))
         R = self.p.R
         Q0 = M_d / R + dQ[0]
         Q1 = M_h - M_d + dQ[1]
@@ -339,6 +356,8 @@ class _RunDynamics:
         vel = self.model.rider_cog_velocity(gam, phi, xd, gd, pd, h, hd).T
         jac = self.model.rider_cog_jacobian(gam, phi, h).reshape(-1, 6).T
         dQ, parts = self.effect_forces(Y, h, hd, vel, jac)
+        if self.external:
+            dQ = tuple(a + b for a, b in zip(dQ, self.external_forces(Y, env, h)))
         R = self.p.R
         Q = np.stack([M_d / R + dQ[0], M_h - M_d + dQ[1], -M_h + dQ[2]], -1)
         if self.floor is None:
@@ -396,6 +415,7 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
                                           k_p=k_p, k_d=k_d, k_speed=k_speed, k_int=k_int)
     dyn = _RunDynamics(plan, model, effects, config.h, config.euc_controller, rider)
     dyn.floor = config.floor
+    dyn.external = tuple(config.external)
     rate = session.rate_hz
     n = int(round(plan.duration_s * rate))
     frame = np.arange(n, dtype=np.int64)

@@ -1,0 +1,71 @@
+"""Forces outside the residual analysis' library, for tests the analysis was not designed around.
+
+Each force is written here from its own physics (no code shared with :mod:`euc_ros.core.residual`),
+as a generalized force on (x, gamma, phi) by virtual power on the points it acts on. The in-plane
+geometry is the simulator's (:mod:`.truth_model`): ``A = C + l0 (-sin gamma, -cos gamma)``, a point
+at distance d from A along the rider ``P = A + d (sin phi, cos phi)``, so
+``dP/dq = [[1, -l0 cos gamma, d cos phi], [0, l0 sin gamma, -d sin phi]]``.
+
+==================  =====================================================================================
+``rope``            a rope or rail held in the hand (``hand_m`` above the hinge) pulling towards an anchor at
+                    lab ``x = anchor_x_m`` with stiffness ``k_n_per_m`` (horizontal, lab x): a force that
+                    changes with position
+``headwind``        steady wind of ``wind_m_per_s`` blowing along lab -x on the rider at G (drag area
+                    ``cda_m2``): ``F = -rho/2 cda |v_rel| v_rel``, ``v_rel = v_G - w``
+``torque_ripple``   motor torque ripple ``amp_nm sin(n x / R)`` (``n`` = ``per_turn``): internal, along
+                    the input direction b_d = (1/R, -1, 0): it cannot show in M_d1 - M_d2
+==================  =====================================================================================
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError
+
+AIR_DENSITY = 1.2
+KINDS = {"rope": ("k_n_per_m", "anchor_x_m", "hand_m"), "headwind": ("wind_m_per_s", "cda_m2"),
+         "torque_ripple": ("amp_nm", "per_turn")}
+
+
+@dataclass(frozen=True)
+class ExternalForce:
+    """One force of :data:`KINDS` with its parameters."""
+
+    kind: str
+    params: dict
+
+    def __post_init__(self):
+        if self.kind not in KINDS:
+            raise ConfigError(f"unknown external force {self.kind!r} (known: {', '.join(KINDS)})", key="external")
+        missing = [k for k in KINDS[self.kind] if k not in self.params]
+        if missing:
+            raise ConfigError(f"{self.kind} needs {missing[0]!r}", key=f"external.{missing[0]}")
+
+    def generalized(self, *, x, gamma, phi, x_dot, gamma_dot, phi_dot, h, X, psi, R, l0):
+        """(dQ_x, dQ_gamma, dQ_phi) at the given states (scalars or arrays)."""
+        p = self.params
+        if self.kind == "torque_ripple":
+            tau = p["amp_nm"] * np.sin(p["per_turn"] * x / R)
+            return tau / R, -tau, 0.0 * tau
+        if self.kind == "rope":
+            d = p["hand_m"]
+            # the hand's lab x (C's x plus its offset along the heading); the pull is along lab x, its in-plane
+            # component along the heading is F cos(psi)
+            off = -l0 * np.sin(gamma) + d * np.sin(phi)
+            hand_x = X + off * np.cos(psi)
+            F = -p["k_n_per_m"] * (hand_x - p["anchor_x_m"]) * np.cos(psi)
+            return F, -l0 * np.cos(gamma) * F, d * np.cos(phi) * F
+        # headwind at G
+        w = -p["wind_m_per_s"] * np.cos(psi)           # wind along the heading (in-plane x)
+        vx = x_dot - l0 * np.cos(gamma) * gamma_dot + h * np.cos(phi) * phi_dot - w
+        vz = l0 * np.sin(gamma) * gamma_dot - h * np.sin(phi) * phi_dot
+        k = 0.5 * AIR_DENSITY * p["cda_m2"]
+        speed = np.sqrt(vx * vx + vz * vz)
+        Fx, Fz = -k * speed * vx, -k * speed * vz
+        return (Fx, -l0 * np.cos(gamma) * Fx + l0 * np.sin(gamma) * Fz,
+                h * np.cos(phi) * Fx - h * np.sin(phi) * Fz)
+
+    def to_dict(self) -> dict:
+        return {"kind": self.kind, **self.params}

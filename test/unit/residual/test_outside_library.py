@@ -1,0 +1,76 @@
+"""Issue 12, bullets 3-4: forces outside the named library, from the simulator's independent force
+models (:mod:`euc_ros.core.ridesim.external`, written from their own physics), and the noise floor.
+
+* a steady headwind on the rider (not the library's still-air drag: a constant part that flips with
+  the heading, a part linear in speed and a quadratic one);
+* a rope held in the hand pulling towards a fixed point (a force that grows with lab position);
+* motor torque ripple: internal, along the motor's input direction: it cannot show, so the residual
+  stays at its noise floor and the verdict is ``none``;
+* no effect: the residual is at its noise floor (``residual_significant`` false).
+
+Checked: no library effect is named that is absent; a detectable effect's held-out RMSE after is at
+most 0.6 of before; h within 10 mm where the discovered terms capture the force (headwind). The rope's
+h is off by up to ~6 cm: its force acts at the hand, and the basis' contact/CoG points with 4 terms
+leave 1.3 N m above the 0.18 N m noise floor (README, limits): the test pins the bound we measure.
+"""
+from __future__ import annotations
+
+import pytest
+
+from euc_ros.core.euc.kinematics import reconstruct_states
+from euc_ros.core.euc.model import EucParams
+from euc_ros.core.residual.analysis import analyze, make_noise_floor
+from euc_ros.core.residual.candidates import LIBRARY
+from euc_ros.core.ridesim.external import ExternalForce
+from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+
+pytestmark = pytest.mark.slow
+H_TRUE = 0.61
+
+
+def run(external=(), seed=11):
+    states, series, session = [], [], None
+    for i, (maneuver, runs) in enumerate((("acceleration", 3), ("deceleration", 3))):
+        res = simulate_ride(RideConfig(maneuver=maneuver, runs=runs, seed=seed + 101 * i, external=external))
+        session = res.session
+        states += [reconstruct_states(r.mocap, session) for r in res.runs]
+        series += [r.mocap for r in res.runs]
+    params = EucParams.from_session(session)
+    return analyze(states, params, noise_floor_of=make_noise_floor(series, states, session, params)).to_json()
+
+
+def named(out):
+    return [n for n in out["effect"].split("+") if n in LIBRARY]
+
+
+def test_no_effect_is_at_its_noise_floor():
+    out = run()
+    assert out["effect"] == "none" and not out["residual_significant"] and not out["unexplained"]
+    assert 0 < out["noise_floor_nm"] <= out["rmse_before_nm"]
+    assert abs(out["h_m"] - H_TRUE) < 0.010
+
+
+def test_torque_ripple_is_internal_and_stays_at_the_noise_floor():
+    out = run((ExternalForce("torque_ripple", {"amp_nm": 3.0, "per_turn": 6.0}),))
+    assert out["effect"] == "none" and not out["residual_significant"], out["discovery"]
+    assert abs(out["h_m"] - H_TRUE) < 0.010
+
+
+def test_a_headwind_is_discovered_not_named():
+    out = run((ExternalForce("headwind", {"wind_m_per_s": 5.0, "cda_m2": 0.6}),))
+    assert named(out) == [], out["effect"]
+    assert out["residual_significant"] and out["discovered"], out["discovery"]
+    assert any(d["function"] == "cos(psi)" for d in out["discovered"])       # the part that flips with heading
+    assert all({"formula", "point", "coordinate", "coefficient_unit", "rmse_after_nm"} <= set(d)
+               for d in out["discovered"])
+    assert out["rmse_after_nm"] <= 0.6 * out["rmse_before_nm"]
+    assert abs(out["h_after_m"] - H_TRUE) < 0.010
+
+
+def test_a_rope_in_the_hand_is_discovered_not_named():
+    out = run((ExternalForce("rope", {"k_n_per_m": 3.0, "anchor_x_m": 0.0, "hand_m": 0.45}),))
+    assert named(out) == [], (out["effect"], out["analysis_warnings"])
+    assert out["residual_significant"] and out["discovered"]
+    assert out["rmse_after_nm"] <= 0.6 * out["rmse_before_nm"]
+    assert abs(out["h_after_m"] - H_TRUE) < 0.08          # limit measured: 62 mm (see module docstring)
+    assert out["h_range_m"][0] <= out["h_after_m"] <= out["h_range_m"][1]
