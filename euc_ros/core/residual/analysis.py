@@ -57,8 +57,9 @@ H_PLAUSIBLE = (0.3, 1.2)
 #: model is no reference; the segments' geometry is (session CoM errors of 1-3 cm move it by < 0.05 m).
 H_MAX_GEOMETRIC_DEV_M = 0.15
 #: The residual is above its noise floor when its held-out RMSE exceeds this many noise floors. The floor
-#: propagates white pose noise only; measured on no-effect rides the held-out RMSE is 1.3x it at 120 Hz and
-#: 1.6x at 360 Hz (the derivative filter's bias and the 3-D reconstruction are not white noise), so 3x.
+#: is one realisation of the white pose noise propagated (within 3 % of the true noise contribution on a
+#: simulated ride, test_noise.py); on no-effect rides the held-out RMSE is 0.9x it at 120 Hz and 1.1x at
+#: 360 Hz (filter bias, 3-D reconstruction); 3x leaves room for coloured noise the floor does not see.
 NOISE_FLOOR_FACTOR = 3.0
 #: A parameter closer than this fraction of its range to a bound is "on the bound".
 AT_BOUND_FRACTION = 1e-3
@@ -77,16 +78,21 @@ class Recording:
     index: np.ndarray | None = None  # sample index in the recording of each valid sample
 
 
+def _hinge(st: RiderStates, l0: float) -> np.ndarray:
+    """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis."""
+    gamma, psi, theta = st.gamma, st.psi, st.theta
+    zb = np.stack([np.sin(gamma), -np.sin(theta) * np.cos(gamma), np.cos(theta) * np.cos(gamma)], axis=1)
+    zw = np.stack([np.cos(psi) * zb[:, 0] - np.sin(psi) * zb[:, 1],
+                   np.sin(psi) * zb[:, 0] + np.cos(psi) * zb[:, 1], zb[:, 2]], axis=1)
+    return st.C - l0 * zw
+
+
 def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: int, valid: np.ndarray
                   ) -> Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time."""
     t = st.t
-    gamma, psi, theta = st.gamma, st.psi, st.theta
-    # body z axis of the EUC: Rz(psi) Rx(theta) Ry(gamma) e_z, and the hinge A = C - l0 z_E
-    zb = np.stack([np.sin(gamma), -np.sin(theta) * np.cos(gamma), np.cos(theta) * np.cos(gamma)], axis=1)
-    zw = np.stack([np.cos(psi) * zb[:, 0] - np.sin(psi) * zb[:, 1],
-                   np.sin(psi) * zb[:, 0] + np.cos(psi) * zb[:, 1], zb[:, 2]], axis=1)
-    A = st.C - params.l0 * zw
+    psi, theta = st.psi, st.theta
+    A = _hinge(st, params.l0)
 
     def phi_of(G):
         r = to_moving_frame(G - A, psi, theta)
@@ -312,21 +318,6 @@ def floor_from_states(states: Sequence[RiderStates], radius: float):
     return fit_floor(C, theta, valid, radius, seg)
 
 
-def measured_rolling_radius(states: Sequence[RiderStates]) -> tuple[float, float, int]:
-    """Rolling radius from the wheel-centre height over the floor: median of C_z / cos(theta) [m].
-
-    Motive's ground plane is calibrated on the floor, so the world z of the wheel centre C of a wheel
-    tilted by theta is R cos(theta). Returns (median, robust standard deviation, samples).
-    """
-    vals = np.concatenate([st.C[st.valid, 2] / np.cos(st.theta[st.valid]) for st in states]) if states else []
-    vals = np.asarray(vals, float)
-    vals = vals[np.isfinite(vals)]
-    if vals.size == 0:
-        return float("nan"), float("nan"), 0
-    med = float(np.median(vals))
-    return med, float(1.4826 * np.median(np.abs(vals - med))), int(vals.size)
-
-
 class _MeasuredWheelRadius(Candidate):
     """wheel_radius_error with its parameter measured (wheel-centre height), not fitted."""
 
@@ -484,11 +475,7 @@ def geometric_h(states: Sequence[RiderStates], params: EucParams) -> float:
     """Median distance of the rider CoG G from the ankle hinge A = C - l0 z_E over the valid samples [m]."""
     vals = []
     for st in states:
-        g, th, ps = st.gamma, st.theta, st.psi
-        zb = np.stack([np.sin(g), -np.sin(th) * np.cos(g), np.cos(th) * np.cos(g)], axis=1)
-        zw = np.stack([np.cos(ps) * zb[:, 0] - np.sin(ps) * zb[:, 1], np.sin(ps) * zb[:, 0] + np.cos(ps) * zb[:, 1],
-                       zb[:, 2]], axis=1)
-        d = np.linalg.norm(st.G - (st.C - params.l0 * zw), axis=1)
+        d = np.linalg.norm(st.G - _hinge(st, params.l0), axis=1)
         vals.append(d[np.asarray(st.valid, bool) & np.isfinite(d)])
     v = np.concatenate(vals) if vals else np.zeros(0)
     return float(np.median(v)) if v.size else float("nan")
@@ -748,6 +735,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     disc_info: dict = {"run": False}
     discovered_rows: list[dict] = []
     p_disc = 1.0
+    disc_alt: dict = {}
     dynamic_named = [c for c in current.effects if not getattr(c, "geometric", False)]
     if discover and dynamic_named:
         # a named effect is reported only when the discovered alternative (from the model without the named
@@ -766,10 +754,6 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
                 steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": None,
                               "dropped_for_discovery": current.name, "p_value": p_alt})
                 current, current_ho, current_x = root, root_ho, root_fit.x
-        else:
-            disc_alt = {}
-    else:
-        disc_alt = {}
     named_model, named_ho, named_x = current, current_ho, current_x
     if discover:
         say("discovery: sparse basis forces on what the named effects leave")
@@ -783,12 +767,12 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             why = admissibility(disc["model"], disc["x"], h_geo)
             disc_info.update({"p_value": p_disc, "rmse_after_nm": disc["heldout"].rmse, "threshold_p": alpha,
                               "inadmissible": why})
-            say(f"discovery: {disc['model'].effects[-1].describe(disc['x'][-disc['model'].effects[-1].n_params:])[0]['formula']}"
-                f"{' ...' if disc['model'].effects[-1].n_params > 1 else ''}: held-out RMSE {current_ho.rmse:.3f} -> "
+            d_eff = disc["model"].effects[-1]
+            rows_found = d_eff.describe(disc["x"][-d_eff.n_params:])
+            say(f"discovery: {'; '.join(r['formula'] for r in rows_found)}: held-out RMSE {current_ho.rmse:.3f} -> "
                 f"{disc['heldout'].rmse:.3f} N m (p = {p_disc:.2g})")
             if p_disc < alpha and gain_ok and why is None:
-                d_eff = disc["model"].effects[-1]
-                discovered_rows = d_eff.describe(disc["x"][-d_eff.n_params:])
+                discovered_rows = rows_found
                 for row in discovered_rows:
                     row["rmse_after_nm"] = disc["heldout"].rmse
                 steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": "discovered",
@@ -847,10 +831,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         r, m = current.residual(rec, x, dQ)
         return np.where(m, r, 0.0)
 
-    def h_column(recs_, x, dh=1e-3):
+    def h_column(recs_, x, r0, dh=1e-3):
+        # d(residual)/dh by a forward difference from the residual r0 at x (sensitivities' r0)
         x1 = np.array(x, float)
         x1[0] += dh
-        return (np.concatenate([res(r, x1, None) for r in recs_]) - np.concatenate([res(r, x, None) for r in recs_])) / dh
+        return (np.concatenate([res(r, x1, None) for r in recs_]) - r0) / dh
 
     def with_h(r0, B, hc):
         # h is always in the model: the terms are chosen for, and fitted with, the h column projected out
@@ -860,11 +845,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     per_k: dict[int, list[np.ndarray]] = {}
     for (train, test), x_fold in zip(folds, current_ho.params):
         r0, B, terms = sensitivities(res, train, x_fold)
-        hc = h_column(train, x_fold)
+        hc = h_column(train, x_fold, r0)
         r0p, Bp = with_h(r0, B, hc)
         sets = forward_select(r0p, Bp)
         r0t, Bt, _ = sensitivities(res, test, x_fold)
-        hct = h_column(test, x_fold)
+        hct = h_column(test, x_fold, r0t)
         keep = np.concatenate([current.residual(r, x_fold)[1] for r in test])
         per_k.setdefault(0, []).append(r0t[keep])
         for k, cols in enumerate(sets, start=1):
@@ -884,7 +869,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     if complete[best_k].shape == current_ho.residual.shape:
         info["selection_heldout"] = HeldOut(current, complete[best_k], current_ho.block, [])
     r0, B, terms = sensitivities(res, recs, current_x)
-    hc = h_column(recs, current_x)
+    hc = h_column(recs, current_x, r0)
     cols = forward_select(*with_h(r0, B, hc), best_k)[-1]
     c, *_ = np.linalg.lstsq(np.column_stack([hc, B[:, cols]]), -r0, rcond=None)
     dh, c = float(c[0]), c[1:]

@@ -39,8 +39,13 @@ FUNCTIONS = (("1", "1"), ("x_dot", "m/s"), ("x_dot|x_dot|", "m^2/s^2"), ("tanh(x
              ("sin(s/R)", "1"), ("cos(s/R)", "1"), ("psi_dot x_dot", "m/s^2"),
              ("cos(psi)", "1"), ("X cos(psi)", "m"), ("sin(psi)", "1"), ("Y sin(psi)", "m"), ("s", "m"), ("t", "s"),
              ("phi_dot", "rad/s"))
-#: (name, force unit) of the points and directions.
-POINTS = (("x at the contact", "N"), ("x at the rider CoG", "N"), ("z at the rider CoG", "N"))
+#: (coordinate, point) of the forces' directions and points of application.
+POINTS = (("x", "contact"), ("x", "rider CoG"), ("z", "rider CoG"))
+
+
+def _where(point: int) -> str:
+    coord, at = POINTS[point]
+    return f"{coord} at the {at}"
 
 
 def feature_matrix(ctx) -> np.ndarray:
@@ -85,7 +90,7 @@ class Term:
 
     @property
     def label(self) -> str:
-        return f"{FUNCTIONS[self.func][0]} on {POINTS[self.point][0]}"
+        return f"{FUNCTIONS[self.func][0]} on {_where(self.point)}"
 
     def coef_unit(self) -> str:
         fu = FUNCTIONS[self.func][1]
@@ -93,7 +98,8 @@ class Term:
 
     def formula(self, coef: float) -> str:
         f = FUNCTIONS[self.func][0]
-        return f"{coef:+.4g} {'' if f == '1' else f + ' '}N on {POINTS[self.point][0]}".replace("  ", " ")
+        factor = "" if f == "1" else f" {f}"
+        return f"{coef:+.4g}{factor} N on {_where(self.point)}"
 
 
 class DiscoveredEffect(Candidate):
@@ -120,7 +126,7 @@ class DiscoveredEffect(Candidate):
         """JSON rows: name, formula with units, point, coordinate, parameter."""
         out = []
         for k, (t, c) in enumerate(zip(self.terms, theta)):
-            point, coord = POINTS[t.point][0].split(" at the ")[1], POINTS[t.point][0].split(" at ")[0]
+            coord, point = POINTS[t.point]
             out.append({"name": f"discovered_{k + 1}", "formula": t.formula(float(c)), "function": FUNCTIONS[t.func][0],
                         "function_unit": FUNCTIONS[t.func][1], "point": point, "coordinate": coord,
                         "coefficient": float(c), "coefficient_unit": t.coef_unit()})

@@ -122,6 +122,24 @@ class _Compiled:
     syms: dict
 
 
+def _time_to_symbols(t, pairs) -> dict:
+    """``{f'': s2, f': s1, f: s0}`` for each ``(f(t), s0, s1, s2)``: functions of time to plain symbols."""
+    subs = {}
+    for f, s0, s1, s2 in pairs:
+        subs[f.diff(t, 2)] = s2
+        subs[f.diff(t)] = s1
+        subs[f] = s0
+    return subs
+
+
+def _substitute(e, subs):
+    """Apply :func:`_time_to_symbols`' map, second derivatives first (so that Derivative(f, t) inside
+    them is not replaced early)."""
+    for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
+        e = e.subs(k, subs[k])
+    return e
+
+
 @lru_cache(maxsize=1)
 def _derive() -> _Compiled:
     """Form Lagrange's equations from the point kinematics (once per process, about 0.8 s)."""
@@ -157,17 +175,10 @@ def _derive() -> _Compiled:
     # Replace functions of time by plain symbols.
     x, gam, phi, xd, gd, pd, xdd, gdd, pdd = sp.symbols("x gamma phi x_d gamma_d phi_d x_dd gamma_dd phi_dd")
     h, hd, hdd = sp.symbols("h h_d h_dd")
-    subs = {}
-    for f, s0, s1, s2 in ((xf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)):
-        subs[f.diff(t, 2)] = s2
-        subs[f.diff(t)] = s1
-        subs[f] = s0
+    subs = _time_to_symbols(t, ((xf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)))
 
     def plain(e):
-        # second derivatives first so that Derivative(f, t) inside them is not replaced early
-        for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
-            e = e.subs(k, subs[k])
-        return sp.expand(e)
+        return sp.expand(_substitute(e, subs))
 
     eom_s = [plain(e) for e in eom]
     qdd = [xdd, gdd, pdd]
@@ -337,17 +348,11 @@ def _derive_floor() -> _Compiled:
     eom = [sp.diff(sp.diff(L, sf.diff(t)), t) - sp.diff(L, af) * a1
            - (m + m0 + mw) * (gx * sp.cos(af) + gz * sp.sin(af))]
     eom += [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in (gf, pf)]
-    subs = {}
-    for f, s0, s1, s2 in ((sf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)):
-        subs[f.diff(t, 2)] = s2
-        subs[f.diff(t)] = s1
-        subs[f] = s0
+    subs = _time_to_symbols(t, ((sf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)))
 
     def plain(e):
-        e = e.subs(af.diff(t), a1 * sf.diff(t))
-        for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
-            e = e.subs(k, subs[k])
-        return sp.expand(e.subs(af, a))
+        # the slope's rate first: da/dt = (da/ds) s_dot
+        return sp.expand(_substitute(e.subs(af.diff(t), a1 * sf.diff(t)), subs).subs(af, a))
 
     eom_s = [plain(e) for e in eom]
     qdd = [xdd, gdd, pdd]
