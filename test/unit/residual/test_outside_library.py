@@ -11,7 +11,7 @@ models (:mod:`euc_ros.core.ridesim.external`, written from their own physics), a
 Checked: no library effect is named that is absent; a detectable effect's held-out RMSE after is at
 most 0.6 of before; h within 10 mm where the discovered terms capture the force (headwind). The rope's
 h is off by up to ~6 cm: its force acts at the hand, and the basis' contact/CoG points with 4 terms
-leave 1.3 N m above the 0.18 N m noise floor (README, limits): the test pins the bound we measure.
+leave 1.35 N m against a 0.25 N m noise floor (README, limits): the test pins the bound we measure.
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ import pytest
 
 from euc_ros.core.euc.kinematics import reconstruct_states
 from euc_ros.core.euc.model import EucParams
-from euc_ros.core.residual.analysis import analyze, make_noise_floor
+from euc_ros.core.residual.analysis import NOISE_FLOOR_FACTOR, analyze, make_noise_floor
 from euc_ros.core.residual.candidates import LIBRARY
 from euc_ros.core.ridesim.external import ExternalForce
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
@@ -46,7 +46,7 @@ def named(out):
 def test_no_effect_is_at_its_noise_floor():
     out = run()
     assert out["effect"] == "none" and not out["residual_significant"] and not out["unexplained"]
-    assert 0 < out["noise_floor_nm"] <= out["rmse_before_nm"]
+    assert 0 < out["noise_floor_nm"] and out["rmse_before_nm"] < NOISE_FLOOR_FACTOR * out["noise_floor_nm"]
     assert abs(out["h_m"] - H_TRUE) < 0.010
 
 
