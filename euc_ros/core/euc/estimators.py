@@ -30,6 +30,7 @@ from euc_ros.core.euc.model import EucParams
 from euc_ros.core.euc.online import OnlineHEstimator, SlidingRmse
 from euc_ros.core.euc.torque import torques, torques_2dof
 from euc_ros.core.bridging import PoseBridge
+from euc_ros.core.filters.causal import streaming_filter
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
 
 if TYPE_CHECKING:
@@ -85,19 +86,28 @@ class RiderStateEstimator:
         Savitzky-Golay order.
     max_gap : int
         Longest run of missing frames bridged (bridged frames give no output).
+    estimator : {"savgol", "kalman"}
+        Derivative filter (:func:`~euc_ros.core.filters.causal.streaming_filter`): the Savitzky-Golay
+        filter (default) or the low-lag Kalman fixed-lag smoother (issue 15).
+    lag_s : float, optional
+        Output delay [s]: default half the Savitzky-Golay window, or 0.1 s for ``kalman``.
+    smoothing_s : float, optional
+        Smoothing time of the ``kalman`` estimator [s] (default: measured per lag).
     """
 
     def __init__(self, session, dt: float, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
-                 polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP) -> None:
+                 polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP, estimator: str = "savgol",
+                 lag_s: float | None = None, smoothing_s: float | None = None) -> None:
         if phi_definition not in PHI_DEFINITIONS:
             raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
                               key="phi_definition")
         self.session = session
         self.dt = float(dt)
         self.phi_definition = phi_definition
-        window = window_samples(self.dt, window_s=window_s, polyorder=polyorder)
-        self._euc = StreamingSavgol(window, polyorder, self.dt, max_gap=max_gap)
-        self._rider = StreamingSavgol(window, polyorder, self.dt, max_gap=max_gap)
+        self.estimator = estimator
+        make = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, lag_s=lag_s, smoothing_s=smoothing_s)
+        self._euc = streaming_filter(estimator, self.dt, **make)
+        self._rider = streaming_filter(estimator, self.dt, **make)
         # each body's short gaps are bridged before the geometry, max_gap frames late (as offline)
         self._bridge = PoseBridge(max_gap)
         #: Body samples bridged so far.
