@@ -27,6 +27,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS, frame_geometry
 from euc_ros.core.euc.model import EucParams
+from euc_ros.core.euc.skeleton_fit import COG_METHODS, OnlineSkeleton
 from euc_ros.core.euc.online import OnlineHEstimator, SlidingRmse
 from euc_ros.core.euc.torque import torques, torques_2dof
 from euc_ros.core.bridging import PoseBridge
@@ -93,18 +94,36 @@ class RiderStateEstimator:
         Output delay [s]: default half the Savitzky-Golay window, or 0.1 s for ``kalman``.
     smoothing_s : float, optional
         Smoothing time of the ``kalman`` estimator [s] (default: measured per lag).
+    cog_method : {"segments", "skeleton"}
+        Rider CoG from the measured segments or from the chain fitted to each frame
+        (:class:`~euc_ros.core.euc.skeleton_fit.OnlineSkeleton`: no lag, ``cog_lag_s`` = 0; swapped or
+        flipped bodies excluded and counted in ``cog_faults``).
+    skeleton : SkeletonModel, optional
+        The session's chain estimated offline; default: calibrated on the first
+        ``skeleton_calibration_frames`` frames.
+    skeleton_calibration_frames : int
+        Frames of the live calibration of the chain's link vectors.
     """
 
     def __init__(self, session, dt: float, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
                  polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP, estimator: str = "savgol",
-                 lag_s: float | None = None, smoothing_s: float | None = None) -> None:
+                 lag_s: float | None = None, smoothing_s: float | None = None, cog_method: str = "segments",
+                 skeleton=None, skeleton_calibration_frames: int = 240) -> None:
         if phi_definition not in PHI_DEFINITIONS:
             raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
                               key="phi_definition")
+        if cog_method not in COG_METHODS:
+            raise ConfigError(f"cog method must be one of {COG_METHODS}, got {cog_method!r}", key="cog_method")
         self.session = session
         self.dt = float(dt)
         self.phi_definition = phi_definition
         self.estimator = estimator
+        self.cog_method = cog_method
+        self._skeleton = (OnlineSkeleton(session, calibration_frames=skeleton_calibration_frames, model=skeleton)
+                          if cog_method == "skeleton" else None)
+        #: Rider body-frames excluded from G so far (swaps, flips), and per body.
+        self.cog_faults = 0
+        self.cog_fault_bodies: dict[str, int] = {}
         make = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, lag_s=lag_s, smoothing_s=smoothing_s)
         self._euc = streaming_filter(estimator, self.dt, **make)
         self._rider = streaming_filter(estimator, self.dt, **make)
@@ -121,6 +140,11 @@ class RiderStateEstimator:
         """Output delay [s] (the filter's centred lag; right after a body's gap of k frames the
         bridge adds up to k frames once)."""
         return self._euc.lag_s
+
+    @property
+    def cog_lag_s(self) -> float:
+        """Delay the CoG method adds [s]: 0 (both methods work on each frame alone)."""
+        return 0.0 if self._skeleton is None else self._skeleton.lag_s
 
     def reset(self) -> None:
         """Forget everything (e.g. on a jump back in time)."""
@@ -155,7 +179,15 @@ class RiderStateEstimator:
         return out
 
     def _update_bridged(self, frame: int, t: float, position, quat, tracked, bodies) -> list[RiderStateSample]:
-        geo = frame_geometry(position, quat, tracked, self.session, bodies)
+        if self._skeleton is None:
+            geo = frame_geometry(position, quat, tracked, self.session, bodies)
+        else:
+            model, thr = self._skeleton.calibrate(position, quat, tracked, bodies)
+            geo = frame_geometry(position, quat, tracked, self.session, bodies, cog_method="skeleton",
+                                 skeleton=model, fault_threshold_m=thr)
+            self.cog_faults += int(geo["n_faults"])
+            for nm, c in geo.get("cog_fault_bodies", {}).items():
+                self.cog_fault_bodies[nm] = self.cog_fault_bodies.get(nm, 0) + c
         phi_raw = geo["phi_hinge"] if self.phi_definition == "hinge" else geo["phi_eq3"]
         frame = int(frame)
         self._raw[frame] = (float(t), float(geo["psi"]), float(geo["theta"]), float(geo["phi_eq3"]),

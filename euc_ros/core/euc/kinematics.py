@@ -32,6 +32,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.bridging import bridge_series
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, savgol_derivatives, trim_edges
+from euc_ros.core.euc.skeleton_fit import COG_METHODS, SkeletonModel, skeleton_cog
 from euc_ros.core.rotations import rotation_matrices, yaw_tilt_pitch_from_quat
 
 #: Default Savitzky-Golay window [s] and polynomial order, chosen by measurement on simulated rides
@@ -74,7 +75,8 @@ def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     return v + w * t + np.cross(u, t)
 
 
-def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.ndarray]:
+def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str = "segments",
+                   skeleton: SkeletonModel | None = None, fault_threshold_m=None) -> dict[str, np.ndarray]:
     """Wheel centre, hinge, rider CoG and the EUC/rider angles of one or many frames.
 
     Parameters
@@ -90,15 +92,28 @@ def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.nda
         ``pivot_to_wheel_center``).
     bodies : sequence of str
         Names of the ``b`` rows.
+    cog_method : {"segments", "skeleton"}
+        ``segments``: ``G = sum f_i CoM_i`` of the measured poses (the default). ``skeleton``: G of
+        the kinematic chain fitted to the poses (:mod:`~euc_ros.core.euc.skeleton_fit`); bodies
+        with a swap or a flip are excluded and predicted by the chain.
+    skeleton : SkeletonModel, optional
+        The session's chain for ``skeleton`` (default: estimated from the frames given, which needs
+        many frames to be meaningful).
+    fault_threshold_m : array_like (k,), optional
+        Fault thresholds of the chain's links overriding the model's (live calibration).
 
     Returns
     -------
     dict of ndarray
         ``E, C, A, G`` (..., 3) [m]; ``r_CG, r_AG`` (..., 3) [m] in the moving frame (eq (1));
         ``psi, theta, gamma`` (...) [rad] (yaw, tilt, pitch of E); ``phi_eq3`` (eq (3)) and
-        ``phi_hinge`` (...) [rad]; ``has_euc`` and ``has_rider`` (...) bool. Quantities that need
-        an untracked body are NaN; nothing raises for missing data.
+        ``phi_hinge`` (...) [rad]; ``has_euc`` and ``has_rider`` (...) bool; ``n_faults`` (...) int,
+        the rider bodies excluded from G (always 0 for ``segments``), and for ``skeleton``
+        ``cog_fault_bodies``, a dict body -> excluded frames (bodies with none left out). Quantities that need an
+        untracked body are NaN; nothing raises for missing data.
     """
+    if cog_method not in COG_METHODS:
+        raise ConfigError(f"cog method must be one of {COG_METHODS}, got {cog_method!r}", key="cog_method")
     position = np.asarray(position, dtype=float)
     quat = np.asarray(quat, dtype=float)
     bodies = list(bodies)
@@ -144,6 +159,19 @@ def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.nda
         G += frac * np.where(ok_j[..., None], com, 0.0)
         has_rider &= ok_j
     G = np.where(has_rider[..., None], G / fractions[fractions > 0].sum(), np.nan)
+    n_faults = np.zeros(shape, dtype=int)
+    if cog_method == "skeleton":
+        if skeleton is None:
+            skeleton = SkeletonModel.from_poses([position.reshape(len(bodies), -1, 3)],
+                                                [quat.reshape(len(bodies), -1, 4)],
+                                                [None if tracked is None else tracked.reshape(len(bodies), -1)],
+                                                bodies, session)
+        sk = skeleton_cog(position, quat, tracked, session, bodies, skeleton, threshold_m=fault_threshold_m)
+        G, has_rider, n_faults = sk["G"], sk["has_rider"], sk["n_faults"]
+        per_body = sk["faults"].reshape(len(skeleton.bodies), -1).sum(axis=1)
+        extra = {"cog_fault_bodies": {nm: int(c) for nm, c in zip(skeleton.bodies, per_body) if c}}
+    else:
+        extra = {}
 
     r_CG = to_moving_frame(G - C, psi, theta)
     r_AG = to_moving_frame(G - A, psi, theta)
@@ -152,7 +180,7 @@ def frame_geometry(position, quat, tracked, session, bodies) -> dict[str, np.nda
         "psi": psi, "theta": theta, "gamma": gamma,
         "phi_eq3": np.arctan2(r_CG[..., 0], r_CG[..., 2]),
         "phi_hinge": np.arctan2(r_AG[..., 0], r_AG[..., 2]),
-        "has_euc": has_euc, "has_rider": has_rider,
+        "has_euc": has_euc, "has_rider": has_rider, "n_faults": n_faults, **extra,
     }
 
 
@@ -189,6 +217,10 @@ class RiderStates:
         online fixed-lag filter gives no state there either).
     phi_definition : str
         ``"hinge"`` or ``"eq3"``.
+    cog_method : str
+        ``"segments"`` or ``"skeleton"`` (see :func:`frame_geometry`); with ``skeleton``,
+        ``meta["cog_faults"]`` counts the body-frames excluded from G and ``meta["cog_fault_bodies"]``
+        splits them per body.
     window, polyorder : int
         Savitzky-Golay window [samples] and order used.
     dt : float
@@ -217,6 +249,7 @@ class RiderStates:
     has_rider: np.ndarray
     valid: np.ndarray
     phi_definition: str = "hinge"
+    cog_method: str = "segments"
     window: int = 0
     polyorder: int = DEFAULT_SG_POLYORDER
     dt: float = float("nan")
@@ -240,7 +273,8 @@ class RiderStates:
 
 
 def reconstruct_states(series, session, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
-                       polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP) -> RiderStates:
+                       polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP,
+                       cog_method: str = "segments", skeleton: SkeletonModel | None = None) -> RiderStates:
     """Reconstruct the planar model's states and derivatives from a motion-capture recording.
 
     Parameters
@@ -258,6 +292,10 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         Savitzky-Golay polynomial order.
     max_gap : int
         Longest run of missing frames bridged by interpolation (those samples stay invalid).
+    cog_method : {"segments", "skeleton"}
+        Rider CoG from the measured segments or from the fitted chain (:func:`frame_geometry`).
+    skeleton : SkeletonModel, optional
+        The session's chain (default: estimated from this recording).
 
     Returns
     -------
@@ -273,6 +311,8 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     if phi_definition not in PHI_DEFINITIONS:
         raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
                           key="phi_definition")
+    if cog_method not in COG_METHODS:
+        raise ConfigError(f"cog method must be one of {COG_METHODS}, got {cog_method!r}", key="cog_method")
     src = series.meta.get("path", series.name or None)
     if session.euc.body not in series.bodies:
         raise InputError(f"EUC rigid body {session.euc.body!r} not in recording (has: {', '.join(series.bodies)})",
@@ -284,7 +324,10 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     dt = 1.0 / series.rate_hz
     # each body's short gaps are bridged before any geometry (as the live estimator does)
     series, bridged = bridge_series(series, max_gap)
-    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies)
+    if cog_method == "skeleton" and skeleton is None:
+        skeleton = SkeletonModel.estimate([series], session)
+    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies,
+                         cog_method=cog_method, skeleton=skeleton)
     frame = np.asarray(series.frame, dtype=np.int64)
     sg = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, frame=frame)
     d_gamma = savgol_derivatives(dt, geo["gamma"], **sg)
@@ -319,7 +362,8 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         phi=d_phi.y, phi_dot=d_phi.y_dot, phi_ddot=d_phi.y_ddot,
         phi_eq3=geo["phi_eq3"], phi_hinge=geo["phi_hinge"], psi=psi, theta=geo["theta"],
         C=d_C.y, G=geo["G"], has_euc=geo["has_euc"], has_rider=geo["has_rider"], valid=valid,
-        phi_definition=phi_definition, window=d_gamma.window, polyorder=polyorder, dt=dt,
+        phi_definition=phi_definition, cog_method=cog_method, window=d_gamma.window, polyorder=polyorder, dt=dt,
         meta={"source": src, "bridged_samples": int(bridged.sum()),
-              "bridged_frames": int(bridged.any(axis=0).sum())},
+              "bridged_frames": int(bridged.any(axis=0).sum()), "cog_faults": int(geo["n_faults"].sum()),
+              **({"cog_fault_bodies": geo["cog_fault_bodies"]} if "cog_fault_bodies" in geo else {})},
     )

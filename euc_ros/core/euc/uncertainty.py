@@ -228,7 +228,8 @@ def add_pose_noise(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
 
 
 def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyorder: int,
-             phi_definition: str = "hinge", replicates: int = 6, seed: int = 1, with_error: bool = False):
+             phi_definition: str = "hinge", replicates: int = 6, seed: int = 1, with_error: bool = False,
+             cog_method: str = "segments"):
     """Errors-in-variables bias of h by SIMEX [m]: ``mean(h with the noise doubled) - h``.
 
     The noise of the recordings as given is estimated (:func:`estimate_pose_noise`); adding the same
@@ -247,7 +248,7 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     hs = []
     for _ in range(replicates):
         states = [reconstruct_states(add_pose_noise(s, sp, sr, rng), session, phi_definition=phi_definition,
-                                     window_s=window_s, polyorder=polyorder)
+                                     window_s=window_s, polyorder=polyorder, cog_method=cog_method)
                   for s, (sp, sr) in zip(series_list, noise)]
         hs.append(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
     bias = float(np.nanmean(hs) - h)
@@ -373,7 +374,7 @@ def _absolute(tol, nominal: float) -> float:
 
 
 def budget(series_list, states, session, params, h: float, *, window_s: float, polyorder: int,
-           phi_definition: str = "hinge", tolerances: dict | None = None) -> dict:
+           phi_definition: str = "hinge", tolerances: dict | None = None, cog_method: str = "segments") -> dict:
     """dh/dp for every nominal value and the h range for the tolerances.
 
     Model-only values are perturbed in :class:`EucParams` on the reconstructed states; the segment CoM
@@ -417,8 +418,8 @@ def budget(series_list, states, session, params, h: float, *, window_s: float, p
     hs = []
     for dz in (step, -step):
         s2 = shifted(dz)
-        st2 = [reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s, polyorder=polyorder)
-               for s in series_list]
+        st2 = [reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s, polyorder=polyorder,
+                                  cog_method=cog_method) for s in series_list]
         hs.append(h_of(st2, params))
     d = (hs[0] - hs[1]) / (2 * step)
     tol = _absolute(tolerances["rider.segments.com_offset"], 0.0)
