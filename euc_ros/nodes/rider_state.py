@@ -5,7 +5,9 @@ C, the ankle hinge A and the rider CoG G (mass-weighted segment centres of mass)
 phi (about the hinge A by default, or eq (3)). Two fixed-lag Savitzky-Golay filters (the online twin
 of the offline filter of ``euc-ros identify``) give the derivatives: each state is published
 ``filter_lag = (window - 1) / 2`` frames after its frame (0.45 s at the default 0.9 s window and
-120 Hz), stamped with the capture time of *its own* frame. The logic lives in
+120 Hz), stamped with the capture time of *its own* frame. With ``estimator: kalman`` a steady-state
+Kalman fixed-lag smoother replaces them (:mod:`euc_ros.core.filters.causal`, issue 15): states
+``lag_s`` late (0.1 s by default), noisier (docs/low_lag.md). The logic lives in
 :class:`~euc_ros.core.euc.estimators.RiderStateEstimator`; this module only wires ROS.
 
 Bad input never stops the node:
@@ -37,6 +39,7 @@ from rclpy.node import Node
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.euc.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+from euc_ros.core.filters.causal import ESTIMATORS, LOW_LAG_S
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.presence import BodyPresence
 from euc_ros.core.session import load_session
@@ -53,6 +56,13 @@ SPECS = (
     ParamSpec("window_s", DEFAULT_WINDOW_S, "Savitzky-Golay window; states are published half of it late",
               "s", 0.02, 10.0),
     ParamSpec("polyorder", DEFAULT_SG_POLYORDER, "Savitzky-Golay polynomial order", "", 2, 8),
+    ParamSpec("estimator", "savgol", "derivative filter: savgol (Savitzky-Golay, window_s/polyorder) or kalman "
+              f"(low-lag fixed-lag Kalman smoother, {LOW_LAG_S:g} s late by default; noisier, docs/low_lag.md)",
+              choices=ESTIMATORS),
+    ParamSpec("lag_s", -1.0, "delay of the published states behind their frames; negative: the estimator's "
+              f"default (half the Savitzky-Golay window, {LOW_LAG_S:g} s for kalman)", "s", -1.0, 10.0),
+    ParamSpec("smoothing_s", 0.0, "smoothing time of the kalman estimator (bandwidth 1/smoothing_s rad/s); 0: the "
+              "value measured best for the lag", "s", 0.0, 10.0),
     ParamSpec("max_gap", DEFAULT_MAX_GAP, "longest run of missing frames bridged (bridged frames give no state)",
               "frames", 0, 1000),
     ParamSpec("rate_hz", 0.0, "expected mocap frame rate; 0 takes the session's rate_hz. The rate is measured "
@@ -111,13 +121,15 @@ class RiderStateNode(Node):
         self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frame, itf.RELIABLE_QOS)
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(f"session {cfg['session_file']}: {rate:g} Hz, phi {cfg['phi_definition']}, "
-                               f"filter lag {self.estimator.lag_s:.3f} s")
+                               f"estimator {cfg['estimator']}, filter lag {self.estimator.lag_s:.3f} s")
 
     def _build(self, rate: float) -> None:
         cfg = self.config
         self.estimator = RiderStateEstimator(self.session, 1.0 / rate, phi_definition=cfg["phi_definition"],
                                              window_s=cfg["window_s"], polyorder=cfg["polyorder"],
-                                             max_gap=cfg["max_gap"])
+                                             max_gap=cfg["max_gap"], estimator=cfg["estimator"],
+                                             lag_s=cfg["lag_s"] if cfg["lag_s"] >= 0 else None,
+                                             smoothing_s=cfg["smoothing_s"] or None)
         self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
 
     def _on_frame(self, msg: MocapFrame) -> None:
@@ -174,7 +186,8 @@ class RiderStateNode(Node):
         c = self.counts
         meter = self.rate_gate.meter
         values = dict(c, restarts=self.sequencer.restarts, dropped_frames=self.sequencer.dropped,
-                      filter_lag_s=self.estimator.lag_s, phi_definition=self.config["phi_definition"],
+                      filter_lag_s=self.estimator.lag_s, estimator=self.config["estimator"],
+                      phi_definition=self.config["phi_definition"],
                       expected_rate_hz=meter.nominal_hz, measured_rate_hz=meter.measured_hz,
                       rate_used_hz=meter.rate_hz if meter.decided else float("nan"))
         missing = self.presence.report()
