@@ -46,6 +46,7 @@ class Case:
     offsets: bool = False            # analyse with CoM offsets perturbed by 1-3 cm
     swaps: int = 0
     flips: int = 0
+    accel_share: float = 0.5         # share of the sliding variance that follows the acceleration
 
     @property
     def label(self) -> str:
@@ -54,11 +55,14 @@ class Case:
             s += " + offsets 1-3 cm"
         if self.swaps or self.flips:
             s += f" + {self.swaps} swaps, {self.flips} flips per run"
+        if self.accel_share != 0.5 and self.slide_m:
+            s += f" (acceleration share {self.accel_share:g})"
         return s
 
     def artefacts(self) -> SoftTissueArtefacts:
         return SoftTissueArtefacts(slide_rms_m=self.slide_m, slide_rot_rms_deg=ROT_DEG_PER_MM * 1e3 * self.slide_m,
-                                   noise_corner_hz=NOISE_CORNER_HZ, swaps=self.swaps, flips=self.flips)
+                                   noise_corner_hz=NOISE_CORNER_HZ, swaps=self.swaps, flips=self.flips,
+                                   accel_share=self.accel_share)
 
 
 def simulate_clean(seed: int, maneuvers=("acceleration", "deceleration"), runs: int = 3, duration_s: float = 7.0):
@@ -114,6 +118,26 @@ def evaluate(cleans, session, case: Case, seed: int, methods=COG_METHODS, *, wit
             row.update(h_interval(states, series, s_an, params, fit, method))
         rows.append(row)
     return rows
+
+
+def residual_verdict(cleans, session, case: Case, seed: int, method: str) -> dict:
+    """Run the residual analysis (as ``euc-ros residual`` does) on an artefact-only ride."""
+    from euc_ros.core.residual.analysis import analyze, make_noise_floor
+
+    series, _ = recorded(cleans, case, seed)
+    s_an = analysis_session(session, case, seed)
+    params = EucParams.from_session(s_an)
+    states = reconstruct(series, s_an, method)
+    out = analyze(states, params, noise_floor_of=make_noise_floor(series, states, s_an, params)).to_json()
+    return {"case": case.label, "seed": seed, "method": method, "effect": out["effect"],
+            "effect_parameters": out.get("effect_parameters", {}), "discovered": len(out.get("discovered", [])),
+            "residual_significant": out.get("residual_significant"), "rmse_before_nm": out["rmse_before_nm"],
+            "noise_floor_nm": out.get("noise_floor_nm")}
+
+
+def names_library_effect(effect: str) -> bool:
+    """True when the analysis' ``effect`` names an effect of the candidate library."""
+    return any(e not in ("none", "discovered", "unexplained") for e in effect.split("+"))
 
 
 def h_interval(states, series, session, params, fit, method: str) -> dict:

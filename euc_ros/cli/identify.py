@@ -33,6 +33,7 @@ HELP = "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``euc-ros identify``."""
     from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+    from euc_ros.core.euc.skeleton_fit import COG_METHODS
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
@@ -41,6 +42,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures (Figs 6-8 style) into DIR")
     parser.add_argument("--phi-definition", choices=PHI_DEFINITIONS, default="hinge",
                         help="rider pitch about the ankle hinge A (model, default) or about the wheel centre C (eq 3)")
+    parser.add_argument("--cog-method", choices=COG_METHODS, default="segments",
+                        help="rider CoG from the measured segments (default) or from a kinematic chain fitted to "
+                             "them (swapped/flipped bodies excluded; docs/cog_artefacts.md)")
     parser.add_argument("--h-min", type=float, default=0.1, metavar="M", help="smallest h of the grid [m] (0.1)")
     parser.add_argument("--h-max", type=float, default=1.2, metavar="M", help="largest h of the grid [m] (1.2)")
     parser.add_argument("--h-step", type=float, default=0.005, metavar="M", help="grid step [m] (0.005)")
@@ -246,13 +250,14 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
 
     fit = result.pooled["3dof"]
     phi_definition = getattr(args, "phi_definition", "hinge")
+    cog_method = getattr(args, "cog_method", "segments")
     h_bounds = (getattr(args, "h_min", 0.1), getattr(args, "h_max", 1.2))
     series = [st.meta.get("series") for st in states]
     out = {}
     bias = err = float("nan")
     if np.isfinite(fit.h_m) and all(s is not None for s in series):
         bias, err = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                               phi_definition=phi_definition, with_error=True)
+                               phi_definition=phi_definition, with_error=True, cog_method=cog_method)
     coefs = _coefficients_for(states, params, "3dof", None)
     iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias, eiv_bias_err_m=err,
                     h_bounds=h_bounds, turning_ms2=U.turning_rms(states))
@@ -261,7 +266,7 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
     if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
         b = U.budget(series, states, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                     phi_definition=phi_definition, tolerances=tolerances)
+                     phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
         out["h_range_m"] = b["h_range_m"]
         out["uncertainty_budget"] = b
     out["_h_m"] = fit.h_m
@@ -338,7 +343,8 @@ def format_table(result, identifiable: bool | None = None) -> str:
 
 def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
-    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings, usage_table
+    from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
+                                     usage_table)
     from euc_ros.core.euc.identify import identify_h
     from euc_ros.core.euc.model import EucParams
     from euc_ros.core.session import load_session
@@ -360,9 +366,9 @@ def main(args: argparse.Namespace) -> int:
         ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
     states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
                          phi_definition=args.phi_definition, progress=not args.no_progress, desc="identify",
-                         keep_series=not args.no_uncertainty)
+                         keep_series=not args.no_uncertainty, cog_method=args.cog_method)
     settings = {"session": str(args.session), "recordings": [str(p) for p in args.recordings],
-                "phi_definition": args.phi_definition, "window_s": args.window_s,
+                "phi_definition": args.phi_definition, "cog_method": args.cog_method, "window_s": args.window_s,
                 "window_samples": states[0].window, "polyorder": args.polyorder,
                 "h_grid": {"min_m": float(grid[0]), "max_m": float(grid[-1]), "step_m": args.h_step},
                 "gravity_m_per_s2": float(params.g)}
@@ -382,6 +388,8 @@ def main(args: argparse.Namespace) -> int:
     if unc is not None:
         print(format_uncertainty(unc))
     print(format_usage(usage_table(states)))
+    faults = cog_faults(states)
+    print(format_cog_faults(faults))
     print_warnings(warnings)
     if args.json:
         out = Path(args.json)
@@ -393,6 +401,7 @@ def main(args: argparse.Namespace) -> int:
         if unc is not None:
             data["h_std_formal_m"] = data.get("h_std_m")
             data.update({k: v for k, v in unc.items() if not k.startswith("_")})
+        data["cog"] = faults
         data["warnings"] = warnings
         out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     if args.plots:

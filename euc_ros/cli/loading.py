@@ -8,11 +8,13 @@ from euc_ros.core.errors import InputError
 
 
 def load_states(session, paths, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
-                progress: bool = True, desc: str = "read", keep_series: bool = False):
+                progress: bool = True, desc: str = "read", keep_series: bool = False, cog_method: str = "segments"):
     """Read recordings, check them against the session and reconstruct their states.
 
     Every recording is first checked by :func:`euc_ros.core.checks.check_recording`; its warnings are
-    kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). Names are made unique.
+    kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). Names are made unique. With
+    ``cog_method="skeleton"`` the chain's link vectors are estimated once from all recordings (one
+    session) before any state is reconstructed.
     """
     from tqdm import tqdm
 
@@ -22,6 +24,11 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
 
     for path in paths:
         recording_kind(path)  # fail early, before any long read
+    skeleton = None
+    if cog_method == "skeleton":
+        from euc_ros.core.euc.skeleton_fit import SkeletonModel
+
+        skeleton = SkeletonModel.estimate([load_recording(p, session.world_up) for p in paths], session)
     states = []
     # no bar on a non-terminal stderr (disable=None) and none for work that ends (or fails) within 0.5 s,
     # so a refusal stays one line
@@ -31,7 +38,7 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
         series = load_recording(path, session.world_up)
         warnings = check_recording(series, session, path)
         st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
-                                polyorder=polyorder)
+                                polyorder=polyorder, cog_method=cog_method, skeleton=skeleton)
         if not st.valid.any():
             raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
                              path=path)
@@ -73,6 +80,27 @@ def samples_used(st) -> dict:
 def usage_table(states) -> list[dict]:
     """Per recording: name plus :func:`samples_used`."""
     return [{"recording": st.name, **st.meta.get("samples", samples_used(st))} for st in states]
+
+
+def cog_faults(states) -> dict:
+    """The CoG method and the rider body-frames it excluded from G (swaps, flips), JSON-ready."""
+    per_body: dict[str, int] = {}
+    for st in states:
+        for nm, c in st.meta.get("cog_fault_bodies", {}).items():
+            per_body[nm] = per_body.get(nm, 0) + int(c)
+    return {"cog_method": states[0].cog_method if states else "segments",
+            "excluded_body_frames": int(sum(st.meta.get("cog_faults", 0) for st in states)),
+            "per_recording": {st.name: int(st.meta.get("cog_faults", 0)) for st in states},
+            "per_body": per_body}
+
+
+def format_cog_faults(info: dict) -> str:
+    """One line: the CoG method and, for the skeleton, the bodies excluded from G."""
+    if info["cog_method"] != "skeleton":
+        return "rider CoG: per-segment centres of mass (no swap/flip detection)"
+    bodies = ", ".join(f"{k} {v}" for k, v in sorted(info["per_body"].items())) or "none"
+    return (f"rider CoG: fitted skeleton; body-frames excluded from G (swapped or flipped): "
+            f"{info['excluded_body_frames']} ({bodies})")
 
 
 def collect_warnings(states) -> list[str]:

@@ -52,6 +52,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-geometry", action="store_true",
                         help="do not compare the wheel-centre height with the session's wheel radius (for recordings "
                              "whose world z is not height over the floor)")
+    parser.add_argument("--cog-method", choices=("segments", "skeleton"), default="segments",
+                        help="rider CoG from the measured segments (default) or from a kinematic chain fitted to "
+                             "them (swapped/flipped bodies excluded; docs/cog_artefacts.md)")
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
@@ -68,7 +71,8 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.residual.analysis import analyze, make_noise_floor
     from euc_ros.core.residual.candidates import make_candidates
     from euc_ros.cli.identify import format_usage
-    from euc_ros.cli.loading import collect_warnings, load_states, print_warnings, usage_table
+    from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
+                                     usage_table)
     from euc_ros.core.session import load_session
 
     from euc_ros.cli.outputs import Output, check_outputs
@@ -82,7 +86,7 @@ def main(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     candidates = make_candidates(args.candidates)
     states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
-                         progress=not args.no_progress, keep_series=True)
+                         progress=not args.no_progress, keep_series=True, cog_method=args.cog_method)
     params = EucParams.from_session(session)
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     series = [st.meta.get("series") for st in states]
@@ -105,7 +109,8 @@ def main(args: argparse.Namespace) -> int:
     data["per_recording"] = usage_table(states)
     data["warnings"] = collect_warnings(states)
     data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
-                        "candidates": [c.name for c in candidates]}
+                        "candidates": [c.name for c in candidates], "cog_method": args.cog_method}
+    data["cog"] = cog_faults(states)
     _atomic_write(Path(args.json), json.dumps(data, indent=2) + "\n")
     print(format_summary(data))
     if not data["identifiable"]:
@@ -113,6 +118,7 @@ def main(args: argparse.Namespace) -> int:
     elif data.get("h_ci95_m") and None not in data["h_ci95_m"]:
         print(f"h (base model) 95 % interval [{data['h_ci95_m'][0]:.3f}, {data['h_ci95_m'][1]:.3f}] m")
     print(format_usage(data["per_recording"]))
+    print(format_cog_faults(data["cog"]))
     print_warnings(list(data["warnings"]) + list(data.get("analysis_warnings", [])))
     figures = []
     if args.plots:

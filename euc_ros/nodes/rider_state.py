@@ -25,7 +25,9 @@ Subscribes
     ``mocap/frame`` (euc_msgs/MocapFrame, reliable).
 Publishes
     ``rider/state`` (euc_msgs/RiderState, reliable), ``/diagnostics`` (frames, states, frames without
-    the EUC, states without the rider, restarts, drops, filter lag).
+    the EUC, states without the rider, restarts, drops, filter lag; the CoG method, its lag
+    ``cog_lag_s`` (0) and, for ``cog_method: skeleton``, the rider body-frames excluded from G as
+    swapped or flipped: ``cog_excluded_body_frames``, ``cog_excluded_bodies``).
 """
 from __future__ import annotations
 
@@ -38,6 +40,7 @@ from rclpy.node import Node
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.euc.estimators import FrameSequencer, RiderStateEstimator
+from euc_ros.core.euc.skeleton_fit import COG_METHODS
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.filters.causal import ESTIMATORS, LOW_LAG_S
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
@@ -65,6 +68,11 @@ SPECS = (
               "value measured best for the lag", "s", 0.0, 10.0),
     ParamSpec("max_gap", DEFAULT_MAX_GAP, "longest run of missing frames bridged (bridged frames give no state)",
               "frames", 0, 1000),
+    ParamSpec("cog_method", "segments", "rider CoG: per-segment centres of mass, or a kinematic chain fitted to "
+              "each frame (no lag; swapped/flipped bodies excluded and counted; docs/cog_artefacts.md)",
+              choices=COG_METHODS),
+    ParamSpec("skeleton_calibration_s", 2.0, "frames at the start used to estimate the chain's segment lengths "
+              "(cog_method skeleton)", "s", 0.05, 600.0),
     ParamSpec("rate_hz", 0.0, "expected mocap frame rate; 0 takes the session's rate_hz. The rate is measured "
               "from the first rate_measure_s of frames; more than 1 % off is a diagnostics ERROR and the "
               "measured rate is used", "Hz", 0.0, 100000.0),
@@ -129,7 +137,9 @@ class RiderStateNode(Node):
                                              window_s=cfg["window_s"], polyorder=cfg["polyorder"],
                                              max_gap=cfg["max_gap"], estimator=cfg["estimator"],
                                              lag_s=cfg["lag_s"] if cfg["lag_s"] >= 0 else None,
-                                             smoothing_s=cfg["smoothing_s"] or None)
+                                             smoothing_s=cfg["smoothing_s"] or None, cog_method=cfg["cog_method"],
+                                             skeleton_calibration_frames=max(
+                                                 1, int(round(cfg["skeleton_calibration_s"] * rate))))
         self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
 
     def _on_frame(self, msg: MocapFrame) -> None:
@@ -187,6 +197,9 @@ class RiderStateNode(Node):
         meter = self.rate_gate.meter
         values = dict(c, restarts=self.sequencer.restarts, dropped_frames=self.sequencer.dropped,
                       filter_lag_s=self.estimator.lag_s, estimator=self.config["estimator"],
+                      cog_method=self.config["cog_method"], cog_lag_s=self.estimator.cog_lag_s,
+                      cog_excluded_body_frames=self.estimator.cog_faults,
+                      cog_excluded_bodies=", ".join(f"{k} {v}" for k, v in sorted(self.estimator.cog_fault_bodies.items())),
                       phi_definition=self.config["phi_definition"],
                       expected_rate_hz=meter.nominal_hz, measured_rate_hz=meter.measured_hz,
                       rate_used_hz=meter.rate_hz if meter.decided else float("nan"))

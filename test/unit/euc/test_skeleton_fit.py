@@ -288,3 +288,33 @@ def test_bad_config():
     with pytest.raises(ConfigError, match="no chain link"):
         SkeletonModel.from_poses([np.zeros((1, 3, 3))], [np.tile([0, 0, 0, 1.0], (1, 3, 1))], [None], ["X"],
                                  default_session("z"), links=(("X", "Y"),))
+
+
+def test_cli_option(tmp_path, capsys):
+    """`identify --cog-method skeleton` reconstructs with the chain and reports the excluded body-frames;
+    `residual` accepts the option."""
+    import argparse
+    import json
+
+    from euc_ros.cli import residual as residual_cmd
+    from euc_ros.cli.main import main
+    from euc_ros.core.io.motive_csv import write_motive_csv
+    from euc_ros.core.session import save_session
+
+    session = default_session("z")
+    save_session(session, tmp_path / "session.yaml")
+    _, noisy = _rider_series(n=900, seed=7, pos_sigma=0.001, rot_sigma=math.radians(0.3))
+    bad = _inject(noisy, flips=(("CHR", slice(400, 404)),))
+    csv = write_motive_csv(bad, tmp_path / "hand.csv", world_up="z")
+    out = tmp_path / "out.json"
+    rc = main(["identify", str(tmp_path / "session.yaml"), str(csv), "--cog-method", "skeleton", "--json", str(out),
+               "--no-uncertainty", "--no-progress"])
+    assert rc == 0
+    assert "body-frames excluded from G (swapped or flipped): 4 (CHR 4)" in capsys.readouterr().out
+    js = json.loads(out.read_text())
+    assert js["settings"]["cog_method"] == "skeleton"
+    assert js["cog"]["excluded_body_frames"] == 4 and js["cog"]["per_body"] == {"CHR": 4}
+    p = argparse.ArgumentParser()
+    residual_cmd.add_arguments(p)
+    assert p.parse_args(["s.yaml", "a.csv", "--json", "o.json", "--cog-method", "skeleton"]).cog_method == "skeleton"
+    assert p.parse_args(["s.yaml", "a.csv", "--json", "o.json"]).cog_method == "segments"
