@@ -92,3 +92,40 @@ def canonical_quat(q) -> np.ndarray:
     """Return quaternions with w >= 0 (the sign of a quaternion is arbitrary)."""
     q = np.asarray(q, dtype=float)
     return np.where(q[..., 3:4] < 0, -q, q)
+
+
+def quat_multiply(a, b) -> np.ndarray:
+    """Hamilton product ``a b`` of quaternions (..., 4) in (x, y, z, w) order (broadcasting): the rotation
+    ``b`` followed by ``a`` in the fixed frame, i.e. ``R(a b) = R(a) R(b)``."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    av, aw = a[..., :3], a[..., 3:]
+    bv, bw = b[..., :3], b[..., 3:]
+    v = aw * bv + bw * av + np.cross(av, bv)
+    w = aw * bw - np.sum(av * bv, axis=-1, keepdims=True)
+    return np.concatenate([v, w], axis=-1)
+
+
+def quat_conjugate(q) -> np.ndarray:
+    """Inverse of unit quaternions (..., 4) (x, y, z, w)."""
+    q = np.asarray(q, dtype=float)
+    return np.concatenate([-q[..., :3], q[..., 3:]], axis=-1)
+
+
+def quat_from_rotvec(v) -> np.ndarray:
+    """Unit quaternions (..., 4) of rotation vectors (..., 3) [rad] (axis times angle)."""
+    v = np.asarray(v, dtype=float)
+    angle = np.linalg.norm(v, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(a/2)/a, with its series near 0
+    k = np.where(angle > 1e-6, np.sin(half) / np.where(angle > 1e-6, angle, 1.0), 0.5 - angle ** 2 / 48.0)
+    return np.concatenate([k * v, np.cos(half)], axis=-1)
+
+
+def rotvec_from_quat(q) -> np.ndarray:
+    """Rotation vectors (..., 3) [rad] of quaternions (..., 4), the angle in [0, pi] (sign of q ignored)."""
+    q = canonical_quat(np.asarray(q, dtype=float) / np.linalg.norm(q, axis=-1, keepdims=True))
+    s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, q[..., 3:])
+    k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0 / np.maximum(q[..., 3:], 1e-300))
+    return k * q[..., :3]

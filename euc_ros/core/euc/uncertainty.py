@@ -34,6 +34,7 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.rotations import quat_conjugate, quat_from_rotvec, quat_multiply, rotvec_from_quat
 
 #: Shortest total duration of valid samples for an identifiable h [s].
 MIN_DURATION_S = 4.0
@@ -187,8 +188,6 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
     variance 20 sigma^2. Rotation: the increments between consecutive orientations (a first
     difference of the noise) differenced twice more. Robust: the median absolute deviation.
     """
-    from scipy.spatial.transform import Rotation
-
     b = len(series.bodies)
     sp, sr = np.full(b, np.nan), np.full(b, np.nan)
     consecutive = np.diff(series.frame) == 1
@@ -204,7 +203,8 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
             sp[i] = 1.4826 * np.median(np.abs(d3[good3] - np.median(d3[good3], axis=0))) / np.sqrt(20)
         q = series.quat[i]
         qa = np.where(ok[:, None], q, [0, 0, 0, 1.0])
-        inc = (Rotation.from_quat(qa[:-1]).inv() * Rotation.from_quat(qa[1:])).as_rotvec()
+        qa = qa / np.linalg.norm(qa, axis=1, keepdims=True)
+        inc = rotvec_from_quat(quat_multiply(quat_conjugate(qa[:-1]), qa[1:]))
         d2 = np.diff(inc, n=2, axis=0)
         if good3.sum() >= 10:
             sr[i] = 1.4826 * np.median(np.abs(d2[good3] - np.median(d2[good3], axis=0))) / np.sqrt(20)
@@ -213,8 +213,6 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
 
 def add_pose_noise(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
     """A copy of ``series`` with white noise of the given per-body sigmas added to every pose."""
-    from scipy.spatial.transform import Rotation
-
     pos = series.position.copy()
     quat = series.quat.copy()
     for i in range(len(series.bodies)):
@@ -222,8 +220,9 @@ def add_pose_noise(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
             pos[i] = pos[i] + rng.normal(0.0, sigma_pos[i], pos[i].shape)
         if np.isfinite(sigma_rot[i]):
             ok = np.all(np.isfinite(quat[i]), axis=1)
-            dq = Rotation.from_rotvec(rng.normal(0.0, sigma_rot[i], (int(ok.sum()), 3)))
-            quat[i, ok] = (Rotation.from_quat(quat[i, ok]) * dq).as_quat()
+            dq = quat_from_rotvec(rng.normal(0.0, sigma_rot[i], (int(ok.sum()), 3)))
+            qi = quat[i, ok] / np.linalg.norm(quat[i, ok], axis=1, keepdims=True)
+            quat[i, ok] = quat_multiply(qi, dq)
     return dataclasses.replace(series, position=pos, quat=quat)
 
 

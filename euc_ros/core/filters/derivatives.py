@@ -40,6 +40,7 @@ True
 """
 from __future__ import annotations
 
+import functools
 from collections import deque
 from dataclasses import dataclass
 from typing import Iterator, NamedTuple
@@ -156,12 +157,22 @@ def savgol_coefficients(window: int, polyorder: int, dt: float, positions,
     return out
 
 
+@functools.lru_cache(maxsize=32)
+def _stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
+    """Centre and edge coefficients of :func:`_filter_stretch` (cached: the residual analysis filters many
+    series with the same window; read-only)."""
+    half = (w - 1) // 2
+    edges = np.arange(half)
+    coeffs = savgol_coefficients(w, polyorder, dt, np.concatenate(([half], edges, edges + half + 1)))
+    coeffs.setflags(write=False)
+    return coeffs
+
+
 def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float) -> np.ndarray:
     """Value and derivatives (3, L, k) of a gap-free stretch ``seg`` (L >= w, k columns)."""
     half = (w - 1) // 2
     length = seg.shape[0]
-    edges = np.arange(half)
-    coeffs = savgol_coefficients(w, polyorder, dt, np.concatenate(([half], edges, edges + half + 1)))
+    coeffs = _stretch_coefficients(int(w), int(polyorder), float(dt))
     centre, head, tail = coeffs[:, 0], coeffs[:, 1:half + 1], coeffs[:, half + 1:]
     out = np.empty((3,) + seg.shape)
     # a constant offset cancels exactly in the derivatives; removing it keeps round-off at the

@@ -17,12 +17,12 @@ from dataclasses import dataclass, field
 from typing import Callable, Sequence
 
 import numpy as np
-from scipy import optimize, stats
+from scipy import optimize, signal, stats
 
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, to_moving_frame
 from euc_ros.core.euc.model import EucParams, consistency_weights
 from euc_ros.core.euc.torque import torques
-from euc_ros.core.filters.derivatives import savgol_derivatives
+from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
 from euc_ros.core.residual.candidates import Candidate, FloorGeometry, ModelContext, make_candidates
 from euc_ros.core.residual.floor import FloorFit, fit_floor, rolling_radius_from_floor, slope_along_path
 
@@ -37,6 +37,16 @@ DEFAULT_ALPHA = 0.01
 DEFAULT_MIN_GAIN = 0.10
 #: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
 DEFAULT_BLOCK_S = 1.0
+#: Fewest folds of the held-out evaluation (segments per run = ceil(this / runs), at least 2).
+MIN_FOLDS = 6
+#: The residual's slow part (an effect's signature) is removed over this many filter windows before its
+#: autocorrelation sets the block length (:func:`residual_block_length`).
+TREND_WINDOWS = 16.0
+#: Relative tolerance of the least-squares fits: a cost change of 1e-6 moves a parameter by ~1e-3 of its
+#: standard error, far below what the selection can resolve (scipy's default 1e-8 took ~40 evaluations).
+FIT_TOL = 1e-6
+#: Sample rate the analysis works at [Hz] (:func:`decimation_step`): 4x the derivative filter's passband.
+ANALYSIS_RATE_HZ = 10.0
 #: An effect is undetectable when its generalized force projects on w = [R, 1, 1] by less than this
 #: fraction of its size (it lies in the span of the input directions).
 DETECTABILITY_TOL = 1e-6
@@ -99,19 +109,47 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
         return np.arctan2(r[:, 0], r[:, 2])
 
     phi0 = phi_of(st.G)
+    idx = np.flatnonzero(valid)
+    half = (window - 1) // 2
+    uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
+        and np.isfinite(st.dt)
+    if uniform:
+        # the filter's centre weights evaluated only at the samples the analysis uses (valid samples lie at
+        # least half a window inside their stretch, so the centre weights are the ones the full filter uses)
+        weights = savgol_coefficients(window, polyorder, st.dt, [half])[:, 0, :]      # (3, window)
 
     def shift(dt: float):
         Gs = np.stack([np.interp(t + dt, t, st.G[:, k], left=np.nan, right=np.nan) for k in range(3)], axis=1)
         d = phi_of(Gs) - phi0
+        if uniform:
+            W = np.lib.stride_tricks.sliding_window_view(np.pad(d, half, constant_values=np.nan), window)[idx]
+            out = W @ weights.T
+            return out[:, 0], out[:, 1], out[:, 2]
         der = savgol_derivatives(t, d, window=window, polyorder=polyorder, frame=st.frame)
         return der.y[valid], der.y_dot[valid], der.y_ddot[valid]
 
     return shift
 
 
+def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:
+    """Keep every k-th sample so that the analysis runs at about ``analysis_rate_hz`` (1: all samples).
+
+    The states come out of the Savitzky-Golay filter, whose passband ends near 2.5 Hz for the default
+    1.2 s window (response below 1 % of its peak from 2.6 Hz on, sidelobes of 6-22 % above it): the
+    residual's signal is over-sampled at 120-360 Hz and a sub-sample at :data:`ANALYSIS_RATE_HZ` keeps it
+    (the fits and held-out errors on the sub-sample are unbiased; measured against every sample in
+    ``test_decimation.py``), while the fits' cost falls with the number of samples.
+    """
+    if not analysis_rate_hz or not np.isfinite(dt) or dt <= 0:
+        return 1
+    return max(1, int(math.floor(1.0 / (dt * analysis_rate_hz) + 1e-9)))
+
+
 def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S,
-            floor: FloorFit | None = None) -> list[Recording]:
+            floor: FloorFit | None = None, analysis_rate_hz: float | None = None) -> list[Recording]:
     """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook).
+
+    ``analysis_rate_hz``: keep every k-th sample (:func:`decimation_step`); None keeps all of them.
 
     With a ``floor`` that is not flat, each context also carries the floor's slope along travel under
     the wheel (``extras['floor_a']``) and the wheel centre's vertical acceleration (``extras['c_zdd']``,
@@ -123,6 +161,9 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
         valid = np.asarray(st.valid, bool).copy()   # already half a window inside each stretch
         dpsi = savgol_derivatives(st.t, np.unwrap(st.psi), window=window, polyorder=st.polyorder, frame=st.frame)
         valid &= np.isfinite(dpsi.y_dot) & np.isfinite(st.theta)
+        step = decimation_step(st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t))), analysis_rate_hz)
+        if step > 1:
+            valid &= (np.arange(valid.size) % step) == 0
         ctx = ModelContext(
             t=st.t[valid] - st.t[0], x_dot=st.x_dot[valid], x_ddot=st.x_ddot[valid], gamma=st.gamma[valid],
             gamma_dot=st.gamma_dot[valid], gamma_ddot=st.gamma_ddot[valid], phi=st.phi[valid],
@@ -283,7 +324,8 @@ def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndar
         x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
         try:
             sol = optimize.least_squares(lambda x: _stack_residual(model, recs, x), x0, bounds=(lo, hi),
-                                         x_scale=model.scales(), method="trf", max_nfev=200 * len(x0))
+                                         x_scale=model.scales(), method="trf", max_nfev=200 * len(x0),
+                                         ftol=FIT_TOL, xtol=FIT_TOL, gtol=FIT_TOL)
         except ValueError:
             continue
         cost = float(np.sum(sol.fun ** 2))
@@ -296,7 +338,7 @@ def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndar
     return Fit(model, best[1], math.sqrt(best[0] / max(n, 1)), n)
 
 
-def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 111)) -> float:
+def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 45)) -> float:
     """Grid-then-refine estimate of h with the base model (a good start for every joint fit)."""
     base = Model()
     sse = [float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)) for h in h_grid]
@@ -386,36 +428,102 @@ def _equivalent_force(model: Model, rec: Recording, x: np.ndarray) -> np.ndarray
 # --------------------------------------------------------------------------------------------
 # held-out evaluation and selection
 # --------------------------------------------------------------------------------------------
-def folds_of(recs: Sequence[Recording], n_folds: int = 4) -> list[tuple[list[Recording], list[Recording]]]:
-    """Train/test splits: leave-one-run-out over runs (at most ``n_folds`` groups), or contiguous
-    segments of a single run."""
-    if len(recs) >= 2:
-        groups = np.array_split(np.arange(len(recs)), min(n_folds, len(recs)))
-        return [([recs[i] for i in range(len(recs)) if i not in g], [recs[i] for i in g]) for g in groups]
-    rec = recs[0]
-    n = rec.ctx.t.shape[0]
-    edges = np.linspace(0, n, n_folds + 1).astype(int)
-    parts = [_subset(rec, slice(edges[k], edges[k + 1]), f"{rec.name}[{k}]") for k in range(n_folds)]
-    return [([p for j, p in enumerate(parts) if j != k], [parts[k]]) for k in range(n_folds)]
+@dataclass
+class Fold:
+    """One train/test split as sample masks per recording (``train[i]``, ``test[i]``: bool over rec i)."""
+
+    train: list[np.ndarray]
+    test: list[np.ndarray]
+    name: str = ""
 
 
-def _subset(rec: Recording, sl: slice, name: str) -> Recording:
-    c = rec.ctx
-    sub = ModelContext(**{k: getattr(c, k)[sl] for k in (
-        "t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
-        "psi_dot", "theta")}, params=c.params)
-    shift = c.extras.get("phi_shift")
-    if shift is not None:
-        sub.extras["phi_shift"] = lambda dt, f=shift: tuple(a[sl] for a in f(dt))
-    for k, v in c.extras.items():
-        if isinstance(v, np.ndarray) and v.shape[:1] == c.t.shape:
-            sub.extras[k] = v[sl]
-    return Recording(name, sub, rec.block[sl])
+def _guard(t: np.ndarray, test: np.ndarray, guard_s: float) -> np.ndarray:
+    """Samples within ``guard_s`` of a test sample (they share raw frames through the filter)."""
+    if not test.any():
+        return np.zeros_like(test)
+    tt = t[test]
+    j = np.searchsorted(tt, t)
+    left = np.abs(t - tt[np.clip(j - 1, 0, tt.size - 1)])
+    right = np.abs(tt[np.clip(j, 0, tt.size - 1)] - t)
+    return np.minimum(left, right) < guard_s
+
+
+def folds_of(recs: Sequence[Recording], n_segments: int = 3, guard_s: float = 0.0) -> list[Fold]:
+    """Train/test splits within runs as well as across runs.
+
+    Every run is cut into ``n_segments`` contiguous segments of whole blocks; each fold holds out one
+    segment of one run and trains on everything else (the other runs, and the rest of that run minus
+    ``guard_s`` on either side of the held-out segment: the derivative filter and coloured noise
+    correlate neighbouring samples). So every sample is held out once, and each fold trains on
+    ``1 - 1/(runs x segments)`` of the data (leave-one-run-out trained on ``1 - 1/runs``).
+    """
+    folds = []
+    for i, rec in enumerate(recs):
+        ub = np.unique(rec.block)
+        if ub.size == 0:
+            continue
+        k = max(1, min(n_segments, ub.size))
+        for j, chunk in enumerate(np.array_split(ub, k)):
+            test = np.isin(rec.block, chunk)
+            train = [np.ones(r.block.shape, bool) for r in recs]
+            train[i] = ~(test | _guard(rec.ctx.t, test, guard_s))
+            tests = [np.zeros(r.block.shape, bool) for r in recs]
+            tests[i] = test
+            folds.append(Fold(train, tests, f"{rec.name}[{j}]"))
+    return folds
+
+
+def residual_block_length(recs: Sequence[Recording], residuals: Sequence[np.ndarray], *, min_s: float,
+                          trend_s: float, max_fraction: float = 0.25) -> float:
+    """Block length [s] of the paired test from the residual's measured autocorrelation.
+
+    The slow part of the residual (a cubic Savitzky-Golay fit over ``trend_s``: an unexplained effect's signature)
+    is removed first, so the blocks follow the correlation of the residual's noise (the derivative filter,
+    coloured pose noise), not the effect the test is looking for. Block = twice the noise's integrated
+    autocorrelation time (``dt (1 + 2 sum rho_k)`` up to the first zero crossing: ``m dt`` for an m-sample
+    moving average), at least ``min_s`` (one filter window), at most ``max_fraction`` of the shortest
+    recording.
+    """
+    lags = []
+    for rec, r in zip(recs, residuals):
+        t = rec.ctx.t
+        if t.size < 16:
+            continue
+        dt = float(np.median(np.diff(t)))
+        m = min(max(5, int(round(trend_s / dt)) | 1), (t.size - 1) | 1 if t.size % 2 == 0 else t.size)
+        trend = signal.savgol_filter(r, m, 3, mode="interp") if m > 3 and m <= r.size else np.full(r.size, r.mean())
+        e = r - trend
+        e = e - e.mean()
+        n = e.size
+        f = np.fft.rfft(e, 2 * n)
+        acf = np.fft.irfft(f * np.conj(f))[:n]
+        if acf[0] <= 0:
+            continue
+        acf = acf / acf[0]
+        below = np.flatnonzero(acf[1:] <= 0)
+        zc = below[0] + 1 if below.size else n
+        # integrated autocorrelation time up to the first zero crossing: dt (1 + 2 sum rho_k); robust to
+        # the crossing's estimation noise (the tail it may cut is where rho is small)
+        lags.append(dt * (1.0 + 2.0 * float(np.sum(acf[1:zc]))))
+    if not lags:
+        return float(min_s)
+    shortest = min(float(rec.ctx.t[-1] - rec.ctx.t[0]) for rec in recs if rec.ctx.t.size) if recs else np.inf
+    return float(min(max(2.0 * float(np.median(lags)), min_s), max(min_s, max_fraction * shortest)))
+
+
+def with_blocks(recs: Sequence[Recording], block_s: float) -> list[Recording]:
+    """The recordings with their samples grouped into blocks of ``block_s`` seconds."""
+    out = []
+    for rec in recs:
+        t = rec.ctx.t
+        block = np.floor((t - (t[0] if t.size else 0.0)) / block_s).astype(int)
+        out.append(Recording(rec.name, rec.ctx, block, rec.index))
+    return out
 
 
 @dataclass
 class HeldOut:
-    """Held-out residuals of a model over all folds, with their blocks."""
+    """Held-out residuals of a model over all folds, with their blocks (unique over recordings)."""
 
     model: Model
     residual: np.ndarray
@@ -428,24 +536,70 @@ class HeldOut:
         return float(np.sqrt(np.mean(self.residual ** 2))) if self.residual.size else float("nan")
 
 
+def _block_offsets(recs: Sequence[Recording]) -> list[int]:
+    out, off = [], 0
+    for r in recs:
+        out.append(off)
+        off += int(r.block.max()) + 1 if r.block.size else 0
+    return out
+
+
+def model_jacobian(model: Model, recs: Sequence[Recording], x: np.ndarray, res0=None
+                   ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Per recording: residual at ``x``, its usable mask and d(residual)/dx by forward differences
+    (steps of 1e-4 of each parameter's typical scale, inward at a bound)."""
+    res0 = res0 or [model.residual(r, x) for r in recs]
+    lo, hi = model.bounds()
+    steps = 1e-4 * model.scales()
+    J = [np.empty((r.ctx.t.shape[0], x.size)) for r in recs]
+    for k in range(x.size):
+        x1 = np.array(x, float)
+        step = steps[k] if x1[k] + steps[k] <= hi[k] else -steps[k]
+        x1[k] += step
+        for i, r in enumerate(recs):
+            J[i][:, k] = (model.residual(r, x1)[0] - res0[i][0]) / step
+    return [a for a, _ in res0], [m for _, m in res0], J
+
+
 def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
              fixed: np.ndarray | None = None, start: np.ndarray | None = None) -> HeldOut:
-    """Fit on each fold's training part, collect the residual on its held-out part.
+    """Fit on each fold's training samples, collect the residual on its held-out samples.
 
-    ``start`` (the fit on all data) seeds every fold's fit; without it each fold tries every start.
+    The fold fits are Gauss-Newton steps from the fit on all data (``start``; fitted here without it):
+    the model's Jacobian is evaluated once, each fold's parameters are ``x + dx`` with ``dx`` the
+    linear least-squares step on its training rows (clipped to the bounds), and the held-out residual is
+    the model evaluated at those parameters. The fold optima lie close to the full one (each fold drops a
+    small part of the data), where one step of Gauss-Newton is the standard approximate leave-out fit;
+    ``test_heldout.py`` compares it with refitting every fold from scratch.
     """
     folds = folds or folds_of(recs)
+    if start is None:
+        start = fit_model(model, recs, h0, fixed).x
+    x = np.asarray(start, float)
+    r_all, m_all, J = model_jacobian(model, recs, x)
+    lo, hi = model.bounds()
+    sc = model.scales()
+    offsets = _block_offsets(recs)
     res, blocks, params = [], [], []
-    offset = 0
-    for train, test in folds:
-        fit = fit_model(model, train, h0, fixed, start=start)
-        params.append(fit.x)
-        for r in test:
-            rr, mask = model.residual(r, fit.x)
-            res.append(rr[mask])
-            blocks.append(r.block[mask] + offset)
-            offset += int(r.block.max()) + 1 if r.block.size else 0
-    return HeldOut(model, np.concatenate(res), np.concatenate(blocks), params)
+    for fold in folds:
+        rows = [np.asarray(tr, bool) & m for tr, m in zip(fold.train, m_all)]
+        A = np.concatenate([Ji[rw] for Ji, rw in zip(J, rows)]) * sc
+        b = -np.concatenate([ri[rw] for ri, rw in zip(r_all, rows)])
+        ok = np.all(np.isfinite(A), axis=0)
+        dx = np.zeros(x.size)
+        if ok.any():
+            dx[ok] = np.linalg.lstsq(A[:, ok], b, rcond=None)[0] * sc[ok]
+        xf = np.clip(x + dx, lo, hi)
+        params.append(xf)
+        for i, (r, te) in enumerate(zip(recs, fold.test)):
+            if not np.any(te):
+                continue
+            rr, mask = model.residual(r, xf)
+            keep = np.asarray(te, bool) & mask
+            res.append(rr[keep])
+            blocks.append(r.block[keep] + offsets[i])
+    return HeldOut(model, np.concatenate(res) if res else np.zeros(0),
+                   np.concatenate(blocks) if blocks else np.zeros(0, int), params)
 
 
 def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None:
@@ -565,6 +719,7 @@ class ResidualResult:
     noise_floor_nm: float = float("nan")
     residual_after_above_noise: bool | None = None
     floor_fit: FloorFit | None = None
+    block_s: float = float("nan")
 
     def to_json(self) -> dict:
         """JSON per recording-format spec section 5 (plus the analysis settings and steps)."""
@@ -580,7 +735,7 @@ class ResidualResult:
                 "ambiguous_with": ambiguous,
                 "h_after_m": self.h_after, "candidates": table, "selection_steps": self.steps,
                 "significance_level": self.alpha, "min_relative_gain": self.min_gain,
-                "held_out": {"folds": self.folds, "kind": self.fold_kind},
+                "held_out": {"folds": self.folds, "kind": self.fold_kind, "block_s": self.block_s},
                 "geometry": self.geometry,
                 "undetectable": [c.effect for c in self.candidates if not c.detectable],
                 "h_range_m": [float(self.h_range[0]), float(self.h_range[1])], "tied_models": self.tied,
@@ -593,8 +748,9 @@ class ResidualResult:
 
 def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Sequence[Candidate] | None = None,
             alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
-            n_folds: int = 3, use_geometry: bool = True, discover: bool = True,
+            n_folds: int | None = None, use_geometry: bool = True, discover: bool = True,
             noise_floor_of: Callable[[Model, np.ndarray], float] | None = None,
+            analysis_rate_hz: float | None = ANALYSIS_RATE_HZ,
             progress: Callable[[str], None] | None = None) -> ResidualResult:
     """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (greedy forward selection).
 
@@ -615,6 +771,8 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         into the model as geometry; a flat one may measure the rolling radius.
     discover : bool
         After the named effects, look for structure left in the residual (:mod:`.discovery`).
+    analysis_rate_hz : float or None
+        Work on a sub-sample at about this rate (:func:`decimation_step`); None: every sample.
     noise_floor_of : callable, optional
         ``(model, x) -> RMS [N m]``: the residual's noise floor for a fitted model (the recordings' pose
         noise propagated, :func:`euc_ros.core.residual.noise.noise_floor`); without it the significance
@@ -624,11 +782,19 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     candidates = list(candidates) if candidates is not None else make_candidates()
     # geometry first: the contact path measures the floor (plane, smooth deviation, scatter)
     floor = floor_from_states(states, params.R) if use_geometry else None
-    recs = prepare(states, params, floor=floor)
-    folds = folds_of(recs, n_folds)
+    recs = prepare(states, params, floor=floor, analysis_rate_hz=analysis_rate_hz)
     h_geo = geometric_h(states, params)
     h0 = fit_base_h(recs)
     base_fit = fit_model(Model(), recs, h0)
+    # blocks of the paired test and guard bands of the folds from the residual's measured autocorrelation
+    st0 = states[0]
+    window_s = st0.window * st0.dt if st0.window and np.isfinite(st0.dt) else DEFAULT_BLOCK_S
+    block_s = residual_block_length(recs, [Model().residual(r, base_fit.x)[0] for r in recs], min_s=window_s,
+                                    trend_s=TREND_WINDOWS * window_s)
+    recs = with_blocks(recs, block_s)
+    n_segments = n_folds if n_folds else max(2, math.ceil(MIN_FOLDS / len(recs)))
+    folds = folds_of(recs, n_segments, guard_s=max(window_s, 0.5 * block_s))
+    say(f"held-out: {len(folds)} folds ({n_segments} segments per run), blocks of {block_s:.2f} s")
     say(f"base model: h = {base_fit.h:.3f} m, RMSE {base_fit.rmse:.3f} N m (training)")
 
     visible = {c.name: detectability(c, recs, base_fit.h) for c in candidates}
@@ -811,11 +977,29 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         effect=effect, effect_parameters=current.report(final_fit.x), h_after=final_fit.h,
         final_x=final_fit.x, selected=[c.name for c in current.effects], candidates=list(rows.values()),
         steps=steps, alpha=alpha, min_gain=min_gain, folds=len(folds),
-        fold_kind="leave-runs-out" if len(recs) >= 2 else "segments of one run",
+        fold_kind=f"segments within runs ({n_segments} per run, across {len(recs)} run(s)), blocks {block_s:.2f} s",
+        block_s=block_s,
         base_heldout=base_ho, final_heldout=current_ho, final_model=current, geometry=geometry, warnings=warnings,
         h_range=h_range, tied=tied, residual_significant=residual_significant, unexplained=unexplained,
         discovered=discovered_rows, discovery=disc_info, noise_floor_nm=noise, floor_fit=floor,
         residual_after_above_noise=bool(still_above) if math.isfinite(noise) else None)
+
+
+def force_map(model: Model, recs: Sequence[Recording], x: np.ndarray) -> list[np.ndarray]:
+    """Per recording, the change of the residual per unit extra generalized force along x, gamma and phi
+    (n, 3): the residual is linear in an extra force (``-R m11 (w . dQ) / D``), so three evaluations give
+    the sensitivity of any force."""
+    out = []
+    for r in recs:
+        n = r.ctx.t.shape[0]
+        r0 = model.residual(r, x)[0]
+        cols = []
+        for j in range(3):
+            e = np.zeros((n, 3))
+            e[:, j] = 1.0
+            cols.append(model.residual(r, x, e)[0] - r0)
+        out.append(np.stack(cols, axis=1))
+    return out
 
 
 def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recording], folds, h0: float,
@@ -825,17 +1009,16 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
 
     Returns ``{"model", "x", "heldout", "info"}`` (model None when no number of terms beats none).
     """
-    from euc_ros.core.residual.discovery import DiscoveredEffect, forward_select, sensitivities
+    from euc_ros.core.residual.discovery import DiscoveredEffect, all_terms, basis_sensitivities, forward_select
 
-    def res(rec, x, dQ):
-        r, m = current.residual(rec, x, dQ)
-        return np.where(m, r, 0.0)
-
-    def h_column(recs_, x, r0, dh=1e-3):
-        # d(residual)/dh by a forward difference from the residual r0 at x (sensitivities' r0)
-        x1 = np.array(x, float)
-        x1[0] += dh
-        return (np.concatenate([res(r, x1, None) for r in recs_]) - r0) / dh
+    terms = all_terms()
+    L = force_map(current, recs, current_x)
+    B_all = [basis_sensitivities(r.ctx, Li) for r, Li in zip(recs, L)]
+    base = [current.residual(r, current_x) for r in recs]
+    dh = 1e-3
+    x1 = np.array(current_x, float)
+    x1[0] += dh
+    hcol = [(current.residual(r, x1)[0] - b[0]) / dh for r, b in zip(recs, base)]
 
     def with_h(r0, B, hc):
         # h is always in the model: the terms are chosen for, and fitted with, the h column projected out
@@ -843,19 +1026,24 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         return r0 - u * (u @ r0), B - np.outer(u, u @ B)
 
     per_k: dict[int, list[np.ndarray]] = {}
-    for (train, test), x_fold in zip(folds, current_ho.params):
-        r0, B, terms = sensitivities(res, train, x_fold)
-        hc = h_column(train, x_fold, r0)
-        r0p, Bp = with_h(r0, B, hc)
-        sets = forward_select(r0p, Bp)
-        r0t, Bt, _ = sensitivities(res, test, x_fold)
-        hct = h_column(test, x_fold, r0t)
-        keep = np.concatenate([current.residual(r, x_fold)[1] for r in test])
-        per_k.setdefault(0, []).append(r0t[keep])
+    for fold, x_fold in zip(folds, current_ho.params):
+        fres = [current.residual(r, x_fold) if np.any(te) or np.any(tr) else None
+                for r, tr, te in zip(recs, fold.train, fold.test)]
+        tr_rows = [np.asarray(tr, bool) & f[1] for tr, f in zip(fold.train, fres) if f is not None]
+        idx = [i for i, f in enumerate(fres) if f is not None]
+        r0 = np.concatenate([fres[i][0][rw] for i, rw in zip(idx, tr_rows)])
+        B = np.concatenate([B_all[i][rw] for i, rw in zip(idx, tr_rows)])
+        hc = np.concatenate([hcol[i][rw] for i, rw in zip(idx, tr_rows)])
+        sets = forward_select(*with_h(r0, B, hc))
+        te_rows = [(i, np.asarray(fold.test[i], bool) & fres[i][1]) for i in idx if np.any(fold.test[i])]
+        r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
+        Bt = np.concatenate([B_all[i][rw] for i, rw in te_rows])
+        hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
+        per_k.setdefault(0, []).append(r0t)
         for k, cols in enumerate(sets, start=1):
             A = np.column_stack([hc, B[:, cols]])
             c, *_ = np.linalg.lstsq(A, -r0, rcond=None)
-            per_k.setdefault(k, []).append((r0t + np.column_stack([hct, Bt[:, cols]]) @ c)[keep])
+            per_k.setdefault(k, []).append(r0t + np.column_stack([hct, Bt[:, cols]]) @ c)
     complete = {k: np.concatenate(v) for k, v in per_k.items() if len(v) == len(folds)}
     rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
     info = {"run": True, "heldout_rmse_by_terms": [rmse[k] for k in sorted(rmse)]}
@@ -868,23 +1056,26 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     # the held-out residual of the terms chosen within each fold (no leakage of the selection into the test)
     if complete[best_k].shape == current_ho.residual.shape:
         info["selection_heldout"] = HeldOut(current, complete[best_k], current_ho.block, [])
-    r0, B, terms = sensitivities(res, recs, current_x)
-    hc = h_column(recs, current_x, r0)
+    rows = [b[1] for b in base]
+    r0 = np.concatenate([b[0][m] for b, m in zip(base, rows)])
+    B = np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)])
+    hc = np.concatenate([h[m] for h, m in zip(hcol, rows)])
     cols = forward_select(*with_h(r0, B, hc), best_k)[-1]
     c, *_ = np.linalg.lstsq(np.column_stack([hc, B[:, cols]]), -r0, rcond=None)
-    dh, c = float(c[0]), c[1:]
+    dhh, c = float(c[0]), c[1:]
     scales = [max(abs(v), 1e-6) for v in c]
     eff = DiscoveredEffect([terms[j] for j in cols], scales, start=c)
     model = Model(current.effects + [eff])
     start = np.concatenate([current_x, c])
-    start[0] = float(np.clip(current_x[0] + dh, *H_BOUNDS))
+    start[0] = float(np.clip(current_x[0] + dhh, *H_BOUNDS))
     full = fit_model(model, recs, h0, start=start)
     ho = held_out(model, recs, h0, folds, start=full.x)
     return {"model": model, "x": full.x, "heldout": ho, "info": info}
 
 
 def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
-                     seed: int = 0) -> Callable[[Model, np.ndarray], float]:
+                     seed: int = 0, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ
+                     ) -> Callable[[Model, np.ndarray], float]:
     """``noise_floor_of`` for :func:`analyze`: the recordings' own pose noise propagated through the
     reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`)."""
     from euc_ros.core.residual.noise import noise_floor
@@ -895,7 +1086,7 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
 
     def of(model: Model, x: np.ndarray) -> float:
         def residual_of(st_list):
-            recs = prepare(st_list, params, floor=floor)
+            recs = prepare(st_list, params, floor=floor, analysis_rate_hz=analysis_rate_hz)
             out = []
             for rec, st in zip(recs, st_list):
                 r, m = model.residual(rec, x)

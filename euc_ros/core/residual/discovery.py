@@ -133,16 +133,21 @@ class DiscoveredEffect(Candidate):
         return out
 
 
-def sensitivities(model_residual, recs, x) -> tuple[np.ndarray, np.ndarray, list[Term]]:
-    """For every basis column, the change of the stacked residual per unit coefficient (linear), with the
-    current residual: ``(r0 (n,), B (n, k), terms)``. ``model_residual(rec, x, extra_dQ)`` -> residual."""
-    terms = [Term(p, f) for p in range(len(POINTS)) for f in range(len(FUNCTIONS))]
-    r0 = np.concatenate([model_residual(r, x, None) for r in recs])
-    cols = []
-    for t in terms:
-        cols.append(np.concatenate([model_residual(r, x, basis_forces(r.ctx, [(t.point, t.func, 1.0)])) for r in recs])
-                    - r0)
-    return r0, np.stack(cols, axis=1), terms
+def all_terms() -> list[Term]:
+    """Every (point, function) term, point-major (the column order of :func:`basis_sensitivities`)."""
+    return [Term(p, f) for p in range(len(POINTS)) for f in range(len(FUNCTIONS))]
+
+
+def basis_sensitivities(ctx, force_map: np.ndarray) -> np.ndarray:
+    """Change of the residual per unit coefficient of every term of :func:`all_terms` (n, k).
+
+    ``force_map`` (n, 3): the residual's change per unit extra generalized force along each coordinate
+    (the residual is linear in an extra force), so a term's column is ``force_map . dQ_term``.
+    """
+    F = feature_matrix(ctx)
+    jx, jz = jacobian_G(ctx, ctx.p())
+    gains = (force_map[:, 0], np.sum(force_map * jx, axis=1), np.sum(force_map * jz, axis=1))
+    return np.concatenate([g[:, None] * F for g in gains], axis=1)
 
 
 def forward_select(r0: np.ndarray, B: np.ndarray, max_terms: int = MAX_TERMS) -> list[list[int]]:
