@@ -151,7 +151,8 @@ def main() -> int:
              "bias M_d1 / M_d2 [N m] |",
              "|---:|:---|:---|---:|---:|---:|---:|"]
     for lag_s, family, setting, e1, e2, ratio, b1, b2 in rows:
-        lines.append(f"| {lag_s:.2f} | {family} | {setting} | {e1:.3f} | {e2:.3f} | {ratio:.2f} | {b1:.3f} / {b2:.3f} |")
+        lines.append(f"| {lag_s:.2f} | {family} | {setting} | {e1:.3f} | {e2:.3f} | {ratio:.2f} "
+                     f"| {b1:.3f} / {b2:.3f} |")
     (a.out / "lag_table.md").write_text("\n".join(lines) + "\n")
     with open(a.out / "lag_table.csv", "w") as fh:
         fh.write("lag_s,filter,setting,rms_md1_nm,rms_md2_nm,ratio_to_default,bias_md1_nm,bias_md2_nm\n")

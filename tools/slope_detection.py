@@ -91,8 +91,9 @@ def main() -> int:
         delay = np.array([r[1] for r in res])
         ok = np.isfinite(delay)
         med = f"{np.median(delay[ok]):.2f} ({np.max(delay[ok]):.2f})" if ok.any() else "-"
-        print(f"| {name} | {thresholds[name]:.2f} | {slope:g} | {pre.max():.2f} | {int((pre > thresholds[name]).sum())} "
-              f"| {med} | {int((~ok).sum())} of {len(res)} |")
+        false = int((pre > thresholds[name]).sum())
+        print(f"| {name} | {thresholds[name]:.2f} | {slope:g} | {pre.max():.2f} | {false} | {med} "
+              f"| {int((~ok).sum())} of {len(res)} |")
     return 0
 
 

@@ -9,8 +9,9 @@ The threshold is not typed in: it is calibrated as a lab would, on a separate le
 seed) through the same chain (:func:`~euc_ros.core.euc.alarm.rmse_threshold`: the residual's RMS and
 autocorrelation time give the chi-square quantile of a window's RMS), with a false-alarm probability
 ALPHA per independent window small enough for a level ride of a few seconds (a few dozen independent
-windows; not-quite-Gaussian, not-quite-stationary residuals need the margin). The test then asks for no flag before the onset and a flag within 1 s after it, in the time the
-flag is raised (the newest frame's time, so the filter lag counts against the 1 s).
+windows; not-quite-Gaussian, not-quite-stationary residuals need the margin). The test then asks
+for no flag before the onset and a flag within 1 s after it, in the time the flag is raised (the
+newest frame's time, so the filter lag counts against the 1 s).
 """
 from __future__ import annotations
 
@@ -77,5 +78,6 @@ def test_low_lag_monitor_flags_a_slope_within_one_second(threshold_nm):
     flagged = rows[(rows[:, 0] >= onset) & (levels >= mon.WARN), 0]
     assert flagged.size, f"slope never flagged (threshold {threshold_nm:.2f} N m, max {rows[:, 3].max():.2f})"
     delay = flagged[0] - onset
-    print(f"threshold {threshold_nm:.2f} N m, level max {rows[before, 3].max():.2f}, flagged {delay:.2f} s after the onset at {onset:.2f} s")
+    print(f"threshold {threshold_nm:.2f} N m, level max {rows[before, 3].max():.2f}, "
+          f"flagged {delay:.2f} s after the onset at {onset:.2f} s")
     assert delay <= 1.0, f"flagged {delay:.2f} s after the onset"
