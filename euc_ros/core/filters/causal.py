@@ -48,6 +48,7 @@ Examples
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import dataclass
 from math import factorial
 
 import numpy as np
@@ -219,9 +220,22 @@ def _stretch(seg: np.ndarray, w: np.ndarray, lag: int) -> np.ndarray:
     return out
 
 
+@dataclass(frozen=True)
+class LaggedDerivatives(Derivatives):
+    """:class:`~euc_ros.core.filters.derivatives.Derivatives` of a fixed-lag filter.
+
+    Attributes
+    ----------
+    lag : int
+        Output delay of the streaming twin [frames]: the last ``lag`` samples of a stretch are NaN.
+    """
+
+    lag: int = 0
+
+
 def kalman_derivatives(t_or_dt, y, *, lag_s: float, smoothing_s: float | None = None,
                        order: int = DEFAULT_ORDER, max_gap: int = DEFAULT_MAX_GAP, frame=None,
-                       tol: float = DEFAULT_TOL) -> Derivatives:
+                       tol: float = DEFAULT_TOL) -> LaggedDerivatives:
     """Low-lag value and derivatives of ``y`` (offline twin of :class:`StreamingKalman`).
 
     Parameters
@@ -231,7 +245,7 @@ def kalman_derivatives(t_or_dt, y, *, lag_s: float, smoothing_s: float | None = 
     y : ndarray (n,) or (n, k)
         Signal, time along axis 0; a sample with any NaN component is missing.
     lag_s : float
-        Output delay [s], rounded to whole frames (:attr:`Derivatives.lag`... see Returns).
+        Output delay [s], rounded to whole frames (``lag`` of the result).
     smoothing_s : float, optional
         Smoothing time [s]; default :func:`default_smoothing_s` of the lag.
     order : int
@@ -245,11 +259,10 @@ def kalman_derivatives(t_or_dt, y, *, lag_s: float, smoothing_s: float | None = 
 
     Returns
     -------
-    Derivatives
+    LaggedDerivatives
         NaN where the streaming filter gives no output: the first ``window - 1 - lag`` and the last
         ``lag`` samples of every stretch, stretches shorter than ``window``, unfilled missing
-        samples. ``window`` is the filter's memory [samples]; the delay in frames is ``lag`` (an
-        extra attribute of the returned object).
+        samples. ``window`` is the filter's memory [samples], ``lag`` its delay [frames].
     """
     dt = _grid_positions(t_or_dt, np.shape(y)[0], frame)[0] if np.ndim(t_or_dt) else float(t_or_dt)
     if not (np.isfinite(dt) and dt > 0):
@@ -261,7 +274,7 @@ def kalman_derivatives(t_or_dt, y, *, lag_s: float, smoothing_s: float | None = 
 
 
 def fir_derivatives(t_or_dt, y, weights: np.ndarray, lag: int, *, max_gap: int = DEFAULT_MAX_GAP,
-                    frame=None) -> Derivatives:
+                    frame=None) -> LaggedDerivatives:
     """Apply fixed-lag FIR weights stretch by stretch, as the streaming filter would (offline, vectorized).
 
     Parameters
@@ -276,7 +289,7 @@ def fir_derivatives(t_or_dt, y, weights: np.ndarray, lag: int, *, max_gap: int =
 
     Returns
     -------
-    Derivatives
+    LaggedDerivatives
         See :func:`kalman_derivatives`.
     """
     y = np.asarray(y, dtype=float)
@@ -312,10 +325,8 @@ def fir_derivatives(t_or_dt, y, weights: np.ndarray, lag: int, *, max_gap: int =
     return _derivs(out, filled, w.shape[1], dt, lag)
 
 
-def _derivs(out, filled, window, dt, lag) -> Derivatives:
-    d = Derivatives(out[0], out[1], out[2], filled, window, dt)
-    object.__setattr__(d, "lag", int(lag))
-    return d
+def _derivs(out, filled, window, dt, lag) -> LaggedDerivatives:
+    return LaggedDerivatives(out[0], out[1], out[2], filled, window, dt, int(lag))
 
 
 def lag_frames(lag_s: float, dt: float) -> int:
