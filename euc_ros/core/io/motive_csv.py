@@ -33,9 +33,11 @@ Conventions
   in the file's own (Motive) frame, then the axis swap above is applied to the quaternion.
 * Quaternions are (x, y, z, w), body-to-world, normalised, with w >= 0.
 
-Speed: the numeric block is converted in one pass by numpy's C float parser after a vectorized
-check of the row shapes; a per-cell scan only runs on the chunk that holds an error, to name its line
-and column. See ``docs/motive_csv.md``.
+Speed and memory: the data rows are read in chunks of about 2 MB, each converted by numpy's C float
+parser (after a vectorized check of the row shapes where it fails) and turned into poses in place,
+in arrays sized once by a first pass that counts the rows. The file is never held whole, nor the
+matrix of all its cells: the peak memory is the result plus a few chunks. A per-cell scan only runs
+on the chunk that holds an error, to name its line and column. See ``docs/motive_csv.md``.
 """
 from __future__ import annotations
 
@@ -383,26 +385,72 @@ def _rotation_type(hdr: _Header, warnings: list[str]) -> str | None:
 
 
 # -------------------------------------------------------------------------------------- data block
+#: Bytes of data rows read and converted at a time. The reader's working memory is a few times this
+#: (the chunk's text, its nan-filled copy, its float matrix and per-body temporaries) whatever the
+#: size of the file, on top of the arrays it returns.
+_CHUNK_BYTES = 1 << 21
+
+
+def _lf(rows: bytes) -> bytes:
+    """``rows`` with LF line ends."""
+    return rows.replace(b"\r\n", b"\n") if b"\r" in rows else rows
+
+
 class _Block:
-    """The data rows of a file as bytes (LF line ends), with line numbering for messages."""
+    """The data rows of an open file, read in chunks of whole rows, with line numbering for messages.
 
-    def __init__(self, raw: bytes, hdr: _Header) -> None:
-        end = len(raw)
-        while end > hdr.data_offset and raw[end - 1] in b"\r\n":  # trailing line ends and blank lines
-            end -= 1
-        self.terminated = end < len(raw)
-        self.raw = raw[hdr.data_offset:end]   # as in the file (LF or CRLF)
-        self._data: bytes | None = None
-        self.n_rows = 0
+    The rows run from the end of the header to the last byte that is not a line end (trailing line
+    ends and blank lines are not rows). A first pass counts the rows (to size the result once) and
+    looks for quotes; :meth:`matrices` then reads and converts the rows chunk by chunk.
+    """
+
+    def __init__(self, f, hdr: _Header) -> None:
+        self.f = f
         self.hdr = hdr
+        self.chunk_bytes = _CHUNK_BYTES
         self.first_line = hdr.axis_line + 1
+        size = f.seek(0, os.SEEK_END)
+        start, end = min(hdr.data_offset, size), size
+        while end > start:  # trailing line ends and blank lines
+            lo = max(start, end - 65536)
+            f.seek(lo)
+            kept = f.read(end - lo).rstrip(b"\r\n")
+            end = lo + len(kept)
+            if kept:
+                break
+        self.start, self.end = start, end
+        self.terminated = end < size
+        self._piece_lf: list[int] = []     # line ends per piece read (the second pass reads the same pieces)
+        self.has_quote = False
+        for piece in self._pieces():
+            self._piece_lf.append(piece.count(b"\n"))
+            self.has_quote = self.has_quote or b'"' in piece
+        self.n_rows = sum(self._piece_lf) + 1 if end > start else 0
 
-    @property
-    def data(self) -> bytes:
-        """The rows with LF line ends (converted on first use: the fast path does not need it)."""
-        if self._data is None:
-            self._data = self.raw.replace(b"\r\n", b"\n") if b"\r" in self.raw else self.raw
-        return self._data
+    def _pieces(self):
+        self.f.seek(self.start)
+        left = self.end - self.start
+        while left > 0:
+            piece = self.f.read(min(self.chunk_bytes, left))
+            if not piece:
+                raise InputError("the file changed while it was read", path=self.hdr.path)
+            left -= len(piece)
+            yield piece
+
+    def _chunks(self):
+        """``(i0, k, rows)``: rows i0 to i0 + k - 1, LF or CRLF separated, without their last line end."""
+        i, rest = 0, b""
+        for piece, n_lf in zip(self._pieces(), self._piece_lf):
+            buf = rest + piece if rest else piece
+            if not n_lf:  # no line end in this piece: the row goes on
+                rest = buf
+                continue
+            cut = buf.rfind(b"\n")  # ``rest`` holds no line end: the chunk's rows are the piece's line ends
+            rows, rest = buf[:cut - 1 if cut and buf[cut - 1] == 13 else cut], buf[cut + 1:]  # without its CRLF
+            yield i, n_lf, rows
+            i += n_lf
+        if self.n_rows:
+            yield i, 1, rest  # the last row (it ends on a byte that is not a line end)
 
     def error(self, i: int, j: int, what: str, cell: bytes | None = None) -> InputError:
         col = self.hdr.columns[j].label if j < len(self.hdr.columns) else ""
@@ -410,38 +458,98 @@ class _Block:
         shown = "" if cell is None else f": {_decode(cell)[:40]!r}"
         return InputError(f"{what}{head}{shown}", path=self.hdr.path, line=self.first_line + i, column=j + 1)
 
+    def matrices(self):
+        """``(i0, rows, m)`` per chunk: the (k, width) float matrix of rows i0.. (NaN for blank cells).
 
-def _scan_rows(rows: list[bytes], start: int, block: _Block) -> np.ndarray:
-    """Slow, exact path: check every cell of ``rows`` and convert them; InputError at the first bad cell."""
-    width = block.hdr.width
-    out = np.full((len(rows), width), np.nan)
-    for r, row in enumerate(rows):
-        i = start + r
-        if b'"' in row:
-            cells = [c.encode("latin-1", "replace") for c in _split_cells(row.decode("latin-1"), block.hdr.path,
-                                                                           block.first_line + i)]
-        else:
-            cells = row.split(b",")
-        if not row.strip():
-            raise InputError("blank line inside the data rows", path=block.hdr.path, line=block.first_line + i,
-                             column=1)
-        if len(cells) < width:
-            last = i == block.n_rows - 1
-            what = ("truncated last line" if last else "truncated line") + \
-                f": {len(cells)} of {width} cells, missing from this column"
-            raise block.error(i, len(cells), what)
-        for j in range(width, len(cells)):
-            if cells[j].strip():
-                raise InputError(f"cell beyond the {width} columns of the header: {_decode(cells[j])[:40]!r}",
-                                 path=block.hdr.path, line=block.first_line + i, column=j + 1)
-        for j in range(width):
-            c = cells[j]
-            if not c.strip():
-                continue
-            if _NUMBER.fullmatch(c) is None:
-                raise block.error(i, j, "non-numeric cell", c)
-            out[r, j] = float(c)
-    return out
+        Errors are those of one pass over the whole block: a row with too few cells (or a blank line)
+        is reported first wherever it is, unless the rows hold quotes; otherwise the first bad cell.
+        """
+        width = self.hdr.width
+        chunks = self._chunks()
+        for i0, k, rows in chunks:
+            m = None
+            # The common case (every cell numeric, every row full): numpy's C reader straight on the file's
+            # bytes. It reads LF and CRLF alike and rejects blank or quoted cells and rows of another width,
+            # and a blank line changes the row count, so anything odd ends in the checked path below.
+            if rows[:1] not in (b"\r", b"\n", b""):  # (a chunk of blank lines only would make numpy warn)
+                m = _loadtxt(rows, k, width)
+            if m is None:
+                data = _lf(rows)
+                if self.has_quote:  # quoted cells (never written by Motive in the data rows): exact path
+                    m = self._chunked(data.split(b"\n"), i0)
+                else:
+                    n_cells = self._check_short(data, i0)
+                    try:
+                        if np.any(n_cells > width):  # trailing empty cells beyond the header: exact path
+                            m = self._chunked(data.split(b"\n"), i0)
+                        else:
+                            m = _fast(data, k, width)
+                            if m is None:
+                                m = self._chunked(data.split(b"\n"), i0)
+                    except InputError:
+                        for j0, _, later in chunks:  # a short row further on is reported first
+                            self._check_short(_lf(later), j0)
+                        raise
+            yield i0, rows, m
+
+    def _check_short(self, data: bytes, i0: int) -> np.ndarray:
+        """Cells per row of LF-separated ``data``; InputError at the first row with too few (or a blank line)."""
+        buf = np.frombuffer(data, dtype=np.uint8)
+        nl = np.flatnonzero(buf == 10)
+        ends = np.append(nl, len(data))
+        starts = np.concatenate(([0], nl + 1))
+        commas = np.flatnonzero(buf == 44)
+        n_cells = np.diff(np.concatenate(([0], np.searchsorted(commas, ends)))) + 1
+        short = np.flatnonzero((n_cells < self.hdr.width) | (ends == starts))
+        if short.size:  # locate and report the first malformed row exactly
+            i = int(short[0])
+            self._scan_rows([data[starts[i]:ends[i]]], i0 + i)
+            raise self.error(i0 + i, 0, "malformed row")  # not reached: the scan names the problem
+        return n_cells
+
+    def _scan_rows(self, rows: list[bytes], start: int) -> np.ndarray:
+        """Slow, exact path: check every cell of ``rows`` and convert them; InputError at the first bad cell."""
+        width = self.hdr.width
+        out = np.full((len(rows), width), np.nan)
+        for r, row in enumerate(rows):
+            i = start + r
+            if b'"' in row:
+                cells = [c.encode("latin-1", "replace") for c in _split_cells(row.decode("latin-1"), self.hdr.path,
+                                                                               self.first_line + i)]
+            else:
+                cells = row.split(b",")
+            if not row.strip():
+                raise InputError("blank line inside the data rows", path=self.hdr.path, line=self.first_line + i,
+                                 column=1)
+            if len(cells) < width:
+                last = i == self.n_rows - 1
+                what = ("truncated last line" if last else "truncated line") + \
+                    f": {len(cells)} of {width} cells, missing from this column"
+                raise self.error(i, len(cells), what)
+            for j in range(width, len(cells)):
+                if cells[j].strip():
+                    raise InputError(f"cell beyond the {width} columns of the header: {_decode(cells[j])[:40]!r}",
+                                     path=self.hdr.path, line=self.first_line + i, column=j + 1)
+            for j in range(width):
+                c = cells[j]
+                if not c.strip():
+                    continue
+                if _NUMBER.fullmatch(c) is None:
+                    raise self.error(i, j, "non-numeric cell", c)
+                out[r, j] = float(c)
+        return out
+
+    def _chunked(self, rows: list[bytes], start: int) -> np.ndarray:
+        """Convert row chunks quickly, scanning cell by cell only the chunks the fast path rejects."""
+        width = self.hdr.width
+        out = np.empty((len(rows), width))
+        for a in range(0, len(rows), _CHUNK_ROWS):
+            chunk = rows[a:a + _CHUNK_ROWS]
+            m = None
+            if not any(b'"' in r for r in chunk) and all(r.count(b",") == width - 1 for r in chunk):
+                m = _fast(b"\n".join(chunk), len(chunk), width)
+            out[a:a + len(chunk)] = m if m is not None else self._scan_rows(chunk, start + a)
+        return out
 
 
 def _fill_blanks(data: bytes) -> bytes:
@@ -479,70 +587,168 @@ def _loadtxt(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
     return values
 
 
-def _parse_block(block: _Block) -> np.ndarray:
-    """Return the (n_rows, width) float matrix of the data rows (NaN for blank cells)."""
-    width = block.hdr.width
-    raw = block.raw
-    # The common case (every cell numeric, every row full): numpy's C reader straight on the file's bytes.
-    # It reads LF and CRLF alike and rejects blank or quoted cells and rows of another width, and a blank
-    # line changes the row count, so anything odd ends in the checked path below.
-    if raw:
-        n_rows = raw.count(b"\n") + 1
-        m = _loadtxt(raw, n_rows, width)
-        if m is not None:
-            block.n_rows = n_rows
-            return m
-    data = block.data
-    if not data:
-        block.n_rows = 0
-        return np.empty((0, width))
-    buf = np.frombuffer(data, dtype=np.uint8)
-    nl = np.flatnonzero(buf == 10)
-    block.n_rows = n_rows = nl.size + 1
-    if b'"' in data:  # quoted cells (never written by Motive in the data rows): exact path
-        return _chunked(data.split(b"\n"), block)
-    ends = np.append(nl, data.__len__())
-    starts = np.concatenate(([0], nl + 1))
-    empty = ends == starts
-    commas = np.flatnonzero(buf == 44)
-    n_cells = np.diff(np.concatenate(([0], np.searchsorted(commas, ends)))) + 1
-    short = np.flatnonzero((n_cells < width) | empty)
-    if short.size:  # locate and report the first malformed row exactly
-        i = int(short[0])
-        _scan_rows([data[starts[i]:ends[i]]], i, block)
-        raise block.error(i, 0, "malformed row")  # not reached: the scan names the problem
-    if np.any(n_cells > width):  # trailing empty cells beyond the header: exact path
-        return _chunked(data.split(b"\n"), block)
-    m = _fast(data, n_rows, width)
-    if m is not None:
-        return m
-    return _chunked(data.split(b"\n"), block)
+class _SeriesArrays:
+    """The arrays of a :class:`MocapSeries`, sized once for every data row and filled chunk by chunk.
+
+    Each chunk's float matrix is turned into poses in place (frame check, duplicate frames dropped,
+    units, gaps, quaternion normalisation or Euler conversion, axis swap) and then freed, so the
+    reader never holds the whole file, nor the whole matrix of its cells.
+    """
+
+    def __init__(self, n: int, selected: list[_BodyColumns], rot_type: str | None, scale: float, world_up: str,
+                 check_reach: bool) -> None:
+        b = len(selected)
+        self.selected, self.rot_type, self.scale, self.world_up = selected, rot_type, scale, world_up
+        self.check_reach = check_reach
+        self.pos_cols = np.array([[g.position[a] for a in "XYZ"] for g in selected], dtype=np.intp).reshape(b, 3)
+        rot_axes = "XYZW" if rot_type == QUATERNION else "XYZ"
+        self.rot_cols = np.array([[g.rotation[a] for a in rot_axes] for g in selected],
+                                 dtype=np.intp).reshape(b, len(rot_axes))
+        self.frame = np.empty(n, np.int64)
+        self.time = np.empty(n)                 # the file's Time column [s] (checked against frame / rate)
+        self.position = np.empty((b, n, 3))
+        self.quat = np.empty((b, n, 4))
+        self.tracked = np.empty((b, n), bool)
+        self.error = np.empty((b, n))
+        self.n = 0                              # rows kept so far
+        self.n_rows = 0                         # rows read so far
+        self.last = np.iinfo(np.int64).min      # largest frame number so far
+        self.bad_frame: tuple[int, bytes] | None = None
+        self.norm_error = 0.0
+        self.partial = np.zeros(b, np.int64)
+        self.reach = -np.inf
+
+    def add(self, i0: int, rows: bytes, m: np.ndarray) -> None:
+        """Append the rows ``i0..`` whose cells are ``m`` (text ``rows``, to quote a bad Frame cell)."""
+        self.n_rows += m.shape[0]
+        f = m[:, 0]
+        bad = ~np.isfinite(f) | (f != np.round(f)) | (np.abs(f) > 2.0 ** 53)
+        if bad.any() and self.bad_frame is None:
+            i = int(np.flatnonzero(bad)[0])
+            self.bad_frame = (i0 + i, _lf(rows).split(b"\n", i + 1)[i].split(b",", 1)[0])
+        if self.bad_frame is not None:
+            return  # the file is rejected after its last row is read (a bad cell further on is reported first)
+
+        # Frame column: integers, duplicates / out-of-order dropped (first kept).
+        frames = f.astype(np.int64)
+        seen = np.maximum.accumulate(frames)
+        prev_max = np.empty_like(frames)
+        prev_max[0] = self.last
+        np.maximum(seen[:-1], self.last, out=prev_max[1:])
+        keep = frames > prev_max
+        self.last = max(self.last, int(seen[-1]))
+        if not keep.all():
+            m, frames = m[keep], frames[keep]
+        k, o = frames.size, self.n
+        span = slice(o, o + k)
+        self.n += k
+        self.frame[span] = frames
+        self.time[span] = m[:, 1]
+
+        pos = self.position[:, span]                                   # (b, k, 3) views of the result
+        pos[...] = np.moveaxis(m[:, self.pos_cols], 0, 1)             # file frame
+        if self.scale != 1.0:
+            pos *= self.scale                                          # -> metres
+        rot = np.ascontiguousarray(np.moveaxis(m[:, self.rot_cols], 0, 1))  # (b, k, 4 or 3)
+        fin_pos, fin_rot = np.isfinite(pos), np.isfinite(rot)
+        finite = fin_pos.all(axis=2) & fin_rot.all(axis=2)
+        self.partial += ((fin_pos.any(axis=2) | fin_rot.any(axis=2)) & ~finite).sum(axis=1)
+        quat = self.quat[:, span]
+        if self.rot_type == QUATERNION:
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+                big = np.max(np.abs(rot), axis=2, keepdims=True)      # scale first: no overflow
+                unit = rot / big
+                norm = big[..., 0] * np.sqrt(np.einsum("bni,bni->bn", unit, unit))
+                tracked = finite & (norm > 1e-9) & np.isfinite(norm)
+                np.divide(unit, (norm / big[..., 0])[..., None], out=quat)
+            if tracked.any():
+                self.norm_error = max(self.norm_error, float(np.max(np.abs(norm[tracked] - 1.0))))
+        else:
+            tracked = finite
+            quat[...] = np.nan
+            if tracked.any():
+                order = self.rot_type  # columns hold the angles about X, Y, Z; scipy wants them in sequence order
+                angles = rot[tracked][:, ["XYZ".index(a) for a in order]]
+                quat[tracked] = Rotation.from_euler(order, angles, degrees=True).as_quat()
+        tracked &= np.isfinite(quat).all(axis=2) & np.isfinite(pos).all(axis=2)  # overflowing nonsense is a gap too
+        if not tracked.all():
+            pos[~tracked] = np.nan
+            quat[~tracked] = np.nan
+        if self.world_up == "y":  # in place: (X, Y, Z) -> (X, -Z, Y), (qx, qy, qz) -> (qx, -qz, qy)
+            pos[..., 1], pos[..., 2] = -pos[..., 2], pos[..., 1].copy()
+            quat[..., 1], quat[..., 2] = -quat[..., 2], quat[..., 1].copy()
+        quat[quat[..., 3] < 0] *= -1.0  # canonical sign: w >= 0
+        err = self.error[:, span]
+        err[...] = np.nan
+        for j, g in enumerate(self.selected):
+            if g.error is not None:
+                err[j] = m[:, g.error] * self.scale
+        err[~tracked] = np.nan
+        self.tracked[:, span] = tracked
+        if self.check_reach and tracked.any():
+            self.reach = max(self.reach, float(np.max(np.abs(pos[tracked]))))
+
+    def trim(self) -> None:
+        """Drop the rows left unused by duplicate frames, in place (no second copy of the result)."""
+        n = self.n
+        if n == self.frame.size:
+            return
+        self.frame, self.time = self.frame[:n], self.time[:n]
+        for name in ("position", "quat", "tracked", "error"):
+            setattr(self, name, _shrink_axis1(getattr(self, name), n))
 
 
-def _chunked(rows: list[bytes], block: _Block) -> np.ndarray:
-    """Convert row chunks quickly, scanning cell by cell only the chunks the fast path rejects."""
-    width = block.hdr.width
-    out = np.empty((len(rows), width))
-    for a in range(0, len(rows), _CHUNK_ROWS):
-        chunk = rows[a:a + _CHUNK_ROWS]
-        m = None
-        if not any(b'"' in r for r in chunk) and all(r.count(b",") == width - 1 for r in chunk):
-            m = _fast(b"\n".join(chunk), len(chunk), width)
-        out[a:a + len(chunk)] = m if m is not None else _scan_rows(chunk, a, block)
-    return out
+def _shrink_axis1(a: np.ndarray, n: int) -> np.ndarray:
+    """``a[:, :n]`` as a C-contiguous array in ``a``'s own memory (rows moved down body by body)."""
+    b = a.shape[0]
+    per = int(np.prod(a.shape[2:], dtype=np.int64)) * n
+    rows = a.reshape(b, -1)
+    flat = a.reshape(-1)
+    for k in range(1, b):   # body k moves from k * N * ... to k * n * ...: down, so earlier bodies are safe
+        flat[k * per:(k + 1) * per] = rows[k, :per]
+    return flat[:b * per].reshape((b, n) + a.shape[2:])
 
 
 # ------------------------------------------------------------------------------------------ reader
-def _read_bytes(path: str | Path) -> bytes:
+def _open(path: str | Path):
+    """The file opened for binary reading; InputError naming it if it cannot be."""
     p = Path(path)
     try:
-        return p.read_bytes()
+        return open(p, "rb")
     except FileNotFoundError:
         raise InputError("no such file", path=p) from None
     except IsADirectoryError:
         raise InputError("is a directory, not a Motive CSV file", path=p) from None
     except OSError as exc:
         raise InputError(f"cannot read: {exc.strerror}", path=p) from None
+
+
+def _head_bytes(fh) -> bytes:
+    """The first lines of an open file, up to the ``Frame`` row (as :func:`_header_lines` finds it).
+
+    Reading stops at that row, after :data:`MAX_HEADER_LINES` lines, or at a line the header parser
+    rejects (it reports it); the file is left positioned after the returned bytes.
+    """
+    lines: list[bytes] = []
+    while len(lines) < MAX_HEADER_LINES:
+        line = fh.readline()
+        if not line:
+            break
+        lines.append(line)
+        text = line.rstrip(b"\n")
+        if text.endswith(b"\r"):
+            text = text[:-1]
+        if len(lines) == 1 and text.startswith(_UTF8_BOM):
+            text = text[len(_UTF8_BOM):]
+        try:
+            cells = _split_cells(_decode(text), "", len(lines))
+            if len(lines) == 1:
+                _parse_metadata(cells, "")
+        except InputError:
+            break
+        if len(lines) > 1 and cells and cells[0].strip().lower() == "frame":
+            break
+    return b"".join(lines)
 
 
 def _check_world_up(world_up: str) -> str:
@@ -656,44 +862,37 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     """
     world_up = _check_world_up(world_up)
     spath = str(path)
-    raw = _read_bytes(path)
-    hdr = _parse_header(raw, spath)
-    warnings: list[str] = []
-    info = _header_summary(hdr, warnings)
-    units, scale = LENGTH_UNITS_M[info["length_units"].lower()]
-    rot_type = info["rotation_type"]
+    with _open(path) as fh:
+        hdr = _parse_header(_head_bytes(fh), spath)
+        warnings: list[str] = []
+        info = _header_summary(hdr, warnings)
+        units, scale = LENGTH_UNITS_M[info["length_units"].lower()]
+        rot_type = info["rotation_type"]
 
-    selected = hdr.bodies
-    if bodies is not None:
-        by_name = {b.name: b for b in hdr.bodies}
-        missing = [b for b in bodies if b not in by_name]
-        if missing:
-            raise InputError(f"rigid body {missing[0]!r} not in the file (has: "
-                             f"{', '.join(by_name) or 'no rigid bodies'})", path=spath)
-        selected = [by_name[b] for b in bodies]
+        selected = hdr.bodies
+        if bodies is not None:
+            by_name = {b.name: b for b in hdr.bodies}
+            missing = [b for b in bodies if b not in by_name]
+            if missing:
+                raise InputError(f"rigid body {missing[0]!r} not in the file (has: "
+                                 f"{', '.join(by_name) or 'no rigid bodies'})", path=spath)
+            selected = [by_name[b] for b in bodies]
 
-    block = _Block(raw, hdr)
-    m = _parse_block(block)
-    if not block.terminated and m.shape[0]:
+        # The data rows, chunk by chunk, into arrays sized once (docs/motive_csv.md, "Memory").
+        block = _Block(fh, hdr)
+        check_reach = bool(info["header"]) and hdr.get("Length Units")[0] in (None, "")
+        out = _SeriesArrays(block.n_rows, selected, rot_type, scale, world_up, check_reach)
+        for i0, rows, m in block.matrices():
+            out.add(i0, rows, m)
+            del rows, m
+    if not block.terminated and block.n_rows:
         warnings.append("the last line has no line end: the file may have been cut short")
-
-    # Frame column: integers, duplicates / out-of-order dropped (first kept), gaps counted.
-    f = m[:, 0]
-    bad = ~np.isfinite(f) | (f != np.round(f)) | (np.abs(f) > 2.0 ** 53)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        cell = block.data.split(b"\n", i + 1)[i].split(b",", 1)[0]
+    if out.bad_frame is not None:
+        i, cell = out.bad_frame
         raise block.error(i, 0, "Frame column is not an integer", cell)
-    frames_all = f.astype(np.int64)
-    if frames_all.size:
-        prev_max = np.concatenate(([np.iinfo(np.int64).min], np.maximum.accumulate(frames_all)[:-1]))
-        keep = frames_all > prev_max
-    else:
-        keep = np.zeros(0, bool)
-    n_dup = int((~keep).sum())
-    if n_dup:
-        m = m[keep]
-    frame = frames_all[keep] if n_dup else frames_all
+    out.trim()
+    frame, time_col, pos, quat, tracked, err = out.frame, out.time, out.position, out.quat, out.tracked, out.error
+    n_dup = block.n_rows - frame.size
     n_dropped = int(np.sum(np.diff(frame) - 1)) if frame.size > 1 else 0
 
     rate = info["rate_hz"]
@@ -701,79 +900,38 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     if rate is None:
         rate, rate_source = info["capture_rate_hz"], "Capture Frame Rate"
         if rate is None:
-            ok = np.isfinite(m[:, 1])
-            if ok.sum() >= 2 and np.ptp(m[ok, 1]) > 0:
-                rate = float(np.ptp(frame[ok]) / np.ptp(m[ok, 1]))
+            ok = np.isfinite(time_col)
+            if ok.sum() >= 2 and np.ptp(time_col[ok]) > 0:
+                rate = float(np.ptp(frame[ok]) / np.ptp(time_col[ok]))
                 rate_source = "Frame and Time columns"
             else:
                 raise InputError("no 'Export Frame Rate' (nor 'Capture Frame Rate') in the header, and the Time "
                                  "column cannot give the rate", path=spath, line=1, key="Export Frame Rate")
         warnings.append(f"no 'Export Frame Rate' in the header: rate {rate:g} Hz taken from the {rate_source}")
     t = frame / rate
-    time_dev = float(np.nanmax(np.abs(m[:, 1] - t))) if frame.size and np.isfinite(m[:, 1]).any() else None
+    time_dev = float(np.nanmax(np.abs(time_col - t))) if frame.size and np.isfinite(time_col).any() else None
+    del time_col
+    out.time = None
 
-    b, n = len(selected), frame.size
-    pos_cols = np.array([[g.position[a] for a in "XYZ"] for g in selected], dtype=np.intp).reshape(b, 3)
-    rot_axes = "XYZW" if rot_type == QUATERNION else "XYZ"
-    rot_cols = np.array([[g.rotation[a] for a in rot_axes] for g in selected], dtype=np.intp).reshape(b, len(rot_axes))
-    pos = np.ascontiguousarray(np.moveaxis(m[:, pos_cols], 0, 1))  # (b, n, 3), file frame
-    if scale != 1.0:
-        pos *= scale                                                 # -> metres
-    rot = np.ascontiguousarray(np.moveaxis(m[:, rot_cols], 0, 1))  # (b, n, 4 or 3)
-    fin_pos, fin_rot = np.isfinite(pos), np.isfinite(rot)
-    finite = fin_pos.all(axis=2) & fin_rot.all(axis=2)
-    partial = (fin_pos.any(axis=2) | fin_rot.any(axis=2)) & ~finite
-    norm_error = 0.0
-    if rot_type == QUATERNION:
-        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            big = np.max(np.abs(rot), axis=2, keepdims=True)          # scale first: no overflow
-            unit = rot / big
-            norm = big[..., 0] * np.sqrt(np.einsum("bni,bni->bn", unit, unit))
-            tracked = finite & (norm > 1e-9) & np.isfinite(norm)
-            quat = unit / (norm / big[..., 0])[..., None]
-        if tracked.any():
-            norm_error = float(np.max(np.abs(norm[tracked] - 1.0)))
-            if norm_error > QUAT_NORM_TOLERANCE:
-                warnings.append(f"quaternions are not unit (largest |norm - 1| = {norm_error:.3g}): normalised")
-    else:
-        tracked = finite
-        quat = np.full((b, n, 4), np.nan)
-        if tracked.any():
-            order = rot_type  # columns hold the angles about X, Y, Z; scipy wants them in sequence order
-            angles = rot[tracked][:, ["XYZ".index(a) for a in order]]
-            quat[tracked] = Rotation.from_euler(order, angles, degrees=True).as_quat()
-    tracked &= np.isfinite(quat).all(axis=2) & np.isfinite(pos).all(axis=2)  # overflowing nonsense is a gap too
-    if not tracked.all():
-        pos[~tracked] = np.nan
-        quat[~tracked] = np.nan
-    if world_up == "y":  # in place: (X, Y, Z) -> (X, -Z, Y), (qx, qy, qz) -> (qx, -qz, qy)
-        pos[..., 1], pos[..., 2] = -pos[..., 2], pos[..., 1].copy()
-        quat[..., 1], quat[..., 2] = -quat[..., 2], quat[..., 1].copy()
-    quat[quat[..., 3] < 0] *= -1.0  # canonical sign: w >= 0
-    err = np.full((b, n), np.nan)
-    for k, g in enumerate(selected):
-        if g.error is not None:
-            err[k] = m[:, g.error] * scale
-    err[~tracked] = np.nan
-
-    if info["header"] and hdr.get("Length Units")[0] in (None, "") and tracked.any():
-        reach = float(np.max(np.abs(pos[tracked])))
-        if reach > PLAUSIBLE_REACH_M:
-            warnings.append(f"positions reach {reach:.4g} (assumed m): without a 'Length Units' key the file may be "
-                            "in centimetres or millimetres")
+    norm_error = out.norm_error
+    if norm_error > QUAT_NORM_TOLERANCE:
+        warnings.append(f"quaternions are not unit (largest |norm - 1| = {norm_error:.3g}): normalised")
+    if check_reach and out.reach > PLAUSIBLE_REACH_M:
+        warnings.append(f"positions reach {out.reach:.4g} (assumed m): without a 'Length Units' key the file may be "
+                        "in centimetres or millimetres")
     total, _ = hdr.get("Total Exported Frames")
-    if total and total.isdigit() and int(total) != frames_all.size:
-        warnings.append(f"header says Total Exported Frames {total} but the file has {frames_all.size} data rows")
+    if total and total.isdigit() and int(total) != block.n_rows:
+        warnings.append(f"header says Total Exported Frames {total} but the file has {block.n_rows} data rows")
     meta = {
         **{k: v for k, v in info.items() if k != "header"},
         "rate_hz": float(rate),
         "rate_source": rate_source,
         "world_up": world_up,
-        "n_rows": int(frames_all.size),
+        "n_rows": int(block.n_rows),
         "n_dropped": n_dropped,
         "n_duplicates_dropped": n_dup,
         "occlusions": {g.name: int((~tracked[k]).sum()) for k, g in enumerate(selected)},
-        "n_partial_blank": {g.name: int(partial[k].sum()) for k, g in enumerate(selected)},
+        "n_partial_blank": {g.name: int(out.partial[k]) for k, g in enumerate(selected)},
         "time_column_max_dev_s": time_dev,
         "max_quat_norm_error": norm_error,
         "warnings": warnings,
