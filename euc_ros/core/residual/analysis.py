@@ -37,6 +37,7 @@ DEFAULT_ALPHA = 0.01
 DEFAULT_MIN_GAIN = 0.10
 #: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
 DEFAULT_BLOCK_S = 1.0
+PAIRED_STATISTIC = "log_ratio"
 #: Fewest folds of the held-out evaluation (segments per run = ceil(this / runs), at least 2).
 MIN_FOLDS = 6
 #: The residual's slow part (an effect's signature) is removed over this many filter windows before its
@@ -657,7 +658,10 @@ def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
     mb = np.array([np.mean(base.residual[base.block == b] ** 2) for b in ub])
     mc = np.array([np.mean(cand.residual[cand.block == b] ** 2) if np.any(cand.block == b) else np.nan for b in ub])
     ok = np.isfinite(mc) & (mb > 0) & (mc > 0)
-    d = np.log(mb[ok] / mc[ok])
+    if PAIRED_STATISTIC == "log_ratio":
+        d = np.log(mb[ok] / mc[ok])
+    else:
+        d = mb[ok] - mc[ok]
     if d.size < 3 or np.allclose(d, 0):
         return 1.0
     return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)
@@ -811,6 +815,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     steps = []
     warnings: list[str] = []
     remaining = list(detectable)
+    last_trials = None      # (model, trials) of the last selection step: the named alternatives to discovery
     if floor is not None and not floor.flat:
         # a floor tilted or uneven in the mocap frame (level-calibrated lab): known from geometry, in the
         # model before any dynamic candidate; the dynamic ground_slope (a mocap frame tilted against
@@ -838,6 +843,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             p = paired_block_test(current_ho, ho)
             why = admissibility(model, full.x, h_geo)
             trials.append((c, model, ho, p, full, why))
+            last_trials = (current, trials)
             say(f"  + {c.name}: held-out RMSE {ho.rmse:.3f} N m (p = {p:.2g})" + (f"; not admissible: {why}" if why
                                                                                 else ""))
             if c.name not in rows:
@@ -905,7 +911,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     dynamic_named = [c for c in current.effects if not getattr(c, "geometric", False)]
     if discover and dynamic_named:
         # a named effect is reported only when the discovered alternative (from the model without the named
-        # dynamic effects) is not significantly better than it
+        # dynamic effects) is not significantly better than it (the same test and minimum gain as a selection)
         root = Model([c for c in current.effects if getattr(c, "geometric", False)])
         root_fit = fit_model(root, recs, h0)
         root_ho = held_out(root, recs, h0, folds, start=root_fit.x)
@@ -914,7 +920,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         if sel is not None and sel.residual.shape == current_ho.residual.shape:
             p_alt = paired_block_test(current_ho, sel)
             disc_alt = {"rmse_after_nm": sel.rmse, "p_value_against_named": p_alt}
-            if p_alt < alpha:
+            if p_alt < alpha and sel.rmse <= (1 - min_gain) * current_ho.rmse:
                 warnings.append(f"named {current.name} not reported: a discovered combination explains "
                                 f"significantly more (held-out {current_ho.rmse:.3f} -> {sel.rmse:.3f} N m, p = {p_alt:.2g})")
                 steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": None,
@@ -937,7 +943,41 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             rows_found = d_eff.describe(disc["x"][-d_eff.n_params:])
             say(f"discovery: {'; '.join(r['formula'] for r in rows_found)}: held-out RMSE {current_ho.rmse:.3f} -> "
                 f"{disc['heldout'].rmse:.3f} N m (p = {p_disc:.2g})")
-            if p_disc < alpha and gain_ok and why is None:
+            named_equal = None
+            if p_disc < alpha and gain_ok and why is None and last_trials is not None and last_trials[0] is current:
+                # the discovery showed structure at alpha (one test: the terms were chosen within the folds); a
+                # named effect that cuts the residual as much (its own test at alpha now that structure is
+                # shown, not Bonferroni over the library) and that the discovered terms do not beat
+                # significantly is the physical explanation of it: reported instead of the terms
+                sel_ho = sel if sel is not None else disc["heldout"]
+                equal = []
+                for c, model, ho, p, full, why_c in last_trials[1]:
+                    if why_c is None and p < alpha and ho.rmse <= (1 - min_gain) * current_ho.rmse \
+                            and ho.residual.shape == sel_ho.residual.shape:
+                        p_better = paired_block_test(ho, sel_ho)
+                        if p_better >= AMBIGUITY_ALPHA:
+                            equal.append((c, model, ho, p, full, p_better))
+                if equal:
+                    named_equal = min(equal, key=lambda t: t[2].rmse)
+                    best_ho = named_equal[2]
+                    # the named effects the data cannot tell apart from the best one
+                    equal = [t for t in equal if t is named_equal or paired_block_test(t[2], best_ho) >= AMBIGUITY_ALPHA]
+            if named_equal is not None:
+                c, model, ho, p, full, p_better = named_equal
+                steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": c.name, "p_value": p,
+                              "evidence": f"the discovery found structure (p = {p_disc:.2g}); {c.name} explains it as well "
+                                          f"as the discovered terms (p = {p_better:.2g} that they explain more)",
+                              "rmse_after_nm": ho.rmse, "discovered_alternative": [r["formula"] for r in rows_found],
+                              "ambiguous_with": [t[0].name for t in equal if t[0] is not c],
+                              "tied": [{"effect": t[0].name, "h_m": t[4].h, "rmse_after_nm": t[2].rmse,
+                                        "effect_parameters": t[1].report(t[4].x)} for t in equal]})
+                say(f"named instead of the discovered terms: {c.name} (held-out RMSE {ho.rmse:.3f} N m, terms "
+                    f"{disc['heldout'].rmse:.3f} N m)")
+                current, current_ho, current_x = model, ho, full.x
+                named_model, named_ho, named_x = current, current_ho, current_x
+                disc_info["named_instead"] = c.name
+                p_disc = 1.0          # the structure is the named effect's: what is left is judged on its own
+            elif p_disc < alpha and gain_ok and why is None:
                 discovered_rows = rows_found
                 for row in discovered_rows:
                     row["rmse_after_nm"] = disc["heldout"].rmse
@@ -1009,7 +1049,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
 
     Returns ``{"model", "x", "heldout", "info"}`` (model None when no number of terms beats none).
     """
-    from euc_ros.core.residual.discovery import DiscoveredEffect, all_terms, basis_sensitivities, forward_select
+    from euc_ros.core.residual.discovery import DiscoveredEffect, all_terms, basis_sensitivities, best_subsets
 
     terms = all_terms()
     L = force_map(current, recs, current_x)
@@ -1034,7 +1074,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         r0 = np.concatenate([fres[i][0][rw] for i, rw in zip(idx, tr_rows)])
         B = np.concatenate([B_all[i][rw] for i, rw in zip(idx, tr_rows)])
         hc = np.concatenate([hcol[i][rw] for i, rw in zip(idx, tr_rows)])
-        sets = forward_select(*with_h(r0, B, hc))
+        sets = best_subsets(*with_h(r0, B, hc))
         te_rows = [(i, np.asarray(fold.test[i], bool) & fres[i][1]) for i in idx if np.any(fold.test[i])]
         r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
         Bt = np.concatenate([B_all[i][rw] for i, rw in te_rows])
@@ -1060,7 +1100,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     r0 = np.concatenate([b[0][m] for b, m in zip(base, rows)])
     B = np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)])
     hc = np.concatenate([h[m] for h, m in zip(hcol, rows)])
-    cols = forward_select(*with_h(r0, B, hc), best_k)[-1]
+    cols = best_subsets(*with_h(r0, B, hc), best_k)[-1]
     c, *_ = np.linalg.lstsq(np.column_stack([hc, B[:, cols]]), -r0, rcond=None)
     dhh, c = float(c[0]), c[1:]
     scales = [max(abs(v), 1e-6) for v in c]

@@ -4,7 +4,9 @@ After the named effects, the residual may still carry structure. The basis is bu
 signals and applied at physical points, each column a generalized force derived by virtual power:
 
 * points and directions: **x at the contact** (``dQ = [F, 0, 0]``), **x at the rider CoG** and **z at
-  the rider CoG** (``dQ = J_G^T F``, J_G of the Appendix-A geometry);
+  the rider CoG** (``dQ = J_G^T F``, J_G of the Appendix-A geometry), and a **torque on the rider's
+  pitch** (``dQ = [0, 0, T]``): an x force at height l on the rider is the same force at the CoG plus
+  the torque ``F (l - h) cos(phi)``, so together they place a force at a hand or a shoulder;
 * functions (with units): ``1``, ``x_dot``, ``x_dot |x_dot|``, ``tanh(x_dot / 0.05)`` (a sign),
   ``sin(s/R)``, ``cos(s/R)`` (the wheel's rotation, s the path length), ``psi_dot x_dot``
   (lateral acceleration in turns), ``cos(psi)``, ``X cos(psi)``, ``sin(psi)``, ``Y sin(psi)`` (a force
@@ -40,7 +42,10 @@ FUNCTIONS = (("1", "1"), ("x_dot", "m/s"), ("x_dot|x_dot|", "m^2/s^2"), ("tanh(x
              ("cos(psi)", "1"), ("X cos(psi)", "m"), ("sin(psi)", "1"), ("Y sin(psi)", "m"), ("s", "m"), ("t", "s"),
              ("phi_dot", "rad/s"))
 #: (coordinate, point) of the forces' directions and points of application.
-POINTS = (("x", "contact"), ("x", "rider CoG"), ("z", "rider CoG"))
+POINTS = (("x", "contact"), ("x", "rider CoG"), ("z", "rider CoG"), ("pitch", "rider"))
+#: Unit of each point's generalized force: a force [N], or a torque on the rider's pitch [N m] (with a force
+#: at the CoG, it moves the force's point of application up or down the rider: a hand, a shoulder).
+POINT_UNITS = ("N", "N", "N", "N m")
 
 
 def _where(point: int) -> str:
@@ -74,6 +79,8 @@ def basis_forces(ctx, columns) -> np.ndarray:
         f = coef * F[:, func]
         if point == 0:
             dQ[:, 0] += f
+        elif point == 3:
+            dQ[:, 2] += f
         else:
             if jx is None:
                 jx, jz = jacobian_G(ctx, ctx.p())
@@ -94,12 +101,13 @@ class Term:
 
     def coef_unit(self) -> str:
         fu = FUNCTIONS[self.func][1]
-        return "N" if fu == "1" else f"N/({fu})"
+        pu = POINT_UNITS[self.point]
+        return pu if fu == "1" else f"{pu}/({fu})"
 
     def formula(self, coef: float) -> str:
         f = FUNCTIONS[self.func][0]
         factor = "" if f == "1" else f" {f}"
-        return f"{coef:+.4g}{factor} N on {_where(self.point)}"
+        return f"{coef:+.4g}{factor} {POINT_UNITS[self.point]} on {_where(self.point)}"
 
 
 class DiscoveredEffect(Candidate):
@@ -146,7 +154,7 @@ def basis_sensitivities(ctx, force_map: np.ndarray) -> np.ndarray:
     """
     F = feature_matrix(ctx)
     jx, jz = jacobian_G(ctx, ctx.p())
-    gains = (force_map[:, 0], np.sum(force_map * jx, axis=1), np.sum(force_map * jz, axis=1))
+    gains = (force_map[:, 0], np.sum(force_map * jx, axis=1), np.sum(force_map * jz, axis=1), force_map[:, 2])
     return np.concatenate([g[:, None] * F for g in gains], axis=1)
 
 
@@ -167,4 +175,59 @@ def forward_select(r0: np.ndarray, B: np.ndarray, max_terms: int = MAX_TERMS) ->
         c, *_ = np.linalg.lstsq(B[:, chosen], -r0, rcond=None)
         resid = r0 + B[:, chosen] @ c
         out.append(list(chosen))
+    return out
+
+
+#: Term sets up to this size are searched exhaustively (:func:`best_subsets`; pairs: a force at a point of the
+#: rider is a CoG force plus a pitch torque); larger ones grow greedily (triples cost 20x more).
+EXHAUSTIVE_TERMS = 2
+#: Subsets whose normalised Gram matrix has a determinant below this are near-collinear and skipped.
+MIN_GRAM_DET = 1e-8
+
+
+def best_subsets(r0: np.ndarray, B: np.ndarray, max_terms: int = MAX_TERMS) -> list[list[int]]:
+    """Column sets of 1..max_terms terms minimising ``||r0 + B c||``: the best single and pair by exhaustive
+    search (:data:`EXHAUSTIVE_TERMS`), larger sets by greedy extension of the best pair.
+
+    Greedy selection (:func:`forward_select`) can miss a force that needs two terms together (a force at a
+    hand = the same force at the CoG plus a pitch torque, each alone a poor fit). The search works on the
+    normalised Gram matrix ``G = Bn^T Bn`` and ``b = Bn^T r0``: a set S removes ``b_S^T G_S^-1 b_S`` of the
+    squared residual; near-collinear sets (``det G_S`` below :data:`MIN_GRAM_DET`) are skipped.
+    """
+    from itertools import combinations
+
+    norms = np.linalg.norm(B, axis=0)
+    usable = np.flatnonzero(norms > 1e-12 * (norms.max() if norms.size else 1.0))
+    if usable.size == 0:
+        return []
+    Bn = B[:, usable] / norms[usable]
+    G = Bn.T @ Bn
+    b = Bn.T @ r0
+    out: list[list[int]] = []
+    for k in range(1, min(EXHAUSTIVE_TERMS, max_terms, usable.size) + 1):
+        sets = np.array(list(combinations(range(usable.size), k)))
+        Gs = G[sets[:, :, None], sets[:, None, :]]
+        bs = b[sets]
+        det = np.linalg.det(Gs)
+        ok = det > MIN_GRAM_DET
+        if not ok.any():
+            break
+        gain = np.full(sets.shape[0], -np.inf)
+        sol = np.linalg.solve(Gs[ok], bs[ok][:, :, None])[:, :, 0]
+        gain[ok] = np.sum(bs[ok] * sol, axis=1)
+        out.append([int(usable[j]) for j in sets[int(np.argmax(gain))]])
+    if len(out) < max_terms and out:
+        # greedy extension of the best exhaustive set
+        chosen = list(out[-1])
+        for _ in range(max_terms - len(out)):
+            c, *_ = np.linalg.lstsq(B[:, chosen], -r0, rcond=None)
+            resid = r0 + B[:, chosen] @ c
+            score = np.full(B.shape[1], -np.inf)
+            score[usable] = np.abs(B[:, usable].T @ resid) / norms[usable]
+            score[chosen] = -np.inf
+            k = int(np.argmax(score))
+            if not np.isfinite(score[k]):
+                break
+            chosen.append(k)
+            out.append(list(chosen))
     return out
