@@ -92,14 +92,47 @@ def self_peak_rss_mb() -> float:
 
 
 def _vm_hwm_kb(pid: int) -> int | None:
+    return _status_kb(pid, b"VmHWM:")
+
+
+def _status_kb(pid: int, key: bytes) -> int | None:
     try:
         with open(f"/proc/{pid}/status", "rb") as f:
             for line in f:
-                if line.startswith(b"VmHWM:"):
+                if line.startswith(key):
                     return int(line.split()[1])
     except (OSError, ValueError, IndexError):
         return None
     return None
+
+
+@contextlib.contextmanager
+def peak_rss_increase():
+    """Measure how far the block raises this process' resident set above its size at the start [MB].
+
+    Yields a dict that is filled on exit: ``baseline_mb`` (``VmRSS`` at the start: the interpreter
+    and its imports), ``peak_mb`` (``VmHWM`` at the end), ``increase_mb`` (their difference: the
+    block's own peak memory) and ``hwm_reset``. The high-water mark is reset at the start by writing
+    5 to ``/proc/self/clear_refs`` (Linux >= 4.0); where that is refused (``hwm_reset`` False) an
+    earlier peak (of the imports, say) may count, and the increase is an upper bound. Without
+    ``/proc`` the values are None.
+    """
+    out: dict[str, Any] = {"baseline_mb": None, "peak_mb": None, "increase_mb": None, "hwm_reset": False}
+    pid = os.getpid()
+    base = _status_kb(pid, b"VmRSS:")
+    try:
+        with open("/proc/self/clear_refs", "w", encoding="ascii") as f:
+            f.write("5")
+        out["hwm_reset"] = True
+    except OSError:
+        pass
+    try:
+        yield out
+    finally:
+        peak = _vm_hwm_kb(pid)
+        if base is not None and peak is not None:
+            out.update(baseline_mb=round(base / 1024.0, 1), peak_mb=round(peak / 1024.0, 1),
+                       increase_mb=round((peak - base) / 1024.0, 1))
 
 
 def _program_label(cmd: list[str]) -> str:

@@ -6,15 +6,22 @@ validates the frame column, converts Y-up to Z-up and normalises the quaternions
 
 Floor: ``numpy.loadtxt(path, delimiter=",", skiprows=<header lines>)`` reading the same numbers
 into one float array and nothing else. Each runs in a fresh interpreter on one core.
+
+Memory: each measurement also reports how far its call raised the resident set above the
+interpreter's (``VmHWM`` after the call minus ``VmRSS`` before it, the high-water mark reset at the
+start: :func:`~euc_ros.bench.common.peak_rss_increase`), so imports are not counted. The second
+figure compares the reader's increase with the loader's; the target is at most 1.5x (issue 15).
 """
 from __future__ import annotations
 
 import time
 
-from euc_ros.bench.common import BenchContext, figure, pinned_to_one_core
+from euc_ros.bench.common import BenchContext, figure, peak_rss_increase, pinned_to_one_core
 
 #: Recording lengths [s]: full and --quick.
 DURATION_S = {False: 600.0, True: 60.0}
+#: Target of the memory figure: the reader's peak RSS increase over numpy.loadtxt's on the same file.
+MEMORY_TARGET_RATIO = 1.5
 
 
 def header_lines(path: str) -> int:
@@ -27,26 +34,40 @@ def header_lines(path: str) -> int:
 
 
 def measure_ours(path: str) -> dict:
-    """``read_motive_csv`` on one core: ``{"wall_s", "frames", "bodies"}``."""
+    """``read_motive_csv`` on one core: ``{"wall_s", "frames", "bodies", "rss"}`` (``rss``: peak_rss_increase)."""
     from euc_ros.core.io.motive_csv import read_motive_csv
 
-    with pinned_to_one_core():
+    with pinned_to_one_core(), peak_rss_increase() as rss:
         t0 = time.perf_counter()
         s = read_motive_csv(path, world_up="y")
         wall = time.perf_counter() - t0
-    return {"wall_s": wall, "frames": int(s.n_frames), "bodies": len(s.bodies)}
+    return {"wall_s": wall, "frames": int(s.n_frames), "bodies": len(s.bodies), "rss": rss}
 
 
 def measure_numpy(path: str) -> dict:
-    """``numpy.loadtxt`` of the data rows on one core: ``{"wall_s", "frames", "columns"}``."""
+    """``numpy.loadtxt`` of the data rows on one core: ``{"wall_s", "frames", "columns", "rss"}``."""
     import numpy as np
 
     skip = header_lines(path)
-    with pinned_to_one_core():
+    with pinned_to_one_core(), peak_rss_increase() as rss:
         t0 = time.perf_counter()
         a = np.loadtxt(path, delimiter=",", skiprows=skip, dtype=float)
         wall = time.perf_counter() - t0
-    return {"wall_s": wall, "frames": int(a.shape[0]), "columns": int(a.shape[1])}
+    return {"wall_s": wall, "frames": int(a.shape[0]), "columns": int(a.shape[1]), "rss": rss}
+
+
+def memory_figure(ours: dict, floor: dict) -> dict:
+    """The reader's peak RSS increase against numpy.loadtxt's (``rss`` of the two measurements) [MB]."""
+    mem, mem_floor = ours["rss"]["increase_mb"], floor["rss"]["increase_mb"]
+    met = None if mem is None or not mem_floor else mem <= MEMORY_TARGET_RATIO * mem_floor
+    reset = ours["rss"]["hwm_reset"] and floor["rss"]["hwm_reset"]
+    note = None
+    if mem is not None and mem_floor is not None:
+        note = (f"peak RSS over the interpreter's ({ours['rss']['baseline_mb']:.0f} and "
+                f"{floor['rss']['baseline_mb']:.0f} MB): read_motive_csv {mem:.0f} MB, numpy.loadtxt {mem_floor:.0f} MB"
+                + ("" if reset else "; high-water mark not reset: upper bounds"))
+    return figure("read_motive_csv peak memory", mem, "MB", floor=mem_floor, lower_is_better=True,
+                  target=f"<= {MEMORY_TARGET_RATIO:g}x numpy's loader", met=met, note=note)
 
 
 def run(ctx: BenchContext) -> dict:
@@ -68,7 +89,8 @@ def run(ctx: BenchContext) -> dict:
     size_mb = os.path.getsize(path) / 1e6
     figures = [figure("read_motive_csv", rate, "frames/s", floor=floor_rate, lower_is_better=False,
                       note=f"{ours['frames']} frames x {ours['bodies']} bodies ({size_mb:.0f} MB) in "
-                           f"{ours['wall_s']:.2f} s; numpy.loadtxt {floor['wall_s']:.2f} s")]
-    return {"name": "csv_parse", "title": "Motive CSV parse rate (14 bodies, one core)", "figures": figures,
+                           f"{ours['wall_s']:.2f} s; numpy.loadtxt {floor['wall_s']:.2f} s"),
+               memory_figure(ours, floor)]
+    return {"name": "csv_parse", "title": "Motive CSV parse rate and memory (14 bodies, one core)", "figures": figures,
             "peak_rss_mb": {"read_motive_csv": ours["peak_rss_mb"], "numpy.loadtxt": floor["peak_rss_mb"]},
             "details": {"file_mb": size_mb, "ours": ours, "numpy": floor}, "wall_s": time.monotonic() - t_start}

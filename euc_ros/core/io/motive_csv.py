@@ -33,7 +33,7 @@ Conventions
   in the file's own (Motive) frame, then the axis swap above is applied to the quaternion.
 * Quaternions are (x, y, z, w), body-to-world, normalised, with w >= 0.
 
-Speed and memory: the data rows are read in chunks of about 2 MB, each converted by numpy's C float
+Speed and memory: the data rows are read in chunks of about 1 MB, each converted by numpy's C float
 parser (after a vectorized check of the row shapes where it fails) and turned into poses in place,
 in arrays sized once by a first pass that counts the rows. The file is never held whole, nor the
 matrix of all its cells: the peak memory is the result plus a few chunks. A per-cell scan only runs
@@ -388,7 +388,7 @@ def _rotation_type(hdr: _Header, warnings: list[str]) -> str | None:
 #: Bytes of data rows read and converted at a time. The reader's working memory is a few times this
 #: (the chunk's text, its nan-filled copy, its float matrix and per-body temporaries) whatever the
 #: size of the file, on top of the arrays it returns.
-_CHUNK_BYTES = 1 << 21
+_CHUNK_BYTES = 1 << 20
 
 
 def _lf(rows: bytes) -> bytes:
