@@ -55,8 +55,8 @@ class Case:
             s += " + offsets 1-3 cm"
         if self.swaps or self.flips:
             s += f" + {self.swaps} swaps, {self.flips} flips per run"
-        if self.accel_share != 0.5 and self.slide_m:
-            s += f" (acceleration share {self.accel_share:g})"
+        if self.slide_m:
+            s += f", {100 * self.accel_share:g} % with the acceleration"
         return s
 
     def artefacts(self) -> SoftTissueArtefacts:
@@ -141,18 +141,23 @@ def names_library_effect(effect: str) -> bool:
 
 
 def h_interval(states, series, session, params, fit, method: str) -> dict:
-    """Identify's 95 % interval of h (block bootstrap plus the SIMEX noise bias), as the CLI reports it."""
-    from euc_ros.core.euc import uncertainty as U
-    from euc_ros.core.euc.identify import _coefficients_for
+    """Identify's 95 % interval of h, computed as ``euc-ros identify`` reports it (block bootstrap, white-noise
+    and sliding SIMEX biases)."""
+    from types import SimpleNamespace
 
-    bias, err = U.eiv_bias(series, session, params, fit.h_m, window_s=DEFAULT_WINDOW_S, polyorder=DEFAULT_SG_POLYORDER,
-                           with_error=True, cog_method=method, replicates=4)
-    coefs = _coefficients_for(states, params, "3dof", None)
-    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias, eiv_bias_err_m=err,
-                    turning_ms2=U.turning_rms(states))
-    lo, hi = iv.ci95_m
-    return {"h_ci95_m": [lo, hi], "ci_contains_truth": bool(lo <= DEFAULT_H_M <= hi), "identifiable": iv.identifiable}
+    from euc_ros.cli.identify import uncertainty
 
+    for st, s in zip(states, series):
+        st.meta["series"] = s
+    args = SimpleNamespace(window_s=DEFAULT_WINDOW_S, polyorder=DEFAULT_SG_POLYORDER, phi_definition="hinge",
+                           cog_method=method, h_min=0.1, h_max=1.2)
+    unc = uncertainty(states, session, params, SimpleNamespace(pooled={"3dof": fit}), args, {}, with_budget=False)
+    lo, hi = unc["h_ci95_m"]
+    u = unc["uncertainty"]
+    return {"h_ci95_m": [lo, hi], "ci_contains_truth": bool(lo is not None and hi is not None and lo <= DEFAULT_H_M <= hi),
+            "identifiable": unc["identifiable"], "identifiability_reason": unc["identifiability_reason"],
+            "eiv_bias_m": u.get("eiv_bias_m"), "sliding_bias_m": u.get("sliding_bias_m"),
+            "sliding_rms_max_m": u.get("sliding_rms_max_m")}
 
 def summarize(rows: list[dict]) -> list[dict]:
     """Mean and spread over seeds per (case, method): h error mean, max |h error|, RMSE mean."""

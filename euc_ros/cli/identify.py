@@ -45,6 +45,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cog-method", choices=COG_METHODS, default="segments",
                         help="rider CoG from the measured segments (default) or from a kinematic chain fitted to "
                              "them (swapped/flipped bodies excluded; docs/cog_artefacts.md)")
+    parser.add_argument("--no-sliding-bias", dest="sliding_bias", action="store_false",
+                        help="leave the soft-tissue sliding's SIMEX bias out of the h interval (faster)")
     parser.add_argument("--h-min", type=float, default=0.1, metavar="M", help="smallest h of the grid [m] (0.1)")
     parser.add_argument("--h-max", type=float, default=1.2, metavar="M", help="largest h of the grid [m] (1.2)")
     parser.add_argument("--h-step", type=float, default=0.005, metavar="M", help="grid step [m] (0.005)")
@@ -243,7 +245,8 @@ def _fmt(v: float, digits: int) -> str:
 def uncertainty(states, session, params, result, args, tolerances, *, with_budget: bool = True) -> dict:
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
-    ``args`` needs ``window_s``, ``polyorder``, and optionally ``phi_definition``, ``h_min``, ``h_max``.
+    ``args`` needs ``window_s``, ``polyorder``, and optionally ``phi_definition``, ``cog_method``, ``h_min``,
+    ``h_max``, ``sliding_bias`` (default True: the soft-tissue sliding's SIMEX bias joins the interval).
     """
     from euc_ros.core.euc import uncertainty as U
     from euc_ros.core.euc.identify import _coefficients_for
@@ -258,10 +261,28 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     if np.isfinite(fit.h_m) and all(s is not None for s in series):
         bias, err = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
                                phi_definition=phi_definition, with_error=True, cog_method=cog_method)
+    # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
+    # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
+    slide = None
+    if np.isfinite(fit.h_m) and all(s is not None for s in series) and getattr(args, "sliding_bias", True):
+        from euc_ros.core.euc.sliding import sliding_bias
+
+        try:
+            slide = sliding_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
+                                 phi_definition=phi_definition, cog_method=cog_method)
+        except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
+            slide = None
+    total, total_err = bias, err
+    if slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0:
+        total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
+        total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
     coefs = _coefficients_for(states, params, "3dof", None)
-    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=bias, eiv_bias_err_m=err,
+    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
                     h_bounds=h_bounds, turning_ms2=U.turning_rms(states))
     out.update(iv.to_json())
+    if slide is not None:
+        out["uncertainty"]["eiv_bias_m"] = U._f(bias)
+        out["uncertainty"].update({k: U._f(v) for k, v in slide.items()})
     lo, hi = iv.bootstrap_ci95_m
     out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
     if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
