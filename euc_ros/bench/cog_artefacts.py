@@ -154,7 +154,8 @@ def h_interval(states, series, session, params, fit, method: str) -> dict:
     unc = uncertainty(states, session, params, SimpleNamespace(pooled={"3dof": fit}), args, {}, with_budget=False)
     lo, hi = unc["h_ci95_m"]
     u = unc["uncertainty"]
-    return {"h_ci95_m": [lo, hi], "ci_contains_truth": bool(lo is not None and hi is not None and lo <= DEFAULT_H_M <= hi),
+    inside = lo is not None and hi is not None and lo <= DEFAULT_H_M <= hi
+    return {"h_ci95_m": [lo, hi], "ci_contains_truth": bool(inside),
             "identifiable": unc["identifiable"], "identifiability_reason": unc["identifiability_reason"],
             "eiv_bias_m": u.get("eiv_bias_m"), "sliding_bias_m": u.get("sliding_bias_m"),
             "sliding_rms_max_m": u.get("sliding_rms_max_m")}

@@ -199,7 +199,8 @@ class RiderStateNode(Node):
                       filter_lag_s=self.estimator.lag_s, estimator=self.config["estimator"],
                       cog_method=self.config["cog_method"], cog_lag_s=self.estimator.cog_lag_s,
                       cog_excluded_body_frames=self.estimator.cog_faults,
-                      cog_excluded_bodies=", ".join(f"{k} {v}" for k, v in sorted(self.estimator.cog_fault_bodies.items())),
+                      cog_excluded_bodies=", ".join(f"{k} {v}"
+                                                    for k, v in sorted(self.estimator.cog_fault_bodies.items())),
                       phi_definition=self.config["phi_definition"],
                       expected_rate_hz=meter.nominal_hz, measured_rate_hz=meter.measured_hz,
                       rate_used_hz=meter.rate_hz if meter.decided else float("nan"))

@@ -167,8 +167,8 @@ def test_noise_is_reduced_not_increased(session):
     """
     sp, sr = 0.004, math.radians(1.5)
     clean, noisy = _rider_series(n=600, seed=4, pos_sigma=sp, rot_sigma=sr)
-    model = SkeletonModel.estimate(clean, session, config=SkeletonFitConfig(pos_sigma_m=sp, rot_sigma_deg=math.degrees(sr),
-                                                                           joint_sigma_m=1e-4))
+    cfg = SkeletonFitConfig(pos_sigma_m=sp, rot_sigma_deg=math.degrees(sr), joint_sigma_m=1e-4)
+    model = SkeletonModel.estimate(clean, session, config=cfg)
     G_true = frame_geometry(clean.position, clean.quat, None, session, clean.bodies)["G"]
     G_seg = frame_geometry(noisy.position, noisy.quat, None, session, noisy.bodies)["G"]
     G_sk = frame_geometry(noisy.position, noisy.quat, None, session, noisy.bodies, cog_method="skeleton",
