@@ -35,8 +35,9 @@ if args.calibrate:
     sys.exit(0)
 
 trials = []
-print("| family (magnitude) | trials | detected | other effect named | RMSE cut (mean, range) | h after (median) |")
-print("|---|---|---|---|---|---|")
+print("| family (magnitude) | trials | named | named or tied | other effect named (untied) | RMSE cut (mean, range) | "
+      "h after (median, worst) [m] |")
+print("|---|---|---|---|---|---|---|")
 for fam in args.families:
     rows = [power_trial(fam, s) for s in seeds]
     trials += rows
@@ -44,11 +45,14 @@ for fam in args.families:
         print(f"  {fam} seed {r['seed']}: {r['effect']} cut {r['cut']:.2f} h {r['h_after']:.3f}", file=sys.stderr,
               flush=True)
     det = sum(r["detected"] for r in rows)
+    det_t = sum(r["detected_or_tied"] for r in rows)
     wrong = sum(bool(r["false_named"]) for r in rows)
     cuts = np.array([r["cut"] for r in rows])
+    hs = np.array([r["h_after"] for r in rows])
     mag = ", ".join(f"{k}={v:g}" for k, v in POWER_MAGNITUDES[fam].items())
-    print(f"| {fam} ({mag}) | {len(rows)} | {det}/{len(rows)} | {wrong} | {cuts.mean():.2f} "
-          f"({cuts.min():.2f}-{cuts.max():.2f}) | {np.median([r['h_after'] for r in rows]):.3f} |", flush=True)
+    print(f"| {fam} ({mag}) | {len(rows)} | {det}/{len(rows)} | {det_t}/{len(rows)} | {wrong} | {cuts.mean():.2f} "
+          f"({cuts.min():.2f}-{cuts.max():.2f}) | {np.median(hs):.3f}, {hs[np.argmax(np.abs(hs - 0.61))]:.3f} |",
+          flush=True)
 if args.null_seeds:
     rows = [power_trial(None, s) for s in range(args.first_seed, args.first_seed + args.null_seeds)]
     trials += rows
@@ -56,7 +60,7 @@ if args.null_seeds:
         print(f"  none seed {r['seed']}: {r['effect']}", file=sys.stderr, flush=True)
     wrong = sum(bool(r["false_named"]) for r in rows)
     unexpl = sum(r["unexplained"] or "discovered" in r["effect"] for r in rows)
-    print(f"| none (no effect) | {len(rows)} | - | {wrong} library effect(s) named; {unexpl} discovered/unexplained | "
+    print(f"| none (no effect) | {len(rows)} | - | - | {wrong} named; {unexpl} discovered/unexplained | "
           f"{np.mean([r['cut'] for r in rows]):.2f} | {np.median([r['h_after'] for r in rows]):.3f} |", flush=True)
 if args.json:
     with open(args.json, "w") as fh:

@@ -21,7 +21,7 @@ from scipy import optimize, signal, stats
 
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, to_moving_frame
 from euc_ros.core.euc.model import EucParams, consistency_weights
-from euc_ros.core.euc.torque import torques
+from euc_ros.core.euc.torque import torque_difference, torques
 from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
 from euc_ros.core.residual.candidates import Candidate, FloorGeometry, ModelContext, make_candidates
 from euc_ros.core.residual.floor import FloorFit, fit_floor, rolling_radius_from_floor, slope_along_path
@@ -37,7 +37,6 @@ DEFAULT_ALPHA = 0.01
 DEFAULT_MIN_GAIN = 0.10
 #: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
 DEFAULT_BLOCK_S = 1.0
-PAIRED_STATISTIC = "log_ratio"
 #: Fewest folds of the held-out evaluation (segments per run = ceil(this / runs), at least 2).
 MIN_FOLDS = 6
 #: The residual's slow part (an effect's signature) is removed over this many filter windows before its
@@ -235,13 +234,15 @@ class Model:
                 ctx.add_force(dQ)
         if extra_dQ is not None:
             ctx.add_force(extra_dQ)
-        m1, m2 = self.torques(ctx)
+        p_mod = ctx.p()
+        diff = torque_difference(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot,
+                                 ctx.phi_ddot, p_mod, extra_Q=ctx.extra_Q)
         # M_d1 - M_d2 = R m11 (x_ddot - x_ddot*): compare models on the acceleration mismatch scaled by the
         # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
         # For the base model and every effect that keeps R and m this is exactly M_d1 - M_d2.
-        p_mod, p_nom = ctx.p(), rec.ctx.params
+        p_nom = rec.ctx.params
         ratio = (p_nom.R * _m11(p_nom)) / (np.asarray(p_mod.R, float) * _m11(p_mod))
-        r = (m1 - m2) * ratio
+        r = diff * ratio
         mask &= np.isfinite(r)
         return np.where(mask, r, 0.0), mask
 
@@ -658,10 +659,7 @@ def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
     mb = np.array([np.mean(base.residual[base.block == b] ** 2) for b in ub])
     mc = np.array([np.mean(cand.residual[cand.block == b] ** 2) if np.any(cand.block == b) else np.nan for b in ub])
     ok = np.isfinite(mc) & (mb > 0) & (mc > 0)
-    if PAIRED_STATISTIC == "log_ratio":
-        d = np.log(mb[ok] / mc[ok])
-    else:
-        d = mb[ok] - mc[ok]
+    d = np.log(mb[ok] / mc[ok])
     if d.size < 3 or np.allclose(d, 0):
         return 1.0
     return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)

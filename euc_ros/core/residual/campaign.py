@@ -167,9 +167,10 @@ def simulate_states(effects: dict, seed: int, maneuvers=POWER_MANEUVERS, *, keep
 def power_trial(family: str | None, seed: int, magnitude: dict | None = None, *, noise_floor: bool = True) -> dict:
     """One ride of :data:`POWER_MANEUVERS` with ``family`` at its power magnitude (None: no effect), analysed.
 
-    Returns ``{"family", "seed", "effect", "detected", "false_named", "cut", "rmse_before", "rmse_after",
-    "h_after", "parameters", "residual_significant"}``: ``detected`` when the family is named (alone or with
-    others), ``false_named`` the library effects named that are absent, ``cut`` 1 - after/before of the
+    Returns ``{"family", "seed", "effect", "detected", "detected_or_tied", "false_named", "twin_named", "cut",
+    ...}``: ``detected`` when the family is named (alone or with others), ``detected_or_tied`` also when a
+    statistical twin is named with the family reported as tied to it (``ambiguous_with``), ``false_named``
+    the absent library effects named without the truth among their ties, ``cut`` 1 - after/before of the
     analysis' result.
     """
     from euc_ros.core.residual.analysis import make_noise_floor
@@ -180,9 +181,13 @@ def power_trial(family: str | None, seed: int, magnitude: dict | None = None, *,
     nf = make_noise_floor(series, states, session, params) if noise_floor else None
     out = analyze(states, params, noise_floor_of=nf).to_json()
     named = [n for n in out["effect"].split("+") if n not in ("none", "discovered", "unexplained")]
+    tied = set(out.get("ambiguous_with", []))
     return {"family": family or "none", "seed": seed, "effect": out["effect"],
             "detected": family is not None and family in named,
-            "false_named": [n for n in named if n != family],
+            "detected_or_tied": family is not None and (family in named or (bool(named) and family in tied)),
+            "false_named": [n for n in named if n != family and family not in tied],
+            "twin_named": [n for n in named if n != family and family in tied],
+            "ambiguous_with": sorted(tied),
             "cut": 1.0 - out["rmse_after_nm"] / out["rmse_before_nm"],
             "rmse_before": out["rmse_before_nm"], "rmse_after": out["rmse_after_nm"], "h_after": out["h_after_m"],
             "h_range": out["h_range_m"], "parameters": out["effect_parameters"],

@@ -140,3 +140,20 @@ def test_params_from_session_uses_nominal_values():
     assert (p.m, p.J, p.m0, p.J0, p.mw, p.Jw, p.R, p.h0, p.l0, p.h) == (65.0, 16.6, 13.0, 0.5, 3.0, 0.12, 0.2,
                                                                           0.075, 0.05, 0.5)
     assert p.m_eq == pytest.approx(65 + 13 + 3 + 0.12 / 0.04)
+
+
+def test_torque_difference_matches_the_symbolic_residual(symbolic, rng):
+    """The residual analysis' direct M_d1 - M_d2 (no torques formed), against the sympy eqs (9)-(10),
+    with per-sample parameters and an extra generalized force (which enters w . dQ)."""
+    from euc_ros.core.euc.torque import torque_difference
+
+    n = 500
+    p = _random_params(rng, n)
+    s = _random_states(rng, n)
+    ref = symbolic.Md1(*_sargs(s), *_pvals(p)) - symbolic.Md2(*_sargs(s), *_pvals(p))
+    scale = np.max(np.abs(ref))
+    np.testing.assert_allclose(torque_difference(*_sargs(s), p), ref, rtol=1e-9, atol=1e-9 * scale)
+    dQ = rng.normal(0.0, 20.0, (n, 3))
+    m1, m2 = torques(*_sargs(s), p, extra_Q=dQ)
+    np.testing.assert_allclose(torque_difference(*_sargs(s), p, extra_Q=dQ), m1 - m2, rtol=1e-9,
+                               atol=1e-9 * np.max(np.abs(m1 - m2)))
