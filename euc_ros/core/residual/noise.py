@@ -94,7 +94,9 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
             kw["window_s"] = window_s
         if polyorder is not None:
             kw["polyorder"] = polyorder
-        noisy.append(reconstruct_states(renoise(series, rng), session, phi_definition=st.phi_definition, **kw))
+        # the same rider CoG method as the states (the skeleton's links re-estimated on the re-noised run)
+        noisy.append(reconstruct_states(renoise(series, rng), session, phi_definition=st.phi_definition,
+                                        cog_method=getattr(st, "cog_method", "segments"), **kw))
     diffs = []
     for (r0, m0), (r1, m1) in zip(residual_of(states), residual_of(noisy)):
         n = min(len(r0), len(r1))
