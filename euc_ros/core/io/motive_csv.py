@@ -391,6 +391,10 @@ def _rotation_type(hdr: _Header, warnings: list[str]) -> str | None:
 _CHUNK_BYTES = 1 << 20
 
 
+class _Realign(Exception):
+    """A chunk needs the exact scan but is not made of whole 2048-row blocks: read again, aligned."""
+
+
 def _lf(rows: bytes) -> bytes:
     """``rows`` with LF line ends."""
     return rows.replace(b"\r\n", b"\n") if b"\r" in rows else rows
@@ -408,6 +412,7 @@ class _Block:
         self.f = f
         self.hdr = hdr
         self.chunk_bytes = _CHUNK_BYTES
+        self.aligned = False  # chunks of whole 2048-row blocks (set when the exact scan needs them)
         self.first_line = hdr.axis_line + 1
         size = f.seek(0, os.SEEK_END)
         start, end = min(hdr.data_offset, size), size
@@ -438,19 +443,28 @@ class _Block:
             yield piece
 
     def _chunks(self):
-        """``(i0, k, rows)``: rows i0 to i0 + k - 1, LF or CRLF separated, without their last line end."""
-        i, rest = 0, b""
+        """``(i0, k, rows)``: rows i0 to i0 + k - 1, LF or CRLF separated, without their last line end.
+
+        When ``self.aligned``, every chunk but the last holds a multiple of ``_CHUNK_ROWS`` rows.
+        """
+        i, rest, rest_lf = 0, b"", 0
         for piece, n_lf in zip(self._pieces(), self._piece_lf):
             buf = rest + piece if rest else piece
-            if not n_lf:  # no line end in this piece: the row goes on
-                rest = buf
+            lf = rest_lf + n_lf
+            k = lf - lf % _CHUNK_ROWS if self.aligned else lf
+            if not k:  # the row (or the block of rows) goes on
+                rest, rest_lf = buf, lf
                 continue
-            cut = buf.rfind(b"\n")  # ``rest`` holds no line end: the chunk's rows are the piece's line ends
+            if k == lf:
+                cut = buf.rfind(b"\n")
+            else:  # the k-th line end (the exact path only: rare)
+                cut = int(np.flatnonzero(np.frombuffer(buf, dtype=np.uint8) == 10)[k - 1])
             rows, rest = buf[:cut - 1 if cut and buf[cut - 1] == 13 else cut], buf[cut + 1:]  # without its CRLF
-            yield i, n_lf, rows
-            i += n_lf
+            rest_lf = lf - k
+            yield i, k, rows
+            i += k
         if self.n_rows:
-            yield i, 1, rest  # the last row (it ends on a byte that is not a line end)
+            yield i, rest_lf + 1, rest  # the last rows (they end on a byte that is not a line end)
 
     def error(self, i: int, j: int, what: str, cell: bytes | None = None) -> InputError:
         col = self.hdr.columns[j].label if j < len(self.hdr.columns) else ""
@@ -463,6 +477,9 @@ class _Block:
 
         Errors are those of one pass over the whole block: a row with too few cells (or a blank line)
         is reported first wherever it is, unless the rows hold quotes; otherwise the first bad cell.
+        The exact scan works on blocks of ``_CHUNK_ROWS`` rows counted from the first row (a block
+        the fast path rejects is scanned whole); a chunk that needs it but does not start and end on
+        such blocks raises ``_Realign``: the caller starts again with ``aligned`` set.
         """
         width = self.hdr.width
         chunks = self._chunks()
@@ -541,6 +558,8 @@ class _Block:
 
     def _chunked(self, rows: list[bytes], start: int) -> np.ndarray:
         """Convert row chunks quickly, scanning cell by cell only the chunks the fast path rejects."""
+        if start % _CHUNK_ROWS or (len(rows) % _CHUNK_ROWS and start + len(rows) != self.n_rows):
+            raise _Realign
         width = self.hdr.width
         out = np.empty((len(rows), width))
         for a in range(0, len(rows), _CHUNK_ROWS):
@@ -711,10 +730,14 @@ def _shrink_axis1(a: np.ndarray, n: int) -> np.ndarray:
 
 # ------------------------------------------------------------------------------------------ reader
 def _open(path: str | Path):
-    """The file opened for binary reading; InputError naming it if it cannot be."""
+    """The file opened for binary reading (seekable); InputError naming it if it cannot be."""
     p = Path(path)
     try:
-        return open(p, "rb")
+        f = open(p, "rb")
+        if not f.seekable():  # a pipe: read whole (the reader reads the data rows twice)
+            with f:
+                return io.BytesIO(f.read())
+        return f
     except FileNotFoundError:
         raise InputError("no such file", path=p) from None
     except IsADirectoryError:
@@ -862,29 +885,38 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     """
     world_up = _check_world_up(world_up)
     spath = str(path)
-    with _open(path) as fh:
-        hdr = _parse_header(_head_bytes(fh), spath)
-        warnings: list[str] = []
-        info = _header_summary(hdr, warnings)
-        units, scale = LENGTH_UNITS_M[info["length_units"].lower()]
-        rot_type = info["rotation_type"]
+    try:
+        with _open(path) as fh:
+            hdr = _parse_header(_head_bytes(fh), spath)
+            warnings: list[str] = []
+            info = _header_summary(hdr, warnings)
+            units, scale = LENGTH_UNITS_M[info["length_units"].lower()]
+            rot_type = info["rotation_type"]
 
-        selected = hdr.bodies
-        if bodies is not None:
-            by_name = {b.name: b for b in hdr.bodies}
-            missing = [b for b in bodies if b not in by_name]
-            if missing:
-                raise InputError(f"rigid body {missing[0]!r} not in the file (has: "
-                                 f"{', '.join(by_name) or 'no rigid bodies'})", path=spath)
-            selected = [by_name[b] for b in bodies]
+            selected = hdr.bodies
+            if bodies is not None:
+                by_name = {b.name: b for b in hdr.bodies}
+                missing = [b for b in bodies if b not in by_name]
+                if missing:
+                    raise InputError(f"rigid body {missing[0]!r} not in the file (has: "
+                                     f"{', '.join(by_name) or 'no rigid bodies'})", path=spath)
+                selected = [by_name[b] for b in bodies]
 
-        # The data rows, chunk by chunk, into arrays sized once (docs/motive_csv.md, "Memory").
-        block = _Block(fh, hdr)
-        check_reach = bool(info["header"]) and hdr.get("Length Units")[0] in (None, "")
-        out = _SeriesArrays(block.n_rows, selected, rot_type, scale, world_up, check_reach)
-        for i0, rows, m in block.matrices():
-            out.add(i0, rows, m)
-            del rows, m
+            # The data rows, chunk by chunk, into arrays sized once (docs/motive_csv.md, "Memory").
+            block = _Block(fh, hdr)
+            check_reach = bool(info["header"]) and hdr.get("Length Units")[0] in (None, "")
+            while True:
+                out = _SeriesArrays(block.n_rows, selected, rot_type, scale, world_up, check_reach)
+                try:
+                    for i0, rows, m in block.matrices():
+                        out.add(i0, rows, m)
+                        del rows, m
+                    break
+                except _Realign:  # again, in whole 2048-row blocks (files with a bad or quoted cell: rare)
+                    out = None
+                    block.aligned = True
+    except OSError as exc:  # a read error after the file was opened
+        raise InputError(f"cannot read: {exc.strerror}", path=Path(path)) from None
     if not block.terminated and block.n_rows:
         warnings.append("the last line has no line end: the file may have been cut short")
     if out.bad_frame is not None:
