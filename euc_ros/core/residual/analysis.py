@@ -868,6 +868,10 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         # units of its typical magnitude, ParamInfo.scale): a prior-weighted tie-break, reported as such
         best = min(tied, key=lambda t: _implausibility(t[0], t[4].x[-t[0].n_params:] if t[0].n_params else []))
         step["selected"] = best[0].name
+        # reported as tied: every admissible candidate the held-out data cannot tell from the selected one,
+        # also those that did not pass the (Bonferroni) test against the current model on their own
+        tied = [t for t in trials if t[5] is None and t[2].rmse <= (1 - min_gain) * current_ho.rmse
+                and (t is best or paired_block_test(t[2], best[2]) >= AMBIGUITY_ALPHA)]
         ambiguous = [t[0].name for t in tied if t is not best]
         step["ambiguous_with"] = ambiguous
         step["tied"] = [{"effect": t[0].name, "h_m": t[4].h, "rmse_after_nm": t[2].rmse,
