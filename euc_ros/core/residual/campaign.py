@@ -59,7 +59,7 @@ SCENARIOS = [
     Scenario({"wheel_radius_error": {"delta_r_m": 0.04}}, residual_visible=False),
     Scenario({"mocap_time_offset": {"dt_ms": 16.7}}),
     Scenario({"mocap_time_offset": {"dt_ms": 33.3}}),
-    Scenario({"rider_mass_error": {"delta_m_kg": 16.0}}),
+    Scenario({"rider_mass_error": {"delta_m_kg": 20.0}}),
     Scenario({"rider_mass_error": {"delta_m_kg": 30.0}}),
     Scenario({"rider_inertia_error": {"delta_j_kgm2": 8.0}}),
     Scenario({"rider_inertia_error": {"delta_j_kgm2": 16.0}}),
