@@ -946,7 +946,8 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             say(f"discovery: {'; '.join(r['formula'] for r in rows_found)}: held-out RMSE {current_ho.rmse:.3f} -> "
                 f"{disc['heldout'].rmse:.3f} N m (p = {p_disc:.2g})")
             named_equal = None
-            if p_disc < alpha and gain_ok and why is None and last_trials is not None and last_trials[0] is current:
+            if p_disc < alpha and gain_ok and last_trials is not None and last_trials[0] is current:
+                # (the structure test stands even when the discovered model itself is not admissible)
                 # the discovery showed structure at alpha (one test: the terms were chosen within the folds); a
                 # named effect that cuts the residual as much (its own test at alpha now that structure is
                 # shown, not Bonferroni over the library) and that the discovered terms do not beat
