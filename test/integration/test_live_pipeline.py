@@ -81,7 +81,7 @@ def test_live_torques_match_the_offline_identification(ros_context, gappy_ride, 
         NodeSpec("rider_state", params_file=str(CONFIG / "rider_state.yaml"), parameters=session_params),
     ]
     ingest = [NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"),
-                       parameters={"csv_path": str(csv), "exit_when_done": True, "rate_factor": 2.0,
+                       parameters={"csv_path": str(csv), "exit_when_done": True, "rate_factor": 1.0,
                                    "start_delay": 0.0, "wait_subscribers": 3, "linger": 1.5})]
     probe = rclpy.create_node("graph_probe", context=ros_context)
     t_start = time.monotonic()
