@@ -300,7 +300,12 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
     if duration < MIN_DURATION_S:
         reasons.append(f"too short: {duration:.1f} s of usable states (at least {MIN_DURATION_S:g} s needed)")
     hb, length, nb, grid = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
-    lo, hi = np.percentile(hb, [2.5, 97.5]) if nb >= 2 else (-np.inf, np.inf)
+    if nb >= 2:
+        with np.errstate(invalid="ignore"):      # unbounded replicates (+-inf) make the percentile infinite
+            lo, hi = np.percentile(hb, [2.5, 97.5])
+        lo, hi = (-np.inf if np.isnan(lo) else lo), (np.inf if np.isnan(hi) else hi)
+    else:
+        lo, hi = -np.inf, np.inf
     boot = (float(lo), float(hi))
     # few blocks: percentiles undercover; widen as Student's t does against the normal quantile
     from scipy.stats import t as student
