@@ -55,7 +55,7 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.filters.derivatives import (DEFAULT_MAX_GAP, Derivatives, StreamingSavgol, _grid_positions,
-                                              gap_stretches)
+                                              filter_stretches)
 
 #: Default model order (number of states per coordinate): 4 is a constant-jerk model.
 DEFAULT_ORDER = 4
@@ -306,22 +306,7 @@ def fir_derivatives(t_or_dt, y, weights: np.ndarray, lag: int, *, max_gap: int =
     filled = np.zeros(n, dtype=bool)
     if n < 2 or not np.isfinite(dt):
         return _derivs(out, filled, 0, dt, lag)
-    y2 = y.reshape(n, -1)
-    valid = np.all(np.isfinite(y2), axis=1)
-    for i0, i1 in gap_stretches(k, valid, max_gap):
-        length = int(k[i1] - k[i0]) + 1
-        if length < w.shape[1]:
-            continue
-        kk = k[i0:i1 + 1] - k[i0]
-        v = valid[i0:i1 + 1]
-        grid = np.arange(length)
-        seg = np.empty((length, y2.shape[1]))
-        for c in range(y2.shape[1]):
-            seg[:, c] = np.interp(grid, kk[v], y2[i0:i1 + 1][v, c])
-        res = _stretch(seg, w, lag)
-        for d in range(3):
-            out[d].reshape(n, -1)[i0:i1 + 1] = res[d][kk]
-        filled[i0:i1 + 1] = ~v
+    filter_stretches(y, k, max_gap, w.shape[1], lambda seg: _stretch(seg, w, lag), out, filled)
     return _derivs(out, filled, w.shape[1], dt, lag)
 
 

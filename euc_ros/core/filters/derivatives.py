@@ -318,11 +318,25 @@ def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int
     if n < 2 or not np.isfinite(dt):
         return Derivatives(*out, filled, 0, dt)
     w = window_samples(dt, window_s, window, polyorder)
+    filter_stretches(y, k, max_gap, w, lambda seg: _filter_stretch(seg, w, polyorder, dt), out, filled)
+    return Derivatives(out[0], out[1], out[2], filled, w, dt)
+
+
+def filter_stretches(y: np.ndarray, k: np.ndarray, max_gap: int, min_length: int, filter_stretch,
+                     out: list[np.ndarray], filled: np.ndarray) -> None:
+    """Apply ``filter_stretch`` to every gap-free stretch of ``y`` (in place into ``out`` and ``filled``).
+
+    Stretches come from :func:`gap_stretches`; those shorter than ``min_length`` grid samples are skipped.
+    Within a stretch the missing grid samples (at most ``max_gap`` in a row) are filled by linear
+    interpolation and flagged in ``filled``; ``filter_stretch(seg)`` maps the gap-free (L, c) stretch to its
+    value and derivatives (3, L, c), written back at the recorded samples.
+    """
+    n = y.shape[0]
     y2 = y.reshape(n, -1)
     valid = np.all(np.isfinite(y2), axis=1)
     for i0, i1 in gap_stretches(k, valid, max_gap):
         length = int(k[i1] - k[i0]) + 1
-        if length < w:
+        if length < min_length:
             continue
         kk = k[i0:i1 + 1] - k[i0]
         v = valid[i0:i1 + 1]
@@ -330,11 +344,10 @@ def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int
         seg = np.empty((length, y2.shape[1]))
         for c in range(y2.shape[1]):
             seg[:, c] = np.interp(grid, kk[v], y2[i0:i1 + 1][v, c])
-        res = _filter_stretch(seg, w, polyorder, dt)
+        res = filter_stretch(seg)
         for d in range(3):
             out[d].reshape(n, -1)[i0:i1 + 1] = res[d][kk]
         filled[i0:i1 + 1] = ~v
-    return Derivatives(out[0], out[1], out[2], filled, w, dt)
 
 
 class StreamSample(NamedTuple):

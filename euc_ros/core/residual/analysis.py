@@ -21,7 +21,7 @@ from scipy import optimize, signal, stats
 
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, to_moving_frame
 from euc_ros.core.euc.model import EucParams, consistency_weights
-from euc_ros.core.euc.torque import torque_difference, torques
+from euc_ros.core.euc.torque import torque_difference
 from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
 from euc_ros.core.residual.candidates import Candidate, FloorGeometry, ModelContext, make_candidates
 from euc_ros.core.residual.floor import FloorFit, fit_floor, rolling_radius_from_floor, slope_along_path
@@ -245,12 +245,6 @@ class Model:
         r = diff * ratio
         mask &= np.isfinite(r)
         return np.where(mask, r, 0.0), mask
-
-    @staticmethod
-    def torques(ctx: ModelContext) -> tuple[np.ndarray, np.ndarray]:
-        """M_d1, M_d2 of a prepared context (eqs (9)-(10) with the context's extensions)."""
-        return torques(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot, ctx.phi_ddot,
-                       ctx.p(), extra_Q=ctx.extra_Q)
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Lower and upper bounds of ``x``."""
