@@ -12,6 +12,9 @@ latency        live mocap_ingest -> rider_state -> torque_estimator latency per 
                to end, frames dropped (a bare rclpy relay chain, same hops and sizes)
 throughput     identify and residual on a 10-minute recording, CSV and bag, in
                recording-seconds per wall-second (loading the recording alone)
+growth         identify and residual on 1, 10 and 60-minute recordings: time per recorded
+               minute, its growth exponent, peak memory above the process baseline per byte
+               of the recording's arrays (loading the recording alone)
 csv_parse      Motive CSV parse rate (numpy.loadtxt reading the same numbers)
 recording      recorder messages per second into MCAP with no loss (rosbags writing the
                same messages directly)
@@ -24,4 +27,4 @@ fuzz           NatNet packets and Motive CSV files: inputs, crashes, hangs, reje
 """
 
 #: Benchmarks in the order they run (module names under euc_ros.bench).
-BENCHMARKS = ("csv_parse", "throughput", "unicycle", "recording", "latency", "play", "fuzz")
+BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "recording", "latency", "play", "fuzz")
