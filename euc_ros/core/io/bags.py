@@ -20,10 +20,13 @@ See ``docs/bags.md``.
 """
 from __future__ import annotations
 
+import io
 import logging
 import os
 import re
+import struct
 import sys
+from collections import defaultdict
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -42,6 +45,10 @@ JAZZY_MAX_VERSION = 9
 #: Default MCAP chunk size [bytes]; rosbags 0.11.9 closes a chunk past 1 MiB whatever is asked.
 DEFAULT_CHUNK_SIZE = 1 << 20
 MCAP_MAGIC = b"\x89MCAP0\r\n"
+#: rosbags 0.11.9 closes a chunk once it holds more than this [bytes].
+_ROSBAGS_CHUNK_LIMIT = 1 << 20
+#: MCAP Message record head: opcode, record length, channel id, sequence, log time, publish time.
+_MESSAGE_RECORD = struct.Struct("<BQHIQQ")
 POSE_STAMPED = "geometry_msgs/msg/PoseStamped"
 MOCAP_FRAME = "euc_msgs/msg/MocapFrame"
 RIGID_BODIES = "mocap4r2_msgs/msg/RigidBodies"     # the MOCAP4ROS2 drivers: one message per frame
@@ -168,6 +175,7 @@ class BagWriter:
             raise InputError(f"cannot create bag: {exc}", path=self.path) from None
         self._closed = False
         self._n_chunks = 0
+        self._fast: bool | None = None
         storage = self._writer.storage
         self._chunk_control = all(hasattr(storage, a) for a in ("chunk", "chunks", "close_chunk", "bio"))
         if not self._chunk_control:
@@ -210,10 +218,75 @@ class BagWriter:
         if self._chunk_control:
             storage = self._writer.storage
             if storage.chunk.bio.tell() >= self.chunk_size:
-                storage.close_chunk()
+                _close_chunk(storage) if self._fast_batch() else storage.close_chunk()
             if len(storage.chunks) != self._n_chunks:   # a chunk completed (here or in rosbags): to the OS
                 self._n_chunks = len(storage.chunks)
                 storage.bio.flush()
+
+    def write_raw_many(self, topic: str, msgtype: str, datas, stamp_ns) -> None:
+        """Write several serialized (CDR) messages of one topic, in order: the bytes :meth:`write_raw` writes.
+
+        ``stamp_ns`` is one receive time for all [ns since the epoch] or a sequence of one per message.
+        The same file as that many :meth:`write_raw` calls (records, message indexes, chunk boundaries
+        and statistics), at a fraction of the cost per message: the MCAP message records are packed
+        here instead of through rosbags' per-message writer (~4x faster; a recorder's batch).
+        """
+        conn = self.connection(topic, msgtype)
+        stamps = [int(stamp_ns)] * len(datas) if isinstance(stamp_ns, (int, np.integer)) else \
+            [int(s) for s in stamp_ns]
+        if len(stamps) != len(datas):
+            raise ValueError(f"{len(datas)} messages but {len(stamps)} stamps")
+        if self._closed or not self._fast_batch():
+            for data, stamp in zip(datas, stamps):
+                self.write_raw(topic, msgtype, data, stamp)
+            return
+        writer, storage, cid = self._writer, self._writer.storage, conn.id
+        limit = min(self.chunk_size, _ROSBAGS_CHUNK_LIMIT + 1)   # rosbags closes past 1 MiB: the first of both
+        pack = _MESSAGE_RECORD.pack
+        i, n = 0, len(datas)
+        while i < n:
+            chunk = storage.chunk
+            bio, index = chunk.bio, chunk.msgs[cid]
+            start = i
+            pos = bio.tell()
+            while i < n:
+                data, stamp = datas[i], stamps[i]
+                index.append((stamp, pos))
+                bio.write(pack(0x05, 22 + len(data), cid, 0, stamp, stamp))
+                bio.write(data)
+                pos += 31 + len(data)
+                i += 1
+                if pos >= limit:
+                    break
+            lo, hi = min(stamps[start:i]), max(stamps[start:i])
+            chunk.message_start_time = min(lo, chunk.message_start_time)
+            chunk.message_end_time = max(hi, chunk.message_end_time)
+            storage.message_start_time = min(lo, storage.message_start_time)
+            storage.message_end_time = max(hi, storage.message_end_time)
+            writer.min_timestamp = min(lo, writer.min_timestamp)
+            writer.max_timestamp = max(hi, writer.max_timestamp)
+            storage.channel_stats[cid] += i - start
+            writer.counts[cid] += i - start
+            self.counts[topic] += i - start
+            if pos >= limit:
+                _close_chunk(storage)
+                self._n_chunks = len(storage.chunks)
+                storage.bio.flush()                     # a chunk completed: to the OS
+
+    def _fast_batch(self) -> bool:
+        """True when rosbags' writer internals are the ones :meth:`write_raw_many` packs records for."""
+        if self._fast is None:
+            from rosbags.rosbag2.enums import CompressionMode
+
+            w = self._writer
+            st = w.storage
+            self._fast = bool(
+                self._chunk_control and w.compression_mode != CompressionMode.MESSAGE
+                and getattr(st, "compression", None) == ""
+                and all(hasattr(st, a) for a in ("channel_stats", "message_start_time", "message_end_time"))
+                and all(hasattr(st.chunk, a) for a in ("msgs", "message_start_time", "message_end_time"))
+                and all(hasattr(w, a) for a in ("counts", "min_timestamp", "max_timestamp")))
+        return self._fast
 
     def write(self, topic: str, msgtype: str, msg, stamp_ns: int) -> None:
         """Serialize a rosbags message object to CDR and write it (see :meth:`write_raw`)."""
@@ -243,6 +316,40 @@ class BagWriter:
     def __exit__(self, exc_type, exc, tb) -> bool:
         self.close()   # also on exceptions: keep what was recorded
         return False
+
+
+def _close_chunk(storage) -> None:
+    """Close rosbags' pending MCAP chunk: the bytes of its ``close_chunk``, packed with struct at once.
+
+    Writes the Chunk record (uncompressed: ``compression`` is ""), one MessageIndex record per
+    channel, and keeps the ChunkIndex record for the summary, as the MCAP specification lays them
+    out; rosbags packs every integer through its own BytesIO write (~1 us per message).
+    """
+    from itertools import chain
+
+    chunk = storage.chunk
+    body = chunk.bio.getbuffer()
+    size = len(body)
+    out = storage.bio
+    chunk_start = out.tell()
+    out.write(struct.pack("<BQQQQIIQ", 0x06, 8 * 3 + 4 + 4 + 8 + size, chunk.message_start_time,
+                          chunk.message_end_time, size, 0, 0, size))
+    out.write(body)
+    del body
+    chunk_end = out.tell()
+    offsets = []
+    for cid, msgs in chunk.msgs.items():
+        offsets.append((cid, out.tell()))
+        n = len(msgs)
+        out.write(struct.pack(f"<BQHI{2 * n}Q", 0x07, 2 + 4 + 16 * n, cid, 16 * n, *chain.from_iterable(msgs)))
+    index = io.BytesIO()
+    index.write(struct.pack("<QQQQI", chunk.message_start_time, chunk.message_end_time, chunk_start,
+                            chunk_end - chunk_start, 10 * len(offsets)))
+    for cid, offset in offsets:
+        index.write(struct.pack("<HQ", cid, offset))
+    index.write(struct.pack("<QIQQ", out.tell() - chunk_end, 0, size, size))
+    storage.chunks.append(index)
+    storage.chunk = type(chunk)(2**63 - 1, 0, io.BytesIO(), defaultdict(list))
 
 
 #: The distribution rosbag2 names in ``ros_distro`` (it writes the ROS_DISTRO it runs on).

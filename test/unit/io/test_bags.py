@@ -217,6 +217,51 @@ def test_writer_errors(tmp_path):
     assert w.closed
 
 
+def _string_cdr(text: str) -> bytes:
+    raw = text.encode() + b"\x00"
+    return b"\x00\x01\x00\x00" + len(raw).to_bytes(4, "little") + raw
+
+
+@pytest.mark.parametrize("chunk_size", [256, 4096, 1 << 20, 1 << 22])
+def test_write_raw_many_writes_the_bytes_of_write_raw(tmp_path, chunk_size):
+    """The batch path (records and chunks packed here) against write_raw (rosbags' writer): same file."""
+    rng = np.random.default_rng(chunk_size)
+    msgs = []
+    for i in range(3000):
+        topic = ("/a", "/b", "/c")[int(rng.integers(3))]
+        size = 2000 if topic == "/c" and i % 7 == 0 else int(rng.integers(0, 60))   # some past small chunks
+        msgs.append((topic, _string_cdr("x" * size + str(i)), START_NS + i // 3))
+    with BagWriter(tmp_path / "one" / "bag", chunk_size=chunk_size) as w:
+        for topic, data, stamp in msgs:
+            w.write_raw(topic, "std_msgs/msg/String", data, stamp)
+    with BagWriter(tmp_path / "many" / "bag", chunk_size=chunk_size) as w:
+        i = 0
+        while i < len(msgs):                       # runs of one topic, as a recorder's takes come
+            j = i + 1
+            while j < len(msgs) and msgs[j][0] == msgs[i][0] and j - i < 40:
+                j += 1
+            stamps = [m[2] for m in msgs[i:j]]
+            stamp = stamps[0] if len(set(stamps)) == 1 else stamps
+            w.write_raw_many(msgs[i][0], "std_msgs/msg/String", [m[1] for m in msgs[i:j]], stamp)
+            i = j
+        w.write_raw_many("/a", "std_msgs/msg/String", [], START_NS)
+        assert w.counts == {t: sum(m[0] == t for m in msgs) for t in ("/a", "/b", "/c")}
+    for name in ("bag.mcap", "metadata.yaml"):
+        assert (tmp_path / "many" / "bag" / name).read_bytes() == (tmp_path / "one" / "bag" / name).read_bytes()
+    assert check_bag(tmp_path / "many" / "bag") == []
+    assert [m.data for _, _, _, m in read_bag(tmp_path / "many" / "bag", topics=["/b"])] == \
+        [m[1][8:-1].decode() for m in msgs if m[0] == "/b"]
+
+
+def test_write_raw_many_errors(tmp_path):
+    with BagWriter(tmp_path / "b") as w:
+        with pytest.raises(ValueError, match="2 messages but 1 stamps"):
+            w.write_raw_many("/s", "std_msgs/msg/String", [_string_cdr("a")] * 2, [START_NS])
+        w.close()
+        with pytest.raises(InputError, match="closed"):
+            w.write_raw_many("/y", "std_msgs/msg/String", [_string_cdr("a")], START_NS)
+
+
 def test_small_chunks_are_used(written):
     path, _, _ = written
     scan, _ = bags._scan_mcap(mcap_of(path))
