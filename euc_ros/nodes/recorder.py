@@ -1,8 +1,16 @@
 """Node ``recorder``: topics -> rosbag2 bag with MCAP storage (through rosbags), nothing lost on SIGINT.
 
-Subscribes ``raw=True`` so CDR bytes go straight into the bag without a decode/encode round trip.
-Topics are subscribed as soon as they appear in the graph (a discovery timer), with a reliability
-that matches their publishers (reliable unless a publisher is best effort).
+Takes CDR bytes (raw) so they go straight into the bag without a decode/encode round trip. Topics
+are subscribed as soon as they appear in the graph (a discovery timer), with a reliability that
+matches their publishers (reliable unless a publisher is best effort).
+
+The subscriptions are not rclpy callbacks: they form one :class:`SubscriptionDrain`, a waitable of
+the executor. When any of them has data, the executor wakes once and the drain takes every message
+every subscription holds (until rcl has none left); the recorder writes them per topic in one
+:meth:`~euc_ros.core.io.bags.BagWriter.write_raw_many` batch. An executor cycle (wait-set rebuild,
+task, callback) costs tens of microseconds; per message it was the recorder's limit, per wake it is
+shared by every message that arrived meanwhile. On shutdown what the subscriptions still hold is
+taken and written before the bag closes.
 
 Subscribes
     the configured ``topics`` (default: the pipeline's), or every topic with ``all_topics``.
@@ -15,10 +23,14 @@ from __future__ import annotations
 
 import importlib
 import time
+from contextlib import ExitStack
 from pathlib import Path
 
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.type_support import check_for_type_support
+from rclpy.waitable import NumberOfEntities, Waitable
 
 from euc_ros.core.io.bags import BagWriter
 from euc_ros.nodes import interfaces as itf
@@ -58,6 +70,95 @@ def _msg_class(type_name: str):
     return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
 
+class SubscriptionDrain(Waitable):
+    """Raw subscriptions as one executor entity that, when any is ready, takes all they hold.
+
+    ``subscribe`` creates an rcl subscription that is not an rclpy callback (the executor does not
+    take its messages one by one); the executor waits on all of them through this waitable and, on
+    a wake, :meth:`take_data` takes every message of every subscription until rcl has none left.
+    :meth:`execute` hands them to ``sink([(topic, type name, datas), ...])``.
+    """
+
+    #: Poll period while messages flow [s]: they wait in the DDS queues (the subscription's depth).
+    POLL_S = 0.002
+    #: Longest polling stretch before the executor runs its other entities again [s].
+    MAX_POLL_S = 0.05
+
+    def __init__(self, node: Node, sink) -> None:
+        super().__init__(node.default_callback_group)
+        self._node = node
+        self._sink = sink
+        self.subs: list[tuple[str, str, object, type]] = []    # (topic, type name, rcl handle, class)
+        self._indices: list[int] = []
+        self._stack: ExitStack | None = None
+
+    def subscribe(self, topic: str, type_name: str, cls: type, qos: QoSProfile) -> None:
+        """Subscribe ``topic`` (raw) and wait on it from the next executor cycle on."""
+        check_for_type_support(cls)
+        with self._node.handle:
+            handle = _rclpy.Subscription(self._node.handle, cls, topic, qos.get_c_qos_profile())
+        self.subs.append((topic, type_name, handle, cls))
+
+    def take_all(self) -> list[tuple[str, str, list[bytes]]]:
+        """Take every message each subscription holds: ``[(topic, type name, [cdr bytes...]), ...]``."""
+        out = []
+        for topic, type_name, handle, cls in self.subs:
+            datas = []
+            take = handle.take_message
+            while (got := take(cls, True)) is not None:
+                datas.append(got[0])
+            if datas:
+                out.append((topic, type_name, datas))
+        return out
+
+    def destroy(self) -> None:
+        """Destroy the rcl subscriptions (after the last :meth:`take_all`)."""
+        for _, _, handle, _ in self.subs:
+            handle.destroy_when_not_in_use()
+        self.subs = []
+
+    # -- Waitable API (rclpy 7.1) ----------------------------------------------------------------------------------
+    def __enter__(self):
+        self._stack = ExitStack()
+        for _, _, handle, _ in self.subs:
+            self._stack.enter_context(handle)
+        return self
+
+    def __exit__(self, t, v, tb):
+        if self._stack is not None:
+            self._stack.close()
+            self._stack = None
+
+    def get_num_entities(self) -> NumberOfEntities:
+        return NumberOfEntities(len(self.subs))
+
+    def add_to_wait_set(self, wait_set) -> None:
+        self._indices = [wait_set.add_subscription(handle) for _, _, handle, _ in self.subs]
+
+    def is_ready(self, wait_set) -> bool:
+        return any(wait_set.is_ready("subscription", i) for i in self._indices)
+
+    def take_data(self):
+        return self.take_all()
+
+    async def execute(self, taken_data) -> None:
+        """Hand what was taken to the sink; then, while messages keep coming, poll instead of waiting.
+
+        Polling every :attr:`POLL_S` lets messages gather in the DDS queues and takes them in one
+        pass without an executor cycle per pass; back to the executor (timers, services, shutdown)
+        when a pass finds nothing, or after :attr:`MAX_POLL_S`.
+        """
+        self._sink(taken_data)
+        context = self._node.context
+        end = time.monotonic() + self.MAX_POLL_S
+        while time.monotonic() < end and context.ok():
+            time.sleep(self.POLL_S)
+            taken_data = self.take_all()
+            if not taken_data:
+                break
+            self._sink(taken_data)
+
+
 class Recorder(Node):
     """Record topics into a rosbag2 MCAP bag."""
 
@@ -71,7 +172,9 @@ class Recorder(Node):
         self.path = Path(out)
         self.writer = BagWriter(self.path, chunk_size=self.config["chunk_size"])
         self.counts: dict[str, int] = {}
-        self._subs = {}
+        self._drain = SubscriptionDrain(self, self._on_messages)
+        self.add_waitable(self._drain)
+        self._subscribed: set[str] = set()
         self._wanted = {self.resolve_topic_name(t) for t in self.config["topics"]}
         self._timer = self.create_timer(self.config["discovery_period"], self._discover)
         self._discover()
@@ -80,7 +183,7 @@ class Recorder(Node):
 
     def _discover(self) -> None:
         for topic, types in self.get_topic_names_and_types():
-            if topic in self._subs or topic in _SKIP:
+            if topic in self._subscribed or topic in _SKIP:
                 continue
             if not self.config["all_topics"] and topic not in self._wanted:
                 continue
@@ -96,16 +199,27 @@ class Recorder(Node):
                              reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
             # as ros2 bag record does: the publishers' offered QoS go into metadata.yaml (a player uses them)
             self.writer.connection(topic, types[0], offered_qos_profiles=[bag_qos(p.qos_profile) for p in pubs])
-            self._subs[topic] = self.create_subscription(
-                cls, topic, lambda data, t=topic, n=types[0]: self._on_message(t, n, data), qos, raw=True)
+            self._drain.subscribe(topic, types[0], cls, qos)
+            self._subscribed.add(topic)
             self.get_logger().info(f"subscribed {topic} [{types[0]}]{' best effort' if best_effort else ''}")
 
-    def _on_message(self, topic: str, type_name: str, data: bytes) -> None:
-        self.writer.write_raw(topic, type_name, data, self.get_clock().now().nanoseconds)
-        self.counts[topic] = self.counts.get(topic, 0) + 1
+    def _on_messages(self, taken: list) -> None:
+        """Write what one pass took (``[(topic, type name, [cdr...]), ...]``), stamped with the time of the pass."""
+        stamp = self.get_clock().now().nanoseconds
+        counts, write = self.counts, self.writer.write_raw_many
+        for topic, type_name, datas in taken:
+            write(topic, type_name, datas, stamp)
+            counts[topic] = counts.get(topic, 0) + len(datas)
 
     def close(self) -> None:
-        """Close the bag (called by the runtime on shutdown): the bag is complete after this."""
+        """Close the bag (called by the runtime on shutdown): the bag is complete after this.
+
+        What the subscriptions still hold (taken by rcl before the shutdown) is written first."""
+        try:
+            self._on_messages(self._drain.take_all())
+        except Exception as exc:   # the middleware may be gone already: keep what was written
+            print(f"[recorder] could not take the last messages: {exc}", flush=True)
+        self._drain.destroy()
         self.writer.close()
         total = sum(self.counts.values())
         # the context may already be shut down (rosout unavailable): print instead of the node logger
