@@ -10,8 +10,8 @@
     ``--start-delay`` s; after the last frame it lingers ``--linger`` s and exits 0.
 ``hop --kind state|torque``
     relays ``mocap/frame`` -> ``rider/state`` (RiderState) or ``rider/state`` -> ``euc/torque``
-    (TorqueEstimate): on every input it publishes a prebuilt message of the output type with the
-    input's header (``filter_lag`` 0).
+    (TorqueEstimate): on every input (taken raw; the stamp read from its CDR header) it publishes a
+    prebuilt message of the output type with the input's stamp (``filter_lag`` 0).
 ``blast``
     publishes the recorded pipeline's message mix per frame (1 MocapFrame, one PoseStamped per body,
     1 TFMessage of every body, 1 RiderState, 1 TorqueEstimate) at ``--frame-rate`` frames/s for
@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import struct
 import sys
 import time
 
@@ -97,11 +98,15 @@ class _Done(Exception):
 
 def _source(node, args) -> None:
     from euc_msgs.msg import MocapFrame
+    from rclpy.serialization import serialize_message
 
     from euc_ros.nodes import interfaces as itf
 
     pub = node.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS)
     msg = mocap_frame(args.bodies)
+    msg.frame_number = 0x0102030405060708
+    raw = bytearray(serialize_message(msg))
+    number_at = bytes(raw).index((0x0102030405060708).to_bytes(8, "little"))
     period_ns = 1e9 / args.rate
     state = {"created": time.monotonic(), "matched": None, "t0": None, "stamp0": 0, "next": 0, "done": None}
 
@@ -122,9 +127,12 @@ def _source(node, args) -> None:
         elapsed_ns = (now - state["t0"]) * 1e9
         while state["next"] < args.frames and state["next"] * period_ns <= elapsed_ns:
             k = state["next"]
-            _ns_to_stamp(state["stamp0"] + round(k * period_ns), msg.header.stamp)
-            msg.frame_number = k
-            pub.publish(msg)
+            # pre-serialized bytes with the stamp and frame number patched in: the floor moves the
+            # same bytes as mocap_ingest (which also publishes serialized frames) at the least cost
+            sec, nsec = divmod(int(state["stamp0"] + round(k * period_ns)), 1_000_000_000)
+            struct.pack_into("<iI", raw, 4, sec, nsec)
+            struct.pack_into("<q", raw, number_at, k)
+            pub.publish(bytes(raw))
             state["next"] += 1
         if state["next"] >= args.frames:
             state["done"] = now
@@ -144,12 +152,37 @@ def _hop(node, args) -> None:
         in_type, in_topic, out_type, out_topic, out = RiderState, itf.RIDER_STATE, TorqueEstimate, itf.TORQUE, \
             torque_estimate()
     pub = node.create_publisher(out_type, out_topic, itf.RELIABLE_QOS)
+    out.header.frame_id = "world"
 
-    def on_input(msg) -> None:
-        out.header = msg.header
+    def on_input(raw: bytes) -> None:
+        # raw input, stamp read from the CDR header (as the pipeline's rider_state reads its frames raw)
+        out.header.stamp.sec, out.header.stamp.nanosec = struct.unpack_from("<iI", raw, 4)
         pub.publish(out)
 
-    node.create_subscription(in_type, in_topic, on_input, itf.RELIABLE_QOS)
+    node.create_subscription(in_type, in_topic, on_input, itf.RELIABLE_QOS, raw=True)
+
+
+#: builtin_interfaces/Time in CDR (little endian): sec int32, nanosec uint32.
+_STAMP = struct.Struct("<iI")
+#: A stamp no real message carries: its CDR bytes mark where a template's stamps are.
+_MARK_SEC, _MARK_NSEC = 0x7A5B3C1D, 987654321
+
+
+def _stamped_template(msg, tf: bool) -> tuple[bytearray, list[int]]:
+    """``msg`` serialized with a marker stamp in every header: (CDR bytes, offsets of the stamps)."""
+    from rclpy.serialization import serialize_message
+
+    for m in (msg.transforms if tf else [msg]):
+        m.header.stamp.sec, m.header.stamp.nanosec = _MARK_SEC, _MARK_NSEC
+    buf = bytearray(serialize_message(msg))
+    mark = _STAMP.pack(_MARK_SEC, _MARK_NSEC)
+    offsets, i = [], buf.find(mark)
+    while i >= 0:
+        offsets.append(i)
+        i = buf.find(mark, i + 1)
+    if len(offsets) != (len(msg.transforms) if tf else 1):
+        raise RuntimeError(f"relay blast: {len(offsets)} stamps found in a {type(msg).__name__} template")
+    return buf, offsets
 
 
 def _blast(node, args) -> dict:
@@ -195,24 +228,26 @@ def _blast(node, args) -> dict:
     while time.monotonic() < settle:
         rclpy.spin_once(node, timeout_sec=0.02)
 
+    # Pre-serialized CDR (Publisher.publish(bytes)): serializing in Python costs more than publishing,
+    # and a blast measures the subscriber. Each frame's stamp is patched into the bytes where the
+    # template holds its marker stamp (every header of the message).
+    templates = [(topic, pub, *_stamped_template(msg, topic == itf.TF)) for topic, pub, msg in pubs]
     sent = {t: 0 for t, _, _ in pubs}
     n_frames = int(round(args.frame_rate * args.duration))
     period = 1.0 / args.frame_rate
     clock = node.get_clock()
+    pack_into = _STAMP.pack_into
     t0 = time.monotonic()
     for k in range(n_frames):
         due = t0 + k * period
         delay = due - time.monotonic()
         if delay > 0:
             time.sleep(delay)
-        stamp = clock.now().nanoseconds
-        for topic, pub, msg in pubs:
-            if topic == itf.TF:
-                for t in msg.transforms:
-                    _ns_to_stamp(stamp, t.header.stamp)
-            else:
-                _ns_to_stamp(stamp, msg.header.stamp)
-            pub.publish(msg)
+        sec, nsec = divmod(clock.now().nanoseconds, 1_000_000_000)
+        for topic, pub, buf, offsets in templates:
+            for off in offsets:
+                pack_into(buf, off, sec, nsec)
+            pub.publish(bytes(buf))
             sent[topic] += 1
     publish_s = time.monotonic() - t0
     linger = time.monotonic() + args.linger
