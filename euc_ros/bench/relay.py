@@ -16,7 +16,9 @@
     publishes the recorded pipeline's message mix per frame (1 MocapFrame, one PoseStamped per body,
     1 TFMessage of every body, 1 RiderState, 1 TorqueEstimate) at ``--frame-rate`` frames/s for
     ``--duration`` s, once every topic has a subscription; prints one JSON line ``{"sent": {topic:
-    n}, "messages": N, "publish_s": s, "achieved_msgs_per_s": r}``.
+    n}, "messages": N, "publish_s": s, "achieved_msgs_per_s": r, "wall_start": t, "wall_end": t}``.
+    The messages are serialized once and published as CDR bytes with each frame's stamp patched
+    in. ``--part K/N`` publishes only topics K, K+N, ... of the mix, so N processes share it.
 ``lockstep-sim`` / ``lockstep-ctrl``
     a bare lockstep ping-pong with the unicycle's message types: the sim publishes UnicycleState
     ``k`` and waits for the SteeringCommand of step ``k`` (resending after 0.5 s), ``--steps`` times;
@@ -194,13 +196,12 @@ def _blast(node, args) -> dict:
 
     frame = mocap_frame(args.bodies)
     names = list(frame.body_names)
-    pubs = [(itf.MOCAP_FRAME, node.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS), frame)]
+    mix = [(itf.MOCAP_FRAME, MocapFrame, frame)]
     for i, name in enumerate(names):
         ps = PoseStamped()
         ps.header.frame_id = "world"
         ps.pose = frame.poses[i]
-        topic = itf.body_pose_topic(name)
-        pubs.append((topic, node.create_publisher(PoseStamped, topic, itf.RELIABLE_QOS), ps))
+        mix.append((itf.body_pose_topic(name), PoseStamped, ps))
     tf = TFMessage()
     for i, name in enumerate(names):
         t = TransformStamped()
@@ -211,10 +212,12 @@ def _blast(node, args) -> dict:
             p.position.x, p.position.y, p.position.z)
         t.transform.rotation = p.orientation
         tf.transforms.append(t)
-    pubs.append((itf.TF, node.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS), tf))
-    pubs.append((itf.RIDER_STATE, node.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS),
-                 rider_state()))
-    pubs.append((itf.TORQUE, node.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS), torque_estimate()))
+    mix += [(itf.TF, TFMessage, tf), (itf.RIDER_STATE, RiderState, rider_state()),
+            (itf.TORQUE, TorqueEstimate, torque_estimate())]
+    part, parts = (int(x) for x in args.part.split("/"))
+    if not 0 <= part < parts:
+        raise SystemExit(f"relay blast: --part {args.part}: expected K/N with 0 <= K < N")
+    pubs = [(topic, node.create_publisher(cls, topic, itf.RELIABLE_QOS), msg) for topic, cls, msg in mix[part::parts]]
 
     import rclpy
 
@@ -237,6 +240,7 @@ def _blast(node, args) -> dict:
     period = 1.0 / args.frame_rate
     clock = node.get_clock()
     pack_into = _STAMP.pack_into
+    wall0 = time.time()
     t0 = time.monotonic()
     for k in range(n_frames):
         due = t0 + k * period
@@ -254,7 +258,8 @@ def _blast(node, args) -> dict:
     while time.monotonic() < linger:
         rclpy.spin_once(node, timeout_sec=0.05)
     total = sum(sent.values())
-    return {"sent": sent, "messages": total, "frames": n_frames, "publish_s": publish_s,
+    return {"sent": sent, "messages": total, "frames": n_frames, "publish_s": publish_s, "wall_start": wall0,
+            "wall_end": wall0 + publish_s,
             "achieved_msgs_per_s": total / publish_s if publish_s > 0 else float("nan")}
 
 
@@ -366,6 +371,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--linger", type=float, default=1.0, help="keep running after the end [s]")
     parser.add_argument("--frame-rate", type=float, default=120.0, help="blast: frames per second")
     parser.add_argument("--duration", type=float, default=5.0, help="blast: publishing time [s]")
+    parser.add_argument("--part", default="0/1", help="blast: publish topics K, K+N, K+2N... of the mix (K/N): "
+                        "the mix shared by N processes")
     parser.add_argument("--match-timeout", type=float, default=30.0, help="give up waiting for peers [s]")
     parser.add_argument("--steps", type=int, default=1000, help="lockstep-sim: steps")
     parser.add_argument("--dt", type=float, default=0.01, help="lockstep-sim: simulated step [s]")
