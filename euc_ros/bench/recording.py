@@ -76,8 +76,8 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     Returns sent, recorded, lost, the achieved rate, the recorder's CPU while the mix was published
     (seconds, cores, microseconds per message) and the peak RSS of every process.
     """
-    from euc_ros.bench.common import run_launched_sampled
-    from euc_ros.launch import NodeSpec
+    from euc_ros.bench.common import PeakRssSampler
+    from euc_ros.launch import Launcher, NodeSpec
 
     bag = out_dir / f"bag_{int(frame_rate)}"
     results = [out_dir / f"blast_{int(frame_rate)}_{k}.json" for k in range(publishers)]
@@ -87,11 +87,20 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     names = [f"blast{k}" if publishers > 1 else "blast" for k in range(publishers)]
     for k, (name, result) in enumerate(zip(names, results)):
         specs.append(NodeSpec(sys.executable, name=name, ros_args=False, env=dict(publisher_env or {}),
+                              required=False,
                               args=["-m", "euc_ros.bench.relay", "blast", "--frame-rate", str(frame_rate),
                                     "--duration", str(duration_s), "--start-delay", "0.5", "--linger", "1.0",
                                     "--part", f"{k}/{publishers}", "--result", str(result)]))
     log = io.StringIO()
-    launcher, finished, sampler = run_launched_sampled(specs, timeout_s, log, period_s=0.1)
+    launcher = Launcher(specs, stream=log)
+    with PeakRssSampler(0.1) as sampler:
+        with launcher:               # until every publisher is done (the first one done stops nothing)
+            for label, proc in launcher.procs.items():
+                sampler.add(label, proc.pid)
+            finished = launcher.wait(timeout=timeout_s, until=lambda: all(launcher.procs[n].poll() is not None
+                                                                          for n in names))
+            for n in names:
+                launcher.exit_codes.setdefault(n, launcher.procs[n].returncode)
     peaks = sampler.peaks_mb()
     tail = " | ".join(log.getvalue().strip().splitlines()[-6:])
     if not finished or not all(r.exists() for r in results) or any(launcher.exit_codes.get(n) != 0 for n in names):
