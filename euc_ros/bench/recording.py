@@ -177,7 +177,8 @@ def run(ctx: BenchContext) -> dict:
         step = measure_step(rate, STEP_S[ctx.quick], out, publishers=PUBLISHERS)
         steps.append(step)
         ctx.log(f"    achieved {step['achieved_msgs_per_s']:.0f} msgs/s, lost {sum(step['lost'].values())}, "
-                f"recorder {_fmt(step['recorder_cores'], '.2f')} cores, {_fmt(step['recorder_us_per_msg'], '.1f')} us/msg")
+                f"recorder {_fmt(step['recorder_cores'], '.2f')} cores, "
+                f"{_fmt(step['recorder_us_per_msg'], '.1f')} us/msg")
         if not step["lossless"] or step["achieved_msgs_per_s"] < SATURATION * step["asked_msgs_per_s"]:
             break
     # bisect between the last lossless rate and the first lossy one
