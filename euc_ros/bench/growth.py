@@ -69,7 +69,7 @@ WARMUP_S = 10.0
 #: Frames written untracked at the start of every repeat of the base (> the analysis' max_gap of 5).
 SEAM_FRAMES = 12
 #: Version of the derived files (bump when their content changes).
-DERIVED_VERSION = 1
+DERIVED_VERSION = 2
 #: Targets: time growth exponent, peak above baseline / arrays' size at the longest length.
 TARGET_TIME_EXPONENT = 1.1
 TARGET_MEMORY_RATIO = 1.5
@@ -116,7 +116,7 @@ def derive_csv(base_csv: Path, out_csv: Path, frames: int, rate_hz: float, *, se
     span = int(base_frames[-1]) + 1
     offsets = range(0, frames, span)
     written = int(sum(np.count_nonzero(base_frames + off < frames) for off in offsets))
-    blank_tail = b"," * (rows[0].count(b",") - 1)
+    blank_tail = b"," * (rows[0].count(b",") - 2)     # the cells after frame and time, all blank
     tmp = out_csv.with_name(out_csv.name + ".partial")
     with open(tmp, "wb") as f:
         f.write(nl.join([_header_with_frames(head[0], frames, written), *head[1:]]) + nl)

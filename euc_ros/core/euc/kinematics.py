@@ -31,6 +31,7 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.bridging import bridge_series
+from euc_ros.core.euc.blockwise import block_geometry, materialize
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, savgol_derivatives, trim_edges
 from euc_ros.core.euc.skeleton_fit import COG_METHODS, SkeletonModel, skeleton_cog
 from euc_ros.core.rotations import rotation_matrices, yaw_tilt_pitch_from_quat
@@ -322,12 +323,17 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     if absent:
         raise InputError(f"rider segment(s) {', '.join(absent)} of the session not in recording", path=src)
     dt = 1.0 / series.rate_hz
-    # each body's short gaps are bridged before any geometry (as the live estimator does)
-    series, bridged = bridge_series(series, max_gap)
-    if cog_method == "skeleton" and skeleton is None:
-        skeleton = SkeletonModel.estimate([series], session)
-    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies,
-                         cog_method=cog_method, skeleton=skeleton)
+    # each body's short gaps are bridged before any geometry (as the live estimator does); for the
+    # segments CoG block by block (blockwise.block_geometry: no copy of the whole recording)
+    if cog_method == "skeleton":
+        series, bridged = bridge_series(materialize(series), max_gap)
+        if skeleton is None:
+            skeleton = SkeletonModel.estimate([series], session)
+        geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies,
+                             cog_method=cog_method, skeleton=skeleton)
+        n_bridged, n_bridged_frames = int(bridged.sum()), int(bridged.any(axis=0).sum())
+    else:
+        geo, n_bridged, n_bridged_frames = block_geometry(series, session, max_gap)
     frame = np.asarray(series.frame, dtype=np.int64)
     sg = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, frame=frame)
     d_gamma = savgol_derivatives(dt, geo["gamma"], **sg)
@@ -363,7 +369,7 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         phi_eq3=geo["phi_eq3"], phi_hinge=geo["phi_hinge"], psi=psi, theta=geo["theta"],
         C=d_C.y, G=geo["G"], has_euc=geo["has_euc"], has_rider=geo["has_rider"], valid=valid,
         phi_definition=phi_definition, cog_method=cog_method, window=d_gamma.window, polyorder=polyorder, dt=dt,
-        meta={"source": src, "bridged_samples": int(bridged.sum()),
-              "bridged_frames": int(bridged.any(axis=0).sum()), "cog_faults": int(geo["n_faults"].sum()),
+        meta={"source": src, "bridged_samples": n_bridged,
+              "bridged_frames": n_bridged_frames, "cog_faults": int(geo["n_faults"].sum()),
               **({"cog_fault_bodies": geo["cog_fault_bodies"]} if "cog_fault_bodies" in geo else {})},
     )

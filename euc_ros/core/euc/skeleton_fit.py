@@ -122,6 +122,38 @@ def _rotmats(quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return out.reshape(quat.shape[:-1] + (3, 3)), ok.reshape(quat.shape[:-1])
 
 
+def _link_samples(P, Q, T, ia: int, ib: int, block: int = 1 << 14) -> tuple[np.ndarray, np.ndarray]:
+    """A link's samples over the frames where both bodies are usable: ``R_a^T (p_b - p_a)`` (m, 3) and
+    ``R_a^T R_b`` (m, 3, 3), computed block by block (no rotation matrices of the whole recording)."""
+    def usable(i):
+        okq = _rotmats_ok(Q[i])
+        return okq & np.all(np.isfinite(P[i]), -1) & (True if T is None else T[i])
+
+    m = usable(ia) & usable(ib)
+    count = int(m.sum())
+    v = np.empty((count, 3))
+    rel = np.empty((count, 3, 3))
+    at = 0
+    for lo in range(0, m.size, block):
+        mb = m[lo:lo + block]
+        k = int(mb.sum())
+        if not k:
+            continue
+        Ra = _rotmats(Q[ia, lo:lo + block][mb])[0]
+        Rb = _rotmats(Q[ib, lo:lo + block][mb])[0]
+        v[at:at + k] = np.einsum("nji,nj->ni", Ra, P[ib, lo:lo + block][mb] - P[ia, lo:lo + block][mb])
+        rel[at:at + k] = np.einsum("nji,njk->nik", Ra, Rb)
+        at += k
+    return v, rel
+
+
+def _rotmats_ok(quat: np.ndarray) -> np.ndarray:
+    """The finiteness mask of :func:`_rotmats` alone."""
+    flat = quat.reshape(-1, 4)
+    ok = np.all(np.isfinite(flat), axis=1) & (np.linalg.norm(np.where(np.isfinite(flat), flat, 0.0), axis=1) > 0)
+    return ok.reshape(quat.shape[:-1])
+
+
 def _skew(v: np.ndarray) -> np.ndarray:
     z = np.zeros(v.shape[:-1])
     return np.stack([np.stack([z, -v[..., 2], v[..., 1]], -1), np.stack([v[..., 2], z, -v[..., 0]], -1),
@@ -209,8 +241,7 @@ class SkeletonModel:
         used = tuple((a, b) for a, b in links if a in known and b in known and a != b)
         if not used:
             raise ConfigError("no chain link between the session's bodies", key="cog_method")
-        samples = [[] for _ in used]
-        rels = [[] for _ in used]
+        recs = []
         for j, (P, Q) in enumerate(zip(positions, quats)):
             bl = list(other_bodies[j]) if other_bodies is not None else list(bodies)
             P = np.asarray(P, float)
@@ -218,35 +249,34 @@ class SkeletonModel:
             if max_frames is not None:
                 P, Q = P[:, :max_frames], Q[:, :max_frames]
             T = None if tracked is None or tracked[j] is None else np.asarray(tracked[j], bool)[:, :P.shape[1]]
-            R, okq = _rotmats(Q)
-            ok = okq & np.all(np.isfinite(P), -1) & (True if T is None else T)
-            for k, (a, b) in enumerate(used):
-                if a not in bl or b not in bl:
-                    continue
-                ia, ib = bl.index(a), bl.index(b)
-                m = ok[ia] & ok[ib]
-                v = np.einsum("nji,nj->ni", R[ia][m], P[ib][m] - P[ia][m])
-                samples[k].append(v)
-                rels[k].append(np.einsum("nji,njk->nik", R[ia][m], R[ib][m]))
-        have = [k for k in range(len(used)) if sum(len(v) for v in samples[k]) > 0]
-        if not have:
-            raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
-        used = tuple(used[k] for k in have)          # links never seen together are left out
-        samples = [samples[k] for k in have]
-        rels = [rels[k] for k in have]
-        vec = np.zeros((len(used), 3))
-        rel = np.zeros((len(used), 3, 3))
-        thr = np.zeros(len(used))
+            recs.append((P, Q, T, bl))
+        # link by link, so only one link's samples exist at a time (each recording's arrays are read in place)
+        kept, vecs, rels, thrs = [], [], [], []
         n_frames = 0
-        for k, (a, b) in enumerate(used):
-            v = np.concatenate(samples[k])
+        for a, b in used:
+            parts = [_link_samples(P, Q, T, bl.index(a), bl.index(b)) for P, Q, T, bl in recs
+                     if a in bl and b in bl]
+            if sum(len(v) for v, _ in parts) == 0:
+                continue                                # links never seen together are left out
+            v = np.concatenate([v for v, _ in parts]) if len(parts) > 1 else parts[0][0]
+            r = np.concatenate([r for _, r in parts]) if len(parts) > 1 else parts[0][1]
+            del parts
             n_frames = max(n_frames, v.shape[0])
-            vec[k] = np.median(v, axis=0)
-            rel[k] = _project_so3(np.median(np.concatenate(rels[k]), axis=0))
-            e = np.linalg.norm(v - vec[k], axis=1)
+            vk = np.median(v, axis=0)
+            rels.append(_project_so3(np.median(r, axis=0)))
+            del r
+            e = np.linalg.norm(v - vk, axis=1)
             med = float(np.median(e))
             mad = float(np.median(np.abs(e - med)))
-            thr[k] = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
+            thrs.append(max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad))
+            vecs.append(vk)
+            kept.append((a, b))
+        if not kept:
+            raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
+        used = tuple(kept)
+        vec = np.array(vecs, dtype=float).reshape(len(used), 3)
+        rel = np.array(rels, dtype=float).reshape(len(used), 3, 3)
+        thr = np.array(thrs, dtype=float)
         return cls(tuple(names), euc, used, vec, rel, thr, n_frames, config)
 
     def to_dict(self) -> dict:

@@ -50,7 +50,7 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
         ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
         power normalised to sum 1) for :func:`sliding_bias`.
     """
-    from euc_ros.core.euc.skeleton_fit import SkeletonModel, _gather
+    from euc_ros.core.euc.skeleton_fit import SkeletonModel
 
     model = skeleton or SkeletonModel.estimate(list(series_list), session)
     chain = list(model.bodies) + [model.euc_body]
@@ -58,14 +58,13 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
     rows, vals = [], []
     spec_f, spec_p = None, None
     for s in series_list:
-        P, R, ok, _ = _gather(model, s.position, s.quat, s.tracked, s.bodies)
-        n = P.shape[1]
+        n = s.n_frames
         if n < 16:
             continue
         for k, (a, b) in enumerate(model.links):
             ia, ib = chain.index(a), chain.index(b)
-            d = np.einsum("nji,nj->ni", R[ia], P[ib] - P[ia]) - model.vectors[k]
-            good = ok[ia] & ok[ib] & (np.linalg.norm(d, axis=1) <= model.threshold_m[k])
+            d, both = _link_deviation(s, a, b, model.vectors[k])
+            good = both & (np.linalg.norm(d, axis=1) <= model.threshold_m[k])
             if good.sum() < 16:
                 continue
             dg = d[good] - d[good].mean(0)
@@ -98,6 +97,36 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
     rms = np.sqrt(q)
     return {"bodies": list(model.bodies), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
             "spectrum": spectrum}
+
+
+def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14):
+    """``R_a^T (p_b - p_a) - vector`` (n, 3) of one link over a recording, and where both bodies are usable.
+
+    Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
+    the caller). Computed block by block: the rotation matrices of the whole recording never exist.
+    """
+    from euc_ros.core.euc.skeleton_fit import _rotmats
+
+    n = series.n_frames
+    d = np.empty((n, 3))
+    if a not in series.bodies or b not in series.bodies:
+        d[:] = -np.asarray(vector, float)
+        return d, np.zeros(n, bool)
+    ja, jb = series.bodies.index(a), series.bodies.index(b)
+    both = np.zeros(n, bool)
+    eye = np.eye(3)
+    for lo in range(0, n, block):
+        hi = min(n, lo + block)
+        Ra, oka = _rotmats(series.quat[ja, lo:hi])
+        _, okb = _rotmats(series.quat[jb, lo:hi])
+        oka = oka & np.all(np.isfinite(series.position[ja, lo:hi]), -1) & series.tracked[ja, lo:hi]
+        okb = okb & np.all(np.isfinite(series.position[jb, lo:hi]), -1) & series.tracked[jb, lo:hi]
+        Ra = np.where(oka[:, None, None], Ra, eye)
+        Pa = np.where(oka[:, None], series.position[ja, lo:hi], 0.0)
+        Pb = np.where(okb[:, None], series.position[jb, lo:hi], 0.0)
+        d[lo:hi] = np.einsum("nji,nj->ni", Ra, Pb - Pa) - vector
+        both[lo:hi] = oka & okb
+    return d, both
 
 
 def _surrogate(rng: np.random.Generator, n: int, rate_hz: float, spectrum) -> np.ndarray:

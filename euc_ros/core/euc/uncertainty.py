@@ -213,17 +213,53 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
 
 def add_pose_noise(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
     """A copy of ``series`` with white noise of the given per-body sigmas added to every pose."""
-    pos = series.position.copy()
-    quat = series.quat.copy()
-    for i in range(len(series.bodies)):
+    return pose_noise_series(series, sigma_pos, sigma_rot, rng).materialize()
+
+
+def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
+    """:func:`add_pose_noise` as a :class:`~euc_ros.core.euc.blockwise.PerturbedSeries`.
+
+    Per body, in order: position noise ``N(0, sigma_pos)`` on every frame, then a rotation of
+    ``N(0, sigma_rot)`` per axis (a rotation vector) applied in the body frame to every finite
+    quaternion. The poses are made block by block on demand from the same draws of ``rng`` (left
+    where drawing them all at once leaves it), so the noisy recording never exists whole.
+    """
+    from euc_ros.core.euc.blockwise import BLOCK_FRAMES, NoiseStream, PerturbedSeries, block_counts, block_span
+
+    b, n = series.position.shape[0], series.position.shape[1]
+    counts = block_counts(n)
+    starts = np.arange(0, n, BLOCK_FRAMES)
+    segments = []
+    for i in range(b):
         if np.isfinite(sigma_pos[i]):
-            pos[i] = pos[i] + rng.normal(0.0, sigma_pos[i], pos[i].shape)
+            segments.append((("p", i), counts, 3))
         if np.isfinite(sigma_rot[i]):
-            ok = np.all(np.isfinite(quat[i]), axis=1)
-            dq = quat_from_rotvec(rng.normal(0.0, sigma_rot[i], (int(ok.sum()), 3)))
-            qi = quat[i, ok] / np.linalg.norm(quat[i, ok], axis=1, keepdims=True)
-            quat[i, ok] = quat_multiply(qi, dq)
-    return dataclasses.replace(series, position=pos, quat=quat)
+            ok = np.all(np.isfinite(series.quat[i]), axis=1)
+            segments.append((("r", i), np.add.reduceat(ok.astype(np.int64), starts) if n else counts, 3))
+    stream = NoiseStream(rng, segments)
+
+    def perturb(lo: int, hi: int):
+        k0, k1 = block_span(lo, hi)
+        first = k0 * BLOCK_FRAMES
+        rows = slice(lo - first, hi - first)
+        pos = np.array(series.position[:, lo:hi], dtype=float, copy=True)
+        quat = np.array(series.quat[:, lo:hi], dtype=float, copy=True)
+        for i in range(b):
+            if np.isfinite(sigma_pos[i]):
+                pos[i] = pos[i] + (0.0 + sigma_pos[i] * stream.draw(("p", i), k0, k1)[rows])
+            if np.isfinite(sigma_rot[i]):
+                ok_span = np.all(np.isfinite(series.quat[i, first:min(n, k1 * BLOCK_FRAMES)]), axis=1)
+                z = stream.draw(("r", i), k0, k1)
+                inside = np.zeros_like(ok_span)
+                inside[rows] = True
+                z = z[inside[ok_span]]
+                ok = ok_span[rows]
+                dq = quat_from_rotvec(0.0 + sigma_rot[i] * z)
+                qi = quat[i, ok] / np.linalg.norm(quat[i, ok], axis=1, keepdims=True)
+                quat[i, ok] = quat_multiply(qi, dq)
+        return pos, quat
+
+    return PerturbedSeries(series, perturb)
 
 
 def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyorder: int,
@@ -246,10 +282,12 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
         return (float("nan"), float("nan")) if with_error else float("nan")
     hs = []
     for _ in range(replicates):
-        states = [reconstruct_states(add_pose_noise(s, sp, sr, rng), session, phi_definition=phi_definition,
+        # the noisy recordings are made block by block as the states are reconstructed (never whole)
+        states = [reconstruct_states(pose_noise_series(s, sp, sr, rng), session, phi_definition=phi_definition,
                                      window_s=window_s, polyorder=polyorder, cog_method=cog_method)
                   for s, (sp, sr) in zip(series_list, noise)]
         hs.append(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
+        del states                    # before the next replicate's states are made
     bias = float(np.nanmean(hs) - h)
     err = float(np.nanstd(hs, ddof=1) / np.sqrt(len(hs))) if len(hs) > 1 else float("nan")
     return (bias, err) if with_error else bias

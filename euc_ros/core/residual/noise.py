@@ -70,11 +70,33 @@ def _mad_sigma(d4: np.ndarray, dof: int) -> float:
 
 def renoise(series, rng: np.random.Generator):
     """The recording with a second, independent realisation of its own white pose noise added."""
+    return renoised(series, rng).materialize()
+
+
+def renoised(series, rng: np.random.Generator):
+    """:func:`renoise` as a :class:`~euc_ros.core.euc.blockwise.PerturbedSeries`: the same poses (the
+    same draws of ``rng``, which is left where :func:`renoise` leaves it), made block by block on
+    demand, so the re-noised recording never exists whole."""
+    from euc_ros.core.euc.blockwise import BLOCK_FRAMES, NoiseStream, PerturbedSeries, block_counts, block_span
+
     sp, sq = pose_noise(series)
-    pos = series.position + rng.normal(size=series.position.shape) * sp[:, None, None]
-    quat = series.quat + rng.normal(size=series.quat.shape) * sq[:, None, None]
-    quat /= np.linalg.norm(quat, axis=2, keepdims=True)
-    return dataclasses.replace(series, position=pos, quat=quat)
+    b, n = series.position.shape[0], series.position.shape[1]
+    counts = block_counts(n)
+    # renoise's order: every body's position noise (b, n, 3), then every body's quaternion noise
+    stream = NoiseStream(rng, [(("p", i), counts, 3) for i in range(b)] + [(("q", i), counts, 4) for i in range(b)])
+
+    def perturb(lo: int, hi: int):
+        k0, k1 = block_span(lo, hi)
+        rows = slice(lo - k0 * BLOCK_FRAMES, hi - k0 * BLOCK_FRAMES)
+        pos = np.empty((b, hi - lo, 3))
+        quat = np.empty((b, hi - lo, 4))
+        for i in range(b):
+            pos[i] = series.position[i, lo:hi] + stream.draw(("p", i), k0, k1)[rows] * sp[i]
+            quat[i] = series.quat[i, lo:hi] + stream.draw(("q", i), k0, k1)[rows] * sq[i]
+        quat /= np.linalg.norm(quat, axis=2, keepdims=True)
+        return pos, quat
+
+    return PerturbedSeries(series, perturb)
 
 
 def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *, seed: int = 0,
@@ -95,7 +117,7 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
         if polyorder is not None:
             kw["polyorder"] = polyorder
         # the same rider CoG method as the states (the skeleton's links re-estimated on the re-noised run)
-        noisy.append(reconstruct_states(renoise(series, rng), session, phi_definition=st.phi_definition,
+        noisy.append(reconstruct_states(renoised(series, rng), session, phi_definition=st.phi_definition,
                                         cog_method=getattr(st, "cog_method", "segments"), **kw))
     diffs = []
     for (r0, m0), (r1, m1) in zip(residual_of(states), residual_of(noisy)):
