@@ -279,6 +279,7 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     coefs = _coefficients_for(states, params, "3dof", None)
     iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
                     h_bounds=h_bounds, turning_ms2=U.turning_rms(states))
+    del coefs                         # per-sample coefficients: not kept through the budget
     out.update(iv.to_json())
     if slide is not None:
         out["uncertainty"]["eiv_bias_m"] = U._f(bias)

@@ -193,6 +193,7 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
             states = [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
                                          polyorder=polyorder, cog_method=cog_method, skeleton=skel) for s in noisy]
             hs[level].append(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
+            del noisy, skel, states           # before the next replicate's are made
     h2, h3 = float(np.nanmean(hs[1])), float(np.nanmean(hs[2]))
     h0 = 3.0 * h - 3.0 * h2 + h3
     out["sliding_bias_m"] = float(h - h0)

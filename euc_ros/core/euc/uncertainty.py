@@ -463,6 +463,7 @@ def budget(series_list, states, session, params, h: float, *, window_s: float, p
         st2 = [reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s, polyorder=polyorder,
                                   cog_method=cog_method) for s in series_list]
         hs.append(h_of(st2, params))
+        del st2                       # before the other shift's states are made
     d = (hs[0] - hs[1]) / (2 * step)
     tol = _absolute(tolerances["rider.segments.com_offset"], 0.0)
     out["rider.segments.com_offset"] = {"dh_dp": _f(d), "unit": "m per m (all offsets along the body z axis)",
