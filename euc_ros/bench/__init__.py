@@ -23,8 +23,13 @@ unicycle       unicycle simulation real-time factor in process and in lockstep o
 play           replay timing of ``euc-ros play`` per message, at rates 1 and 2 (a bare wait
                loop on the same schedule)
 fuzz           NatNet packets and Motive CSV files: inputs, crashes, hangs, rejection classes
+live_sweep     the whole live pipeline (with monitor and recorder) at 120/240/360/500 Hz x
+               14/28/56 bodies, 60 s each: hops, end to end, CPU per node, drops (the bare
+               relay chain at the same rate and body count)
+soak           10 minutes at 360 Hz x 14 bodies through the whole pipeline (the same floor)
 =============  ==========================================================================
 """
 
 #: Benchmarks in the order they run (module names under euc_ros.bench).
-BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "recording", "latency", "play", "fuzz")
+BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "recording", "latency", "play", "fuzz", "live_sweep",
+              "soak")

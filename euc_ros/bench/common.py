@@ -91,6 +91,35 @@ def self_peak_rss_mb() -> float:
     return kb / 1024.0
 
 
+def cpu_seconds(pid: int) -> float | None:
+    """User + system CPU time of ``pid`` so far [s] (``/proc/<pid>/stat``), None where unreadable."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as f:
+            text = f.read()
+        fields = text[text.rindex(b")") + 2:].split()   # after "pid (comm) "; utime, stime are fields 14, 15
+        return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return None
+
+
+def cpu_fraction(series: list[tuple[float, float]], t0: float, t1: float) -> float:
+    """Mean CPU use (1 = one core) between wall times ``t0`` and ``t1`` from ``(wall time, CPU seconds)``
+    samples (interpolated), NaN without samples around the interval.
+
+    Examples
+    --------
+    >>> round(cpu_fraction([(0.0, 0.0), (1.0, 0.25), (2.0, 0.75)], 0.5, 2.0), 3)
+    0.417
+    """
+    if len(series) < 2 or t1 <= t0:
+        return float("nan")
+    t, c = (np.array(v, dtype=float) for v in zip(*series))
+    if t0 < t[0] - 0.5 or t1 > t[-1] + 0.5:
+        return float("nan")
+    c0, c1 = np.interp([t0, t1], t, c)
+    return float((c1 - c0) / (t1 - t0))
+
+
 def _vm_hwm_kb(pid: int) -> int | None:
     return _status_kb(pid, b"VmHWM:")
 
@@ -160,6 +189,8 @@ class PeakRssSampler:
         self.children_of = children_of
         self.pids: dict[str, int] = {}
         self.peak_kb: dict[str, int] = {}
+        #: label -> [(wall time [s], CPU seconds)], one entry per sample while the process lives
+        self.cpu: dict[str, list[tuple[float, float]]] = {}
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, daemon=True)
 
@@ -193,6 +224,9 @@ class PeakRssSampler:
         if self.children_of is not None:
             self._discover()
         for label, pid in list(self.pids.items()):
+            cpu = cpu_seconds(pid)
+            if cpu is not None:
+                self.cpu.setdefault(label, []).append((time.time(), cpu))
             kb = _vm_hwm_kb(pid)
             if kb is None:
                 try:
@@ -334,12 +368,18 @@ def run_launched(specs, timeout_s: float, log):
 
     Returns ``(launcher, finished, peaks_mb)``; the processes are stopped on return.
     """
+    launcher, finished, sampler = run_launched_sampled(specs, timeout_s, log)
+    return launcher, finished, sampler.peaks_mb()
+
+
+def run_launched_sampled(specs, timeout_s: float, log, period_s: float = 0.2):
+    """:func:`run_launched` returning the :class:`PeakRssSampler` itself (peak RSS and CPU series)."""
     from euc_ros.launch import Launcher
 
     launcher = Launcher(specs, stream=log)
-    with PeakRssSampler() as rss:
+    with PeakRssSampler(period_s) as rss:
         with launcher:
             for label, proc in launcher.procs.items():
                 rss.add(label, proc.pid)
             finished = launcher.wait(timeout=timeout_s)
-    return launcher, finished, rss.peaks_mb()
+    return launcher, finished, rss

@@ -10,6 +10,7 @@ from euc_msgs.msg import MocapFrame
 from geometry_msgs.msg import Pose, PoseStamped, TransformStamped
 
 from euc_ros.core.ingest import Frame
+from euc_ros.core.io import cdr_frame
 
 NAN = float("nan")
 
@@ -46,20 +47,50 @@ def frame_to_msg(frame: Frame, frame_id: str, stamp_source: int) -> MocapFrame:
     return msg
 
 
+def _frame(stamp_ns: int, number: int, names: list, pos: np.ndarray, quat: np.ndarray, tracked: np.ndarray,
+           err: np.ndarray) -> Frame:
+    """A core Frame from a message's arrays: missing flags from finiteness, NaN poses where untracked."""
+    if tracked.shape[0] != pos.shape[0]:
+        tracked = np.all(np.isfinite(pos), axis=1)
+    if err.shape[0] != pos.shape[0]:
+        err = np.full(pos.shape[0], np.nan)
+    pos[~tracked] = np.nan
+    quat[~tracked] = np.nan
+    return Frame(int(stamp_ns), int(number), list(names), pos, quat, tracked, err)
+
+
 def msg_to_frame(msg: MocapFrame) -> Frame:
     """``euc_msgs/MocapFrame`` -> core :class:`Frame`."""
     pos = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses], float).reshape(-1, 3)
     quat = np.array([[p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w] for p in msg.poses],
                     float).reshape(-1, 4)
-    tracked = np.array(msg.tracked, bool)
-    if tracked.shape[0] != pos.shape[0]:
-        tracked = np.all(np.isfinite(pos), axis=1)
-    err = np.array(msg.mean_marker_error, float)
-    if err.shape[0] != pos.shape[0]:
-        err = np.full(pos.shape[0], np.nan)
-    pos[~tracked] = np.nan
-    quat[~tracked] = np.nan
-    return Frame(stamp_to_ns(msg.header.stamp), int(msg.frame_number), list(msg.body_names), pos, quat, tracked, err)
+    return _frame(stamp_to_ns(msg.header.stamp), msg.frame_number, msg.body_names, pos, quat,
+                  np.array(msg.tracked, bool), np.array(msg.mean_marker_error, float))
+
+
+def raw_to_frame(raw: bytes) -> tuple[Frame, str]:
+    """Serialized ``euc_msgs/MocapFrame`` (a raw subscription's bytes) -> (core :class:`Frame`, frame_id).
+
+    Little-endian CDR is read with numpy (:mod:`euc_ros.core.io.cdr_frame`); anything else goes through
+    rclpy's deserializer, so every valid message is read.
+    """
+    try:
+        d = cdr_frame.decode(raw)
+    except cdr_frame.CdrError:
+        from rclpy.serialization import deserialize_message
+
+        msg = deserialize_message(raw, MocapFrame)
+        return msg_to_frame(msg), msg.header.frame_id
+    return _frame(d.stamp_ns, d.frame_number, d.bodies, d.position, d.quat, d.tracked, d.mean_marker_error), d.frame_id
+
+
+_ENCODER = cdr_frame.FrameEncoder()
+
+
+def frame_to_raw(frame: Frame, frame_id: str, stamp_source: int) -> bytes:
+    """Core :class:`Frame` -> serialized ``euc_msgs/MocapFrame`` (what :func:`frame_to_msg` serializes to)."""
+    return _ENCODER.encode(frame.stamp_ns, frame_id, stamp_source, frame.frame_number, frame.bodies,
+                           frame.position, frame.quat, frame.tracked, frame.mean_marker_error)
 
 
 def pose_stamped(stamp_ns: int, frame_id: str, position, quat) -> PoseStamped:

@@ -50,7 +50,7 @@ from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.rate_gate import NodeRateGate
-from euc_ros.nodes.runtime import main_for
+from euc_ros.nodes.runtime import drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider segments and EUC geometry (required)"),
@@ -124,9 +124,13 @@ class RiderStateNode(Node):
         self.presence = BodyPresence([self.session.euc.body] + [n for n, f in zip(names, fractions) if f > 0])
         self._origin_ns: int | None = None
         self._last_frame_wall: float | None = None
-        self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS)
-        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
-        self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frame, itf.RELIABLE_QOS)
+        self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS,
+                                               event_callbacks=itf.pub_events())
+        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
+                                              event_callbacks=itf.pub_events())
+        # raw: the frame is read with numpy (convert.raw_to_frame), not through ~15 message objects
+        self._frame_sub = self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frames, itf.RELIABLE_QOS,
+                                                   raw=True, event_callbacks=itf.sub_events())
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(f"session {cfg['session_file']}: {rate:g} Hz, phi {cfg['phi_definition']}, "
                                f"estimator {cfg['estimator']}, filter lag {self.estimator.lag_s:.3f} s")
@@ -142,17 +146,21 @@ class RiderStateNode(Node):
                                                  1, int(round(cfg["skeleton_calibration_s"] * rate))))
         self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
 
-    def _on_frame(self, msg: MocapFrame) -> None:
+    def _on_frames(self, raw: bytes) -> None:
+        self._on_frame(raw)
+        drain(self._frame_sub, self._on_frame)   # a backlog in one wake-up
+
+    def _on_frame(self, raw: bytes) -> None:
         self.counts["frames"] += 1
         self._last_frame_wall = time.monotonic()
         try:
-            frame = convert.msg_to_frame(msg)
+            frame, frame_id = convert.raw_to_frame(raw)
             self.presence.update(frame.bodies, frame.tracked)
         except Exception as exc:   # never die on input
             self.counts["errors"] += 1
             self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
             return
-        self.rate_gate.push(frame.frame_number, frame.stamp_ns, (frame, msg.header.frame_id))
+        self.rate_gate.push(frame.frame_number, frame.stamp_ns, (frame, frame_id))
 
     def _process(self, frame, frame_id: str) -> None:
         try:

@@ -37,7 +37,7 @@ from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.rate_gate import NodeRateGate
-from euc_ros.nodes.runtime import main_for
+from euc_ros.nodes.runtime import drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider and EUC parameters (required)"),
@@ -45,7 +45,8 @@ SPECS = (
               "m", 0.05, 3.0, live=True),
     ParamSpec("rmse_window_s", 5.0, "window of the sliding RMSE of M_d1 - M_d2", "s", 0.01, 3600.0),
     ParamSpec("h_window_s", 30.0, "window of the online h estimate", "s", 0.1, 3600.0),
-    ParamSpec("h_update_every", 12, "re-estimate h every this many states", "states", 1, 1_000_000),
+    ParamSpec("h_update_every", 0, "re-estimate h every this many states (0: every 0.1 s of states, 12 at 120 Hz)",
+              "states", 0, 1_000_000),
     ParamSpec("min_sensitivity", 5.0, "excitation needed before the online h is given (RMS dResidual/dh)",
               "N m/m", 0.0, 1e6),
     ParamSpec("effects", [""], "effects of the residual analysis added to the 3-DoF model (e.g. ground_slope)"),
@@ -103,12 +104,16 @@ class TorqueEstimatorNode(Node):
         self._origin_ns: int | None = None
         self._last_state_wall: float | None = None
         self._published_at_last_diag = 0
-        self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS)
-        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS)
-        self.create_subscription(RiderState, itf.RIDER_STATE, self._on_state, itf.RELIABLE_QOS)
+        self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS,
+                                                event_callbacks=itf.pub_events())
+        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
+                                              event_callbacks=itf.pub_events())
+        self._state_sub = self.create_subscription(RiderState, itf.RIDER_STATE, self._on_states, itf.RELIABLE_QOS,
+                                                   event_callbacks=itf.sub_events())
         # rider_state names the bodies it misses; a torque that cannot be computed then says which
         self.upstream_missing = ""
-        self.create_subscription(DiagnosticArray, itf.DIAGNOSTICS, self._on_diagnostics, itf.DIAGNOSTICS_QOS)
+        self.create_subscription(DiagnosticArray, itf.DIAGNOSTICS, self._on_diagnostics, itf.DIAGNOSTICS_QOS,
+                                 event_callbacks=itf.sub_events())
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
         self.get_logger().info(f"model {self.estimator.model_name}, h = {cfg['h']:g} m, "
                                f"RMSE window {self.estimator.window_s:g} s")
@@ -126,6 +131,10 @@ class TorqueEstimatorNode(Node):
                                          h_window_s=cfg["h_window_s"], h_update_every=cfg["h_update_every"],
                                          min_sensitivity=cfg["min_sensitivity"], model=self._model,
                                          psi_rate_window_s=cfg["psi_rate_window_s"])
+
+    def _on_states(self, msg: RiderState) -> None:
+        self._on_state(msg)
+        drain(self._state_sub, self._on_state)   # a backlog in one wake-up
 
     def _on_state(self, msg: RiderState) -> None:
         self._last_state_wall = time.monotonic()

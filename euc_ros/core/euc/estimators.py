@@ -345,6 +345,10 @@ class TorqueSample:
     h_online_status: str = ""
 
 
+#: Default period of the online h re-estimate [s] (:class:`TorqueEstimator`).
+H_UPDATE_S = 0.1
+
+
 class TorqueEstimator:
     """Torques of both models, sliding RMSE and online h from one state at a time.
 
@@ -364,8 +368,9 @@ class TorqueEstimator:
         Sliding RMSE window [s].
     h_window_s : float
         Window of the online h estimate [s].
-    h_update_every : int
-        Re-estimate h every this many samples.
+    h_update_every : int, optional
+        Re-estimate h every this many samples (default: every :data:`H_UPDATE_S` of samples, 12 at
+        120 Hz, so that the cost per state does not grow with the frame rate).
     correlation_samples : float, optional
         Variance inflation of the online h (default: one Savitzky-Golay window of 0.9 s in samples).
     min_sensitivity : float
@@ -385,7 +390,8 @@ class TorqueEstimator:
     """
 
     def __init__(self, params: EucParams, dt: float, *, rmse_window_s: float = 5.0, h_window_s: float = 30.0,
-                 h_update_every: int = 12, correlation_samples: float | None = None, min_sensitivity: float = 5.0,
+                 h_update_every: int | None = None, correlation_samples: float | None = None,
+                 min_sensitivity: float = 5.0,
                  extra_Q: Callable | None = None, model: "ExtendedModel | None" = None,
                  psi_rate_window_s: float = 0.3) -> None:
         if not (dt > 0 and rmse_window_s > 0 and h_window_s > 0):
@@ -400,6 +406,8 @@ class TorqueEstimator:
         self.window_s = n_rmse * self.dt
         self._rmse = SlidingRmse(n_rmse)
         k = window_samples(self.dt, window_s=DEFAULT_WINDOW_S) if correlation_samples is None else correlation_samples
+        if not h_update_every:
+            h_update_every = max(1, int(round(H_UPDATE_S / self.dt)))
         self._h = OnlineHEstimator(params, max(3, int(round(h_window_s / self.dt))), update_every=h_update_every,
                                    correlation_samples=k, min_sensitivity=min_sensitivity)
         names = {c.name for c in getattr(model, "candidates", ())}

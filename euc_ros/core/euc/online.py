@@ -156,6 +156,7 @@ class OnlineHEstimator:
         self._grid = np.linspace(lo, hi, int(grid_points))
         self._coef = np.zeros((6, self.window))
         self._ok = np.zeros(self.window, dtype=bool)
+        self._pending: list[tuple] = []
         self._i = 0
         self._n_updates = 0
         self._last = HEstimate(np.nan, np.nan, np.nan, 0, np.nan)
@@ -163,6 +164,7 @@ class OnlineHEstimator:
     def reset(self) -> None:
         """Forget all samples."""
         self._ok[:] = False
+        self._pending = []
         self._i = 0
         self._n_updates = 0
         self._last = HEstimate(np.nan, np.nan, np.nan, 0, np.nan)
@@ -173,18 +175,30 @@ class OnlineHEstimator:
 
         A sample with any non-finite state is not used (but ages the window).
         """
-        args = tuple(np.array([v], dtype=float) for v in (gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot,
-                                                            phi_ddot))
-        c = residual_coefficients(args, self.params, self.model)[:, 0]
         j = self._i
-        ok = bool(np.all(np.isfinite(c)))
-        self._coef[:, j] = c if ok else 0.0
-        self._ok[j] = ok
+        # the sample's coefficients are computed with the others pending, in one vectorized call, when the
+        # estimate is next needed (what one sample costs alone is mostly numpy's per-call overhead)
+        self._pending.append((j, gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot))
+        self._ok[j] = False
         self._i = (j + 1) % self.window
         self._n_updates += 1
+        if len(self._pending) >= self.window:
+            self._flush()
         if self._n_updates % self.update_every == 0:
             self._last = self._estimate()
         return self._last
+
+    def _flush(self) -> None:
+        """Store the coefficients of the pending samples (a later sample in the same slot wins)."""
+        if not self._pending:
+            return
+        rows = np.array(self._pending, dtype=float)
+        self._pending = []
+        j = rows[:, 0].astype(np.int64)
+        c = residual_coefficients(tuple(rows[:, 1:].T), self.params, self.model)
+        ok = np.all(np.isfinite(c), axis=0)
+        self._coef[:, j] = np.where(ok, c, 0.0)
+        self._ok[j] = ok
 
     @property
     def estimate(self) -> HEstimate:
@@ -231,6 +245,7 @@ class OnlineHEstimator:
         return e, de
 
     def _estimate(self) -> HEstimate:
+        self._flush()
         coef = self._coef[:, self._ok]
         n = coef.shape[1]
         if n < self.min_samples:

@@ -47,7 +47,6 @@ Examples
 """
 from __future__ import annotations
 
-from collections import deque
 from dataclasses import dataclass
 from math import factorial
 
@@ -371,10 +370,7 @@ class StreamingKalman(StreamingSavgol):
         self._coeffs = kalman_weights(self.dt, self.lag, order=order, smoothing_s=self.smoothing_s, tol=tol)
         self.window = self._coeffs.shape[1]
         self.polyorder = self.order - 1
-        self._buf: deque = deque(maxlen=self.window)
-        self._last_frame: int | None = None
-        self._last_value: np.ndarray | None = None
-        self._scalar = True
+        self._init_buffer()
 
 
 def streaming_filter(estimator: str, dt: float, *, window_s: float, polyorder: int, max_gap: int = DEFAULT_MAX_GAP,

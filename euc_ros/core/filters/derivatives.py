@@ -41,7 +41,6 @@ True
 from __future__ import annotations
 
 import functools
-from collections import deque
 from dataclasses import dataclass
 from typing import Iterator, NamedTuple
 
@@ -409,7 +408,16 @@ class StreamingSavgol:
             raise ConfigError(f"lag must be in [0, {half}] frames, got {lag!r}", key="lag")
         pos = self.window - 1 - self.lag
         self._coeffs = savgol_coefficients(self.window, self.polyorder, self.dt, [pos])[:, 0]
-        self._buf: deque = deque(maxlen=self.window)
+        self._init_buffer()
+
+    def _init_buffer(self) -> None:
+        """Empty buffers for :attr:`window` samples (called once the weights are set)."""
+        # ring buffer written twice (at i and i + window) so the last ``window`` samples are always one
+        # contiguous slice: no per-sample stacking of the window
+        self._data: np.ndarray | None = None            # (2 window, k)
+        self._frames = np.zeros(2 * self.window, dtype=np.int64)
+        self._filled = np.zeros(2 * self.window, dtype=bool)
+        self._n = 0                                     # samples in the current stretch
         self._last_frame: int | None = None
         self._last_value: np.ndarray | None = None
         self._scalar = True
@@ -421,17 +429,27 @@ class StreamingSavgol:
 
     def reset(self) -> None:
         """Forget the buffered samples (the next push starts a new stretch)."""
-        self._buf.clear()
+        self._n = 0
         self._last_frame = None
         self._last_value = None
 
     def _append(self, frame: int, value: np.ndarray, filled: bool, out: list[StreamSample]) -> None:
-        self._buf.append((frame, value, filled))
-        if len(self._buf) < self.window:
+        w = self.window
+        if self._data is None or self._data.shape[1] != value.shape[0]:
+            self._data = np.zeros((2 * w, value.shape[0]))
+            self._n = 0
+        i = self._n % w
+        self._data[i] = value
+        self._data[i + w] = value
+        self._frames[i] = self._frames[i + w] = frame
+        self._filled[i] = self._filled[i + w] = filled
+        self._n += 1
+        if self._n < w:
             return
-        data = np.stack([b[1] for b in self._buf])  # (window, k)
-        res = self._coeffs @ data  # (3, k)
-        frame_out, _, filled_out = self._buf[self.window - 1 - self.lag]
+        start = i + 1                                   # oldest sample of the window
+        res = self._coeffs @ self._data[start:start + w]  # (3, k)
+        j = start + w - 1 - self.lag
+        frame_out, filled_out = int(self._frames[j]), bool(self._filled[j])
         if self._scalar:
             out.append(StreamSample(frame_out, float(res[0, 0]), float(res[1, 0]), float(res[2, 0]), filled_out))
         else:

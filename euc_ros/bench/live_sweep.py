@@ -1,0 +1,199 @@
+"""Benchmark: the live pipeline at every OptiTrack rate and body count, against the bare relay floor.
+
+For every frame rate of :data:`RATES_HZ` and body count of :data:`BODIES` a simulated figure-eight
+ride captured at that rate (:func:`live_recording`: the EUC and 13 rider segments, plus static-offset
+copies of them as further rigid bodies, e.g. props or a second rider the pipeline does not use) is
+replayed in real time by ``mocap_ingest`` into ``rider_state``, ``torque_estimator``, ``monitor``
+and the ``recorder`` (every pipeline topic into an MCAP bag), all separate processes, with the latency
+probe of :mod:`euc_ros.bench.latency`. The floor is the bare relay chain of
+:mod:`euc_ros.bench.relay` at the same rate and body count, measured right after.
+
+Per cell: hop and end-to-end p50/p99 (filter lag excluded, as in :mod:`~euc_ros.bench.latency`), the
+CPU use of each process over the stream (1 = one core; ``/proc/<pid>/stat`` sampled every 0.2 s,
+first second excluded), frames dropped (lost in transport, without a state, states without a
+torque) and the frames the recorder's bag holds. Target per cell: 0 dropped and end-to-end p99 at
+most :data:`TARGET_RATIO` x the floor's. The headline case (360 Hz x 14 bodies for 10 minutes) is
+:mod:`euc_ros.bench.soak`.
+"""
+from __future__ import annotations
+
+import dataclasses
+import io
+import shutil
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from euc_ros.bench.common import BenchContext, BenchError, cpu_fraction, figure, run_launched_sampled
+
+#: Frame rates [Hz] and body counts of the sweep: full and --quick.
+RATES_HZ = {False: (120, 240, 360, 500), True: (120, 360)}
+BODIES = {False: (14, 28, 56), True: (14, 56)}
+#: Stream length per cell [s]: full and --quick.
+CELL_S = {False: 60.0, True: 8.0}
+#: Target: end-to-end p99 at most this multiple of the floor's (issue 15).
+TARGET_RATIO = 1.5
+#: Seed and cache version of the recordings.
+SEED = 11
+CACHE_VERSION = 1
+
+
+def extra_bodies(series, n_bodies: int):
+    """``series`` with rigid bodies added up to ``n_bodies``: copies of its bodies 3 m, 6 m, ... to the
+    side (named ``<body>_c<k>``), tracked where the original is. Returns ``series`` if it has enough."""
+    n0 = len(series.bodies)
+    if n_bodies <= n0:
+        return series
+    idx = [i % n0 for i in range(n_bodies - n0)]
+    copies = [i // n0 + 1 for i in range(n_bodies - n0)]
+    shift = np.array([[0.0, 3.0 * k, 0.0] for k in copies])[:, None, :]
+    names = [f"{series.bodies[i]}_c{k}" for i, k in zip(idx, copies)]
+    return dataclasses.replace(
+        series, bodies=list(series.bodies) + names,
+        position=np.concatenate([series.position, series.position[idx] + shift]),
+        quat=np.concatenate([series.quat, series.quat[idx]]),
+        tracked=np.concatenate([series.tracked, series.tracked[idx]]),
+        mean_marker_error=np.concatenate([series.mean_marker_error, series.mean_marker_error[idx]]))
+
+
+def live_recording(cache_dir: Path, rate_hz: float, n_bodies: int, duration_s: float, log=None) -> dict[str, Path]:
+    """``{"dir", "csv", "session"}`` of a cached simulated ride at ``rate_hz`` with ``n_bodies`` bodies."""
+    root = Path(cache_dir) / f"live_{int(rate_hz)}hz_{n_bodies}b_{int(round(duration_s))}s_seed{SEED}_v{CACHE_VERSION}"
+    csv, session = root / "ride.csv", root / "session.yaml"
+    if not csv.exists():
+        if log:
+            log(f"  generating a {duration_s:g} s ride at {rate_hz:g} Hz with {n_bodies} bodies into {root} (once)")
+        from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+        from euc_ros.core.ridesim.writers import write_motive_csv
+        from euc_ros.core.session import default_session, save_session
+
+        tmp = root.with_name(root.name + ".partial")
+        shutil.rmtree(tmp, ignore_errors=True)
+        tmp.mkdir(parents=True)
+        sess = dataclasses.replace(default_session("y"), rate_hz=float(rate_hz))
+        ride = simulate_ride(RideConfig(maneuver="figure_eight", runs=1, seed=SEED, session=sess,
+                                        duration_s=float(duration_s)))
+        save_session(ride.session, tmp / "session.yaml")
+        write_motive_csv(extra_bodies(ride.runs[0].mocap, n_bodies), tmp / "ride.csv")
+        shutil.rmtree(root, ignore_errors=True)
+        tmp.rename(root)
+    return {"dir": root, "csv": csv, "session": session}
+
+
+def stream_cpu(sampler, probe: dict, warmup_s: float = 1.0) -> dict[str, float]:
+    """CPU use per process (1 = one core) while frames arrived at the probe (first ``warmup_s`` excluded)."""
+    arr = probe.get("mocap__frame", {}).get("arrival_ns", np.zeros(0))
+    if arr.size < 2:
+        return {}
+    t0, t1 = float(arr.min()) * 1e-9 + warmup_s, float(arr.max()) * 1e-9
+    return {label: round(cpu_fraction(series, t0, t1), 3) for label, series in sampler.cpu.items()}
+
+
+def _bag_frames(bag: Path) -> dict[str, int]:
+    import yaml
+
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
+    return {t["topic_metadata"]["name"]: int(t["message_count"]) for t in meta["topics_with_message_count"]}
+
+
+def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool = True, log=None) -> dict:
+    """Pipeline (and floor) on one recording: :func:`euc_ros.bench.latency.analyze` per chain, CPU and bag."""
+    from euc_ros.bench.latency import _probe_spec, analyze, measure_floor
+    from euc_ros.bench.probe import load
+    from euc_ros.core.io.motive_csv import read_motive_csv
+    from euc_ros.launch import NodeSpec
+
+    series = read_motive_csv(rec["csv"])
+    n_frames, rate, n_bodies = series.n_frames, float(series.rate_hz), len(series.bodies)
+    del series
+    duration = n_frames / rate
+    out_dir.mkdir(parents=True, exist_ok=True)
+    probe_out, bag = out_dir / "pipeline_probe.npz", out_dir / "bag"
+    shutil.rmtree(bag, ignore_errors=True)
+    session = str(rec["session"])
+    specs = [
+        _probe_spec(probe_out),
+        NodeSpec("monitor", parameters={"expected_rate_hz": rate}, required=False),
+        NodeSpec("torque_estimator", parameters={"session_file": session, "h": 0.61}, required=False),
+        NodeSpec("rider_state", parameters={"session_file": session}, required=False),
+        NodeSpec("mocap_ingest", parameters={"csv_path": str(rec["csv"]), "rate_factor": 1.0, "exit_when_done": True,
+                                             "wait_subscribers": 3 + int(record), "start_delay": 1.0,
+                                             "linger": 2.0}),
+    ]
+    if record:
+        specs.insert(1, NodeSpec("recorder", parameters={"output": str(bag)}, required=False))
+    text = io.StringIO()
+    launcher, finished, sampler = run_launched_sampled(specs, duration + 120.0, text)
+    tail = " | ".join(text.getvalue().strip().splitlines()[-8:])
+    if not finished:
+        raise BenchError(f"the pipeline did not finish within {duration + 120:g} s: {tail}")
+    bad = {k: v for k, v in launcher.exit_codes.items() if v not in (0, None)}
+    if bad or not probe_out.exists():
+        raise BenchError(f"a process failed ({bad}) or the probe wrote nothing: {tail}")
+    data = load(probe_out)
+    pipe = analyze(data, n_frames, rate)
+    pipe["cpu"] = stream_cpu(sampler, data)
+    pipe["peak_rss_mb"] = sampler.peaks_mb()
+    if record:
+        counts = _bag_frames(bag) if (bag / "metadata.yaml").exists() else {}
+        pipe["bag_counts"] = counts
+        pipe["bag_frames"] = counts.get("/mocap/frame", 0)
+    out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "pipeline": pipe}
+    if floor:
+        if log:
+            log(f"    floor: bare relay chain, {n_frames} frames at {rate:g} Hz, {n_bodies} bodies")
+        fl = measure_floor(n_frames, rate, n_bodies, out_dir, duration + 90.0)
+        out["floor"] = fl
+        out["ratio_p99"] = pipe["end_to_end"]["p99"] / fl["end_to_end"]["p99"]
+    out["met"] = bool(pipe["frames_dropped"] == 0 and out.get("ratio_p99", 0.0) <= TARGET_RATIO
+                      and (not record or out["pipeline"]["bag_frames"] == n_frames))
+    return out
+
+
+def cell_figure(cell: dict, label: str):
+    """One table row: end-to-end p99 against the floor, drops, CPU in the note."""
+    p, f = cell["pipeline"], cell["floor"]
+    cpu = ", ".join(f"{k} {v:.2f}" for k, v in sorted(p["cpu"].items()) if np.isfinite(v))
+    bag = f", bag {p['bag_frames']}/{p['frames_sent']} frames" if "bag_frames" in p else ""
+    return figure(label, p["end_to_end"]["p99"], "ms", floor=f["end_to_end"]["p99"],
+                  target=f"<= {TARGET_RATIO:g}x floor, 0 dropped", met=cell["met"],
+                  note=(f"p50 {p['end_to_end']['p50']:.2f} ms (floor {f['end_to_end']['p50']:.2f}); hops p99 "
+                        + " / ".join(f"{h['p99']:.2f}" for h in p["hops"].values())
+                        + f" ms; dropped {p['frames_dropped']} of {p['frames_sent']}{bag}; CPU (cores) {cpu}"))
+
+
+def run(ctx: BenchContext) -> dict:
+    """The rate x body sweep (see the module docstring)."""
+    t_start = time.monotonic()
+    cells = []
+    figures = []
+    for rate in RATES_HZ[ctx.quick]:
+        for n in BODIES[ctx.quick]:
+            rec = live_recording(ctx.cache_dir, rate, n, CELL_S[ctx.quick], log=ctx.log)
+            ctx.log(f"  pipeline at {rate} Hz with {n} bodies, {CELL_S[ctx.quick]:g} s")
+            cell = measure_cell(rec, ctx.tmp_dir / "live_sweep" / f"{rate}_{n}", log=ctx.log)
+            cells.append(cell)
+            figures.append(cell_figure(cell, f"{rate} Hz x {n} bodies: end-to-end p99"))
+    return {"name": "live_sweep", "title": "Live pipeline at every rate and body count (with recorder and monitor)",
+            "figures": figures, "details": {"cells": cells, "cell_s": CELL_S[ctx.quick], "machine_cores": _cores()},
+            "wall_s": time.monotonic() - t_start}
+
+
+def _cores() -> int:
+    import os
+
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 0)
+
+
+if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S
+    import json
+    import tempfile
+
+    r, b, s = float(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+    cache = Path.home() / ".cache" / "euc_ros" / "bench"
+    rec = live_recording(cache, r, b, s, log=print)
+    with tempfile.TemporaryDirectory() as d:
+        cell = measure_cell(rec, Path(d), log=print)
+    print(json.dumps({k: v for k, v in cell.items()}, indent=1, default=str))
