@@ -66,14 +66,17 @@ def to_moving_frame(v, psi, theta) -> np.ndarray:
 
 
 def _rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate the body vector ``v`` (3,) by quaternions ``q`` (..., 4) (x, y, z, w), normalised here.
+    """Rotate the body vectors ``v`` (..., 3) by quaternions ``q`` (..., 4) (x, y, z, w), normalised here.
 
-    ``v' = v + 2 w (u x v) + 2 u x (u x v)`` with ``u = (x, y, z)``; NaN quaternions give NaN.
+    ``v' = v + 2 w (u x v) + 2 u x (u x v)`` with ``u = (x, y, z)``; NaN quaternions give NaN. The
+    cross products are written out (``np.cross`` costs more than the arithmetic on one frame).
     """
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    u, w = q[..., :3], q[..., 3:4]
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
+    q = q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    vx, vy, vz = v[..., 0], v[..., 1], v[..., 2]
+    tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+    return np.stack([vx + w * tx + (y * tz - z * ty), vy + w * ty + (z * tx - x * tz),
+                     vz + w * tz + (x * ty - y * tx)], axis=-1)
 
 
 def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str = "segments",
@@ -146,19 +149,23 @@ def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str 
     A = C - euc.l0 * R_E[..., :, 2]
 
     names, fractions, offsets = session.segment_arrays()
-    has_rider = np.ones(shape, dtype=bool)
+    # every weighted segment at once: (k, ..., 3) CoMs, weighted and summed over k
+    weighted = [(name, frac, off) for name, frac, off in zip(names, fractions, offsets) if frac > 0.0]
+    present = [(bodies.index(n), f, o) for n, f, o in weighted if n in bodies]
+    has_rider = np.full(shape, len(present) == len(weighted) and len(present) > 0)
     G = np.zeros(shape + (3,))
-    for name, frac, off in zip(names, fractions, offsets):
-        if frac <= 0.0:
-            continue
-        if name not in bodies:
-            has_rider[...] = False
-            continue
-        j = bodies.index(name)
-        ok_j = usable(j)
-        com = position[j] + _rotate(quat[j], off)
-        G += frac * np.where(ok_j[..., None], com, 0.0)
-        has_rider &= ok_j
+    if present:
+        idx = np.array([j for j, _, _ in present])
+        frac = np.array([f for _, f, _ in present])
+        off = np.array([o for _, _, o in present], dtype=float).reshape((len(present),) + (1,) * len(shape) + (3,))
+        pos_k, quat_k = position[idx], quat[idx]
+        ok_k = np.isfinite(pos_k).all(-1) & np.isfinite(quat_k).all(-1)
+        if tracked is not None:
+            ok_k &= tracked[idx]
+        com = pos_k + _rotate(quat_k, off)
+        w = frac.reshape((-1,) + (1,) * (len(shape) + 1))
+        G = np.where(ok_k[..., None], w * com, 0.0).sum(axis=0)
+        has_rider &= ok_k.all(axis=0)
     G = np.where(has_rider[..., None], G / fractions[fractions > 0].sum(), np.nan)
     n_faults = np.zeros(shape, dtype=int)
     if cog_method == "skeleton":
