@@ -37,26 +37,34 @@ def quat_from_yaw_tilt_pitch(psi, theta, pitch) -> np.ndarray:
 def yaw_tilt_pitch_from_quat(q) -> np.ndarray:
     """Return ``[psi, theta, pitch]`` (..., 3) [rad] from quaternions (..., 4) (x, y, z, w).
 
-    NaN quaternions give NaN angles (untracked samples stay gaps).
+    NaN quaternions give NaN angles (untracked samples stay gaps). With ``R = Rz(psi) Rx(theta)
+    Ry(pitch)`` (intrinsic Z-X-Y, :data:`YAW_TILT_PITCH_SEQ`) the last row of R is
+    ``(-cos(theta) sin(pitch), sin(theta), cos(theta) cos(pitch))`` and ``R[0, 1] = -sin(psi) cos(theta)``,
+    ``R[1, 1] = cos(psi) cos(theta)``: closed forms in numpy (equal to scipy's ``as_euler("ZXY")`` to
+    round-off away from theta = +-90 deg, tested), ~10x cheaper than scipy on one frame.
     """
-    q = np.asarray(q, dtype=float)
-    flat = q.reshape(-1, 4)
-    out = np.full((flat.shape[0], 3), np.nan)
-    ok = np.all(np.isfinite(flat), axis=1) & (np.linalg.norm(flat, axis=1) > 0)
-    if ok.any():
-        out[ok] = Rotation.from_quat(flat[ok]).as_euler(YAW_TILT_PITCH_SEQ)
-    return out.reshape(q.shape[:-1] + (3,))
+    R = rotation_matrices(q)
+    theta = np.arcsin(np.clip(R[..., 2, 1], -1.0, 1.0))
+    pitch = np.arctan2(-R[..., 2, 0], R[..., 2, 2])
+    psi = np.arctan2(-R[..., 0, 1], R[..., 1, 1])
+    return np.stack([psi, theta, pitch], axis=-1)
 
 
 def rotation_matrices(q) -> np.ndarray:
-    """Return rotation matrices (..., 3, 3) for quaternions (..., 4); NaN where q is not finite."""
+    """Return rotation matrices (..., 3, 3) for quaternions (..., 4) (x, y, z, w; normalised here);
+    NaN where q is not finite or zero."""
     q = np.asarray(q, dtype=float)
-    flat = q.reshape(-1, 4)
-    out = np.full((flat.shape[0], 3, 3), np.nan)
-    ok = np.all(np.isfinite(flat), axis=1) & (np.linalg.norm(flat, axis=1) > 0)
-    if ok.any():
-        out[ok] = Rotation.from_quat(flat[ok]).as_matrix()
-    return out.reshape(q.shape[:-1] + (3, 3))
+    n2 = np.einsum("...i,...i->...", q, q)
+    ok = np.isfinite(n2) & (n2 > 0)
+    s = np.where(ok, 2.0 / np.where(ok, n2, 1.0), np.nan)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    xx, yy, zz = s * x * x, s * y * y, s * z * z
+    xy, xz, yz = s * x * y, s * x * z, s * y * z
+    wx, wy, wz = s * w * x, s * w * y, s * w * z
+    R = np.stack([1.0 - (yy + zz), xy - wz, xz + wy,
+                  xy + wz, 1.0 - (xx + zz), yz - wx,
+                  xz - wy, yz + wx, 1.0 - (xx + yy)], axis=-1)
+    return R.reshape(q.shape[:-1] + (3, 3))
 
 
 def rotate(q, v) -> np.ndarray:

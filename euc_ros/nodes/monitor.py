@@ -17,7 +17,8 @@ Each status is STALE when its stream has sent nothing for ``timeout_s``. WARN st
 ``warn_fraction`` of a limit, ERROR above it.
 
 Subscribes
-    ``mocap/frame``, ``rider/state``, ``euc/torque`` (reliable).
+    ``mocap/frame``, ``rider/state``, ``euc/torque`` (reliable; taken raw in batches every ~20 ms,
+    :class:`~euc_ros.nodes.drain.SubscriptionDrain`).
 Publishes
     ``/diagnostics`` (diagnostic_msgs/DiagnosticArray).
 """
@@ -29,10 +30,12 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
 from rclpy.node import Node
+from rclpy.serialization import deserialize_message
 
 from euc_ros.core import monitoring as mon
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.drain import SubscriptionDrain
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.runtime import main_for
 
@@ -92,22 +95,30 @@ class Monitor(Node):
         self.reports = 0
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
                                               event_callbacks=itf.pub_events())
-        self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frame, itf.RELIABLE_QOS, raw=True,
-                                 event_callbacks=itf.sub_events())
-        self.create_subscription(RiderState, itf.RIDER_STATE, self._on_state, itf.RELIABLE_QOS,
-                                 event_callbacks=itf.sub_events())
-        self.create_subscription(TorqueEstimate, itf.TORQUE, self._on_torque, itf.RELIABLE_QOS,
-                                 event_callbacks=itf.sub_events())
+        # frames, states and torques are counted, not acted on one by one: taken in batches (one executor
+        # wake-up per ~20 ms instead of one per message: 1080 messages/s at 360 Hz)
+        self._inputs = SubscriptionDrain(self, self._on_batch, poll_s=0.02, max_poll_s=0.1)
+        for topic, cls in ((itf.MOCAP_FRAME, MocapFrame), (itf.RIDER_STATE, RiderState), (itf.TORQUE, TorqueEstimate)):
+            self._inputs.subscribe(topic, cls.__name__, cls, itf.RELIABLE_QOS)
+        self.add_waitable(self._inputs)
         self.create_timer(cfg["period"], self.report)
 
     # -- inputs: record only ---------------------------------------------------------------------
+    def _on_batch(self, batch) -> None:
+        handlers = {itf.MOCAP_FRAME: (self._on_frame, None), itf.RIDER_STATE: (self._on_state, RiderState),
+                    itf.TORQUE: (self._on_torque, TorqueEstimate)}
+        for topic, _, datas in batch:
+            handler, cls = handlers[topic]
+            for raw in datas:
+                try:
+                    handler(raw if cls is None else deserialize_message(raw, cls))
+                except Exception as exc:   # never die on input
+                    self.get_logger().warning(f"{topic}: message not read: {type(exc).__name__}: {exc}",
+                                              throttle_duration_sec=5.0)
+
     def _on_frame(self, raw: bytes) -> None:
         self.received["frames"] += 1
-        try:
-            frame, _ = convert.raw_to_frame(raw)     # numpy, not ~15 message objects per frame
-        except Exception as exc:   # never die on input
-            self.get_logger().warning(f"frame not read: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
-            return
+        frame, _ = convert.raw_to_frame(raw)     # numpy, not ~15 message objects per frame
         self.frames.push(time.monotonic(), frame.frame_number, frame.bodies, frame.tracked.tolist())
 
     def _on_state(self, msg: RiderState) -> None:
@@ -180,6 +191,11 @@ class Monitor(Node):
                                              "mocap" if name == "monitor: mocap" else "euc"))
         self.diag_pub.publish(arr)
         self.reports += 1
+
+
+    def close(self) -> None:
+        """Destroy the batch subscriptions (called by the runtime before the node is destroyed)."""
+        self._inputs.destroy()
 
 
 main = main_for(Monitor)

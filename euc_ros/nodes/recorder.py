@@ -23,17 +23,14 @@ from __future__ import annotations
 
 import importlib
 import time
-from contextlib import ExitStack
 from pathlib import Path
 
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from rclpy.type_support import check_for_type_support
-from rclpy.waitable import NumberOfEntities, Waitable
 
 from euc_ros.core.io.bags import BagWriter
 from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.drain import SubscriptionDrain
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.runtime import main_for
 
@@ -68,95 +65,6 @@ def bag_qos(profile) -> "Qos":
 def _msg_class(type_name: str):
     pkg, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
-
-
-class SubscriptionDrain(Waitable):
-    """Raw subscriptions as one executor entity that, when any is ready, takes all they hold.
-
-    ``subscribe`` creates an rcl subscription that is not an rclpy callback (the executor does not
-    take its messages one by one); the executor waits on all of them through this waitable and, on
-    a wake, :meth:`take_data` takes every message of every subscription until rcl has none left.
-    :meth:`execute` hands them to ``sink([(topic, type name, datas), ...])``.
-    """
-
-    #: Poll period while messages flow [s]: they wait in the DDS queues (the subscription's depth).
-    POLL_S = 0.002
-    #: Longest polling stretch before the executor runs its other entities again [s].
-    MAX_POLL_S = 0.05
-
-    def __init__(self, node: Node, sink) -> None:
-        super().__init__(node.default_callback_group)
-        self._node = node
-        self._sink = sink
-        self.subs: list[tuple[str, str, object, type]] = []    # (topic, type name, rcl handle, class)
-        self._indices: list[int] = []
-        self._stack: ExitStack | None = None
-
-    def subscribe(self, topic: str, type_name: str, cls: type, qos: QoSProfile) -> None:
-        """Subscribe ``topic`` (raw) and wait on it from the next executor cycle on."""
-        check_for_type_support(cls)
-        with self._node.handle:
-            handle = _rclpy.Subscription(self._node.handle, cls, topic, qos.get_c_qos_profile())
-        self.subs.append((topic, type_name, handle, cls))
-
-    def take_all(self) -> list[tuple[str, str, list[bytes]]]:
-        """Take every message each subscription holds: ``[(topic, type name, [cdr bytes...]), ...]``."""
-        out = []
-        for topic, type_name, handle, cls in self.subs:
-            datas = []
-            take = handle.take_message
-            while (got := take(cls, True)) is not None:
-                datas.append(got[0])
-            if datas:
-                out.append((topic, type_name, datas))
-        return out
-
-    def destroy(self) -> None:
-        """Destroy the rcl subscriptions (after the last :meth:`take_all`)."""
-        for _, _, handle, _ in self.subs:
-            handle.destroy_when_not_in_use()
-        self.subs = []
-
-    # -- Waitable API (rclpy 7.1) ----------------------------------------------------------------------------------
-    def __enter__(self):
-        self._stack = ExitStack()
-        for _, _, handle, _ in self.subs:
-            self._stack.enter_context(handle)
-        return self
-
-    def __exit__(self, t, v, tb):
-        if self._stack is not None:
-            self._stack.close()
-            self._stack = None
-
-    def get_num_entities(self) -> NumberOfEntities:
-        return NumberOfEntities(len(self.subs))
-
-    def add_to_wait_set(self, wait_set) -> None:
-        self._indices = [wait_set.add_subscription(handle) for _, _, handle, _ in self.subs]
-
-    def is_ready(self, wait_set) -> bool:
-        return any(wait_set.is_ready("subscription", i) for i in self._indices)
-
-    def take_data(self):
-        return self.take_all()
-
-    async def execute(self, taken_data) -> None:
-        """Hand what was taken to the sink; then, while messages keep coming, poll instead of waiting.
-
-        Polling every :attr:`POLL_S` lets messages gather in the DDS queues and takes them in one
-        pass without an executor cycle per pass; back to the executor (timers, services, shutdown)
-        when a pass finds nothing, or after :attr:`MAX_POLL_S`.
-        """
-        self._sink(taken_data)
-        context = self._node.context
-        end = time.monotonic() + self.MAX_POLL_S
-        while time.monotonic() < end and context.ok():
-            time.sleep(self.POLL_S)
-            taken_data = self.take_all()
-            if not taken_data:
-                break
-            self._sink(taken_data)
 
 
 class Recorder(Node):

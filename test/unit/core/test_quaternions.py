@@ -31,3 +31,21 @@ def test_against_scipy():
 def test_rotvec_edges(angle):
     v = np.array([[0.0, 0.0, angle]])
     assert rotvec_from_quat(quat_from_rotvec(v)) == pytest.approx(v, abs=1e-12)
+
+
+def test_rotation_matrices_and_yaw_tilt_pitch_match_scipy():
+    from scipy.spatial.transform import Rotation
+
+    from euc_ros.core.rotations import YAW_TILT_PITCH_SEQ, rotation_matrices, yaw_tilt_pitch_from_quat
+
+    rng = np.random.default_rng(7)
+    angles = np.column_stack([rng.uniform(-np.pi, np.pi, 500), rng.uniform(-1.4, 1.4, 500),
+                              rng.uniform(-np.pi, np.pi, 500)])       # tilt within +-80 deg
+    q = Rotation.from_euler(YAW_TILT_PITCH_SEQ, angles).as_quat() * rng.uniform(0.5, 2.0, (500, 1))  # not unit
+    np.testing.assert_allclose(rotation_matrices(q), Rotation.from_quat(q).as_matrix(), atol=1e-14)
+    # arcsin's conditioning at 80 deg tilt is 1/cos(80 deg) ~ 6: round-off 1e-16 x 6 x a few operations
+    got = yaw_tilt_pitch_from_quat(q)
+    np.testing.assert_allclose(got, angles, atol=1e-12)
+    bad = np.array([[np.nan, 0, 0, 1.0], [0, 0, 0, 0.0]])
+    assert np.isnan(rotation_matrices(bad)).all() and np.isnan(yaw_tilt_pitch_from_quat(bad)).all()
+    assert yaw_tilt_pitch_from_quat(q.reshape(50, 10, 4)).shape == (50, 10, 3)
