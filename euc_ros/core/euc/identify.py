@@ -21,6 +21,7 @@ Pooling over recordings means one RMSE over all their valid samples together.
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable, Sequence
 
@@ -65,6 +66,10 @@ def _consistency(args: Sequence[np.ndarray], p: EucParams, extra_Q) -> tuple[np.
     return R * M[..., 0, 0], N, D
 
 
+#: Samples per block of :func:`residual_coefficients` (its temporaries are ~20 arrays of this size).
+_COEF_BLOCK = 8192
+
+
 def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: str = "3dof",
                           extra_Q=None) -> np.ndarray:
     """Per-sample coefficients ``(c, a0, a1, a2, d0, d1)`` of ``e(h) = c (a0 + a1 h + a2 h^2) / (d0 + d1 h)``.
@@ -86,6 +91,16 @@ def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: 
         ``c`` [m], ``a0, a1, a2`` [N m, N, N/m] and ``d0, d1`` [kg m, kg].
     """
     p = model_params(params, model)
+    n = int(np.shape(args[0])[0]) if np.ndim(args[0]) == 1 else 0
+    scalar = all(np.ndim(v) == 0 for v in dataclasses.astuple(p))
+    if n > _COEF_BLOCK and scalar:
+        # per sample: block by block, so the mass matrices and forces of the whole recording never exist
+        out = np.empty((6, n))
+        for lo in range(0, n, _COEF_BLOCK):
+            hi = min(n, lo + _COEF_BLOCK)
+            out[:, lo:hi] = residual_coefficients([np.asarray(a, dtype=float)[lo:hi] for a in args], p, "3dof",
+                                                  None if extra_Q is None else np.asarray(extra_Q, float)[lo:hi])
+        return out
     c, n0, d0 = _consistency(args, p.with_h(0.0), extra_Q)
     _, n1, d1 = _consistency(args, p.with_h(1.0), extra_Q)
     _, nm, _ = _consistency(args, p.with_h(-1.0), extra_Q)
