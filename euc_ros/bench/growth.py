@@ -284,7 +284,7 @@ def _figures(summary: dict) -> list[dict]:
         for k, mm in enumerate(m):
             figs.append(figure(f"{cmd}, {mm:g} min: time per recorded minute", s["s_per_min"][k], "s/min",
                                floor=summary["load_s_per_min"][k],
-                               note=f"{s['wall_s'][k]:.2f} s; peak RSS {s['peak_mb'][k]:.0f} MB, "
+                               note=f"wall time {s['wall_s'][k]:.2f} s; peak RSS {s['peak_mb'][k]:.0f} MB, "
                                     f"{s['above_mb'][k]:.0f} MB above the baseline of {s['baseline_mb'][k]:.0f} MB; "
                                     f"arrays {summary['arrays_mb'][k]:.0f} MB"))
         e = s["time_exponent"]
