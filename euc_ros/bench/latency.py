@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.bench.common import BenchContext, BenchError, figure, percentiles_ms, run_launched
+from euc_ros.bench.common import BenchContext, BenchError, figure, percentiles_ms, run_launched_sampled
 
 #: Seconds at the start of a stream excluded from the percentiles (discovery, caches).
 WARMUP_S = 1.0
@@ -142,16 +142,16 @@ def _probe_spec(out: Path):
                     ros_args=False, required=False)
 
 
-def _run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO) -> dict[str, float]:
-    """Run the processes until the source (required) exits; return the peak RSS per process [MB]."""
-    launcher, finished, peaks = run_launched(specs, timeout_s, log)
+def _run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO):
+    """Run the processes until the source (required) exits; return the sampler (peak RSS, CPU series)."""
+    launcher, finished, sampler = run_launched_sampled(specs, timeout_s, log)
     tail = " | ".join(log.getvalue().strip().splitlines()[-8:])
     if not finished:
         raise BenchError(f"the chain did not finish within {timeout_s:g} s: {tail}")
     bad = {k: v for k, v in launcher.exit_codes.items() if v not in (0, None)}
     if bad or not probe_out.exists():
         raise BenchError(f"a process failed ({bad}) or the probe wrote nothing: {tail}")
-    return peaks
+    return sampler
 
 
 def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) -> dict:
@@ -171,7 +171,7 @@ def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) 
                                              "wait_subscribers": 2, "start_delay": 1.0, "linger": 2.0}),
     ]
     log = io.StringIO()
-    rss = _run_chain(specs, probe_out, timeout_s, log)
+    rss = _run_chain(specs, probe_out, timeout_s, log).peaks_mb()
     res = analyze(load(probe_out), n_frames, rate_hz)
     res["peak_rss_mb"] = rss
     return res
@@ -195,7 +195,7 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
                        "--wait-subscribers", "2", "--start-delay", "1.0", "--linger", "2.0"], ros_args=False),
     ]
     log = io.StringIO()
-    rss = _run_chain(specs, probe_out, timeout_s, log)
+    rss = _run_chain(specs, probe_out, timeout_s, log).peaks_mb()
     res = analyze(load(probe_out), n_frames, rate_hz)
     res["peak_rss_mb"] = rss
     return res

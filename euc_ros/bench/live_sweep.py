@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.bench.common import BenchContext, BenchError, cpu_fraction, figure, run_launched_sampled
+from euc_ros.bench.common import BenchContext, cpu_fraction, figure
 
 #: Frame rates [Hz] and body counts of the sweep: full and --quick.
 RATES_HZ = {False: (120, 240, 360, 500), True: (120, 360)}
@@ -91,16 +91,10 @@ def stream_cpu(sampler, probe: dict, warmup_s: float = 1.0) -> dict[str, float]:
     return {label: round(cpu_fraction(series, t0, t1), 3) for label, series in sampler.cpu.items()}
 
 
-def _bag_frames(bag: Path) -> dict[str, int]:
-    import yaml
-
-    meta = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
-    return {t["topic_metadata"]["name"]: int(t["message_count"]) for t in meta["topics_with_message_count"]}
-
-
 def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool = True, log=None) -> dict:
     """Pipeline (and floor) on one recording: :func:`euc_ros.bench.latency.analyze` per chain, CPU and bag."""
-    from euc_ros.bench.latency import _probe_spec, analyze, measure_floor
+    from euc_ros.bench.latency import _probe_spec, _run_chain, analyze, measure_floor
+    from euc_ros.bench.recording import bag_counts
     from euc_ros.bench.probe import load
     from euc_ros.core.io.motive_csv import read_motive_csv
     from euc_ros.launch import NodeSpec
@@ -124,20 +118,13 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     ]
     if record:
         specs.insert(1, NodeSpec("recorder", parameters={"output": str(bag)}, required=False))
-    text = io.StringIO()
-    launcher, finished, sampler = run_launched_sampled(specs, duration + 120.0, text)
-    tail = " | ".join(text.getvalue().strip().splitlines()[-8:])
-    if not finished:
-        raise BenchError(f"the pipeline did not finish within {duration + 120:g} s: {tail}")
-    bad = {k: v for k, v in launcher.exit_codes.items() if v not in (0, None)}
-    if bad or not probe_out.exists():
-        raise BenchError(f"a process failed ({bad}) or the probe wrote nothing: {tail}")
+    sampler = _run_chain(specs, probe_out, duration + 120.0, io.StringIO())
     data = load(probe_out)
     pipe = analyze(data, n_frames, rate)
     pipe["cpu"] = stream_cpu(sampler, data)
     pipe["peak_rss_mb"] = sampler.peaks_mb()
     if record:
-        counts = _bag_frames(bag) if (bag / "metadata.yaml").exists() else {}
+        counts = bag_counts(bag) if (bag / "metadata.yaml").exists() else {}
         pipe["bag_counts"] = counts
         pipe["bag_frames"] = counts.get("/mocap/frame", 0)
     out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "pipeline": pipe}

@@ -52,7 +52,8 @@ def blast_topics(n_bodies: int = 14) -> list[str]:
             "/euc/torque"]
 
 
-def _bag_counts(bag: Path) -> dict[str, int]:
+def bag_counts(bag: Path) -> dict[str, int]:
+    """Messages per topic of a closed bag, from its metadata.yaml."""
     import yaml
 
     meta = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
@@ -108,7 +109,7 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     if launcher.exit_codes.get("recorder") != 0 or not (bag / "metadata.yaml").exists():
         raise BenchError(f"the recorder did not close its bag (exit {launcher.exit_codes.get('recorder')}): {tail}")
     blasts = [json.loads(r.read_text(encoding="utf-8")) for r in results]
-    counts = _bag_counts(bag)
+    counts = bag_counts(bag)
     sent = {("/" + t.lstrip("/")): n for b in blasts for t, n in b["sent"].items()}
     lost = {t: n - counts.get(t, 0) for t, n in sent.items() if n != counts.get(t, 0)}
     size = sum(f.stat().st_size for f in bag.glob("*.mcap"))
