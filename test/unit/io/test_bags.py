@@ -204,6 +204,20 @@ def test_writer_keeps_everything_on_exception(tmp_path):
     assert [m.data for _, _, _, m in read_bag(tmp_path / "b")] == ["0", "1", "2", "3", "4"]
 
 
+def test_check_accepts_a_topic_that_received_nothing(tmp_path):
+    # a recorder registers a topic when its subscription matches; if no message came before the
+    # stop, the writer's statistics count that channel 0 and no record exists: a complete bag
+    ts = make_typestore()
+    String = ts.types["std_msgs/msg/String"]
+    with BagWriter(tmp_path / "b", ts) as w:
+        w.connection("/silent", "std_msgs/msg/String")
+        for i in range(3):
+            w.write("/s", "std_msgs/msg/String", String(data=str(i)), START_NS + i)
+    assert check_bag(tmp_path / "b") == []
+    counts = {t["name"]: t["count"] for t in inspect_bag(tmp_path / "b")["topics"]}
+    assert counts == {"/silent": 0, "/s": 3}
+
+
 def test_writer_errors(tmp_path):
     (tmp_path / "exists").mkdir()
     with pytest.raises(InputError, match="exists already"):
