@@ -18,6 +18,7 @@ NODES = {
     "recorder": "euc_ros.nodes.recorder:main",
     "unicycle_sim": "euc_ros.nodes.unicycle_sim:main",
     "steering_controller": "euc_ros.nodes.steering_controller:main",
+    "pipeline_container": "euc_ros.nodes.container:main",
 }
 
 CLI = "euc-ros"

@@ -87,6 +87,8 @@ class NodeSpec:
         Node name (``__node:=``) and log prefix; defaults to the executable name.
     params_file : str, optional
         YAML passed with ``--params-file``.
+    params_files : sequence of str
+        Further ``--params-file`` YAMLs, after ``params_file`` (a container: one per node).
     parameters : mapping
         ``-p name:=value`` overrides (applied after the params file).
     remaps : mapping
@@ -105,6 +107,7 @@ class NodeSpec:
     executable: str
     name: str | None = None
     params_file: str | None = None
+    params_files: Sequence[str] = ()
     parameters: Mapping[str, Any] = field(default_factory=dict)
     remaps: Mapping[str, str] = field(default_factory=dict)
     namespace: str | None = None
@@ -130,8 +133,8 @@ class NodeSpec:
             cmd += ["-r", f"__ns:={self.namespace}"]
         for src, dst in self.remaps.items():
             cmd += ["-r", f"{src}:={dst}"]
-        if self.params_file:
-            cmd += ["--params-file", str(self.params_file)]
+        for path in ([self.params_file] if self.params_file else []) + list(self.params_files):
+            cmd += ["--params-file", str(path)]
         for key, value in self.parameters.items():
             cmd += ["-p", f"{key}:={_format_value(value)}"]
         return cmd

@@ -91,8 +91,13 @@ def stream_cpu(sampler, probe: dict, warmup_s: float = 1.0) -> dict[str, float]:
     return {label: round(cpu_fraction(series, t0, t1), 3) for label, series in sampler.cpu.items()}
 
 
-def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool = True, log=None) -> dict:
-    """Pipeline (and floor) on one recording: :func:`euc_ros.bench.latency.analyze` per chain, CPU and bag."""
+def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool = True, composed: bool = True,
+                 log=None) -> dict:
+    """Pipeline (and floor) on one recording: :func:`euc_ros.bench.latency.analyze` per chain, CPU and bag.
+
+    ``composed``: ingest, rider_state and torque_estimator in one ``pipeline_container`` process
+    (:mod:`euc_ros.nodes.container`, linked in-process); otherwise three processes.
+    """
     from euc_ros.bench.latency import _probe_spec, _run_chain, analyze, measure_floor
     from euc_ros.bench.recording import bag_counts
     from euc_ros.bench.probe import load
@@ -110,12 +115,17 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     specs = [
         _probe_spec(probe_out),
         NodeSpec("monitor", parameters={"expected_rate_hz": rate}, required=False),
-        NodeSpec("torque_estimator", parameters={"session_file": session, "h": 0.61}, required=False),
-        NodeSpec("rider_state", parameters={"session_file": session}, required=False),
-        NodeSpec("mocap_ingest", parameters={"csv_path": str(rec["csv"]), "rate_factor": 1.0, "exit_when_done": True,
-                                             "wait_subscribers": 3 + int(record), "start_delay": 1.0,
-                                             "linger": 2.0}),
     ]
+    ingest = {"csv_path": str(rec["csv"]), "rate_factor": 1.0, "exit_when_done": True,
+              "wait_subscribers": 3 + int(record), "start_delay": 1.0, "linger": 2.0}
+    if composed:
+        specs.append(NodeSpec("pipeline_container", parameters={"session_file": session, "h": 0.61, **ingest}))
+    else:
+        specs += [
+            NodeSpec("torque_estimator", parameters={"session_file": session, "h": 0.61}, required=False),
+            NodeSpec("rider_state", parameters={"session_file": session}, required=False),
+            NodeSpec("mocap_ingest", parameters=ingest),
+        ]
     if record:
         specs.insert(1, NodeSpec("recorder", parameters={"output": str(bag)}, required=False))
     sampler = _run_chain(specs, probe_out, duration + 120.0, io.StringIO())
@@ -127,7 +137,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
         counts = bag_counts(bag) if (bag / "metadata.yaml").exists() else {}
         pipe["bag_counts"] = counts
         pipe["bag_frames"] = counts.get("/mocap/frame", 0)
-    out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "pipeline": pipe}
+    out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "composed": composed, "pipeline": pipe}
     if floor:
         if log:
             log(f"    floor: bare relay chain, {n_frames} frames at {rate:g} Hz, {n_bodies} bodies")

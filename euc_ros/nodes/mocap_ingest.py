@@ -50,6 +50,7 @@ from euc_ros.core.ingest import (
 )
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
+from euc_ros.nodes.intra import LocalFanout
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.runtime import main_for
 
@@ -394,7 +395,11 @@ class MocapIngest(Node):
         fid = self.config["frame_id"]
         source = self.stamp_source if stamp_source is None else stamp_source
         # serialized with numpy (convert.frame_to_raw): the message classes cost ~0.3 ms per 14-body frame
-        self.frame_pub.publish(convert.frame_to_raw(frame, fid, source))
+        raw = convert.frame_to_raw(frame, fid, source)
+        if isinstance(self.frame_pub, LocalFanout):
+            self.frame_pub.publish(raw, local=(frame, fid))    # composed: the Frame itself to rider_state
+        else:
+            self.frame_pub.publish(raw)
         self.published += 1
         if not self._view_due(frame.stamp_ns):
             return

@@ -151,16 +151,29 @@ class RiderStateNode(Node):
         drain(self._frame_sub, self._on_frame)   # a backlog in one wake-up
 
     def _on_frame(self, raw: bytes) -> None:
+        try:
+            item = convert.raw_to_frame(raw)
+        except Exception as exc:   # never die on input
+            self.counts["frames"] += 1
+            self._frame_error(exc)
+            return
+        self._on_frame_local(item)
+
+    def _on_frame_local(self, item) -> None:
+        """One frame as ``(core Frame, frame_id)``: from :meth:`_on_frame` or in-process (container)."""
         self.counts["frames"] += 1
         self._last_frame_wall = time.monotonic()
+        frame = item[0]
         try:
-            frame, frame_id = convert.raw_to_frame(raw)
             self.presence.update(frame.bodies, frame.tracked)
         except Exception as exc:   # never die on input
-            self.counts["errors"] += 1
-            self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+            self._frame_error(exc)
             return
-        self.rate_gate.push(frame.frame_number, frame.stamp_ns, (frame, frame_id))
+        self.rate_gate.push(frame.frame_number, frame.stamp_ns, item)
+
+    def _frame_error(self, exc: Exception) -> None:
+        self.counts["errors"] += 1
+        self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
 
     def _process(self, frame, frame_id: str) -> None:
         try:

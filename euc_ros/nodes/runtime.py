@@ -14,6 +14,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from euc_ros.core.errors import EucError
+from euc_ros.nodes.executor import LeanExecutor
 from euc_ros.nodes.params import params_files_in, validate_params_file
 
 #: How long an exception raised inside spin waits for a signal-triggered shutdown to complete [s].
@@ -27,24 +28,44 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
     ``--params-file`` files are validated against ``specs`` before rcl reads them. A configuration
     error (:class:`EucError`) is printed as one line naming the file and key, and the exit code is 2.
     """
+    named = [(node_name, specs)] if specs is not None and node_name is not None else []
+    return run_nodes(lambda nodes: nodes.append(node_factory()), args, label=node_name or "node", specs=named)
+
+
+def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = None, *, label: str = "node",
+              specs=(), after_create: Callable[[list[Node]], None] | None = None) -> int:
+    """Create several nodes in one process and spin them on one :class:`LeanExecutor` until shutdown.
+
+    ``create(nodes)`` appends each node to ``nodes`` as it makes it (a node made before a later one
+    fails is destroyed too). ``specs`` is ``[(node name, ParamSpec table), ...]``: every
+    ``--params-file`` is checked against each node's table (a file's sections for other nodes are
+    ignored). ``after_create(nodes)`` runs before spinning (the container links its nodes there).
+    Nodes are closed and destroyed in reverse order of creation.
+    """
     argv = list(sys.argv if args is None else args)
-    if specs is not None and node_name is not None:
-        try:
-            for path in params_files_in(argv):
-                validate_params_file(path, node_name, specs)
-        except EucError as exc:
-            print(f"{node_name}: error: {exc}", file=sys.stderr)
-            return 2
+    try:
+        for path in params_files_in(argv):
+            for name, table in specs:
+                validate_params_file(path, name, table)
+    except EucError as exc:
+        print(f"{label}: error: {exc}", file=sys.stderr)
+        return 2
     rclpy.init(args=args)
-    node = None
+    nodes: list[Node] = []
+    executor = None
     code = 0
     try:
-        node = node_factory()
-        rclpy.spin(node)
+        create(nodes)
+        if after_create is not None:
+            after_create(nodes)
+        executor = LeanExecutor()
+        for node in nodes:
+            executor.add_node(node)
+        executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except EucError as exc:
-        print(f"{node_name or 'node'}: error: {exc}", file=sys.stderr)
+        print(f"{label}: error: {exc}", file=sys.stderr)
         code = 2
     except Exception:
         # A SIGINT/SIGTERM can land while rclpy is taking a message; the take then fails (e.g. a pybind
@@ -56,7 +77,9 @@ def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
         if rclpy.ok():
             raise
     finally:
-        if node is not None:
+        if executor is not None:
+            executor.shutdown(timeout_sec=0.0)
+        for node in reversed(nodes):
             close = getattr(node, "close", None)
             if callable(close):
                 close()

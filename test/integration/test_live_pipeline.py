@@ -64,7 +64,10 @@ def _subscriptions(node, topic: str) -> int:
     return len(node.get_subscriptions_info_by_topic(topic))
 
 
-def test_live_torques_match_the_offline_identification(ros_context, gappy_ride, tmp_path):
+@pytest.mark.parametrize("composed", [False, True], ids=["processes", "container"])
+def test_live_torques_match_the_offline_identification(ros_context, gappy_ride, tmp_path, composed):
+    """Separate processes, and ingest + rider_state + torque_estimator composed in one
+    ``pipeline_container`` (linked in-process): the same states and torques, every one."""
     import rclpy
 
     csv, session_file = gappy_ride
@@ -76,13 +79,21 @@ def test_live_torques_match_the_offline_identification(ros_context, gappy_ride, 
                  required=False),
         NodeSpec("monitor", params_file=str(CONFIG / "monitor.yaml"), parameters={"timeout_s": 5.0},
                  required=False),
-        NodeSpec("torque_estimator", params_file=str(CONFIG / "torque_estimator.yaml"),
-                 parameters=dict(session_params, h=H, rmse_window_s=RMSE_WINDOW_S)),
-        NodeSpec("rider_state", params_file=str(CONFIG / "rider_state.yaml"), parameters=session_params),
     ]
-    ingest = [NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"),
-                       parameters={"csv_path": str(csv), "exit_when_done": True, "rate_factor": 1.0,
-                                   "start_delay": 0.0, "wait_subscribers": 3, "linger": 1.5})]
+    ingest_params = {"csv_path": str(csv), "exit_when_done": True, "rate_factor": 1.0, "start_delay": 0.0,
+                     "wait_subscribers": 3, "linger": 1.5}
+    if composed:
+        # one process: its rider_state counts as one of the 3 frame subscriptions it waits for
+        ingest = [NodeSpec("pipeline_container", params_file=str(CONFIG / "mocap_ingest.yaml"),
+                           params_files=[str(CONFIG / "rider_state.yaml"), str(CONFIG / "torque_estimator.yaml")],
+                           parameters=dict(session_params, h=H, rmse_window_s=RMSE_WINDOW_S, **ingest_params))]
+    else:
+        nodes += [
+            NodeSpec("torque_estimator", params_file=str(CONFIG / "torque_estimator.yaml"),
+                     parameters=dict(session_params, h=H, rmse_window_s=RMSE_WINDOW_S)),
+            NodeSpec("rider_state", params_file=str(CONFIG / "rider_state.yaml"), parameters=session_params),
+        ]
+        ingest = [NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"), parameters=ingest_params)]
     probe = rclpy.create_node("graph_probe", context=ros_context)
     t_start = time.monotonic()
     try:
@@ -90,17 +101,23 @@ def test_live_torques_match_the_offline_identification(ros_context, gappy_ride, 
             # Start the source only once every downstream subscription exists, so nothing is lost to
             # discovery (the recorder subscribes to rider/state and euc/torque when they appear).
             def graph_ready():
+                if composed:
+                    return (_subscriptions(probe, "/rider/state") >= 2 and _subscriptions(probe, "/euc/torque") >= 2
+                            and _subscriptions(probe, "/mocap/frame") >= 2)
                 return (_subscriptions(probe, "/rider/state") >= 3 and _subscriptions(probe, "/euc/torque") >= 2
                         and _subscriptions(probe, "/mocap/frame") >= 2)
 
             assert pipeline.wait(timeout=45, until=graph_ready), "nodes did not come up:\n" + log.getvalue()
             with Launcher(ingest, stream=log) as source:
                 assert source.wait(timeout=45), "replay did not finish:\n" + log.getvalue()
-            assert source.exit_codes["mocap_ingest"] == 0, log.getvalue()
+            assert source.exit_codes[ingest[0].label] == 0, log.getvalue()
             assert pipeline.poll(), "a pipeline node died:\n" + log.getvalue()
         assert all(code == 0 for code in pipeline.exit_codes.values()), (pipeline.exit_codes, log.getvalue())
     finally:
         probe.destroy_node()
+    if composed:   # the links were made in-process: no DDS subscription of rider_state or torque_estimator
+        assert "in-process: mocap_ingest -> rider_state on /mocap/frame" in log.getvalue(), log.getvalue()
+        assert "in-process: rider_state -> torque_estimator on /rider/state" in log.getvalue(), log.getvalue()
     wall = time.monotonic() - t_start
     assert check_bag(bag) == []
 
