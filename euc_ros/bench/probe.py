@@ -126,6 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from euc_ros.bench.relay import install_stop_handlers, spin_until_signal
+    from euc_ros.nodes.executor import LeanExecutor
 
     parser = argparse.ArgumentParser(prog="python -m euc_ros.bench.probe", description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, type=Path, help="npz file written at shutdown")
@@ -136,7 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     probe = None
     try:
         probe = Probe([t for t in args.topics.split(",") if t])
-        spin_until_signal(probe.node, stop)
+        # the pipeline's executor: the probe is in both chains it compares, and its cost loads both
+        spin_until_signal(probe.node, stop, LeanExecutor(context=probe.node.context))
     except KeyboardInterrupt:
         pass
     finally:

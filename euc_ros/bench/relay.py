@@ -329,12 +329,22 @@ def _lockstep_ctrl(node, args) -> None:
     node.create_subscription(UnicycleState, itf.UNICYCLE_STATE, on_state, itf.LOCKSTEP_QOS)
 
 
-def spin_until_signal(node, stop) -> None:
-    """Spin ``node`` until ``stop()`` is true, polling every 0.1 s (signals are handled in Python)."""
-    import rclpy
+def spin_until_signal(node, stop, executor=None) -> None:
+    """Spin ``node`` until ``stop()`` is true, polling every 0.1 s (signals are handled in Python).
 
-    while not stop():
-        rclpy.spin_once(node, timeout_sec=0.1)
+    One executor for the whole run (rclpy's SingleThreadedExecutor unless given): ``rclpy.spin_once``
+    would add and remove the node on the global executor at every call, a cost of the loop, not of
+    rclpy, that the floor must not carry.
+    """
+    from rclpy.executors import SingleThreadedExecutor
+
+    executor = executor if executor is not None else SingleThreadedExecutor(context=node.context)
+    executor.add_node(node)
+    try:
+        while not stop():
+            executor.spin_once(timeout_sec=0.1)
+    finally:
+        executor.remove_node(node)
 
 
 def install_stop_handlers() -> "callable":

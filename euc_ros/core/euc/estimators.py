@@ -19,7 +19,7 @@ A node only converts messages and calls these (functional core, imperative shell
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import TYPE_CHECKING, Callable, Sequence
 
 import numpy as np
@@ -29,7 +29,7 @@ from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, 
 from euc_ros.core.euc.model import EucParams
 from euc_ros.core.euc.skeleton_fit import COG_METHODS, OnlineSkeleton
 from euc_ros.core.euc.online import OnlineHEstimator, SlidingRmse
-from euc_ros.core.euc.torque import torques, torques_2dof
+from euc_ros.core.euc.torque import torques, torques_2dof, torques_one
 from euc_ros.core.bridging import PoseBridge
 from euc_ros.core.filters.causal import streaming_filter
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
@@ -443,6 +443,15 @@ class TorqueEstimator:
         self._frame = 0
         self.counts["resets"] += 1
 
+    @property
+    def _scalar_params(self) -> bool:
+        """True when every model parameter is a scalar (then one sample goes through torques_one)."""
+        p = self.params
+        if getattr(self, "_scalar_for", None) is not p:
+            self._scalar_for = p
+            self._scalar = all(np.ndim(getattr(p, f.name)) == 0 for f in fields(p))
+        return self._scalar
+
     def set_h(self, h: float) -> None:
         """Use ``h`` [m] from the next state on (a value identified while the stream runs). The sliding
         RMSE starts again: residuals under two values of h do not mix.
@@ -534,6 +543,8 @@ class TorqueEstimator:
                 phi_ddot=phi_ddot, psi=float(getattr(state, "psi", 0.0)), psi_dot=psi_dot,
                 theta=float(getattr(state, "theta", 0.0)))
             d1, d2 = float(np.squeeze(m1)), float(np.squeeze(m2))
+        elif ok and self._scalar_params:
+            d1, d2 = torques_one(*args, self.params, extra_Q=extra)
         elif ok:
             d1, d2 = (float(v) for v in torques(*args, self.params, extra_Q=extra))
         e1 = e2 = np.nan

@@ -157,3 +157,24 @@ def test_torque_difference_matches_the_symbolic_residual(symbolic, rng):
     m1, m2 = torques(*_sargs(s), p, extra_Q=dQ)
     np.testing.assert_allclose(torque_difference(*_sargs(s), p, extra_Q=dQ), m1 - m2, rtol=1e-9,
                                atol=1e-9 * np.max(np.abs(m1 - m2)))
+
+
+def test_one_sample_torques_match_the_symbolic_eqs_and_the_array_path(symbolic, rng):
+    """The live path (torques_one: one sample, scalar parameters, written out) against the sympy
+    eqs (9)-(10), and against torques() with an extra generalized force. Same tolerances as the
+    array path's test above (both are double-precision evaluations of the same closed forms)."""
+    from euc_ros.core.euc.torque import torques_one
+
+    for _ in range(200):
+        p = _random_params(rng)
+        s = {k: float(v[0]) for k, v in _random_states(rng, 1).items()}
+        m1, m2 = torques_one(*_sargs(s), p)
+        assert isinstance(m1, float) and isinstance(m2, float)
+        assert m1 == pytest.approx(float(symbolic.Md1(*_sargs(s), *_pvals(p))), rel=1e-10, abs=1e-9)
+        assert m2 == pytest.approx(float(symbolic.Md2(*_sargs(s), *_pvals(p))), rel=1e-9, abs=1e-8)
+        dQ = rng.normal(0.0, 20.0, 3)
+        w1, w2 = torques(*_sargs(s), p, extra_Q=dQ)
+        o1, o2 = torques_one(*_sargs(s), p, extra_Q=dQ)
+        # terms up to ~1e3 N m summed in another order: ~1e-13 relative each, 1e-8 N m absolute is 100x that
+        assert o1 == pytest.approx(float(w1), rel=1e-10, abs=1e-8)
+        assert o2 == pytest.approx(float(w2), rel=1e-10, abs=1e-8)
