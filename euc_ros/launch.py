@@ -274,7 +274,7 @@ def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[
     return launcher.return_code()
 
 
-_SPEC_KEYS = {"executable", "name", "params_file", "parameters", "remaps", "namespace", "required", "env", "args",
+_SPEC_KEYS = {"executable", "name", "params_file", "params_files", "parameters", "remaps", "namespace", "required", "env", "args",
               "ros_args", "if", "unless"}
 _ARG = re.compile(r"\$\(arg ([A-Za-z_][A-Za-z0-9_]*)\)")
 
@@ -408,6 +408,16 @@ def load_launch_file(path: str | Path, arguments: Mapping[str, str] | None = Non
             if not Path(kw["params_file"]).exists():
                 raise ConfigError(f"params file {kw['params_file']} does not exist", path=p,
                                   key=f"nodes[{i}].params_file")
+        files = kw.get("params_files") or []
+        if not isinstance(files, list):
+            raise ConfigError("expected a list of YAML files", path=p, key=f"nodes[{i}].params_files")
+        for j, f in enumerate(files):
+            pf = Path(str(f))
+            files[j] = str(pf if pf.is_absolute() else (p.parent / pf))
+            if not Path(files[j]).exists():
+                raise ConfigError(f"params file {files[j]} does not exist", path=p, key=f"nodes[{i}].params_files[{j}]")
+        if "params_files" in kw:
+            kw["params_files"] = tuple(files)
         if "args" in kw:
             kw["args"] = [str(a) for a in kw["args"]]
         specs.append(NodeSpec(**kw))

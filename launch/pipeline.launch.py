@@ -3,13 +3,14 @@
     ros2 launch euc_ros pipeline.launch.py session:=/path/session.yaml source:=natnet server_ip:=192.168.1.10
     ros2 launch euc_ros pipeline.launch.py session:=session.yaml source:=csv csv_path:=ride.csv bag:=bags/ride
     ros2 launch euc_ros pipeline.launch.py session:=session.yaml source:=topics bodies:="['E','PV','CHL']"
+    ros2 launch euc_ros pipeline.launch.py session:=session.yaml compose:=true   # 240 Hz and up: one process
 
 Mirrors launch/pipeline.yaml (``euc-ros launch`` on wheel installs, where launch_ros is absent).
 Parameters not set here come from config/<node>.yaml in the package's share directory.
 """
 from launch import LaunchDescription
 from launch.actions import DeclareLaunchArgument, Shutdown
-from launch.conditions import LaunchConfigurationNotEquals
+from launch.conditions import IfCondition, LaunchConfigurationNotEquals, UnlessCondition
 from launch.substitutions import LaunchConfiguration, PathJoinSubstitution
 from launch_ros.actions import Node
 from launch_ros.substitutions import FindPackageShare
@@ -21,6 +22,7 @@ def _params_file(node: str):
 
 def generate_launch_description() -> LaunchDescription:
     session = LaunchConfiguration("session")
+    compose = LaunchConfiguration("compose")
     return LaunchDescription([
         DeclareLaunchArgument("session", description="session YAML (rider, EUC and marker set; docs/session.md)"),
         DeclareLaunchArgument("source", default_value="natnet", choices=["natnet", "topics", "csv"],
@@ -40,8 +42,11 @@ def generate_launch_description() -> LaunchDescription:
                               description="rigid bodies to publish, in order (required for source topics)"),
         DeclareLaunchArgument("h", default_value="0.61", description="rider CoG height above the hinge h [m]"),
         DeclareLaunchArgument("bag", default_value="", description="record to this bag directory (empty: no recorder)"),
+        DeclareLaunchArgument("compose", default_value="false", choices=["true", "false"],
+                              description="run mocap_ingest, rider_state and torque_estimator in one "
+                                          "pipeline_container process, linked in-process (for 240 Hz and up)"),
         Node(package="euc_ros", executable="mocap_ingest", name="mocap_ingest", output="screen",
-             on_exit=Shutdown(reason="mocap_ingest ended"),
+             on_exit=Shutdown(reason="mocap_ingest ended"), condition=UnlessCondition(compose),
              parameters=[_params_file("mocap_ingest"), {
                  "source": LaunchConfiguration("source"),
                  "server_ip": LaunchConfiguration("server_ip"),
@@ -54,10 +59,29 @@ def generate_launch_description() -> LaunchDescription:
                  "bodies": LaunchConfiguration("bodies"),
              }]),
         Node(package="euc_ros", executable="rider_state", name="rider_state", output="screen",
+             condition=UnlessCondition(compose),
              parameters=[_params_file("rider_state"), {"session_file": session}]),
         Node(package="euc_ros", executable="torque_estimator", name="torque_estimator", output="screen",
+             condition=UnlessCondition(compose),
              parameters=[_params_file("torque_estimator"), {"session_file": session,
                                                              "h": LaunchConfiguration("h")}]),
+        # no name=: it would rename every node of the process; each keeps its own (and its params file section)
+        Node(package="euc_ros", executable="pipeline_container", output="screen",
+             on_exit=Shutdown(reason="pipeline_container ended"), condition=IfCondition(compose),
+             arguments=["--nodes", "mocap_ingest,rider_state,torque_estimator"],
+             parameters=[_params_file("mocap_ingest"), _params_file("rider_state"), _params_file("torque_estimator"), {
+                 "session_file": session,
+                 "h": LaunchConfiguration("h"),
+                 "source": LaunchConfiguration("source"),
+                 "server_ip": LaunchConfiguration("server_ip"),
+                 "local_ip": LaunchConfiguration("local_ip"),
+                 "csv_path": LaunchConfiguration("csv_path"),
+                 "rate_factor": LaunchConfiguration("rate_factor"),
+                 "start_delay": LaunchConfiguration("start_delay"),
+                 "exit_when_done": LaunchConfiguration("exit_when_done"),
+                 "topic_prefix": LaunchConfiguration("topic_prefix"),
+                 "bodies": LaunchConfiguration("bodies"),
+             }]),
         Node(package="euc_ros", executable="monitor", name="monitor", output="screen",
              parameters=[_params_file("monitor")]),
         Node(package="euc_ros", executable="recorder", name="recorder", output="screen",

@@ -98,17 +98,29 @@ def test_launch_py_names_real_executables_files_and_parameters(path, tmp_path):
     assert not unused, f"{path.name}: declared but unused arguments {unused}"
     for node in parsed["nodes"]:
         where = f"{path.name}:{node['line']}"
-        assert node["executable"] in NODES, f"{where}: no executable {node['executable']!r}"
-        assert node["params_files"] == [f"{node['executable']}.yaml"], where
-        assert (REPO / "config" / node["params_files"][0]).exists(), where
-        cls = node_class(node["executable"])
-        declared = {s.name for s in cls.SPECS}
+        composed = _composed(node["executable"])
+        assert composed, f"{where}: no executable {node['executable']!r}"
+        assert node["params_files"] == [f"{n}.yaml" for n in composed], where
+        assert all((REPO / "config" / f).exists() for f in node["params_files"]), where
+        classes = [node_class(n) for n in composed]
+        declared = {s.name for cls in classes for s in cls.SPECS}
         assert set(node["params"]) <= declared, f"{where}: undeclared {set(node['params']) - declared}"
-        # the values written out must be accepted by the node's declarations (type, range, choices)
-        literal = {k: v for k, v in node["params"].items() if v is not None}
-        pf = tmp_path / f"{node['executable']}.yaml"
-        pf.write_text(yaml.safe_dump({cls.NAME: {"ros__parameters": literal}}), encoding="utf-8")
-        validate_params_file(str(pf), cls.NAME, cls.SPECS)
+        # the values written out must be accepted by the nodes' declarations (type, range, choices)
+        for cls in classes:
+            mine = {s.name for s in cls.SPECS}
+            literal = {k: v for k, v in node["params"].items() if v is not None and k in mine}
+            pf = tmp_path / f"{cls.NAME}.yaml"
+            pf.write_text(yaml.safe_dump({cls.NAME: {"ros__parameters": literal}}), encoding="utf-8")
+            validate_params_file(str(pf), cls.NAME, cls.SPECS)
+
+
+def _composed(executable: str) -> list[str]:
+    """The registered nodes an executable runs: itself, or the container's default composition."""
+    if executable == "pipeline_container":
+        from euc_ros.nodes.container import DEFAULT_NODES
+
+        return list(DEFAULT_NODES)
+    return [executable] if executable in NODES else []
 
 
 def _yaml_nodes(path: Path) -> list[dict]:
@@ -128,9 +140,9 @@ def test_yaml_mirror_has_the_same_arguments_nodes_and_parameters(path):
 
     py = Counter(signature(n["executable"], n["params"]) for n in parsed["nodes"])
     ym = Counter(signature(n["executable"], n.get("parameters") or {}) for n in _yaml_nodes(mirror)
-                 if n["executable"] in NODES)
+                 if _composed(n["executable"]))
     assert py == ym, f"{mirror.name} and {path.name} start different nodes: {py} != {ym}"
-    assert len(parsed["processes"]) == sum(1 for n in _yaml_nodes(mirror) if n["executable"] not in NODES)
+    assert len(parsed["processes"]) == sum(1 for n in _yaml_nodes(mirror) if not _composed(n["executable"]))
 
 
 def _required_args(path: Path) -> dict[str, str]:
@@ -149,14 +161,20 @@ def test_yaml_launch_files_resolve_to_valid_node_commands(path, bag, tmp_path):
         assert ("recorder" in names) == bool(bag), f"{path.name}: if: $(arg bag) not honoured"
     assert len(set(s.label for s in specs)) == len(specs), f"{path.name}: two processes with one name"
     for spec in specs:
-        if spec.executable not in NODES:
+        composed = _composed(spec.executable)
+        if not composed:
             assert spec.executable == "euc-ros" and not spec.ros_args
             continue
-        cls = node_class(spec.executable)
-        pf = tmp_path / f"{spec.executable}.yaml"
-        pf.write_text(yaml.safe_dump({cls.NAME: {"ros__parameters": dict(spec.parameters)}}), encoding="utf-8")
-        validate_params_file(str(pf), cls.NAME, cls.SPECS)       # types, ranges and choices
-        assert Path(spec.params_file).resolve() == (REPO / "config" / f"{spec.executable}.yaml").resolve()
+        for name in composed:
+            cls = node_class(name)
+            mine = {s.name for s in cls.SPECS}
+            pf = tmp_path / f"{name}.yaml"
+            pf.write_text(yaml.safe_dump({cls.NAME: {"ros__parameters": {k: v for k, v in spec.parameters.items()
+                                                                         if k in mine}}}), encoding="utf-8")
+            validate_params_file(str(pf), cls.NAME, cls.SPECS)       # types, ranges and choices
+        assert {k for k in spec.parameters} <= {s.name for n in composed for s in node_class(n).SPECS}
+        files = [spec.params_file, *spec.params_files]
+        assert [Path(f).resolve() for f in files] == [(REPO / "config" / f"{n}.yaml").resolve() for n in composed]
 
 
 def test_launch_arguments_are_typed_like_launch_ros_and_checked():
@@ -208,3 +226,19 @@ def test_launch_py_runs_for_real_where_launch_ros_imports(path, tmp_path):
         os.environ.clear()
         os.environ.update(env_before)
     assert (tmp_path / "bag" / "metadata.yaml").exists()
+
+
+@pytest.mark.parametrize("compose", ["false", "true"])
+def test_pipeline_compose_runs_the_three_nodes_in_one_container_or_three_processes(compose):
+    specs = euc_launch.load_launch_file(LAUNCH / "pipeline.yaml", {"session": "s.yaml", "source": "csv",
+                                                                   "csv_path": "ride.csv", "compose": compose})
+    names = sorted(s.executable for s in specs)
+    if compose == "true":
+        assert names == ["monitor", "pipeline_container"]
+        (c,) = [s for s in specs if s.executable == "pipeline_container"]
+        assert c.args == ["--nodes", "mocap_ingest,rider_state,torque_estimator"] and not c.name   # no __node remap
+        cmd = c.command()
+        assert cmd.count("--params-file") == 3 and "-r" not in cmd
+        assert c.parameters["session_file"] == "s.yaml" and c.parameters["csv_path"] == "ride.csv"
+    else:
+        assert names == ["mocap_ingest", "monitor", "rider_state", "torque_estimator"]
