@@ -3,10 +3,12 @@
 For every frame rate of :data:`RATES_HZ` and body count of :data:`BODIES` a simulated figure-eight
 ride captured at that rate (:func:`live_recording`: the EUC and 13 rider segments, plus static-offset
 copies of them as further rigid bodies, e.g. props or a second rider the pipeline does not use) is
-replayed in real time by ``mocap_ingest`` into ``rider_state``, ``torque_estimator``, ``monitor``
-and the ``recorder`` (every pipeline topic into an MCAP bag), all separate processes, with the latency
-probe of :mod:`euc_ros.bench.latency`. The floor is the bare relay chain of
-:mod:`euc_ros.bench.relay` at the same rate and body count, measured right after.
+replayed in real time by ``mocap_ingest`` into ``rider_state`` and ``torque_estimator`` (composed in
+one ``pipeline_container`` process, linked in-process: :mod:`euc_ros.nodes.container`; three
+processes with ``composed=False``), with ``monitor`` and the ``recorder`` (every pipeline topic into
+an MCAP bag) as separate processes and the latency probe of :mod:`euc_ros.bench.latency`. The floor
+is the bare relay chain of :mod:`euc_ros.bench.relay` (source, two relay hops, each a plain rclpy
+node on rclpy's SingleThreadedExecutor) at the same rate and body count, measured right after.
 
 Per cell: hop and end-to-end p50/p99 (filter lag excluded, as in :mod:`~euc_ros.bench.latency`), the
 CPU use of each process over the stream (1 = one core; ``/proc/<pid>/stat`` sampled every 0.2 s,

@@ -48,6 +48,7 @@ class SubscriptionDrain(Waitable):
         with self._node.handle:
             handle = _rclpy.Subscription(self._node.handle, cls, topic, qos.get_c_qos_profile())
         self.subs.append((topic, type_name, handle, cls))
+        self._node._wake_executor()                 # the executor's wait set must grow
 
     def take_all(self) -> list[tuple[str, str, list[bytes]]]:
         """Take every message each subscription holds: ``[(topic, type name, [cdr bytes...]), ...]``."""

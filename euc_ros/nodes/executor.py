@@ -25,6 +25,7 @@ pending. Exceptions from callbacks propagate out of :meth:`spin_once`, as with r
 from __future__ import annotations
 
 import inspect
+import time
 from contextlib import ExitStack
 
 from rclpy.exceptions import InvalidHandle
@@ -39,7 +40,7 @@ class _Entities:
     """The entities of the executor's nodes, and a wait set sized for them (kept across spins)."""
 
     __slots__ = ("key", "subs", "timers", "services", "guards", "waitables", "wait_set",
-                 "sub_by_ptr", "timer_by_ptr", "srv_by_ptr", "gc_by_ptr")
+                 "sub_by_ptr", "timer_by_ptr", "srv_by_ptr", "gc_by_ptr", "_held")
 
     def __init__(self, key, subs, timers, services, guards, waitables, context) -> None:
         self.key = key
@@ -55,9 +56,14 @@ class _Entities:
         self.srv_by_ptr = {s.handle.pointer: s for s in services}
         self.gc_by_ptr = {g.handle.pointer: g for g in guards}
 
-    def enter(self, stack: ExitStack) -> bool:
-        """Mark every handle in use for this spin (False when one was destroyed: rebuild)."""
-        enter = stack.enter_context
+    def hold(self) -> bool:
+        """Mark every handle in use until :meth:`release` (False, holding none, when one was destroyed).
+
+        Held handles are not destroyed under the wait set: a ``destroy_*`` meanwhile takes effect
+        when the executor, seeing the entity gone from its node, rebuilds and releases these.
+        """
+        self._held = ExitStack()
+        enter = self._held.enter_context
         try:
             for group in (self.subs, self.timers, self.services, self.guards):
                 for entity in group:
@@ -65,8 +71,16 @@ class _Entities:
             for waitable in self.waitables:
                 enter(waitable)
         except InvalidHandle:
+            self.release()
             return False
         return True
+
+    def release(self) -> None:
+        """Let the held handles be destroyed."""
+        held = getattr(self, "_held", None)
+        if held is not None:
+            self._held = None
+            held.close()
 
     def fill(self) -> None:
         """Put every entity into the (cleared) wait set."""
@@ -84,6 +98,11 @@ class _Entities:
             w.add_to_wait_set(ws)
 
 
+def _sizes(waitable) -> tuple:
+    n = waitable.get_num_entities()
+    return n.num_subscriptions, n.num_guard_conditions, n.num_timers, n.num_clients, n.num_services, n.num_events
+
+
 class LeanExecutor(SingleThreadedExecutor):
     """Single-threaded executor with a reused wait set and subscriptions taken in batches.
 
@@ -94,10 +113,21 @@ class LeanExecutor(SingleThreadedExecutor):
         Most messages taken from one subscription per wake-up before the other entities run.
     """
 
+    #: Longest time between two listings of the nodes' entities [s] (they are listed again at once
+    #: when rclpy wakes the executor, which it does on every create_* and destroy_*).
+    RELIST_S = 0.5
+
     def __init__(self, *, context=None, batch: int = 64) -> None:
         super().__init__(context=context)
         self.batch = int(batch)
         self._ents: _Entities | None = None
+        self._dirty = True
+        self._listed_at = 0.0
+
+    def wake(self) -> None:
+        """rclpy calls this when a node adds or destroys an entity: list them again next spin."""
+        self._dirty = True
+        super().wake()
 
     # -- entity bookkeeping ----------------------------------------------------------------------------------------
     def _collect(self):
@@ -113,23 +143,49 @@ class LeanExecutor(SingleThreadedExecutor):
             waitables.extend(node.waitables)
         guards += [self._guard, self._sigint_gc]
         # a waitable may grow (the recorder's drain subscribes topics as they appear): its counts are in the key
-        sizes = []
-        for w in waitables:
-            n = w.get_num_entities()
-            sizes.append((id(w), n.num_subscriptions, n.num_guard_conditions, n.num_timers, n.num_clients,
-                          n.num_services, n.num_events))
+        sizes = [(id(w), *_sizes(w)) for w in waitables]
         key = (tuple(map(id, subs)), tuple(map(id, timers)), tuple(map(id, services)), tuple(map(id, guards)),
                tuple(sizes))
         return key, subs, timers, services, guards, waitables
 
     def _entities(self):
+        """The current entities, held (None: use rclpy's path; False: skip this spin, rebuild next)."""
+        ents = self._ents
+        if ents is not None and not self._dirty and time.monotonic() - self._listed_at < self.RELIST_S:
+            sizes = ents.key[-1]
+            if all(_sizes(w) == size[1:] for w, size in zip(ents.waitables, sizes)):
+                return ents
+        self._dirty = False
+        self._listed_at = time.monotonic()
         got = self._collect()
-        if got is None:
+        if got is None:                                      # rclpy's path: hold nothing meanwhile
+            self._release()
             return None
         key = got[0]
         if self._ents is None or self._ents.key != key:
-            self._ents = _Entities(*got, self._context)
+            self._release()
+            ents = _Entities(*got, self._context)
+            if not ents.hold():                               # an entity was destroyed meanwhile: next spin
+                return False
+            self._ents = ents
         return self._ents
+
+    def _release(self) -> None:
+        if self._ents is not None:
+            self._ents.release()
+            self._ents = None
+
+    def add_node(self, node) -> bool:
+        self._dirty = True
+        return super().add_node(node)
+
+    def remove_node(self, node) -> None:
+        self._release()
+        super().remove_node(node)
+
+    def shutdown(self, timeout_sec: float | None = None) -> bool:
+        self._release()
+        return super().shutdown(timeout_sec)
 
     # -- spinning --------------------------------------------------------------------------------------------------
     def spin_once(self, timeout_sec: float | None = None) -> None:
@@ -139,23 +195,21 @@ class LeanExecutor(SingleThreadedExecutor):
         ents = self._entities()
         if ents is None:
             return super().spin_once(timeout_sec)
-        with ExitStack() as stack:
-            if not ents.enter(stack):                        # an entity was destroyed since it was listed
-                self._ents = None
-                return
-            with self._context.handle:
-                ents.fill()
-                ws = ents.wait_set
-                ws.wait(timeout_sec_to_nsec(timeout_sec))
-            if self._is_shutdown:
-                return
-            if not self._context.ok():
-                raise ExternalShutdownException()
-            ready_waitables = [w for w in ents.waitables if w.is_ready(ws)]
-            timers = [ents.timer_by_ptr[p] for p in ws.get_ready_entities("timer") if p in ents.timer_by_ptr]
-            subs = [ents.sub_by_ptr[p] for p in ws.get_ready_entities("subscription") if p in ents.sub_by_ptr]
-            services = [ents.srv_by_ptr[p] for p in ws.get_ready_entities("service") if p in ents.srv_by_ptr]
-            guards = [ents.gc_by_ptr[p] for p in ws.get_ready_entities("guard_condition") if p in ents.gc_by_ptr]
+        if ents is False:
+            return
+        ws = ents.wait_set
+        with self._context.handle:
+            ents.fill()
+            ws.wait(timeout_sec_to_nsec(timeout_sec))
+        if self._is_shutdown:
+            return
+        if not self._context.ok():
+            raise ExternalShutdownException()
+        ready_waitables = [w for w in ents.waitables if w.is_ready(ws)]
+        timers = [ents.timer_by_ptr[p] for p in ws.get_ready_entities("timer") if p in ents.timer_by_ptr]
+        subs = [ents.sub_by_ptr[p] for p in ws.get_ready_entities("subscription") if p in ents.sub_by_ptr]
+        services = [ents.srv_by_ptr[p] for p in ws.get_ready_entities("service") if p in ents.srv_by_ptr]
+        guards = [ents.gc_by_ptr[p] for p in ws.get_ready_entities("guard_condition") if p in ents.gc_by_ptr]
 
         for waitable in ready_waitables:
             self._run(waitable.execute(waitable.take_data()))
