@@ -195,8 +195,8 @@ class LeanExecutor(SingleThreadedExecutor):
         ents = self._entities()
         if ents is None:
             return super().spin_once(timeout_sec)
-        if ents is False:
-            return
+        if ents is False:                                   # one was destroyed meanwhile: rclpy's path, once
+            return super().spin_once(timeout_sec)
         ws = ents.wait_set
         with self._context.handle:
             ents.fill()
