@@ -40,30 +40,44 @@ class _Entities:
     """The entities of the executor's nodes, and a wait set sized for them (kept across spins)."""
 
     __slots__ = ("key", "subs", "timers", "services", "guards", "waitables", "wait_set",
-                 "sub_by_ptr", "timer_by_ptr", "srv_by_ptr", "gc_by_ptr", "_held")
+                 "sub_by_ptr", "timer_by_ptr", "srv_by_ptr", "gc_by_ptr")
 
     def __init__(self, key, subs, timers, services, guards, waitables, context) -> None:
+        """List the live entities. One already destroyed (e.g. by its own ``destroy()``, which leaves
+        it in its node's list) is left out, as rclpy's executor leaves it out."""
         self.key = key
-        self.subs, self.timers, self.services, self.guards, self.waitables = subs, timers, services, guards, waitables
-        count = NumberOfEntities(len(subs), len(guards), len(timers), 0, len(services))
-        for waitable in waitables:
-            count += waitable.get_num_entities()
+        with ExitStack() as probe:
+            def live(entities, of=lambda e: e.handle):
+                out = []
+                for e in entities:
+                    try:
+                        probe.enter_context(of(e))
+                    except InvalidHandle:
+                        continue
+                    out.append(e)
+                return out
+
+            self.subs, self.timers = live(subs), live(timers)
+            self.services, self.guards = live(services), live(guards)
+            self.waitables = live(waitables, of=lambda w: w)
+            count = NumberOfEntities(len(self.subs), len(self.guards), len(self.timers), 0, len(self.services))
+            for waitable in self.waitables:
+                count += waitable.get_num_entities()
+            self.sub_by_ptr = {s.handle.pointer: s for s in self.subs}
+            self.timer_by_ptr = {t.handle.pointer: t for t in self.timers}
+            self.srv_by_ptr = {s.handle.pointer: s for s in self.services}
+            self.gc_by_ptr = {g.handle.pointer: g for g in self.guards}
         with context.handle:
             self.wait_set = _rclpy.WaitSet(count.num_subscriptions, count.num_guard_conditions, count.num_timers,
                                            count.num_clients, count.num_services, count.num_events, context.handle)
-        self.sub_by_ptr = {s.handle.pointer: s for s in subs}
-        self.timer_by_ptr = {t.handle.pointer: t for t in timers}
-        self.srv_by_ptr = {s.handle.pointer: s for s in services}
-        self.gc_by_ptr = {g.handle.pointer: g for g in guards}
 
-    def hold(self) -> bool:
-        """Mark every handle in use until :meth:`release` (False, holding none, when one was destroyed).
+    def enter(self, stack: ExitStack) -> bool:
+        """Mark every handle in use for this spin (False when one was destroyed since listing: rebuild).
 
-        Held handles are not destroyed under the wait set: a ``destroy_*`` meanwhile takes effect
-        when the executor, seeing the entity gone from its node, rebuilds and releases these.
+        In use, a handle is not destroyed under the wait set or during its own take; a ``destroy``
+        from a callback takes effect when the spin ends, as with rclpy's executor.
         """
-        self._held = ExitStack()
-        enter = self._held.enter_context
+        enter = stack.enter_context
         try:
             for group in (self.subs, self.timers, self.services, self.guards):
                 for entity in group:
@@ -71,16 +85,8 @@ class _Entities:
             for waitable in self.waitables:
                 enter(waitable)
         except InvalidHandle:
-            self.release()
             return False
         return True
-
-    def release(self) -> None:
-        """Let the held handles be destroyed."""
-        held = getattr(self, "_held", None)
-        if held is not None:
-            self._held = None
-            held.close()
 
     def fill(self) -> None:
         """Put every entity into the (cleared) wait set."""
@@ -141,7 +147,7 @@ class LeanExecutor(SingleThreadedExecutor):
             services.extend(node.services)
             guards.extend(node.guards)
             waitables.extend(node.waitables)
-        guards += [self._guard, self._sigint_gc]
+        guards += [g for g in (self._guard, self._sigint_gc) if g is not None]   # None once shut down
         # a waitable may grow (the recorder's drain subscribes topics as they appear): its counts are in the key
         sizes = [(id(w), *_sizes(w)) for w in waitables]
         key = (tuple(map(id, subs)), tuple(map(id, timers)), tuple(map(id, services)), tuple(map(id, guards)),
@@ -149,7 +155,7 @@ class LeanExecutor(SingleThreadedExecutor):
         return key, subs, timers, services, guards, waitables
 
     def _entities(self):
-        """The current entities, held (None: use rclpy's path; False: skip this spin, rebuild next)."""
+        """The current entities, held (None: use rclpy's path)."""
         ents = self._ents
         if ents is not None and not self._dirty and time.monotonic() - self._listed_at < self.RELIST_S:
             sizes = ents.key[-1]
@@ -164,16 +170,11 @@ class LeanExecutor(SingleThreadedExecutor):
         key = got[0]
         if self._ents is None or self._ents.key != key:
             self._release()
-            ents = _Entities(*got, self._context)
-            if not ents.hold():                               # an entity was destroyed meanwhile: next spin
-                return False
-            self._ents = ents
+            self._ents = _Entities(*got, self._context)
         return self._ents
 
     def _release(self) -> None:
-        if self._ents is not None:
-            self._ents.release()
-            self._ents = None
+        self._ents = None
 
     def add_node(self, node) -> bool:
         self._dirty = True
@@ -190,26 +191,33 @@ class LeanExecutor(SingleThreadedExecutor):
     # -- spinning --------------------------------------------------------------------------------------------------
     def spin_once(self, timeout_sec: float | None = None) -> None:
         """Wait up to ``timeout_sec`` (forever if None) and run everything that became ready."""
+        if self._is_shutdown:                                # as rclpy's: nothing to do after shutdown()
+            return
         if self._tasks:
             return super().spin_once(timeout_sec)
         ents = self._entities()
         if ents is None:
             return super().spin_once(timeout_sec)
-        if ents is False:                                   # one was destroyed meanwhile: rclpy's path, once
-            return super().spin_once(timeout_sec)
-        ws = ents.wait_set
-        with self._context.handle:
-            ents.fill()
-            ws.wait(timeout_sec_to_nsec(timeout_sec))
-        if self._is_shutdown:
-            return
-        if not self._context.ok():
-            raise ExternalShutdownException()
-        ready_waitables = [w for w in ents.waitables if w.is_ready(ws)]
-        timers = [ents.timer_by_ptr[p] for p in ws.get_ready_entities("timer") if p in ents.timer_by_ptr]
-        subs = [ents.sub_by_ptr[p] for p in ws.get_ready_entities("subscription") if p in ents.sub_by_ptr]
-        services = [ents.srv_by_ptr[p] for p in ws.get_ready_entities("service") if p in ents.srv_by_ptr]
-        guards = [ents.gc_by_ptr[p] for p in ws.get_ready_entities("guard_condition") if p in ents.gc_by_ptr]
+        with ExitStack() as stack:
+            if not ents.enter(stack):                        # destroyed since listed: list again, once
+                stack.close()
+                self._ents = None
+                ents = self._entities()
+                if ents is None or not ents.enter(stack):
+                    return super().spin_once(timeout_sec)
+            ws = ents.wait_set
+            with self._context.handle:
+                ents.fill()
+                ws.wait(timeout_sec_to_nsec(timeout_sec))
+            if self._is_shutdown:
+                return
+            if not self._context.ok():
+                raise ExternalShutdownException()
+            ready_waitables = [w for w in ents.waitables if w.is_ready(ws)]
+            timers = [ents.timer_by_ptr[p] for p in ws.get_ready_entities("timer") if p in ents.timer_by_ptr]
+            subs = [ents.sub_by_ptr[p] for p in ws.get_ready_entities("subscription") if p in ents.sub_by_ptr]
+            services = [ents.srv_by_ptr[p] for p in ws.get_ready_entities("service") if p in ents.srv_by_ptr]
+            guards = [ents.gc_by_ptr[p] for p in ws.get_ready_entities("guard_condition") if p in ents.gc_by_ptr]
 
         for waitable in ready_waitables:
             self._run(waitable.execute(waitable.take_data()))
