@@ -1,19 +1,21 @@
 """LeanExecutor (euc_ros.nodes.executor) on a private rclpy context, against rclpy's own behaviour.
 
 Covers: typed, raw and (message, MessageInfo) subscriptions receiving every message of a burst in
-publish order, in few spins (each spin takes up to ``batch`` messages per subscription, never more);
-timers firing repeatedly and cancelled timers (before spinning, and from their own callback) not
-firing; guard conditions; a service and the node's parameter services answering a client spun by a
-plain SingleThreadedExecutor in another thread; entities changing between spins (a subscription
-created late, one destroyed between spins or by another callback in the same wake-up, a node added
-late, a SubscriptionDrain that subscribes after the executor has spun: the wait set is rebuilt when
-a waitable's entity counts grow); exceptions from subscription, timer and resumed coroutine
-callbacks propagating out of spin_once (and the executor still working afterwards); rclpy's own
-path for a node with a client and for coroutine callbacks that await; spin() ending on
-executor.shutdown() and on the context's shutdown.
+publish order, in few spins, and never more than ``batch`` messages per subscription in one spin;
+timers firing repeatedly, cancelled timers (before spinning, from their own callback, by another
+timer's callback in the same wake-up) not firing; guard conditions; a service and the node's
+parameter services answering a client spun by a plain SingleThreadedExecutor in another thread;
+entities changing between spins (a subscription created late, one destroyed between spins or by
+another callback in the same wake-up, a node added late or destroyed while added, entities
+destroyed with their own destroy(), a SubscriptionDrain that subscribes after the executor has
+spun: the wait set is rebuilt when a waitable's entity counts grow); exceptions from subscription,
+timer and resumed coroutine callbacks propagating out of spin_once (the executor still working
+afterwards); rclpy's own path for a node with a client and for coroutine callbacks that await;
+spin() ending on executor.shutdown() from another thread and on the context's shutdown, and
+spin_once() after shutdown() returning quietly.
 
-Every wait is a deadline loop of spin_once(timeout_sec=0.01) with a generous deadline (slow CI);
-nothing asserts on timing.
+Every wait is a deadline loop of spin_once with a generous deadline (slow CI); nothing asserts on
+timing (spin counts are bounded only where the executor's contract fixes them).
 """
 from __future__ import annotations
 
@@ -353,25 +355,32 @@ def test_a_node_destroyed_while_added_leaves_the_others_served(env):
     spin_until(env.ex, lambda: len(ticks) >= n + 5, "the other node's timer to keep firing")
 
 
-@pytest.mark.xfail(strict=True, raises=AssertionError, reason=(
-    "LeanExecutor bug: an entity destroyed with its own destroy() (Timer/GuardCondition/Subscription.destroy, "
-    "public rclpy API) stays in node.timers/guards/subscriptions, so the cached key never changes; every "
-    "spin_once then fails _Entities.enter() with InvalidHandle, drops the cache and returns without waiting: "
-    "spin() busy-loops and no callback of any node ever runs again. rclpy's executor skips the destroyed handle."))
-def test_an_entity_destroyed_with_its_own_destroy_does_not_starve_the_others(env):
+def test_entities_destroyed_with_their_own_destroy_are_left_out(env):
+    """Timer/Subscription.destroy() (public rclpy API) leaves the entity in its node's lists: it is skipped,
+    the others are served, and the executor still sleeps in its wait (no busy loop on the dead timer)."""
     node = env.node("lean_direct_destroy")
-    ticks = []
-    node.create_timer(0.01, lambda: ticks.append(1))
-    victim = node.create_timer(0.01, lambda: None)
-    spin_until(env.ex, lambda: len(ticks) >= 3, "the timer to fire")
-    victim.destroy()                                     # not node.destroy_timer(victim)
-    n = len(ticks)
-    # bounded by spins as well as time: with the bug each spin returns at once, without waiting
+    pub = env.node("direct_pub", spin=False).create_publisher(String, "direct", qos())
+    ticks, got, dead = [], [], []
+    node.create_timer(0.05, lambda: ticks.append(1))
+    victim_timer = node.create_timer(0.01, lambda: dead.append("timer"))
+    victim_sub = node.create_subscription(String, "direct", lambda m: dead.append(m.data), qos())
+    node.create_subscription(String, "direct", lambda m: got.append(m.data), qos())
+    env.warm_up(pub, lambda: got and dead)
+    spin_until(env.ex, lambda: len(ticks) >= 2, "the timer to fire")
+    victim_timer.destroy()                               # not node.destroy_timer(...)
+    victim_sub.destroy()                                 # not node.destroy_subscription(...)
+    dead.clear()
+    n_ticks = len(ticks)
+    # with nothing else ready, spin_once(1 s) returns once per 50 ms tick: a few spins for 3 ticks, not thousands
     deadline, spins = time.monotonic() + DEADLINE_S, 0
-    while time.monotonic() < deadline and spins < 300 and len(ticks) < n + 3:
-        env.ex.spin_once(timeout_sec=0.01)
+    while time.monotonic() < deadline and len(ticks) < n_ticks + 3:
+        env.ex.spin_once(timeout_sec=1.0)
         spins += 1
-    assert len(ticks) >= n + 3, f"the live timer fired {len(ticks) - n} times in {spins} spins"
+    assert len(ticks) >= n_ticks + 3
+    assert spins < 30, f"{spins} spins for 3 ticks: the executor does not wait"
+    pub.publish(msg("after"))
+    spin_until(env.ex, lambda: "after" in got, "a message on the live subscription")
+    assert dead == []
 
 
 def test_subscription_destroyed_by_another_callback_in_the_same_wake(env):
@@ -527,9 +536,7 @@ def test_coroutine_callbacks_on_a_lean_node(env):
     pub_wait = pub_node.create_publisher(String, "coro_wait", qos())
     pub_other = pub_node.create_publisher(String, "coro_other", qos())
     gate = Future()
-    events, other, quick = [], [], []
-
-    warm = []
+    events, other, quick, warm = [], [], [], []
 
     async def waits(m):
         if m.data == "warm":
@@ -594,7 +601,11 @@ def test_executor_shutdown_from_another_thread_ends_spin(env):
     time.sleep(0.05)
     assert env.ex.shutdown(timeout_sec=DEADLINE_S)
     thread.join(timeout=DEADLINE_S)
-    assert not thread.is_alive(), "spin() did not return after executor.shutdown()"
+    ended = not thread.is_alive()
+    if not ended:                                   # don't leave a thread inside rcl_wait: wake it, then fail
+        gc.trigger()
+        thread.join(timeout=DEADLINE_S)
+    assert ended, "spin() did not return after executor.shutdown()"
     assert outcome == {"returned": True}
 
 
@@ -608,16 +619,17 @@ def test_context_shutdown_ends_spin(env, ros_context):
     time.sleep(0.05)
     ros_context.try_shutdown()
     thread.join(timeout=DEADLINE_S)
-    assert not thread.is_alive(), "spin() did not return after the context's shutdown"
+    ended = not thread.is_alive()
+    if not ended:
+        gc.trigger()
+        thread.join(timeout=DEADLINE_S)
+    assert ended, "spin() did not return after the context's shutdown"
     # rclpy's SingleThreadedExecutor raises ExternalShutdownException here; returning is fine too
     assert outcome.get("returned") or isinstance(outcome.get("raised"), ExternalShutdownException), outcome
 
 
-@pytest.mark.xfail(strict=True, raises=AttributeError, reason=(
-    "LeanExecutor bug: after executor.shutdown() (which sets _guard and _sigint_gc to None), spin_once() "
-    "lists [None, None] as its guard conditions and _Entities reads None.handle: AttributeError. "
-    "rclpy's SingleThreadedExecutor.spin_once returns quietly after shutdown."))
 def test_spin_once_after_shutdown_returns_quietly(env):
+    """As rclpy's SingleThreadedExecutor (an earlier LeanExecutor read None.handle of the destroyed guards)."""
     env.node("lean_after_shutdown")
     spin_for(env.ex, 2)
     assert env.ex.shutdown(timeout_sec=DEADLINE_S)
