@@ -74,8 +74,9 @@ class _Entities:
     def enter(self, stack: ExitStack) -> bool:
         """Mark every handle in use for this spin (False when one was destroyed since listing: rebuild).
 
-        In use, a handle is not destroyed under the wait set or during its own take; a ``destroy``
-        from a callback takes effect when the spin ends, as with rclpy's executor.
+        In use, a handle is not destroyed under the wait set; the callbacks run after the handles
+        are let go, so a ``destroy`` from a callback takes effect at once (a later take from the
+        destroyed entity in the same spin is skipped).
         """
         enter = stack.enter_context
         try:
@@ -205,6 +206,8 @@ class LeanExecutor(SingleThreadedExecutor):
                 ents = self._entities()
                 if ents is None or not ents.enter(stack):
                     return super().spin_once(timeout_sec)
+            if self._is_shutdown:                            # shut down from another thread while listing
+                return
             ws = ents.wait_set
             with self._context.handle:
                 ents.fill()
@@ -220,6 +223,8 @@ class LeanExecutor(SingleThreadedExecutor):
             guards = [ents.gc_by_ptr[p] for p in ws.get_ready_entities("guard_condition") if p in ents.gc_by_ptr]
 
         for waitable in ready_waitables:
+            for future in getattr(waitable, "_futures", ()):   # as rclpy does (e.g. an ActionClient's)
+                future._set_executor(self)
             self._run(waitable.execute(waitable.take_data()))
         for tmr in timers:
             try:
