@@ -109,6 +109,12 @@ class HEstimate:
     sensitivity_nm_per_m: float
 
 
+def _dot(a: np.ndarray, b: np.ndarray) -> float:
+    """``a . b`` without BLAS: OpenBLAS's ddot starts its thread pool above ~10 000 elements (30 s at
+    360 Hz), whose spinning threads took a second core from a live node on a 2-core machine."""
+    return float(np.einsum("i,i->", a, b))
+
+
 #: Most samples the coarse grid of :class:`OnlineHEstimator` evaluates (Gauss-Newton then uses all).
 GRID_SAMPLES = 1500
 
@@ -265,18 +271,18 @@ class OnlineHEstimator:
         lo, hi = self.h_bounds
         for _ in range(8):
             e, de = self._residual(coef, h)
-            jtj = float(np.dot(de, de))
+            jtj = _dot(de, de)
             if jtj <= 0:
                 break
-            step = -float(np.dot(e, de)) / jtj
+            step = -_dot(e, de) / jtj
             h_new = min(max(h + step, lo), hi)
             if abs(h_new - h) < 1e-9:
                 h = h_new
                 break
             h = h_new
         e, de = self._residual(coef, h)
-        sse_h = float(np.dot(e, e))
-        jtj = float(np.dot(de, de))
+        sse_h = _dot(e, e)
+        jtj = _dot(de, de)
         sens = float(np.sqrt(jtj / n))
         rmse = float(np.sqrt(sse_h / n))
         if sens < self.min_sensitivity or jtj <= 0:
