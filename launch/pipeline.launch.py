@@ -65,7 +65,9 @@ def generate_launch_description() -> LaunchDescription:
              condition=UnlessCondition(compose),
              parameters=[_params_file("torque_estimator"), {"session_file": session,
                                                              "h": LaunchConfiguration("h")}]),
-        # no name=: it would rename every node of the process; each keeps its own (and its params file section)
+        # no name=: it would rename every node of the process; each keeps its own (and its params file section).
+        # The ingest parameters are written out again, not shared through a variable: the launch files are
+        # checked statically against the YAML mirror and the nodes' declarations (test_launch_files.py).
         Node(package="euc_ros", executable="pipeline_container", output="screen",
              on_exit=Shutdown(reason="pipeline_container ended"), condition=IfCondition(compose),
              arguments=["--nodes", "mocap_ingest,rider_state,torque_estimator"],

@@ -141,7 +141,7 @@ class LeanExecutor(SingleThreadedExecutor):
         nodes = self.get_nodes()
         subs, timers, services, guards, waitables = [], [], [], [], []
         for node in nodes:
-            if any(True for _ in node.clients):
+            if next(iter(node.clients), None) is not None:
                 return None                                  # a client: rclpy's own path
             subs.extend(node.subscriptions)
             timers.extend(node.timers)
@@ -273,10 +273,8 @@ class LeanExecutor(SingleThreadedExecutor):
         if not inspect.iscoroutine(result):
             return result
         try:
-            while True:
-                result.send(None)
-                # it awaits something (a future): let rclpy's task machinery finish it
-                self.create_task(result)
-                return None
+            result.send(None)
         except StopIteration as stop:
             return stop.value
+        self.create_task(result)         # it awaits something (a future): rclpy's task machinery finishes it
+        return None
