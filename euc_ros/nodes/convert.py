@@ -152,3 +152,43 @@ def publish_status(node, publisher, name: str, level: int, message: str, values:
 
 
 OK, WARN, ERROR, STALE = (DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE)
+
+
+class LocalState:
+    """A rider state handed over in-process (:mod:`euc_ros.nodes.container`) instead of a RiderState message:
+    its header stamp [ns], frame id and the core sample (same field names as the message)."""
+
+    __slots__ = ("stamp_ns", "frame_id", "sample")
+
+    def __init__(self, stamp_ns: int, frame_id: str, sample) -> None:
+        self.stamp_ns, self.frame_id, self.sample = stamp_ns, frame_id, sample
+
+
+_FLAT_KINDS = {"boolean": "bool", "double": "float64", "string": "string"}
+
+
+def flat_fields(msg_class) -> list[tuple[str, str]]:
+    """The fields after ``header`` of a flat message class as :class:`~euc_ros.core.io.cdr_flat.FlatEncoder`
+    wants them: ``(dotted name, kind)``, nested float64 structs (``geometry_msgs/Point``) expanded.
+
+    Raises ValueError for a field type the flat encoder cannot write (then publish the message object).
+    """
+    import importlib
+
+    def walk(cls, prefix: str, out: list) -> None:
+        for name, typ in cls.get_fields_and_field_types().items():
+            if prefix == "" and name == "header" and typ == "std_msgs/Header":
+                continue
+            if typ in _FLAT_KINDS:
+                out.append((prefix + name, _FLAT_KINDS[typ]))
+            elif "/" in typ and "<" not in typ and "[" not in typ:
+                pkg, sub = typ.split("/")
+                walk(getattr(importlib.import_module(f"{pkg}.msg"), sub), f"{prefix}{name}.", out)
+            else:
+                raise ValueError(f"{cls.__name__}.{prefix}{name}: type {typ} is not flat")
+
+    fields: list[tuple[str, str]] = []
+    if "header" not in msg_class.get_fields_and_field_types():
+        raise ValueError(f"{msg_class.__name__} has no header")
+    walk(msg_class, "", fields)
+    return fields

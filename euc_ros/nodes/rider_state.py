@@ -39,6 +39,7 @@ from euc_msgs.msg import MocapFrame, RiderState
 from rclpy.node import Node
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.euc.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.euc.skeleton_fit import COG_METHODS
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
@@ -50,7 +51,13 @@ from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.rate_gate import NodeRateGate
+from euc_ros.nodes.intra import LocalFanout
 from euc_ros.nodes.runtime import drain, main_for
+
+#: RiderState's fields after the header, in the message's order (what :meth:`RiderStateNode._values` writes).
+_STATE_MSG_FIELDS = ("has_rider", "x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",
+                     "phi_ddot", "phi_eq3", "phi_hinge", "phi_definition", "psi", "theta", "c.x", "c.y", "c.z",
+                     "g.x", "g.y", "g.z", "filter_lag")
 
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider segments and EUC geometry (required)"),
@@ -124,6 +131,10 @@ class RiderStateNode(Node):
         self.presence = BodyPresence([self.session.euc.body] + [n for n, f in zip(names, fractions) if f > 0])
         self._origin_ns: int | None = None
         self._last_frame_wall: float | None = None
+        fields = convert.flat_fields(RiderState)
+        if tuple(n for n, _ in fields) != _STATE_MSG_FIELDS:     # the interface changed: update _values
+            raise RuntimeError(f"RiderState fields {[n for n, _ in fields]} differ from {_STATE_MSG_FIELDS}")
+        self._encoder = FlatEncoder(fields)
         self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS,
                                                event_callbacks=itf.pub_events())
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
@@ -194,10 +205,26 @@ class RiderStateNode(Node):
             self.counts["errors"] += 1
             self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
             return
+        local = isinstance(self.state_pub, LocalFanout)
         for s in samples:
-            self.state_pub.publish(self._to_msg(s, frame_id))
+            # serialized directly (cdr_flat): a message object costs twice as much to publish, plus its build
+            stamp_ns = self._origin_ns + int(round(s.t * 1e9))
+            raw = self._encoder.encode(stamp_ns, frame_id, self._values(s))
+            if local:
+                self.state_pub.publish(raw, local=convert.LocalState(stamp_ns, frame_id, s))
+            else:
+                self.state_pub.publish(raw)
             self.counts["states"] += 1
             self.counts["no_rider"] += not s.has_rider
+
+    @staticmethod
+    def _values(s) -> tuple:
+        """A sample's field values in the order of :data:`_STATE_MSG_FIELDS` (RiderState after its header)."""
+        C, G = s.C, s.G
+        return (bool(s.has_rider), float(s.x), float(s.x_dot), float(s.x_ddot), float(s.gamma), float(s.gamma_dot),
+                float(s.gamma_ddot), float(s.phi), float(s.phi_dot), float(s.phi_ddot), float(s.phi_eq3),
+                float(s.phi_hinge), s.phi_definition, float(s.psi), float(s.theta), float(C[0]), float(C[1]),
+                float(C[2]), float(G[0]), float(G[1]), float(G[2]), float(s.filter_lag_s))
 
     def _to_msg(self, s, frame_id: str) -> RiderState:
         m = RiderState()

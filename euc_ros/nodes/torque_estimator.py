@@ -30,6 +30,7 @@ from euc_msgs.msg import RiderState, TorqueEstimate
 from rclpy.node import Node
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.euc.estimators import TorqueEstimator, extended_model_from_config
 from euc_ros.core.euc.model import EucParams
 from euc_ros.core.session import load_session
@@ -60,6 +61,9 @@ SPECS = (
     ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
 )
 
+#: TorqueEstimate's fields after the header, in the message's order (what :meth:`_process` writes).
+_TORQUE_MSG_FIELDS = ("valid", "m_d1", "m_d2", "m_d1_2dof", "m_d2_2dof", "h", "residual", "rmse_window", "window",
+                      "h_online", "h_online_std", "model", "h_online_status")
 _STATE_FIELDS = ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi", "theta")
 
 
@@ -104,6 +108,10 @@ class TorqueEstimatorNode(Node):
         self._origin_ns: int | None = None
         self._last_state_wall: float | None = None
         self._published_at_last_diag = 0
+        fields = convert.flat_fields(TorqueEstimate)
+        if tuple(n for n, _ in fields) != _TORQUE_MSG_FIELDS:   # the interface changed: update _process
+            raise RuntimeError(f"TorqueEstimate fields {[n for n, _ in fields]} differ from {_TORQUE_MSG_FIELDS}")
+        self._encoder = FlatEncoder(fields)
         self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS,
                                                 event_callbacks=itf.pub_events())
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
@@ -136,23 +144,27 @@ class TorqueEstimatorNode(Node):
         self._on_state(msg)
         drain(self._state_sub, self._on_state)   # a backlog in one wake-up
 
-    def _on_state(self, msg: RiderState) -> None:
+    def _on_state(self, msg) -> None:
+        """One RiderState message, or a :class:`~euc_ros.nodes.convert.LocalState` handed over in-process."""
         self._last_state_wall = time.monotonic()
         try:
-            stamp = convert.stamp_to_ns(msg.header.stamp)
+            stamp = msg.stamp_ns if type(msg) is convert.LocalState else convert.stamp_to_ns(msg.header.stamp)
         except Exception as exc:   # never die on input
             self.errors += 1
             self.get_logger().warning(f"state dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
             return
         self.rate_gate.push(-1, stamp, msg)
 
-    def _process(self, msg: RiderState) -> None:
+    def _process(self, msg) -> None:
         try:
-            stamp = convert.stamp_to_ns(msg.header.stamp)
+            if type(msg) is convert.LocalState:
+                stamp, frame_id, src = msg.stamp_ns, msg.frame_id, msg.sample
+            else:
+                stamp, frame_id, src = convert.stamp_to_ns(msg.header.stamp), msg.header.frame_id, msg
             if self._origin_ns is None:
                 self._origin_ns = stamp
             state = SimpleNamespace(t=(stamp - self._origin_ns) * 1e-9, frame=-1, valid=True,
-                                    **{k: float(getattr(msg, k)) for k in _STATE_FIELDS})
+                                    **{k: float(getattr(src, k)) for k in _STATE_FIELDS})
             out = self.estimator.update(state)
         except Exception as exc:   # never die on input
             self.errors += 1
@@ -160,19 +172,11 @@ class TorqueEstimatorNode(Node):
             return
         if out is None:
             return
-        m = TorqueEstimate()
-        m.header = msg.header
-        m.valid = True
-        m.m_d1, m.m_d2, m.m_d1_2dof, m.m_d2_2dof = out.M_d1, out.M_d2, out.M_d1_2dof, out.M_d2_2dof
-        m.h = out.h_m
-        m.residual = out.residual_nm
-        m.rmse_window = out.rmse_window_nm
-        m.window = out.window_s
-        m.h_online = out.h_online_m
-        m.h_online_std = out.h_online_std_m
-        m.h_online_status = out.h_online_status
-        m.model = out.model
-        self.torque_pub.publish(m)
+        # serialized directly (cdr_flat), header copied from the state: a message object costs twice as much
+        self.torque_pub.publish(self._encoder.encode(stamp, frame_id, (
+            True, float(out.M_d1), float(out.M_d2), float(out.M_d1_2dof), float(out.M_d2_2dof), float(out.h_m),
+            float(out.residual_nm), float(out.rmse_window_nm), float(out.window_s), float(out.h_online_m),
+            float(out.h_online_std_m), out.model, out.h_online_status)))
         self.published += 1
         self.last = out
 

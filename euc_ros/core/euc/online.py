@@ -117,6 +117,13 @@ def _dot(a: np.ndarray, b: np.ndarray) -> float:
 
 #: Most samples the coarse grid of :class:`OnlineHEstimator` evaluates (Gauss-Newton then uses all).
 GRID_SAMPLES = 1500
+#: Between two coarse-grid searches, an update starts Gauss-Newton from the previous estimate (the
+#: window moved by ``update_every`` samples, so the minimum moved little): the grid is searched again
+#: every this many updates, when there is no previous estimate, or when Gauss-Newton ends on a bound.
+REGRID_EVERY = 50
+#: Gauss-Newton stops when its step is below this [m] (a micrometre; the estimate's
+#: own standard deviation is millimetres).
+GN_TOL_M = 1e-6
 
 
 class OnlineHEstimator:
@@ -170,6 +177,8 @@ class OnlineHEstimator:
         self._i = 0
         self._n_updates = 0
         self._last = HEstimate(np.nan, np.nan, np.nan, 0, np.nan)
+        self._h_prev = float("nan")   # last Gauss-Newton minimum (NaN: search the grid next time)
+        self._since_grid = 0
 
     def reset(self) -> None:
         """Forget all samples."""
@@ -178,6 +187,8 @@ class OnlineHEstimator:
         self._i = 0
         self._n_updates = 0
         self._last = HEstimate(np.nan, np.nan, np.nan, 0, np.nan)
+        self._h_prev = float("nan")
+        self._since_grid = 0
 
     def update(self, gamma: float, phi: float, gamma_dot: float, phi_dot: float, x_ddot: float,
                gamma_ddot: float, phi_ddot: float) -> HEstimate:
@@ -254,33 +265,50 @@ class OnlineHEstimator:
         de = c * ((a1 + 2 * a2 * h) * D - N * d1) / D**2
         return e, de
 
-    def _estimate(self) -> HEstimate:
-        self._flush()
-        coef = self._coef[:, self._ok]
-        n = coef.shape[1]
-        if n < self.min_samples:
-            return HEstimate(np.nan, np.nan, np.nan, n, np.nan)
-        # the coarse grid only picks the basin for Gauss-Newton on every sample: a smooth function of h,
-        # located as well by an evenly spread subset (at most GRID_SAMPLES; 30 s at 360 Hz is 10800)
-        stride = max(1, n // GRID_SAMPLES)
+    def _grid_start(self, coef: np.ndarray) -> float:
+        """The coarse grid's minimum of S(h), on an evenly spread subset of at most GRID_SAMPLES samples
+        (it only picks the basin; a smooth function of h is located as well by the subset)."""
+        stride = max(1, coef.shape[1] // GRID_SAMPLES)
         c, a0, a1, a2, d0, d1 = coef[:, ::stride]
         H = self._grid[:, None]
         sse = np.sum((c * (a0 + H * (a1 + H * a2)) / (d0 + d1 * H)) ** 2, axis=1)
-        k = int(np.argmin(sse))
-        h = float(self._grid[k])
+        return float(self._grid[int(np.argmin(sse))])
+
+    def _gauss_newton(self, coef: np.ndarray, h: float) -> tuple[float, np.ndarray, np.ndarray, bool]:
+        """Gauss-Newton from ``h`` within the bounds: ``(h, e(h), e'(h), on_bound)``."""
         lo, hi = self.h_bounds
         for _ in range(8):
             e, de = self._residual(coef, h)
             jtj = _dot(de, de)
             if jtj <= 0:
-                break
-            step = -_dot(e, de) / jtj
-            h_new = min(max(h + step, lo), hi)
-            if abs(h_new - h) < 1e-9:
-                h = h_new
+                return h, e, de, False
+            h_new = min(max(h - _dot(e, de) / jtj, lo), hi)
+            if abs(h_new - h) < GN_TOL_M:
                 break
             h = h_new
-        e, de = self._residual(coef, h)
+        else:
+            e, de = self._residual(coef, h)
+        return h, e, de, h <= lo or h >= hi
+
+    def _estimate(self) -> HEstimate:
+        self._flush()
+        coef = self._coef[:, self._ok]
+        n = coef.shape[1]
+        if n < self.min_samples:
+            self._h_prev = float("nan")
+            return HEstimate(np.nan, np.nan, np.nan, n, np.nan)
+        # Between grid searches, start from the previous minimum: one or two Gauss-Newton steps over the
+        # window (~0.3 ms at 30 s x 360 Hz) instead of the grid and eight steps (~2.6 ms) at every update,
+        # which delayed one frame in 36 at 360 Hz. The grid runs again periodically, and whenever
+        # Gauss-Newton from the previous minimum ends on a bound, so a new basin is not missed for long.
+        warm = np.isfinite(self._h_prev) and self._since_grid < REGRID_EVERY
+        if warm:
+            self._since_grid += 1
+            h, e, de, on_bound = self._gauss_newton(coef, self._h_prev)
+        if not warm or on_bound:
+            self._since_grid = 0
+            h, e, de, _ = self._gauss_newton(coef, self._grid_start(coef))
+        self._h_prev = h
         sse_h = _dot(e, e)
         jtj = _dot(de, de)
         sens = float(np.sqrt(jtj / n))
