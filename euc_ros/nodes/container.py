@@ -12,9 +12,10 @@ mocap_ingest.frame_pub    mocap/frame     rider_state           the core Frame (
 rider_state.state_pub     rider/state     torque_estimator      the RiderState message
 ========================  ==============  ====================  ==========================
 
-A linked subscriber's DDS subscription is destroyed and the publisher calls its handler right
-after publishing to the middleware (other processes, the recorder and the monitor, still receive
-every message; ``get_subscription_count`` counts the in-process subscriber). The chain then runs
+A linked subscriber's DDS subscription is destroyed and the publisher calls its handler, then
+publishes to the middleware (other processes, the recorder and the monitor, still receive every
+message; ``get_subscription_count`` counts the in-process subscriber). In-process first, as rclcpp
+does: a frame's torque is on the wire before the frame and the state are. The chain then runs
 in one call: a frame's state and torque are out before the next frame is read. All nodes spin on
 one :class:`~euc_ros.nodes.executor.LeanExecutor`.
 
