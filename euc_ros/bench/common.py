@@ -337,11 +337,14 @@ class BenchContext:
         Scratch space of this run (bags, logs), removed by the caller.
     log : callable
         Progress lines (stderr by default).
+    realtime : int, optional
+        SCHED_FIFO priority of the latency-critical processes of the live benchmarks (``--realtime``).
     """
 
     quick: bool
     cache_dir: Path
     tmp_dir: Path
+    realtime: int | None = None
     log: Callable[[str], None] = field(default=lambda s: print(s, file=sys.stderr, flush=True))
 
     def isolated(self, target: str, timeout_s: float = 600.0, **kwargs) -> dict:

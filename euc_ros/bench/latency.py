@@ -135,11 +135,18 @@ def analyze(data: dict, n_sent: int, rate_hz: float, warmup_s: float = WARMUP_S)
     }
 
 
-def _probe_spec(out: Path):
+def rt_env(realtime: int | None) -> dict:
+    """Environment of a latency-critical process: SCHED_FIFO ``realtime`` (:mod:`euc_ros.sched`) or nothing."""
+    from euc_ros.sched import REALTIME_ENV
+
+    return {} if realtime is None else {REALTIME_ENV: str(int(realtime))}
+
+
+def _probe_spec(out: Path, realtime: int | None = None):
     from euc_ros.launch import NodeSpec
 
     return NodeSpec(sys.executable, name="probe", args=["-m", "euc_ros.bench.probe", "--out", str(out)],
-                    ros_args=False, required=False)
+                    ros_args=False, required=False, env=rt_env(realtime))
 
 
 def _run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO):
@@ -177,22 +184,26 @@ def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) 
     return res
 
 
-def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, timeout_s: float) -> dict:
-    """Run the bare relay chain with the probe; returns :func:`analyze` plus ``peak_rss_mb``."""
+def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, timeout_s: float,
+                  realtime: int | None = None) -> dict:
+    """Run the bare relay chain with the probe; returns :func:`analyze` plus ``peak_rss_mb``.
+
+    ``realtime``: SCHED_FIFO priority of every process of the chain (as the pipeline's critical ones)."""
     from euc_ros.bench.probe import load
     from euc_ros.launch import NodeSpec
 
     probe_out = out_dir / "floor_probe.npz"
     relay = ["-m", "euc_ros.bench.relay"]
+    env = rt_env(realtime)
     specs = [
-        _probe_spec(probe_out),
+        _probe_spec(probe_out, realtime),
         NodeSpec(sys.executable, name="relay_torque", args=[*relay, "hop", "--kind", "torque"], ros_args=False,
-                 required=False),
+                 required=False, env=env),
         NodeSpec(sys.executable, name="relay_state", args=[*relay, "hop", "--kind", "state"], ros_args=False,
-                 required=False),
+                 required=False, env=env),
         NodeSpec(sys.executable, name="relay_source",
                  args=[*relay, "source", "--rate", str(rate_hz), "--frames", str(n_frames), "--bodies", str(n_bodies),
-                       "--wait-subscribers", "2", "--start-delay", "1.0", "--linger", "2.0"], ros_args=False),
+                       "--wait-subscribers", "2", "--start-delay", "1.0", "--linger", "2.0"], ros_args=False, env=env),
     ]
     log = io.StringIO()
     rss = _run_chain(specs, probe_out, timeout_s, log).peaks_mb()

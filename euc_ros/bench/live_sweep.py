@@ -94,13 +94,15 @@ def stream_cpu(sampler, probe: dict, warmup_s: float = 1.0) -> dict[str, float]:
 
 
 def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool = True, composed: bool = True,
-                 log=None) -> dict:
+                 log=None, realtime: int | None = None) -> dict:
     """Pipeline (and floor) on one recording: :func:`euc_ros.bench.latency.analyze` per chain, CPU and bag.
 
     ``composed``: ingest, rider_state and torque_estimator in one ``pipeline_container`` process
-    (:mod:`euc_ros.nodes.container`, linked in-process); otherwise three processes.
+    (:mod:`euc_ros.nodes.container`, linked in-process); otherwise three processes. ``realtime``:
+    SCHED_FIFO priority of the estimation chain and the probe (the monitor and recorder stay at normal
+    priority), and of every process of the floor.
     """
-    from euc_ros.bench.latency import _probe_spec, _run_chain, analyze, measure_floor
+    from euc_ros.bench.latency import _probe_spec, _run_chain, analyze, measure_floor, rt_env
     from euc_ros.bench.recording import bag_counts
     from euc_ros.bench.probe import load
     from euc_ros.core.io.motive_csv import read_motive_csv
@@ -114,19 +116,21 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     probe_out, bag = out_dir / "pipeline_probe.npz", out_dir / "bag"
     shutil.rmtree(bag, ignore_errors=True)
     session = str(rec["session"])
+    env = rt_env(realtime)
     specs = [
-        _probe_spec(probe_out),
+        _probe_spec(probe_out, realtime),
         NodeSpec("monitor", parameters={"expected_rate_hz": rate}, required=False),
     ]
     ingest = {"csv_path": str(rec["csv"]), "rate_factor": 1.0, "exit_when_done": True,
               "wait_subscribers": 3 + int(record), "start_delay": 1.0, "linger": 2.0}
     if composed:
-        specs.append(NodeSpec("pipeline_container", parameters={"session_file": session, "h": 0.61, **ingest}))
+        specs.append(NodeSpec("pipeline_container", parameters={"session_file": session, "h": 0.61, **ingest},
+                              env=env))
     else:
         specs += [
-            NodeSpec("torque_estimator", parameters={"session_file": session, "h": 0.61}, required=False),
-            NodeSpec("rider_state", parameters={"session_file": session}, required=False),
-            NodeSpec("mocap_ingest", parameters=ingest),
+            NodeSpec("torque_estimator", parameters={"session_file": session, "h": 0.61}, required=False, env=env),
+            NodeSpec("rider_state", parameters={"session_file": session}, required=False, env=env),
+            NodeSpec("mocap_ingest", parameters=ingest, env=env),
         ]
     if record:
         specs.insert(1, NodeSpec("recorder", parameters={"output": str(bag)}, required=False))
@@ -139,11 +143,12 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
         counts = bag_counts(bag) if (bag / "metadata.yaml").exists() else {}
         pipe["bag_counts"] = counts
         pipe["bag_frames"] = counts.get("/mocap/frame", 0)
-    out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "composed": composed, "pipeline": pipe}
+    out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "composed": composed, "realtime": realtime,
+           "pipeline": pipe}
     if floor:
         if log:
             log(f"    floor: bare relay chain, {n_frames} frames at {rate:g} Hz, {n_bodies} bodies")
-        fl = measure_floor(n_frames, rate, n_bodies, out_dir, duration + 90.0)
+        fl = measure_floor(n_frames, rate, n_bodies, out_dir, duration + 90.0, realtime=realtime)
         out["floor"] = fl
         out["ratio_p99"] = pipe["end_to_end"]["p99"] / fl["end_to_end"]["p99"]
     out["met"] = bool(pipe["frames_dropped"] == 0 and out.get("ratio_p99", 0.0) <= TARGET_RATIO
@@ -172,7 +177,7 @@ def run(ctx: BenchContext) -> dict:
         for n in BODIES[ctx.quick]:
             rec = live_recording(ctx.cache_dir, rate, n, CELL_S[ctx.quick], log=ctx.log)
             ctx.log(f"  pipeline at {rate} Hz with {n} bodies, {CELL_S[ctx.quick]:g} s")
-            cell = measure_cell(rec, ctx.tmp_dir / "live_sweep" / f"{rate}_{n}", log=ctx.log)
+            cell = measure_cell(rec, ctx.tmp_dir / "live_sweep" / f"{rate}_{n}", log=ctx.log, realtime=ctx.realtime)
             cells.append(cell)
             figures.append(cell_figure(cell, f"{rate} Hz x {n} bodies: end-to-end p99"))
     return {"name": "live_sweep", "title": "Live pipeline at every rate and body count (with recorder and monitor)",
@@ -186,13 +191,14 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 0)
 
 
-if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S
+if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S [PRIO]
     import json
     import tempfile
 
     r, b, s = float(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
+    prio = int(sys.argv[4]) if len(sys.argv) > 4 else None      # optional SCHED_FIFO priority
     cache = Path.home() / ".cache" / "euc_ros" / "bench"
     rec = live_recording(cache, r, b, s, log=print)
     with tempfile.TemporaryDirectory() as d:
-        cell = measure_cell(rec, Path(d), log=print)
+        cell = measure_cell(rec, Path(d), log=print, realtime=prio)
     print(json.dumps({k: v for k, v in cell.items()}, indent=1, default=str))

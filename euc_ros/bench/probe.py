@@ -132,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", required=True, type=Path, help="npz file written at shutdown")
     parser.add_argument("--topics", default=",".join(DEFAULT_TOPICS), help="comma-separated topics")
     args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
+    from euc_ros.sched import realtime_from_env
+    realtime_from_env("probe")
     rclpy.init(args=["probe", *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     stop = install_stop_handlers()
     probe = None

@@ -388,7 +388,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dt", type=float, default=0.01, help="lockstep-sim: simulated step [s]")
     parser.add_argument("--result", default=None, help="also write the JSON result to this file")
     args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
+    from euc_ros.sched import realtime_from_env
 
+    realtime_from_env("relay")
     rclpy.init(args=["relay", *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     stop = install_stop_handlers()
     node = rclpy.create_node(f"bench_{args.mode.replace('-', '_')}" + (f"_{args.kind}" if args.mode == "hop" else ""))

@@ -26,13 +26,14 @@ def run(ctx: BenchContext) -> dict:
     duration = DURATION_S[ctx.quick]
     rec = live_recording(ctx.cache_dir, RATE_HZ, BODIES, duration, log=ctx.log)
     ctx.log(f"  pipeline at {RATE_HZ} Hz with {BODIES} bodies for {duration:g} s, then the floor")
-    cell = measure_cell(rec, ctx.tmp_dir / "soak", log=ctx.log)
+    cell = measure_cell(rec, ctx.tmp_dir / "soak", log=ctx.log, realtime=ctx.realtime)
     p = cell["pipeline"]
     figures = [cell_figure(cell, f"{duration / 60:g} min at {RATE_HZ} Hz x {BODIES} bodies: end-to-end p99"),
                figure("frames dropped", p["frames_dropped"], "frames", floor=cell["floor"]["frames_dropped"],
                       target="0", met=p["frames_dropped"] == 0,
                       note=f"of {p['frames_sent']} sent; in the bag {p.get('bag_frames', 0)}; "
                            f"states {p['states']}, torques {p['torques']}, NaN torques {p['nan_torques']}")]
-    return {"name": "soak", "title": f"Soak: {duration / 60:g} min at {RATE_HZ} Hz x {BODIES} bodies, whole pipeline",
+    rt = f", SCHED_FIFO {ctx.realtime}" if ctx.realtime is not None else ""
+    return {"name": "soak", "title": f"Soak: {duration / 60:g} min at {RATE_HZ} Hz x {BODIES} bodies, whole pipeline{rt}",
             "figures": figures, "peak_rss_mb": {f"pipeline {k}": v for k, v in p["peak_rss_mb"].items()},
             "details": cell, "wall_s": time.monotonic() - t0}

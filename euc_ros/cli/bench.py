@@ -44,9 +44,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cache-dir", type=Path, default=DEFAULT_CACHE, metavar="DIR",
                         help=f"generated recordings, reused between runs (default {DEFAULT_CACHE})")
     parser.add_argument("--keep-tmp", action="store_true", help="keep the scratch directory (bags, probe files)")
+    parser.add_argument("--realtime", type=int, nargs="?", const=10, default=None, metavar="PRIO",
+                        help="live benchmarks (live_sweep, soak): run the latency-critical processes at SCHED_FIFO "
+                             "PRIO (default 10 when given): the pipeline container and the probe, and in the floor "
+                             "its source, relays and probe alike; the monitor and recorder stay at normal priority. "
+                             "Needs CAP_SYS_NICE (root); without it every process says so and runs normally")
 
 
-def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=None) -> dict:
+def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=None, realtime: int | None = None
+                   ) -> dict:
     """Run the named benchmarks; returns the result dict written as JSON (``benchmarks``, ``machine``...)."""
     import importlib
 
@@ -54,11 +60,11 @@ def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=No
 
     from euc_ros.bench.common import BenchContext, machine_info
 
-    ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir))
+    ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir), realtime=realtime)
     if log is not None:
         ctx.log = log
     ctx.cache_dir.mkdir(parents=True, exist_ok=True)
-    result = {"quick": quick, "started_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
+    result = {"quick": quick, "realtime": realtime, "started_utc": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
               "machine": machine_info(), "load_average_start": [round(x, 2) for x in os.getloadavg()],
               "benchmarks": []}
     t0 = time.monotonic()
@@ -107,7 +113,8 @@ def main(args: argparse.Namespace) -> int:
                 raise ConfigError(f"cannot create the directory: {exc.strerror}", path=p.parent) from None
     tmp = Path(tempfile.mkdtemp(prefix="euc_bench_"))
     try:
-        result = run_benchmarks(names, quick=args.quick, cache_dir=args.cache_dir, tmp_dir=tmp)
+        result = run_benchmarks(names, quick=args.quick, cache_dir=args.cache_dir, tmp_dir=tmp,
+                                realtime=getattr(args, "realtime", None))
     finally:
         if args.keep_tmp:
             print(f"scratch kept in {tmp}", file=sys.stderr)

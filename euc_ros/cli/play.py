@@ -134,13 +134,9 @@ class BagSource:
 
 def set_realtime(priority: int) -> str:
     """Switch this process to SCHED_FIFO at ``priority``; return what happened (never raises)."""
-    import os
+    from euc_ros.sched import set_realtime as _set
 
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(int(priority)))
-    except (AttributeError, OSError, ValueError) as exc:
-        return f"real-time priority not available ({exc}); playing with normal priority"
-    return f"real-time priority SCHED_FIFO {priority}"
+    return _set(priority, "playing")
 
 
 class _Stop:

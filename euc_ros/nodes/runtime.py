@@ -17,6 +17,7 @@ from rclpy.node import Node
 from euc_ros.core.errors import EucError
 from euc_ros.nodes.executor import LeanExecutor
 from euc_ros.nodes.params import params_files_in, validate_params_file
+from euc_ros.sched import realtime_from_env
 
 #: How long an exception raised inside spin waits for a signal-triggered shutdown to complete [s].
 SHUTDOWN_RACE_S = 0.5
@@ -51,6 +52,7 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
     except EucError as exc:
         print(f"{label}: error: {exc}", file=sys.stderr)
         return 2
+    realtime_from_env(label)            # before rclpy.init: the middleware's threads inherit it
     rclpy.init(args=args)
     nodes: list[Node] = []
     executor = None
