@@ -498,9 +498,11 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     Y = sol.sol(t)
     s = dyn.sample(t, Y)
     env = s["env"]
-    # centre the recorded C track in the capture volume
+    # centre the recorded C track in the capture volume, unless something is fixed in the lab (a floor, a rope's
+    # anchor): then every run is recorded in the one lab frame the simulation used
     xy = Y[6:8]
-    xy_offset = 0.5 * (xy.min(axis=1) + xy.max(axis=1)) if config.floor is None else np.zeros(2)
+    lab_fixed = config.floor is not None or any(getattr(f, "lab_fixed", False) for f in config.external)
+    xy_offset = 0.5 * (xy.min(axis=1) + xy.max(axis=1)) if not lab_fixed else np.zeros(2)
     w = dyn.world(t, Y, xy_offset, session)
     # rider at t - dt for the mocap_time_offset effect (measurement only)
     w_rider = w if dt_off == 0 else dyn.world(t - dt_off, sol.sol(t - dt_off), xy_offset, session)
