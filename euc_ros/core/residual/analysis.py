@@ -911,7 +911,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         root = Model([c for c in current.effects if getattr(c, "geometric", False)])
         root_fit = fit_model(root, recs, h0)
         root_ho = held_out(root, recs, h0, folds, start=root_fit.x)
-        alt = discover_terms(root, root_fit.x, recs, folds, h0, root_ho)
+        alt = discover_terms(root, root_fit.x, recs, folds, h0, root_ho, h_geo)
         sel = alt["info"].pop("selection_heldout", None)
         if sel is not None and sel.residual.shape == current_ho.residual.shape:
             p_alt = paired_block_test(current_ho, sel)
@@ -925,7 +925,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     named_model, named_ho, named_x = current, current_ho, current_x
     if discover:
         say("discovery: sparse basis forces on what the named effects leave")
-        disc = discover_terms(current, current_x, recs, folds, h0, current_ho)
+        disc = discover_terms(current, current_x, recs, folds, h0, current_ho, h_geo)
         disc_info = disc.pop("info")
         disc_info["alternative_to_named"] = disc_alt
         if disc.get("model") is not None:
@@ -1046,16 +1046,21 @@ DISCOVERY_H_STEP_M = 1e-3
 
 
 def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recording], folds, h0: float,
-                   current_ho: HeldOut) -> dict:
+                   current_ho: HeldOut, h_geometric: float = float("nan")) -> dict:
     """The discovery step (:mod:`euc_ros.core.residual.discovery`): terms by best-subset selection within each
     fold's training data, their number by held-out error, then the chosen terms fitted jointly with h.
 
     The residual is linear in the terms' coefficients but not in h (the rider's inertia m h^2): the selection
     works on the residual linearised in h. When the effect to discover biased the current model's h far from
-    the truth (a rope: 0.33 m against 0.61), that linearisation is poor and spare terms make up for the missing
-    curvature in h. So the selection is repeated around the h the chosen terms imply (Gauss-Newton, at most
-    :data:`DISCOVERY_RELINEARISE` times, until h moves less than :data:`DISCOVERY_H_STEP_M`); the first pass is
-    the linearisation at the current h, so a ride where the terms do not move h is unchanged.
+    the truth (a rope: 0.26-0.33 m against 0.61), that linearisation is poor and spare terms make up for the
+    missing curvature in h. So the selection is also made linearised at the segments' geometric h
+    (``h_geometric``, measured, the same the admissibility test uses) and then around the h the chosen terms
+    imply (re-linearised at the h of the full fit, at most :data:`DISCOVERY_RELINEARISE` times while h moves
+    by more than :data:`DISCOVERY_H_STEP_M`; h is refitted within each fold's training data at every
+    linearisation but the first). The discovered models of the linearisations are compared by their held-out
+    error after the full (non-linear) fit: a tie (paired block test at :data:`AMBIGUITY_ALPHA`) goes to the
+    one with fewer terms. The first linearisation is the current model's own, so a ride where no other
+    fits better held-out is unchanged.
 
     Returns ``{"model", "x", "heldout", "info"}`` (model None when no number of terms beats none).
     """
@@ -1068,9 +1073,12 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         u = hc / max(np.linalg.norm(hc), 1e-300)
         return r0 - u * (u @ r0), B - np.outer(u, u @ B)
 
-    def select(h_lin: float):
+    def select(h_lin: float | None):
+        # h_lin None: linearised at the current model's fit (in each fold its own h); else at h_lin, with h
+        # refitted within each fold's training data (also without terms)
         x_lin = np.array(current_x, float)
-        x_lin[0] = h_lin
+        if h_lin is not None:
+            x_lin[0] = h_lin
         L = force_map(current, recs, x_lin)
         B_all = [basis_sensitivities(r.ctx, Li) for r, Li in zip(recs, L)]
         base = [current.residual(r, x_lin) for r in recs]
@@ -1081,7 +1089,8 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         per_k: dict[int, list[np.ndarray]] = {}
         for fold, x_fold in zip(folds, current_ho.params):
             x_fold = np.array(x_fold, float)
-            x_fold[0] = h_lin
+            if h_lin is not None:
+                x_fold[0] = h_lin
             fres = [current.residual(r, x_fold) if np.any(te) or np.any(tr) else None
                     for r, tr, te in zip(recs, fold.train, fold.test)]
             tr_rows = [np.asarray(tr, bool) & f[1] for tr, f in zip(fold.train, fres) if f is not None]
@@ -1094,7 +1103,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
             Bt = np.concatenate([B_all[i][rw] for i, rw in te_rows])
             hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
-            per_k.setdefault(0, []).append(r0t)
+            if h_lin is None:
+                per_k.setdefault(0, []).append(r0t)
+            else:
+                c0 = -(hc @ r0) / max(hc @ hc, 1e-300)
+                per_k.setdefault(0, []).append(r0t + hct * c0)
             for k, cols in enumerate(sets, start=1):
                 A = np.column_stack([hc, B[:, cols]])
                 c, *_ = np.linalg.lstsq(A, -r0, rcond=None)
@@ -1114,35 +1127,58 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         c, *_ = np.linalg.lstsq(np.column_stack([hc, B[:, cols]]), -r0, rcond=None)
         return rmse, best_k, complete, cols, c[1:], float(c[0])
 
-    h_lin = float(current_x[0])
-    h_path = [h_lin]
+    def finalize(sel, h_lin):
+        """The chosen terms fitted jointly with h and all parameters, and their held-out residual."""
+        rmse, best_k, complete, cols, c, dhh = sel
+        if best_k == 0:
+            return None
+        eff = DiscoveredEffect([terms[j] for j in cols], [max(abs(v), 1e-6) for v in c], start=c)
+        model = Model(current.effects + [eff])
+        start = np.concatenate([current_x, c])
+        start[0] = float(np.clip(h_lin + dhh, *H_BOUNDS))
+        full = fit_model(model, recs, h0, start=start)
+        return {"model": model, "x": full.x, "heldout": held_out(model, recs, h0, folds, start=full.x),
+                "sel": sel, "h_lin": h_lin, "k": best_k}
+
+    def preferred(a, b):
+        """The better of two discovered models by held-out error; a tie (the better not significantly better,
+        paired block test at AMBIGUITY_ALPHA) goes to the one with fewer terms."""
+        if a is None or b is None:
+            return a if b is None else b
+        lo, hi = (a, b) if a["heldout"].rmse <= b["heldout"].rmse else (b, a)
+        if hi["k"] < lo["k"] and paired_block_test(hi["heldout"], lo["heldout"]) >= AMBIGUITY_ALPHA:
+            return hi
+        return lo
+
+    h_cur = float(current_x[0])
+    first = select(None)
+    best = finalize(first, h_cur)
+    h_path = [h_cur]
+    if math.isfinite(h_geometric) and abs(h_geometric - h_cur) > DISCOVERY_H_STEP_M:
+        h_g = float(np.clip(h_geometric, *H_BOUNDS))
+        h_path.append(h_g)
+        best = preferred(best, finalize(select(h_g), h_g))
     for _ in range(DISCOVERY_RELINEARISE):
-        rmse, best_k, complete, cols, c, dhh = select(h_lin)
-        if best_k == 0 or abs(dhh) < DISCOVERY_H_STEP_M:
+        if best is None:
             break
-        h_next = float(np.clip(h_lin + dhh, *H_BOUNDS))
-        if abs(h_next - h_lin) < DISCOVERY_H_STEP_M:
+        h_fit = float(np.clip(best["x"][0], *H_BOUNDS))
+        if abs(h_fit - best["h_lin"]) < DISCOVERY_H_STEP_M:
             break
-        h_lin = h_next
-        h_path.append(h_lin)
-    else:
-        # the last step moved h: select once more around where it led
-        rmse, best_k, complete, cols, c, dhh = select(h_lin)
+        h_path.append(h_fit)
+        nxt = preferred(best, finalize(select(h_fit), h_fit))
+        if nxt is best:
+            break
+        best = nxt
+    sel = first if best is None else best["sel"]
+    rmse, best_k, complete = sel[0], sel[1], sel[2]
     info = {"run": True, "heldout_rmse_by_terms": [rmse[k] for k in sorted(rmse)], "terms": best_k,
-            "linearised_at_h_m": h_path}
-    if best_k == 0:
+            "linearised_at_h_m": h_cur if best is None else best["h_lin"], "linearisations_tried_h_m": h_path}
+    if best is None:
         return {"model": None, "x": None, "heldout": None, "info": info}
     # the held-out residual of the terms chosen within each fold (no leakage of the selection into the test)
     if complete[best_k].shape == current_ho.residual.shape:
         info["selection_heldout"] = HeldOut(current, complete[best_k], current_ho.block, [])
-    scales = [max(abs(v), 1e-6) for v in c]
-    eff = DiscoveredEffect([terms[j] for j in cols], scales, start=c)
-    model = Model(current.effects + [eff])
-    start = np.concatenate([current_x, c])
-    start[0] = float(np.clip(h_lin + dhh, *H_BOUNDS))
-    full = fit_model(model, recs, h0, start=start)
-    ho = held_out(model, recs, h0, folds, start=full.x)
-    return {"model": model, "x": full.x, "heldout": ho, "info": info}
+    return {"model": best["model"], "x": best["x"], "heldout": best["heldout"], "info": info}
 
 
 def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
