@@ -6,7 +6,11 @@ signals and applied at physical points, each column a generalized force derived 
 * points and directions: **x at the contact** (``dQ = [F, 0, 0]``), **x at the rider CoG** and **z at
   the rider CoG** (``dQ = J_G^T F``, J_G of the Appendix-A geometry), and a **torque on the rider's
   pitch** (``dQ = [0, 0, T]``): an x force at height l on the rider is the same force at the CoG plus
-  the torque ``F (l - h) cos(phi)``, so together they place a force at a hand or a shoulder;
+  the torque ``F (l - h) cos(phi)``. The residual sees a generalized force only through
+  ``R dQ_x + dQ_gamma + dQ_phi`` (the directions orthogonal to b_d and b_h; measured on the force map to
+  1e-15), i.e. a horizontal force at height z above the contact only through its moment ``z F`` about the
+  contact: its point of application is not resolved, and a force at the hand is found as the force at the
+  CoG with the same moment (a rope at d = 0.45 m above the hinge: ``k (R - l0 + d) / (R - l0 + h)``);
 * functions (with units): ``1``, ``x_dot``, ``x_dot |x_dot|``, ``tanh(x_dot / 0.05)`` (a sign),
   ``sin(s/R)``, ``cos(s/R)`` (the wheel's rotation, s the path length), ``psi_dot x_dot``
   (lateral acceleration in turns), ``cos(psi)``, ``X cos(psi)``, ``sin(psi)``, ``Y sin(psi)`` (a force
@@ -19,9 +23,11 @@ the residual's own noise on held-out data too (measured: 4 such terms took a no-
 RMSE from 0.34 to 0.03 N m, below its noise floor): those are the named parameter candidates' job.
 
 Forces along the input directions (hinge torque, motor torque) cannot show in the residual and are not
-in the basis. The terms are chosen by greedy forward selection (orthogonal matching pursuit on the
-residual's sensitivity to each column), the number of terms by held-out error over the analysis'
-folds; the chosen terms are then fitted jointly with h (:class:`DiscoveredEffect`) like any candidate.
+in the basis. The terms are chosen by best-subset search (:func:`best_subsets`, on the residual's
+sensitivity to each column with h projected out), the number of terms by held-out error over the
+analysis' folds; the selection is repeated around the h the chosen terms imply when they move it
+(:func:`euc_ros.core.residual.analysis.discover_terms`); the chosen terms are then fitted jointly with h
+(:class:`DiscoveredEffect`) like any candidate.
 """
 from __future__ import annotations
 

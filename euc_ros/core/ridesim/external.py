@@ -43,6 +43,12 @@ class ExternalForce:
         if missing:
             raise ConfigError(f"{self.kind} needs {missing[0]!r}", key=f"external.{missing[0]}")
 
+    @property
+    def lab_fixed(self) -> bool:
+        """True when the force depends on lab position (the rope's anchor): the simulator then records every run
+        in the same lab frame (no re-centring of the track), so the anchor is one point of the recordings."""
+        return self.kind == "rope"
+
     def generalized(self, *, x, gamma, phi, x_dot, gamma_dot, phi_dot, h, X, psi, R, l0):
         """(dQ_x, dQ_gamma, dQ_phi) at the given states (scalars or arrays)."""
         p = self.params

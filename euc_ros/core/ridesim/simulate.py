@@ -35,12 +35,13 @@ from euc_ros.core.ridesim.effects import AIR_DENSITY, ROLLING_SIGN_SPEED, Effect
 from euc_ros.core.ridesim.floors import FloorProfile
 from euc_ros.core.ridesim.maneuvers import MANEUVERS, RunPlan, plan_run
 from euc_ros.core.ridesim.mocap_synth import MocapNoise, corrupt, rotations_to_quats
+from euc_ros.core.ridesim.rider_motion import ArmKinematics, ArmSwing, PedalFlex
 from euc_ros.core.ridesim.skeleton import Skeleton
-from euc_ros.core.ridesim.truth_model import FloorModel, PlanarModel, PlanarParams
+from euc_ros.core.ridesim.truth_model import FloorModel, PedalModel, PlanarModel, PlanarParams
 from euc_ros.core.rotations import quat_from_yaw_tilt_pitch, rotation_matrices
 from euc_ros.core.session import Session, default_session
 
-#: State vector of the ODE.
+#: State vector of the ODE (with pedals that flex, ``u`` and ``u_dot`` follow).
 STATE_NAMES = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "X", "Y", "z", "Z")
 #: Default true rider CoG height (EUC paper, Fig. 6: h = 0.61 m).
 DEFAULT_H_M = 0.61
@@ -87,6 +88,11 @@ class RideConfig:
     external : tuple of ExternalForce
         Forces outside the residual analysis' library (:mod:`.external`: a rope held in the hand, a
         headwind, motor torque ripple).
+    pedals : PedalFlex, optional
+        Pedals that flex under the rider's load (:mod:`.rider_motion`): a fourth coordinate u of the truth.
+    arms : ArmSwing, optional
+        Arms swinging about the shoulders (:mod:`.rider_motion`): the rider's CoG and pitch angular momentum
+        move with them.
     """
 
     maneuver: str = "deceleration"
@@ -106,6 +112,8 @@ class RideConfig:
     atol: float = 1e-10
     floor: FloorProfile | None = None
     external: tuple = ()
+    pedals: PedalFlex | None = None
+    arms: ArmSwing | None = None
 
     def nominal_session(self) -> Session:
         """The session written to session.yaml (nominal values)."""
@@ -208,6 +216,7 @@ class RideResult:
             "noise": c.noise.to_dict(),
             "floor": c.floor.to_dict() if c.floor is not None else None,
             "external": [f.to_dict() for f in c.external],
+            "rider_motion": [m.to_dict() for m in (c.pedals, c.arms) if m is not None],
             "runs": [{
                 "run": r.name, "csv": f"{r.name}.csv", "truth_csv": f"truth/{r.name}_truth.csv",
                 "duration_s": r.plan.duration_s, "psi0_rad": r.plan.path.psi0,
@@ -248,6 +257,8 @@ class _RunDynamics:
         self.normal_force = p.total_mass * p.g
         self.floor = None
         self.external = ()
+        self.pedal_k = self.pedal_c = None     # pedals that flex: stiffness, damping
+        self.arms: ArmKinematics | None = None
 
     def external_forces(self, y, env, h):
         """Sum of the external forces' generalized forces (dQ_x, dQ_gamma, dQ_phi)."""
@@ -267,6 +278,9 @@ class _RunDynamics:
     # --- pieces ---
     def h_profile(self, t):
         """h(t), h_dot(t), h_ddot(t) [m, m/s, m/s^2]."""
+        if self.arms is not None:
+            a = self.arms.profile(t)
+            return a["h"], a["h_dot"], a["h_ddot"]
         if not self.h_w:
             if np.ndim(t) == 0:
                 return self.h_mean, 0.0, 0.0
@@ -336,6 +350,17 @@ class _RunDynamics:
         Q1 = M_h - M_d + dQ[1]
         Q2 = -M_h + dQ[2]
         psi = env["psi"]
+        if self.pedal_k is not None:
+            u, ud = y[10], y[11]
+            a = self.model.accel_scalar(gam, phi, u, xd, gd, pd, ud, h, hd, hdd, float(env["g_x"]), float(env["g_z"]),
+                                        (float(Q0), float(Q1), float(Q2), -self.pedal_k * u - self.pedal_c * ud))
+            return [xd, gd, pd, a[0], a[1], a[2], xd * math.cos(psi), xd * math.sin(psi), float(v_ref) - xd, 0.0,
+                    ud, a[3]]
+        if self.arms is not None:
+            ar = self.arms.profile(t)
+            a = self.model.accel_scalar(gam, phi, xd, gd, pd, h, hd, hdd, float(env["g_x"]), float(env["g_z"]),
+                                        float(Q0), float(Q1), float(Q2 - ar["dJ_dot"] * pd - ar["H_dot"]), dJ=ar["dJ"])
+            return [xd, gd, pd, a[0], a[1], a[2], xd * math.cos(psi), xd * math.sin(psi), float(v_ref) - xd, 0.0]
         if self.floor is None:
             a = self.model.accel_scalar(gam, phi, xd, gd, pd, h, hd, hdd, float(env["g_x"]), float(env["g_z"]),
                                         float(Q0), float(Q1), float(Q2))
@@ -360,13 +385,26 @@ class _RunDynamics:
             dQ = tuple(a + b for a, b in zip(dQ, self.external_forces(Y, env, h)))
         R = self.p.R
         Q = np.stack([M_d / R + dQ[0], M_h - M_d + dQ[1], -M_h + dQ[2]], -1)
-        if self.floor is None:
+        extra = {}
+        if self.pedal_k is not None:
+            u, ud = Y[10], Y[11]
+            Qu = -self.pedal_k * u - self.pedal_c * ud
+            q4 = self.model.accelerations(gam, phi, u, xd, gd, pd, ud, h, hd, hdd, env["g_x"], env["g_z"],
+                                          np.concatenate([Q, Qu[:, None]], axis=1))
+            qdd = q4[:, :3]
+            extra = {"pedal_u": u, "pedal_force": -Qu}
+        elif self.arms is not None:
+            ar = self.arms.profile(t)
+            Q[:, 2] -= ar["dJ_dot"] * pd + ar["H_dot"]
+            qdd = self.model.accelerations(gam, phi, xd, gd, pd, h, hd, hdd, env["g_x"], env["g_z"], Q, dJ=ar["dJ"])
+            extra = {"arm_beta": ar["beta"], "arm_dJ": ar["dJ"], "arm_H_dot": ar["H_dot"]}
+        elif self.floor is None:
             qdd = self.model.accelerations(gam, phi, xd, gd, pd, h, hd, hdd, env["g_x"], env["g_z"], Q)
         else:
             qdd = self.model.accelerations(gam, phi, xd, gd, pd, h, hd, hdd, env["g_x"], env["g_z"], env["floor_a"],
                                            env["floor_a1"], Q)
         return {"env": env, "M_d": M_d, "M_h": M_h, "v_ref": v_ref, "h": h, "h_dot": hd, "h_ddot": hdd,
-                "dQ": np.stack(dQ, -1), "parts": parts, "q_ddot": qdd}
+                "dQ": np.stack(dQ, -1), "parts": {**parts, **extra}, "q_ddot": qdd}
 
     def world(self, t, Y, xy_offset, session: Session) -> dict:
         """3-D placement at times t (n,) for states Y (8, n): C, A, G, E and rotations (Z-up)."""
@@ -380,9 +418,16 @@ class _RunDynamics:
         R_L = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, phi)).reshape(n, 3, 3)
         p = np.asarray(session.euc.pivot_to_wheel_center, float)
         E = C - R_E @ p
-        A = C - self.p.l0 * R_E[:, :, 2]
+        l_hinge = self.p.l0 if self.pedal_k is None else self.p.l0 + np.reshape(Y[10], (-1, 1))
+        A = C - l_hinge * R_E[:, :, 2]
         G = A + np.reshape(h, (-1, 1)) * R_L[:, :, 2]
         return {"C": C, "A": A, "G": G, "E": E, "R_E": R_E, "R_L": R_L, "h": np.broadcast_to(h, (n,))}
+
+
+def _run_index(name: str) -> int:
+    """k (from 0) of a run named ``<maneuver>_NN`` (NN = k + 1)."""
+    tail = name.rsplit("_", 1)[-1]
+    return max(int(tail) - 1, 0) if tail.isdigit() else 0
 
 
 def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
@@ -394,13 +439,20 @@ def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
         X0 = -dyn.floor.run_start_m * math.copysign(1.0, math.cos(dyn.plan.path.psi0))
         Z0 = float(dyn.floor.evaluate(X0)[0])
 
+    if dyn.pedal_k is not None:      # pedals: the static deflection is a fourth unknown
+        guess = np.append(guess, dyn.p.m * dyn.p.g / dyn.pedal_k)
+
     def acc(u):
         y = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
+        if dyn.pedal_k is not None:
+            r = dyn.rhs(t0, y + [u[3], 0.0])
+            return r[3:6] + [r[11]]
         return dyn.rhs(t0, y)[3:6]
 
     sol, _, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
     u = sol if ok == 1 and np.all(np.abs(sol[:2]) < 0.5) else guess
-    return np.array([0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0])
+    y0 = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
+    return np.array(y0 + ([u[3], 0.0] if dyn.pedal_k is not None else []))
 
 
 def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
@@ -408,7 +460,16 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     """Simulate one planned run (see :func:`simulate_ride`)."""
     session = config.nominal_session()
     effects = config.effects
-    model = PlanarModel(params) if config.floor is None else FloorModel(params)
+    if config.pedals is not None and (config.floor is not None or config.external or config.arms is not None
+                                      or "aero_drag" in effects or "time_varying_h" in effects):
+        raise ConfigError("pedals combine only with effects that need no rider-CoG geometry (no floor, external "
+                          "force, arm swing, aero_drag or time_varying_h)", key="pedals")
+    if config.arms is not None and (config.floor is not None or "time_varying_h" in effects):
+        raise ConfigError("arm swing does not combine with a floor or time_varying_h", key="arms")
+    if config.pedals is not None:
+        model = PedalModel(params)
+    else:
+        model = PlanarModel(params) if config.floor is None else FloorModel(params)
     m_eq = params.total_mass + params.Jw / params.R ** 2
     k_p, k_d, k_speed, k_int = config.rider_gains
     rider = RiderLeanController.for_rider(params.m, config.h, params.g, params.R, m_eq,
@@ -416,6 +477,10 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     dyn = _RunDynamics(plan, model, effects, config.h, config.euc_controller, rider)
     dyn.floor = config.floor
     dyn.external = tuple(config.external)
+    if config.pedals is not None:
+        dyn.pedal_k, dyn.pedal_c = config.pedals.k_n_per_m, config.pedals.damping(params.m)
+    if config.arms is not None:
+        dyn.arms = ArmKinematics(config.arms, skeleton, config.h, params.m, run_index=_run_index(plan.name))
     rate = session.rate_hz
     n = int(round(plan.duration_s * rate))
     frame = np.arange(n, dtype=np.int64)
@@ -433,13 +498,18 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     Y = sol.sol(t)
     s = dyn.sample(t, Y)
     env = s["env"]
-    # centre the recorded C track in the capture volume
+    # centre the recorded C track in the capture volume, unless something is fixed in the lab (a floor, a rope's
+    # anchor): then every run is recorded in the one lab frame the simulation used
     xy = Y[6:8]
-    xy_offset = 0.5 * (xy.min(axis=1) + xy.max(axis=1)) if config.floor is None else np.zeros(2)
+    lab_fixed = config.floor is not None or any(getattr(f, "lab_fixed", False) for f in config.external)
+    xy_offset = 0.5 * (xy.min(axis=1) + xy.max(axis=1)) if not lab_fixed else np.zeros(2)
     w = dyn.world(t, Y, xy_offset, session)
     # rider at t - dt for the mocap_time_offset effect (measurement only)
     w_rider = w if dt_off == 0 else dyn.world(t - dt_off, sol.sol(t - dt_off), xy_offset, session)
-    seg_pos, seg_rot = skeleton.poses(w_rider["A"], w_rider["R_L"], w_rider["h"])
+    if dyn.arms is not None:
+        seg_pos, seg_rot = dyn.arms.poses(w_rider["A"], w_rider["R_L"], t - dt_off)
+    else:
+        seg_pos, seg_rot = skeleton.poses(w_rider["A"], w_rider["R_L"], w_rider["h"])
     e_pos = w["E"][None]
     bodies = skeleton.bodies + [session.euc.body]
     pos = np.concatenate([seg_pos, e_pos], axis=0)

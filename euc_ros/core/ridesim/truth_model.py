@@ -258,12 +258,15 @@ class PlanarModel:
 
     # --- scalar (ODE right-hand side) -------------------------------------------------------------
     def accel_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float,
-                     hdd: float, gx: float, gz: float, Q0: float, Q1: float, Q2: float):
-        """Return ``(x_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc."""
+                     hdd: float, gx: float, gz: float, Q0: float, Q1: float, Q2: float, dJ: float = 0.0):
+        """Return ``(x_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc.
+
+        ``dJ`` [kg m^2] adds to the rider's pitch inertia (a rider whose segments move: :mod:`.rider_motion`).
+        """
         p = self._p
         a = self._c.mass_s(gam, phi, h, *p)
         b = self._c.bias_s(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, *p)
-        return solve3(a[0], a[1], a[2], a[3], a[4], a[5], Q0 - b[0], Q1 - b[1], Q2 - b[2])
+        return solve3(a[0], a[1], a[2], a[3], a[4], a[5] + dJ, Q0 - b[0], Q1 - b[1], Q2 - b[2])
 
     def g_point_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float):
         """Return (dG/dq as 6 numbers row-major (2x3), v_G as 2 numbers) for scalar states."""
@@ -284,9 +287,10 @@ class PlanarModel:
         e = self._c.bias_v(*args, *self._p)
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
 
-    def accelerations(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, Q) -> np.ndarray:
-        """Generalized accelerations (..., 3) for generalized forces Q (..., 3)."""
+    def accelerations(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, Q, dJ=0.0) -> np.ndarray:
+        """Generalized accelerations (..., 3) for generalized forces Q (..., 3) (``dJ``: as ``accel_scalar``)."""
         M = self.mass_matrix(gam, phi, h)
+        M[..., 2, 2] += dJ
         rhs = np.asarray(Q, float) - self.bias(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz)
         return np.linalg.solve(M, rhs[..., None])[..., 0]
 
@@ -428,6 +432,120 @@ class FloorModel:
         return self._plain.rider_cog_velocity(*args)
 
 
+@lru_cache(maxsize=1)
+def _derive_pedal() -> _Compiled:
+    """Lagrange's equations with pedals that flex: a fourth coordinate u along the EUC's axis.
+
+    A third geometry, written independently of :func:`_derive`: the pedals (massless) carry the ankle
+    hinge, which moves down the EUC's axis by ``u`` (u = 0 unloaded, u > 0 compressed)::
+
+        A = C + (l0 + u) (-sin gamma, -cos gamma),   G = A + h(t) (sin phi, cos phi)
+
+    C and G0 as in :func:`_derive`. The pedals' spring and damper are not in the Lagrangian: they enter
+    as the generalized force ``Q_u = -k u - c u_dot`` (so the same M, b serve any stiffness). u moves
+    only the rider: the u equation reads ``m (a_G - g_vec) . e_ax = k u + c u_dot`` with
+    ``e_ax = (sin gamma, cos gamma)``, the rider's load on the pedals along the axis (quasi-static:
+    ``k u = m g cos gamma`` at rest). At u = u_dot = 0 the (x, gamma, phi) block of M and b is the
+    rigid model's (checked in ``test/unit/ridesim/test_rider_motion.py``, with the energy balance).
+    """
+    import sympy as sp
+
+    t = sp.Symbol("t")
+    m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
+    gx, gz = sp.symbols("g_x g_z")
+    xf, gf, pf, uf, hf = (sp.Function(n)(t) for n in ("x", "gamma", "phi", "u", "h"))
+    C = sp.Matrix([xf, R])
+    ax_dn = sp.Matrix([-sp.sin(gf), -sp.cos(gf)])
+    A = C + (l0 + uf) * ax_dn
+    G0 = C - h0 * ax_dn
+    G = A + hf * sp.Matrix([sp.sin(pf), sp.cos(pf)])
+    g_vec = sp.Matrix([gx, gz])
+
+    def ke(point, mass):
+        v = point.diff(t)
+        return sp.Rational(1, 2) * mass * (v.T * v)[0]
+
+    T = (ke(C, mw) + sp.Rational(1, 2) * Jw * (xf.diff(t) / R) ** 2 + ke(G0, m0)
+         + sp.Rational(1, 2) * J0 * gf.diff(t) ** 2 + ke(G, m) + sp.Rational(1, 2) * J * pf.diff(t) ** 2)
+    V = -(mw * (g_vec.T * C)[0] + m0 * (g_vec.T * G0)[0] + m * (g_vec.T * G)[0])
+    L = T - V
+    qf = [xf, gf, pf, uf]
+    eom = [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in qf]
+    x, gam, phi, u = sp.symbols("x gamma phi u")
+    xd, gd, pd, ud = sp.symbols("x_d gamma_d phi_d u_d")
+    xdd, gdd, pdd, udd = sp.symbols("x_dd gamma_dd phi_dd u_dd")
+    h, hd, hdd = sp.symbols("h h_d h_dd")
+    subs = _time_to_symbols(t, ((xf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (uf, u, ud, udd),
+                                (hf, h, hd, hdd)))
+    eom_s = [sp.expand(_substitute(e, subs)) for e in eom]
+    qdd = [xdd, gdd, pdd, udd]
+    M = sp.Matrix(4, 4, lambda i, j: sp.diff(eom_s[i], qdd[j]))
+    b = sp.Matrix([sp.expand(eom_s[i] - sum(M[i, j] * qdd[j] for j in range(4))) for i in range(4)])
+    pars = (m, m0, mw, Jw, J0, J, R, l0, h0)
+    mass_args = (gam, phi, u, h) + pars
+    bias_args = (gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz) + pars
+    m_entries = [M[i, j] for i in range(4) for j in range(4)]
+
+    def lam(args, expr, module):
+        return sp.lambdify(args, expr, modules=module, cse=True)
+
+    base = _derive()
+    return _Compiled(
+        mass_s=lam(mass_args, m_entries, "math"), bias_s=lam(bias_args, list(b), "math"),
+        jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
+        mass_v=lam(mass_args, m_entries, "numpy"), bias_v=lam(bias_args, list(b), "numpy"),
+        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b,
+        syms={"q": (x, gam, phi, u), "qd": (xd, gd, pd, ud), "qdd": (xdd, gdd, pdd, udd), "h": (h, hd, hdd),
+              "g": (gx, gz), "params": pars},
+    )
+
+
+class PedalModel:
+    """The truth model with pedals that flex (:func:`_derive_pedal`): coordinates (x, gamma, phi, u).
+
+    ``accel_scalar`` and ``accelerations`` take the pedal state (u, u_dot) and the generalized force on u
+    (``-k u - c u_dot``) and return the four accelerations.
+    """
+
+    def __init__(self, params: PlanarParams) -> None:
+        self.params = params
+        self._p = params.as_tuple()
+        self._c = _derive_pedal()
+
+    def mass_matrix(self, gam, phi, u, h) -> np.ndarray:
+        """M (..., 4, 4)."""
+        gam, phi, u, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, u, h)))
+        e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.mass_v(gam, phi, u, h, *self._p)]
+        return np.stack(e, -1).reshape(gam.shape + (4, 4))
+
+    def bias(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz) -> np.ndarray:
+        """b (..., 4): velocity and rheonomic terms minus gravity."""
+        args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz)))
+        e = self._c.bias_v(*args, *self._p)
+        return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
+
+    def accel_scalar(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz, Q):
+        """(x_ddot, gamma_ddot, phi_ddot, u_ddot) for scalar states and generalized forces Q (4,)."""
+        a = np.array(self._c.mass_s(gam, phi, u, h, *self._p), float).reshape(4, 4)
+        b = np.array(self._c.bias_s(gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz, *self._p), float)
+        return np.linalg.solve(a, np.asarray(Q, float) - b)
+
+    def accelerations(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz, Q) -> np.ndarray:
+        """Generalized accelerations (..., 4) for generalized forces Q (..., 4)."""
+        M = self.mass_matrix(gam, phi, u, h)
+        rhs = np.asarray(Q, float) - self.bias(gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz)
+        return np.linalg.solve(M, rhs[..., None])[..., 0]
+
+    def rider_cog_jacobian(self, *args):
+        """dG/d(x, gamma, phi) of the unflexed geometry (u = 0): the simulator uses it only for forces at G,
+        which it does not combine with pedals."""
+        return PlanarModel(self.params).rider_cog_jacobian(*args)
+
+    def rider_cog_velocity(self, *args):
+        """v_G of the unflexed geometry (see :meth:`rider_cog_jacobian`)."""
+        return PlanarModel(self.params).rider_cog_velocity(*args)
+
+
 def input_directions(R: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """Generalized-force directions of the internal torques: ``b_d = (1/R, -1, 0)``, ``b_h = (0, 1, -1)``.
 
@@ -443,5 +561,5 @@ def wheel_rate(x_dot, R):
     return x_dot / R
 
 
-__all__ = ["COORDINATES", "FloorModel", "G_M_PER_S2", "PlanarModel", "PlanarParams", "input_directions", "solve3",
+__all__ = ["COORDINATES", "FloorModel", "G_M_PER_S2", "PedalModel", "PlanarModel", "PlanarParams", "input_directions", "solve3",
            "symbolic_model", "wheel_rate"]
