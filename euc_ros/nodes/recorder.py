@@ -50,7 +50,8 @@ SPECS = (
     ParamSpec("chunk_size", 1 << 16, "MCAP chunk size: what a SIGKILL can lose (~0.2 s of the pipeline at 64 KiB)", "bytes",
               4096, 1 << 28),
     ParamSpec("discovery_period", 0.1, "how often to look for new topics", "s", 0.01, 10.0),
-    ParamSpec("queue_depth", 1000, "subscription queue depth", "messages", 1, 100000),
+    ParamSpec("queue_depth", 10000, "subscription queue depth: how far the recorder may fall behind per topic "
+              "(1.8 s at 100k msgs/s over 18 topics)", "messages", 1, 100000),
 )
 
 _SKIP = {"/rosout", "/parameter_events"}
