@@ -65,6 +65,34 @@ def bag_counts(bag: Path) -> dict[str, int]:
     return {t["topic_metadata"]["name"]: int(t["message_count"]) for t in meta["topics_with_message_count"]}
 
 
+def lost_frames(bag: Path, parts: list[list[str]]) -> dict:
+    """Where a lossy step lost: per topic, the missing frames as ``[first, last, count]`` runs of frame
+    indices (frame stamps of the publisher's other topics give the frames it sent) and the time of the
+    first missing frame after its publisher's first [ms]. ``parts``: the topics of each publisher."""
+    import numpy as np
+
+    from euc_ros.core.io.bags import read_bag
+    from euc_ros.core.io.msgdefs import make_typestore
+
+    store = make_typestore()
+    stamps: dict[str, list[int]] = {}
+    for topic, msgtype, _, raw in read_bag(bag, raw=True):
+        msg = store.deserialize_cdr(raw, msgtype)
+        head = msg.transforms[0].header if msgtype == "tf2_msgs/msg/TFMessage" else msg.header
+        stamps.setdefault(topic, []).append(head.stamp.sec * 1_000_000_000 + head.stamp.nanosec)
+    out = {}
+    for topics in parts:
+        frames = np.array(sorted(set().union(*[stamps.get(t, []) for t in topics])), dtype=np.int64)
+        for t in topics:
+            miss = np.flatnonzero(~np.isin(frames, stamps.get(t, [])))
+            if miss.size:
+                cuts = np.flatnonzero(np.diff(miss) > 1)
+                starts, ends = np.r_[miss[0], miss[cuts + 1]], np.r_[miss[cuts], miss[-1]]
+                out[t] = {"runs": [[int(a), int(b), int(b - a + 1)] for a, b in zip(starts, ends)][:10],
+                          "first_ms": float((frames[miss[0]] - frames[0]) / 1e6), "frames_seen": int(frames.size)}
+    return out
+
+
 def _cpu_between(series: list, t0: float, t1: float) -> float | None:
     """CPU seconds a sampled process used between wall times ``t0`` and ``t1`` (interpolated samples)."""
     import numpy as np
@@ -135,9 +163,11 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     drained = _cpu_between(sampler.cpu.get("recorder", []), t0, t1 + DRAIN_S)   # with what it still took after
     pub_cpu = [_cpu_between(sampler.cpu.get(n, []), b["wall_start"], b["wall_end"]) for n, b in zip(names, blasts)]
     pub_us = None if any(c is None for c in pub_cpu) else 1e6 * sum(pub_cpu) / n_sent
+    # a frame lost on every topic of its publisher is not seen at all: such losses show only as counts
+    where = lost_frames(bag, [topics[k::publishers] for k in range(publishers)]) if lost else {}
     return {"frame_rate": frame_rate, "asked_msgs_per_s": frame_rate * len(sent), "publishers": publishers,
             "achieved_msgs_per_s": n_sent / (t1 - t0), "sent": n_sent,
-            "recorded": sum(counts.values()), "lost": lost, "lossless": not lost, "bag_mb": size / 1e6,
+            "recorded": sum(counts.values()), "lost": lost, "lost_where": where, "lossless": not lost, "bag_mb": size / 1e6,
             "recorder_cpu_s": cpu, "recorder_cores": None if cpu is None else cpu / (t1 - t0),
             "recorder_us_per_msg": None if drained is None else 1e6 * drained / n_sent,
             "publisher_us_per_msg": pub_us, "peak_rss_mb": peaks}
