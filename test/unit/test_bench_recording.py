@@ -1,10 +1,10 @@
 """The recording benchmark's loss report: which frames of which topic a lossy step lost."""
 from __future__ import annotations
 
+import numpy as np
+
 from euc_ros.bench.recording import lost_frames
 from euc_ros.core.io.bags import BagWriter, posestamped_cdr
-
-import numpy as np
 
 
 def test_lost_frames_names_the_missing_runs_of_each_topic(tmp_path):
