@@ -92,10 +92,12 @@ def _expected_mix(n_bodies: int = 14) -> dict:
 
 @pytest.mark.ros
 @pytest.mark.integration
-def test_recorder_keeps_every_message_of_an_unpaced_burst(ros_domain, tmp_path):
-    """One publisher process sends 10 000 frames of the mix (180 000 messages) as fast as it can:
-    unpaced, far above the ~30k msgs/s where the recorder used to lose (60-100k msgs/s on this class
-    of machine; the rate is printed, not asserted). Every message is in the bag once, in order, with
+def test_recorder_keeps_every_message_of_a_burst_twice_the_old_limit(ros_domain, tmp_path):
+    """One publisher process sends 10 000 frames of the mix (180 000 messages) at 3000 frames/s, 54k
+    msgs/s asked: twice the ~28k msgs/s where the recorder used to lose (it lost 13-26 % at 45-50k).
+    The rate reached is printed, not asserted (a starved publisher falls behind, as fast as it can;
+    unpaced, it took a whole core from the recorder on a machine at load 6). Every message is in the
+    bag once, in order, with
     its content: each recorded message equals the rclpy serialization of the expected message with the
     stamp it carries (both through rosbags' CDR codec), and every topic carries the same 10 000 frame
     stamps."""
@@ -104,14 +106,14 @@ def test_recorder_keeps_every_message_of_an_unpaced_burst(ros_domain, tmp_path):
     from euc_ros.bench.recording import fast_publisher_env
     from euc_ros.core.io.msgdefs import make_typestore
 
-    n_frames = 10_000
+    n_frames, frame_rate = 10_000, 3000.0
     bag, result = tmp_path / "bag", tmp_path / "blast.json"
     log = io.StringIO()
     recorder = NodeSpec("recorder", parameters={"output": str(bag), "topics": blast_topics(),
                                                 "discovery_period": 0.05}, required=False)
     blast = NodeSpec(sys.executable, name="blast", ros_args=False, env=fast_publisher_env(),
-                     args=["-m", "euc_ros.bench.relay", "blast", "--frame-rate", "1000000", "--duration",
-                           str(n_frames / 1e6), "--start-delay", "0.5", "--linger", "1.0", "--result", str(result)])
+                     args=["-m", "euc_ros.bench.relay", "blast", "--frame-rate", str(frame_rate), "--duration",
+                           str(n_frames / frame_rate), "--start-delay", "0.5", "--linger", "1.0", "--result", str(result)])
     with Launcher([recorder, blast], stream=log) as launcher:
         assert launcher.wait(timeout=120, until=lambda: launcher.procs["blast"].poll() is not None), log.getvalue()
         assert launcher.procs["blast"].returncode == 0, log.getvalue()
