@@ -4,9 +4,9 @@ The ``recorder`` node (its defaults: 64 KiB chunks, queue depth 10000) records t
 mix published by :data:`PUBLISHERS` bare rclpy processes sharing the topics (:mod:`euc_ros.bench.relay`
 ``blast --part``): per frame one 14-body MocapFrame, 14 PoseStamped, one TFMessage of 14
 transforms, one RiderState and one TorqueEstimate (18 messages, 5.6 kB), on the pipeline's reliable
-QoS, as pre-serialized CDR. The recorder runs with its own Fast DDS profile (a 32768-message
+QoS, as pre-serialized CDR. The recorder runs with its own Fast DDS profile (a 65536-message
 shared-memory port, :data:`euc_ros.nodes.recorder.RECORDER_PROFILE`); the publishers with
-:data:`~euc_ros.nodes.recorder.FAST_PUBLISHER_PROFILE` (a 16 MiB segment: a publisher's default 512
+:data:`~euc_ros.nodes.recorder.FAST_PUBLISHER_PROFILE` (a 64 MiB segment: a publisher's default 512
 KiB lets only 512 of its messages wait for a receiver, 5 ms at 100k msgs/s). The frame rate climbs
 a ladder (each step a fresh recorder and bag), then bisects twice between the last lossless and the
 first lossy rate; a step is lossless when every topic's count in the closed bag equals what was

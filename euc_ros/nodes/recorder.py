@@ -14,7 +14,7 @@ taken and written before the bag closes.
 
 Transport: a shared-memory message that finds the recorder's Fast DDS port full is dropped, and the
 default port queues 512 (5 ms at 100k msgs/s). The console script therefore runs the recorder with
-:data:`RECORDER_PROFILE` (a 32768-descriptor port; see the file) unless the Fast DDS transports were
+:data:`RECORDER_PROFILE` (a 65536-descriptor port; see the file) unless the Fast DDS transports were
 chosen already (``FASTRTPS_DEFAULT_PROFILES_FILE``, ``FASTDDS_DEFAULT_PROFILES_FILE``,
 ``FASTDDS_BUILTIN_TRANSPORTS``, a ``DEFAULT_FASTRTPS_PROFILES.xml`` in the working directory) or the
 RMW is not Fast DDS. A publisher's own segment bounds how many of its messages can wait for any
@@ -59,7 +59,7 @@ _SKIP = {"/rosout", "/parameter_events"}
 _DATA = Path(__file__).resolve().parent.parent / "data"
 #: Fast DDS participant profile the ``recorder`` console script runs with (a deep shared-memory port).
 RECORDER_PROFILE = _DATA / "fastdds_recorder.xml"
-#: Fast DDS participant profile for a process publishing faster than ~50k msgs/s (a 16 MiB segment).
+#: Fast DDS participant profile for a process publishing faster than ~50k msgs/s (a 64 MiB segment).
 FAST_PUBLISHER_PROFILE = _DATA / "fastdds_fast_publisher.xml"
 #: Environment variables by which Fast DDS 2.14 transports are chosen already: the recorder keeps them.
 TRANSPORT_CHOICES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", "FASTDDS_BUILTIN_TRANSPORTS")
