@@ -177,7 +177,8 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     where = lost_frames(bag, [topics[k::publishers] for k in range(publishers)]) if lost else {}
     return {"frame_rate": frame_rate, "qos": qos, "asked_msgs_per_s": frame_rate * len(sent), "publishers": publishers,
             "achieved_msgs_per_s": n_sent / (t1 - t0), "sent": n_sent,
-            "recorded": sum(counts.values()), "lost": lost, "lost_where": where, "lossless": not lost, "bag_mb": size / 1e6,
+            "recorded": sum(counts.values()), "lost": lost, "lost_where": where, "lossless": not lost,
+            "bag_mb": size / 1e6,
             "recorder_cpu_s": cpu, "recorder_cores": None if cpu is None else cpu / (t1 - t0),
             "recorder_us_per_msg": None if drained is None else 1e6 * drained / n_sent,
             "publisher_us_per_msg": pub_us, "peak_rss_mb": peaks}

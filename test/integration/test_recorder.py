@@ -113,7 +113,8 @@ def test_recorder_keeps_every_message_of_a_burst_twice_the_old_limit(ros_domain,
                                                 "discovery_period": 0.05}, required=False)
     blast = NodeSpec(sys.executable, name="blast", ros_args=False, env=fast_publisher_env(),
                      args=["-m", "euc_ros.bench.relay", "blast", "--frame-rate", str(frame_rate), "--duration",
-                           str(n_frames / frame_rate), "--start-delay", "0.5", "--linger", "1.0", "--result", str(result)])
+                           str(n_frames / frame_rate), "--start-delay", "0.5", "--linger", "1.0",
+                           "--result", str(result)])
     with Launcher([recorder, blast], stream=log) as launcher:
         assert launcher.wait(timeout=120, until=lambda: launcher.procs["blast"].poll() is not None), log.getvalue()
         assert launcher.procs["blast"].returncode == 0, log.getvalue()
