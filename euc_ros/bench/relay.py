@@ -18,7 +18,8 @@
     ``--duration`` s, once every topic has a subscription; prints one JSON line ``{"sent": {topic:
     n}, "messages": N, "publish_s": s, "achieved_msgs_per_s": r, "wall_start": t, "wall_end": t}``.
     The messages are serialized once and published as CDR bytes with each frame's stamp patched
-    in. ``--part K/N`` publishes only topics K, K+N, ... of the mix, so N processes share it.
+    in. ``--part K/N`` publishes only topics K, K+N, ... of the mix, so N processes share it;
+    ``--qos best_effort`` publishes best effort (as a mocap driver does) instead of the pipeline's reliable QoS.
 ``lockstep-sim`` / ``lockstep-ctrl``
     a bare lockstep ping-pong with the unicycle's message types: the sim publishes UnicycleState
     ``k`` and waits for the SteeringCommand of step ``k`` (resending after 0.5 s), ``--steps`` times;
@@ -217,7 +218,8 @@ def _blast(node, args) -> dict:
     part, parts = (int(x) for x in args.part.split("/"))
     if not 0 <= part < parts:
         raise SystemExit(f"relay blast: --part {args.part}: expected K/N with 0 <= K < N")
-    pubs = [(topic, node.create_publisher(cls, topic, itf.RELIABLE_QOS), msg) for topic, cls, msg in mix[part::parts]]
+    qos = itf.RELIABLE_QOS if args.qos == "reliable" else itf.MOCAP_INPUT_QOS   # MOCAP_INPUT_QOS: best effort
+    pubs = [(topic, node.create_publisher(cls, topic, qos), msg) for topic, cls, msg in mix[part::parts]]
 
     import rclpy
 
@@ -383,6 +385,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=5.0, help="blast: publishing time [s]")
     parser.add_argument("--part", default="0/1", help="blast: publish topics K, K+N, K+2N... of the mix (K/N): "
                         "the mix shared by N processes")
+    parser.add_argument("--qos", choices=("reliable", "best_effort"), default="reliable",
+                        help="blast: the pipeline's reliable QoS, or best effort (a mocap driver's)")
     parser.add_argument("--match-timeout", type=float, default=30.0, help="give up waiting for peers [s]")
     parser.add_argument("--steps", type=int, default=1000, help="lockstep-sim: steps")
     parser.add_argument("--dt", type=float, default=0.01, help="lockstep-sim: simulated step [s]")

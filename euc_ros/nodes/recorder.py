@@ -12,6 +12,14 @@ task, callback) costs tens of microseconds; per message it was the recorder's li
 shared by every message that arrived meanwhile. On shutdown what the subscriptions still hold is
 taken and written before the bag closes.
 
+Transport: a shared-memory message that finds the recorder's Fast DDS port full is dropped, and the
+default port queues 512 (5 ms at 100k msgs/s). The console script therefore runs the recorder with
+:data:`RECORDER_PROFILE` (a 65536-descriptor port; see the file) unless the Fast DDS transports were
+chosen already (``FASTRTPS_DEFAULT_PROFILES_FILE``, ``FASTDDS_DEFAULT_PROFILES_FILE``,
+``FASTDDS_BUILTIN_TRANSPORTS``, a ``DEFAULT_FASTRTPS_PROFILES.xml`` in the working directory) or the
+RMW is not Fast DDS. A publisher's own segment bounds how many of its messages can wait for any
+receiver (512 by default): above ~50k msgs/s from one process, give it :data:`FAST_PUBLISHER_PROFILE`.
+
 Subscribes
     the configured ``topics`` (default: the pipeline's), or every topic with ``all_topics``.
 Publishes
@@ -22,6 +30,7 @@ Parameters
 from __future__ import annotations
 
 import importlib
+import os
 import time
 from pathlib import Path
 
@@ -41,10 +50,32 @@ SPECS = (
     ParamSpec("chunk_size", 1 << 16, "MCAP chunk size: what a SIGKILL can lose (~0.2 s of the pipeline at 64 KiB)", "bytes",
               4096, 1 << 28),
     ParamSpec("discovery_period", 0.1, "how often to look for new topics", "s", 0.01, 10.0),
-    ParamSpec("queue_depth", 1000, "subscription queue depth", "messages", 1, 100000),
+    ParamSpec("queue_depth", 10000, "subscription queue depth: how far the recorder may fall behind per topic "
+              "(1.8 s at 100k msgs/s over 18 topics)", "messages", 1, 100000),
 )
 
 _SKIP = {"/rosout", "/parameter_events"}
+
+_DATA = Path(__file__).resolve().parent.parent / "data"
+#: Fast DDS participant profile the ``recorder`` console script runs with (a deep shared-memory port).
+RECORDER_PROFILE = _DATA / "fastdds_recorder.xml"
+#: Fast DDS participant profile for a process publishing faster than ~50k msgs/s (a 64 MiB segment).
+FAST_PUBLISHER_PROFILE = _DATA / "fastdds_fast_publisher.xml"
+#: Environment variables by which Fast DDS 2.14 transports are chosen already: the recorder keeps them.
+TRANSPORT_CHOICES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", "FASTDDS_BUILTIN_TRANSPORTS")
+
+
+def transport_env(env, cwd=".", profile: Path = RECORDER_PROFILE) -> dict:
+    """The variables to add to ``env`` so that Fast DDS uses ``profile``: ``{}`` when the transports are
+    chosen already (see :data:`TRANSPORT_CHOICES`; Fast DDS also reads ``DEFAULT_FASTRTPS_PROFILES.xml``
+    from the working directory) or the RMW is not Fast DDS."""
+    rmw = env.get("RMW_IMPLEMENTATION", "") or "rmw_fastrtps_cpp"
+    if not rmw.startswith("rmw_fastrtps") or any(env.get(k) for k in TRANSPORT_CHOICES) \
+            or (Path(cwd) / "DEFAULT_FASTRTPS_PROFILES.xml").exists():
+        return {}
+    if not profile.is_file():
+        raise FileNotFoundError(f"Fast DDS profile {profile} is missing (euc_ros/data is part of the package)")
+    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
 
 
 def bag_qos(profile) -> "Qos":
@@ -135,4 +166,14 @@ class Recorder(Node):
               + ", ".join(f"{t}={n}" for t, n in sorted(self.counts.items())), flush=True)
 
 
-main = main_for(Recorder)
+_run = main_for(Recorder)
+
+
+def main(args: list[str] | None = None) -> None:
+    """Run the Recorder node (``--ros-args --params-file FILE`` to configure) with :data:`RECORDER_PROFILE`
+    unless the Fast DDS transports are chosen already (:func:`transport_env`)."""
+    chosen = transport_env(os.environ)
+    os.environ.update(chosen)          # before rclpy.init: Fast DDS reads it when the participant is created
+    if chosen:
+        print(f"[recorder] Fast DDS profile {chosen['FASTRTPS_DEFAULT_PROFILES_FILE']}", flush=True)
+    _run(args)
