@@ -3,7 +3,7 @@
 1. identify h with the paper's 3-DoF model; 2. compute r(t) = M_d1 - M_d2; 3. for every candidate
 effect of the library (check detectability first: a generalized force in span(b_d, b_h) cannot show
 in r) fit its parameters jointly with h on training data and evaluate on held-out data (other runs, or
-segments of a single run); 4. select by held-out error with a paired block test (Bonferroni over the
+segments of a single run); 4. select by held-out error with a paired block test (max-T over the
 candidates) and a minimum gain, greedily, until nothing significant remains; 5. report the extended
 model, which ``identify --from-residual`` and the ``torque_estimator`` node (``effects``,
 ``effect_parameters``) use; 6. write JSON (spec section 5), a Markdown report and PNG figures.
@@ -179,7 +179,7 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     out = ["# Residual analysis: M_d1 - M_d2", "",
            f"Recordings: {', '.join(data.get('recordings', []))}  ",
            f"Held-out evaluation: {data['held_out']['kind']} ({data['held_out']['folds']} folds); "
-           f"significance level {data['significance_level']} (Bonferroni over candidates), "
+           f"significance level {data['significance_level']} (family-wise over the candidates: max-T), "
            f"minimum gain {100 * data['min_relative_gain']:.0f} %.", "",
            "## Verdict", ""]
     if data["effect"] == "none":

@@ -726,8 +726,8 @@ def max_t_adjusted(base: HeldOut, cands: Sequence[HeldOut], n_flips: int = MAX_T
     T[:, n < 3] = -np.inf
     t_max = np.sort(T.max(axis=1))
     exceed = t_max.size - np.searchsorted(t_max, t_obs - 1e-12 * np.abs(t_obs), side="left")
-    p = exceed / t_max.size if 2 ** nb <= n_flips else (exceed + 1) / (t_max.size + 1)
-    p = np.minimum(p, 1.0)
+    # (the random flips include the identity: exceed / flips is (1 + others) / (1 + other flips), a valid p)
+    p = np.minimum(exceed / t_max.size, 1.0)
     p[(n < 3) | np.all(np.isclose(D0, 0.0), axis=1)] = 1.0
     return p
 
