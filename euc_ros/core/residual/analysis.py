@@ -83,6 +83,10 @@ H_MAX_GEOMETRIC_DEV_M = 0.15
 NOISE_FLOOR_FACTOR = 3.0
 #: A parameter closer than this fraction of its range to a bound is "on the bound".
 AT_BOUND_FRACTION = 1e-3
+#: Which of the candidates the held-out data cannot tell apart is named (all of them are reported as tied with
+#: the h each implies): "prior", the one needing the most typical parameter values; "heldout", the lowest
+#: held-out RMSE.
+TIE_BREAK = "prior"
 
 
 # --------------------------------------------------------------------------------------------
@@ -939,9 +943,10 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         best = min(ok, key=lambda t: t[2].rmse)
         # candidates the held-out data cannot tell apart from the best one (not significantly worse)
         tied = [t for t in ok if t is best or paired_block_test(t[2], best[2]) >= AMBIGUITY_ALPHA]
-        # among those, prefer the explanation that needs the least implausible parameters (each parameter in
-        # units of its typical magnitude, ParamInfo.scale): a prior-weighted tie-break, reported as such
-        best = min(tied, key=lambda t: _implausibility(t[0], t[4].x[-t[0].n_params:] if t[0].n_params else []))
+        if TIE_BREAK == "prior":
+            # among those, prefer the explanation that needs the least implausible parameters (each parameter in
+            # units of its typical magnitude, ParamInfo.scale): a prior-weighted tie-break, reported as such
+            best = min(tied, key=lambda t: _implausibility(t[0], t[4].x[-t[0].n_params:] if t[0].n_params else []))
         step["selected"] = best[0].name
         # reported as tied: every admissible candidate the held-out data cannot tell from the selected one,
         # also those that did not pass the (family-wise) test against the current model on their own
