@@ -35,9 +35,10 @@ def clopper_pearson(k: int, n: int, level: float = 0.95) -> tuple[float, float]:
     return lo, hi
 
 
-def fdr_figure(path: str, alphas, named, n, min_adj) -> None:
-    """Rate of rides with a library effect named against alpha (95 % intervals), and the empirical CDF of the
-    first selection step's smallest family-wise p-value over the rides."""
+def fdr_figure(path: str, alphas, named, n, min_adj, other=None) -> None:
+    """Rate of rides with a library effect named against alpha (95 % intervals; ``other``: rides reported as
+    discovered or unexplained), and the empirical CDF of the first selection step's smallest family-wise
+    p-value over the rides."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -47,6 +48,11 @@ def fdr_figure(path: str, alphas, named, n, min_adj) -> None:
     ci = np.array([clopper_pearson(k, n) for k in named])
     ax[0].errorbar(alphas, rates, yerr=[rates - ci[:, 0], ci[:, 1] - rates], fmt="o", capsize=4,
                    label=f"library effect named ({n} no-effect rides, 95 % interval)")
+    if other is not None:
+        r2 = np.array(other) / n
+        ci2 = np.array([clopper_pearson(k, n) for k in other])
+        ax[0].errorbar(np.array(alphas) * 1.03, r2, yerr=[r2 - ci2[:, 0], ci2[:, 1] - r2], fmt="s", capsize=4,
+                       color="tab:orange", label="discovered or unexplained")
     a = np.linspace(0, max(alphas) * 1.05, 50)
     ax[0].plot(a, a, "k--", lw=1, label="rate = alpha")
     ax[0].set_xlabel("alpha (family-wise level of each selection step)")
@@ -78,9 +84,20 @@ def main() -> None:
     parser.add_argument("--alphas", type=float, nargs="*", default=[0.01, 0.05, 0.1, 0.2])
     parser.add_argument("--figure", help="with --fdr: write the calibration figure here")
     parser.add_argument("--json", help="write every trial here")
+    parser.add_argument("--replot", metavar="JSON", help="with --figure: redraw the --fdr figure from a --json of --fdr")
     args = parser.parse_args()
     seeds = range(args.first_seed, args.first_seed + args.seeds)
     cpu0 = time.process_time()
+    if args.replot:
+        rows = json.load(open(args.replot))
+        alphas = sorted({r["alpha"] for r in rows})
+        rides = sorted({r["seed"] for r in rows})
+        at = {(r["seed"], r["alpha"]): r for r in rows}
+        named = [sum(bool(at[s, a]["false_named"]) for s in rides) for a in alphas]
+        other = [sum(bool(at[s, a]["discovered"] or at[s, a]["unexplained"]) for s in rides) for a in alphas]
+        min_adj = [min(v["p_adjusted"] for v in at[s, alphas[0]]["first_step"].values()) for s in rides]
+        fdr_figure(args.figure, alphas, named, len(rides), min_adj, other)
+        return
 
     if args.calibrate:
         for fam in args.families:
@@ -142,7 +159,7 @@ def main() -> None:
             print(f"| {a:g} | {n} | {k} | {k / n:.3f} ({lo:.3f}-{hi:.3f}) | {o} | "
                   f"{sum(p < a for p in min_adj)} |", flush=True)
         if args.figure:
-            fdr_figure(args.figure, args.alphas, named, n, min_adj)
+            fdr_figure(args.figure, args.alphas, named, n, min_adj, other)
     elif args.null_seeds:
         rows = [power_trial(None, s) for s in null_seeds]
         trials += rows
