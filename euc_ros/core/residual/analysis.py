@@ -996,7 +996,10 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     dynamic_named = [c for c in current.effects if not getattr(c, "geometric", False)]
     if discover and dynamic_named:
         # a named effect is reported only when the discovered alternative (from the model without the named
-        # dynamic effects) is not significantly better than it (the same test and minimum gain as a selection)
+        # dynamic effects) is not significantly better than it (the same paired test at alpha; no minimum gain:
+        # this chooses between two explanations of the same structure, it adds nothing to the model. With
+        # the minimum gain, a headwind was named ground_slope+viscous_friction, 0.621 N m held out, against
+        # discovered terms at 0.582 N m, p = 0.003: significantly better, but by 6 %, test_outside_library.py)
         root = Model([c for c in current.effects if getattr(c, "geometric", False)])
         root_fit = fit_model(root, recs, h0)
         root_ho = held_out(root, recs, h0, folds, start=root_fit.x)
@@ -1005,7 +1008,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         if sel is not None and sel.residual.shape == current_ho.residual.shape:
             p_alt = paired_block_test(current_ho, sel)
             disc_alt = {"rmse_after_nm": sel.rmse, "p_value_against_named": p_alt}
-            if p_alt < alpha and sel.rmse <= (1 - min_gain) * current_ho.rmse:
+            if p_alt < alpha and sel.rmse < current_ho.rmse:
                 warnings.append(f"named {current.name} not reported: a discovered combination explains "
                                 f"significantly more (held-out {current_ho.rmse:.3f} -> {sel.rmse:.3f} N m, p = {p_alt:.2g})")
                 steps.append({"model": current.name, "rmse_nm": current_ho.rmse, "selected": None,
