@@ -3,7 +3,7 @@
 1. identify h with the paper's 3-DoF model; 2. compute r(t) = M_d1 - M_d2; 3. for every candidate
 effect of the library (check detectability first: a generalized force in span(b_d, b_h) cannot show
 in r) fit its parameters jointly with h on training data and evaluate on held-out data (other runs, or
-segments of a single run); 4. select by held-out error with a paired block test (Bonferroni over the
+segments of a single run); 4. select by held-out error with a paired block test (max-T over the
 candidates) and a minimum gain, greedily, until nothing significant remains; 5. report the extended
 model, which ``identify --from-residual`` and the ``torque_estimator`` node (``effects``,
 ``effect_parameters``) use; 6. write JSON (spec section 5), a Markdown report and PNG figures.
@@ -163,12 +163,13 @@ def format_summary(data: dict) -> str:
                      f"(session {geo['rolling_radius_nominal_m']:.4f} m){' -> wheel_radius_error' if geo['used'] else ''}")
     elif geo.get("rolling_radius_reason"):
         lines.append(f"rolling radius: not measured: {geo['rolling_radius_reason']}")
-    lines.append(f"{'candidate':22s} {'held-out RMSE':>14s} {'p':>9s}  parameters")
+    lines.append(f"{'candidate':22s} {'held-out RMSE':>14s} {'p':>9s} {'p adj.':>9s}  parameters")
     for c in data["candidates"]:
         p = "-" if c.get("p_value") is None else f"{c['p_value']:.2g}"
+        pa = "-" if c.get("p_adjusted") is None else f"{c['p_adjusted']:.2g}"
         rmse = "undetectable" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}"
         params = ", ".join(f"{k}={v:.4g}" for k, v in (c.get("effect_parameters") or {}).items())
-        lines.append(f"{c['effect']:22s} {rmse:>14s} {p:>9s}  {params}")
+        lines.append(f"{c['effect']:22s} {rmse:>14s} {p:>9s} {pa:>9s}  {params}")
     return "\n".join(lines)
 
 
@@ -179,7 +180,7 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     out = ["# Residual analysis: M_d1 - M_d2", "",
            f"Recordings: {', '.join(data.get('recordings', []))}  ",
            f"Held-out evaluation: {data['held_out']['kind']} ({data['held_out']['folds']} folds); "
-           f"significance level {data['significance_level']} (Bonferroni over candidates), "
+           f"significance level {data['significance_level']} (family-wise over the candidates: max-T), "
            f"minimum gain {100 * data['min_relative_gain']:.0f} %.", "",
            "## Verdict", ""]
     if data["effect"] == "none":
@@ -215,12 +216,14 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     out += ["", "| | h [m] | held-out RMSE [N m] |", "|---|---|---|",
             f"| before (3-DoF model) | {data['h_m']:.3f} | {data['rmse_before_nm']:.3f} |",
             f"| after ({data['effect']}) | {data['h_after_m']:.3f} | {data['rmse_after_nm']:.3f} |", "",
-            "## Candidates", "", "| effect | held-out RMSE [N m] | p | parameters |", "|---|---|---|---|"]
+            "## Candidates", "", "| effect | held-out RMSE [N m] | p | p adjusted (max-T) | parameters |",
+            "|---|---|---|---|---|"]
     for c in data["candidates"]:
         p = "" if c.get("p_value") is None else f"{c['p_value']:.2g}"
+        pa = "" if c.get("p_adjusted") is None else f"{c['p_adjusted']:.2g}"
         rmse = "undetectable (in span of the inputs)" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}"
         params = ", ".join(f"{k}={v:.4g}" for k, v in (c.get("effect_parameters") or {}).items())
-        out.append(f"| {c['effect']} | {rmse} | {p} | {params} |")
+        out.append(f"| {c['effect']} | {rmse} | {p} | {pa} | {params} |")
     if figures:
         out += ["", "## Figures", ""]
         out += [f"![{f.stem}]({os.path.relpath(f, base)})" for f in figures]

@@ -164,6 +164,43 @@ def simulate_states(effects: dict, seed: int, maneuvers=POWER_MANEUVERS, *, keep
     return states, session, (series if keep_series else None)
 
 
+def _trial_row(family: str | None, seed: int, out: dict) -> dict:
+    """The outcome of one analysed power ride (see :func:`power_trial`)."""
+    named = [n for n in out["effect"].split("+") if n not in ("none", "discovered", "unexplained")]
+    tied = set(out.get("ambiguous_with", []))
+    steps = [s for s in out["selection_steps"] if "tried" in s]
+    first = {t["effect"]: t for t in steps[0]["tried"]} if steps else {}
+    truth = first.get(family, {}) if family else {}
+    return {"family": family or "none", "seed": seed, "effect": out["effect"],
+            "detected": family is not None and family in named,
+            "detected_or_tied": family is not None and (family in named or (bool(named) and family in tied)),
+            "false_named": [n for n in named if n != family and family not in tied],
+            "twin_named": [n for n in named if n != family and family in tied],
+            "ambiguous_with": sorted(tied),
+            "cut": 1.0 - out["rmse_after_nm"] / out["rmse_before_nm"],
+            "rmse_before": out["rmse_before_nm"], "rmse_after": out["rmse_after_nm"], "h_after": out["h_after_m"],
+            "h_range": out["h_range_m"], "parameters": out["effect_parameters"],
+            "residual_significant": out["residual_significant"], "unexplained": out["unexplained"],
+            "discovered": bool(out.get("discovered")), "block_s": out["held_out"]["block_s"],
+            # the first selection step's test of every candidate against the base model
+            "first_step": {k: {"p": v["p_value"], "p_adjusted": v.get("p_adjusted"), "rmse_after": v["rmse_after_nm"],
+                               "admissible": "inadmissible" not in v} for k, v in first.items()},
+            "p_truth": truth.get("p_value", float("nan")), "p_adjusted_truth": truth.get("p_adjusted", float("nan")),
+            "truth_cut_first_step": (1.0 - truth["rmse_after_nm"] / out["rmse_before_nm"]) if truth else float("nan"),
+            "alpha": out["significance_level"]}
+
+
+def null_calibration_trial(seed: int, alphas=(0.01, 0.05, 0.1, 0.2)) -> list[dict]:
+    """One no-effect ride of :data:`POWER_MANEUVERS`, simulated once and analysed (whole analysis: candidates,
+    discovery, noise floor) at every level of ``alphas``: one :func:`power_trial`-like row per level."""
+    from euc_ros.core.residual.analysis import make_noise_floor
+
+    states, session, series = simulate_states({}, seed, keep_series=True)
+    params = EucParams.from_session(session)
+    nf = make_noise_floor(series, states, session, params)
+    return [_trial_row(None, seed, analyze(states, params, noise_floor_of=nf, alpha=a).to_json()) for a in alphas]
+
+
 def power_trial(family: str | None, seed: int, magnitude: dict | None = None, *, noise_floor: bool = True) -> dict:
     """One ride of :data:`POWER_MANEUVERS` with ``family`` at its power magnitude (None: no effect), analysed.
 
@@ -180,18 +217,7 @@ def power_trial(family: str | None, seed: int, magnitude: dict | None = None, *,
     params = EucParams.from_session(session)
     nf = make_noise_floor(series, states, session, params) if noise_floor else None
     out = analyze(states, params, noise_floor_of=nf).to_json()
-    named = [n for n in out["effect"].split("+") if n not in ("none", "discovered", "unexplained")]
-    tied = set(out.get("ambiguous_with", []))
-    return {"family": family or "none", "seed": seed, "effect": out["effect"],
-            "detected": family is not None and family in named,
-            "detected_or_tied": family is not None and (family in named or (bool(named) and family in tied)),
-            "false_named": [n for n in named if n != family and family not in tied],
-            "twin_named": [n for n in named if n != family and family in tied],
-            "ambiguous_with": sorted(tied),
-            "cut": 1.0 - out["rmse_after_nm"] / out["rmse_before_nm"],
-            "rmse_before": out["rmse_before_nm"], "rmse_after": out["rmse_after_nm"], "h_after": out["h_after_m"],
-            "h_range": out["h_range_m"], "parameters": out["effect_parameters"],
-            "residual_significant": out["residual_significant"], "unexplained": out["unexplained"]}
+    return _trial_row(family, seed, out)
 
 
 def family_cut(family: str, seed: int, magnitude: dict) -> float:
