@@ -50,21 +50,24 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
         ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
         power normalised to sum 1) for :func:`sliding_bias`.
     """
-    from euc_ros.core.euc.skeleton_fit import SkeletonModel
-
-    model = skeleton or SkeletonModel.estimate(list(series_list), session)
-    chain = list(model.bodies) + [model.euc_body]
-    m = len(model.bodies)
+    if skeleton is not None:
+        names, euc_body = list(skeleton.bodies), skeleton.euc_body
+        links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
+    else:
+        names, euc_body, links = _links(series_list, session)
+    chain = names + [euc_body]
+    m = len(names)
     rows, vals = [], []
     spec_f, spec_p = None, None
     for s in series_list:
         n = s.n_frames
         if n < 16:
             continue
-        for k, (a, b) in enumerate(model.links):
+        ok = _usable(s)
+        for a, b, vector, threshold in links:
             ia, ib = chain.index(a), chain.index(b)
-            d, both = _link_deviation(s, a, b, model.vectors[k])
-            good = both & (np.linalg.norm(d, axis=1) <= model.threshold_m[k])
+            d, both = _link_deviation(s, a, b, vector, usable=ok)
+            good = both & (np.linalg.norm(d, axis=1) <= threshold)
             if good.sum() < 16:
                 continue
             dg = d[good] - d[good].mean(0)
@@ -89,23 +92,68 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
             p = np.interp(spec_f, f, p)
             spec_p = p if spec_p is None else spec_p + p
     if not rows:
-        return {"bodies": list(model.bodies), "rms_m": [0.0] * m, "rms_max_m": 0.0, "spectrum": None}
+        return {"bodies": list(names), "rms_m": [0.0] * m, "rms_max_m": 0.0, "spectrum": None}
     q, _ = nnls(np.array(rows), np.array(vals))
     spectrum = None
     if spec_p is not None and spec_p.sum() > 0:
         spectrum = (spec_f, spec_p / spec_p.sum())
     rms = np.sqrt(q)
-    return {"bodies": list(model.bodies), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
+    return {"bodies": list(names), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
             "spectrum": spectrum}
 
 
-def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14):
+def _links(series_list, session):
+    """The chain's links with their vectors and fault thresholds, as
+    :meth:`~euc_ros.core.euc.skeleton_fit.SkeletonModel.estimate` defines them (per link, the median of
+    ``R_a^T (p_b - p_a)`` over every recording's usable frames, and the threshold median + ``fault_sigmas``
+    robust standard deviations of the distance to it, at least ``fault_floor_m``), without the chain's
+    relative rotations, which the sliding does not use: ``(bodies, euc_body, [(a, b, vector, threshold)])``.
+    """
+    from euc_ros.core.errors import ConfigError
+    from euc_ros.core.euc.skeleton_fit import DEFAULT_LINKS, SkeletonFitConfig
+
+    config = SkeletonFitConfig()
+    names, _, _ = session.segment_arrays()
+    euc = session.euc.body
+    known = set(names) | {euc}
+    used = [(a, b) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
+    if not used:
+        raise ConfigError("no chain link between the session's bodies", key="cog_method")
+    out = []
+    usable = [_usable(s) for s in series_list]
+    for a, b in used:
+        parts = []
+        for s, ok in zip(series_list, usable):
+            d, both = _link_deviation(s, a, b, np.zeros(3), usable=ok)
+            parts.append(d[both])
+        v = np.concatenate(parts) if len(parts) > 1 else parts[0]
+        if v.shape[0] == 0:
+            continue                                    # links never seen together are left out
+        vk = np.median(v, axis=0)
+        e = np.linalg.norm(v - vk, axis=1)
+        med = float(np.median(e))
+        mad = float(np.median(np.abs(e - med)))
+        out.append((a, b, vk, max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)))
+    if not out:
+        raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
+    return list(names), euc, out
+
+
+def _usable(series) -> np.ndarray:
+    """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames)."""
+    q = series.quat
+    fin = np.all(np.isfinite(q), -1)
+    q0 = np.where(fin[..., None], q, 0.0)
+    return fin & (np.einsum("bni,bni->bn", q0, q0) > 0) & np.all(np.isfinite(series.position), -1) & series.tracked
+
+
+def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):
     """``R_a^T (p_b - p_a) - vector`` (n, 3) of one link over a recording, and where both bodies are usable.
 
     Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
-    the caller). Computed block by block: the rotation matrices of the whole recording never exist.
+    the caller). Computed block by block with the quaternions (no rotation matrices).
     """
-    from euc_ros.core.euc.skeleton_fit import _rotmats
+    from euc_ros.core.euc.kinematics import _rotate
 
     n = series.n_frames
     d = np.empty((n, 3))
@@ -114,17 +162,19 @@ def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 <
         return d, np.zeros(n, bool)
     ja, jb = series.bodies.index(a), series.bodies.index(b)
     both = np.zeros(n, bool)
-    eye = np.eye(3)
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    vector = np.asarray(vector, float)
+
+    if usable is None:
+        usable = _usable(series)
     for lo in range(0, n, block):
         hi = min(n, lo + block)
-        Ra, oka = _rotmats(series.quat[ja, lo:hi])
-        _, okb = _rotmats(series.quat[jb, lo:hi])
-        oka = oka & np.all(np.isfinite(series.position[ja, lo:hi]), -1) & series.tracked[ja, lo:hi]
-        okb = okb & np.all(np.isfinite(series.position[jb, lo:hi]), -1) & series.tracked[jb, lo:hi]
-        Ra = np.where(oka[:, None, None], Ra, eye)
+        oka, okb = usable[ja, lo:hi], usable[jb, lo:hi]
+        qa = np.where(oka[:, None], series.quat[ja, lo:hi], ident)
+        qa = qa * np.array([-1.0, -1.0, -1.0, 1.0])                # R_a^T: the conjugate rotation
         Pa = np.where(oka[:, None], series.position[ja, lo:hi], 0.0)
         Pb = np.where(okb[:, None], series.position[jb, lo:hi], 0.0)
-        d[lo:hi] = np.einsum("nji,nj->ni", Ra, Pb - Pa) - vector
+        d[lo:hi] = _rotate(qa, Pb - Pa) - vector
         both[lo:hi] = oka & okb
     return d, both
 
