@@ -50,23 +50,51 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
         ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
         power normalised to sum 1) for :func:`sliding_bias`.
     """
+    from euc_ros.core.errors import ConfigError
+    from euc_ros.core.euc.skeleton_fit import DEFAULT_LINKS, SkeletonFitConfig
+
     if skeleton is not None:
         names, euc_body = list(skeleton.bodies), skeleton.euc_body
         links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
     else:
-        names, euc_body, links = _links(series_list, session)
+        # the chain's links as SkeletonModel.estimate defines them (vector: the median of R_a^T (p_b - p_a)
+        # over every recording's usable frames; threshold: median + fault_sigmas robust standard deviations of
+        # the distance to it, at least fault_floor_m), made here link by link from the same deviations the
+        # sliding is measured on, without the chain's relative rotations (the sliding does not use them)
+        names_, _, _ = session.segment_arrays()
+        names, euc_body = list(names_), session.euc.body
+        known = set(names) | {euc_body}
+        links = [(a, b, None, None) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
+        if not links:
+            raise ConfigError("no chain link between the session's bodies", key="cog_method")
+    config = SkeletonFitConfig()
     chain = names + [euc_body]
     m = len(names)
     rows, vals = [], []
     spec_f, spec_p = None, None
-    for s in series_list:
-        n = s.n_frames
-        if n < 16:
-            continue
-        ok = _usable(s)
-        for a, b, vector, threshold in links:
-            ia, ib = chain.index(a), chain.index(b)
-            d, both = _link_deviation(s, a, b, vector, usable=ok)
+    usable = [_usable(s) for s in series_list]
+    seen = 0
+    for a, b, vector, threshold in links:
+        # one link at a time: its deviation over every recording (no other link's arrays exist meanwhile)
+        devs = [_link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
+                for s, ok in zip(series_list, usable)]
+        if vector is None:
+            v = np.concatenate([d[both] for d, both in devs])
+            if v.shape[0] == 0:
+                continue                                # links never seen together are left out
+            vector = np.median(v, axis=0)
+            e = np.linalg.norm(v - vector, axis=1)
+            med = float(np.median(e))
+            mad = float(np.median(np.abs(e - med)))
+            threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
+            del v, e
+            devs = [(d - vector, both) for d, both in devs]
+        seen += 1
+        ia, ib = chain.index(a), chain.index(b)
+        for s, (d, both) in zip(series_list, devs):
+            n = s.n_frames
+            if n < 16:
+                continue
             good = both & (np.linalg.norm(d, axis=1) <= threshold)
             if good.sum() < 16:
                 continue
@@ -91,6 +119,9 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
                 spec_f = f
             p = np.interp(spec_f, f, p)
             spec_p = p if spec_p is None else spec_p + p
+        del devs
+    if skeleton is None and not seen:
+        raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
     if not rows:
         return {"bodies": list(names), "rms_m": [0.0] * m, "rms_max_m": 0.0, "spectrum": None}
     q, _ = nnls(np.array(rows), np.array(vals))
@@ -100,43 +131,6 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
     rms = np.sqrt(q)
     return {"bodies": list(names), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
             "spectrum": spectrum}
-
-
-def _links(series_list, session):
-    """The chain's links with their vectors and fault thresholds, as
-    :meth:`~euc_ros.core.euc.skeleton_fit.SkeletonModel.estimate` defines them (per link, the median of
-    ``R_a^T (p_b - p_a)`` over every recording's usable frames, and the threshold median + ``fault_sigmas``
-    robust standard deviations of the distance to it, at least ``fault_floor_m``), without the chain's
-    relative rotations, which the sliding does not use: ``(bodies, euc_body, [(a, b, vector, threshold)])``.
-    """
-    from euc_ros.core.errors import ConfigError
-    from euc_ros.core.euc.skeleton_fit import DEFAULT_LINKS, SkeletonFitConfig
-
-    config = SkeletonFitConfig()
-    names, _, _ = session.segment_arrays()
-    euc = session.euc.body
-    known = set(names) | {euc}
-    used = [(a, b) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
-    if not used:
-        raise ConfigError("no chain link between the session's bodies", key="cog_method")
-    out = []
-    usable = [_usable(s) for s in series_list]
-    for a, b in used:
-        parts = []
-        for s, ok in zip(series_list, usable):
-            d, both = _link_deviation(s, a, b, np.zeros(3), usable=ok)
-            parts.append(d[both])
-        v = np.concatenate(parts) if len(parts) > 1 else parts[0]
-        if v.shape[0] == 0:
-            continue                                    # links never seen together are left out
-        vk = np.median(v, axis=0)
-        e = np.linalg.norm(v - vk, axis=1)
-        med = float(np.median(e))
-        mad = float(np.median(np.abs(e - med)))
-        out.append((a, b, vk, max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)))
-    if not out:
-        raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
-    return list(names), euc, out
 
 
 def _usable(series) -> np.ndarray:

@@ -187,6 +187,36 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
     return hb, length, nb, grid
 
 
+def _mad_pooled(v: np.ndarray) -> float:
+    """1.4826 x the median absolute deviation of rows (k, m) from their own medians, pooled over the rows."""
+    return float(1.4826 * np.median(np.abs(v - np.median(v, axis=1, keepdims=True))))
+
+
+def _increments(quat: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    """Rotation vectors (3, n - 1) of ``conj(q_k) q_{k+1}`` (body-frame increments), identity where not ``ok``.
+
+    :func:`~euc_ros.core.rotations.quat_multiply` and :func:`~euc_ros.core.rotations.rotvec_from_quat`
+    written out on component rows (the same arithmetic).
+    """
+    q = np.where(ok[:, None], quat, [0.0, 0.0, 0.0, 1.0]).T
+    q = q / np.sqrt(np.einsum("in,in->n", q, q))
+    ax, ay, az, aw = q[:, :-1]
+    bx, by, bz, bw = q[:, 1:]
+    # conj(a) b = (aw bv - bw av - av x bv, aw bw + av . bv)
+    x = aw * bx - bw * ax - (ay * bz - az * by)
+    y = aw * by - bw * ay - (az * bx - ax * bz)
+    z = aw * bz - bw * az - (ax * by - ay * bx)
+    w = aw * bw + (ax * bx + ay * by + az * bz)
+    flip = np.where(w < 0, -1.0, 1.0)            # the rotation of angle <= pi
+    x, y, z, w = x * flip, y * flip, z * flip, w * flip
+    nrm = np.sqrt(x * x + y * y + z * z + w * w)
+    x, y, z, w = x / nrm, y / nrm, z / nrm, w / nrm
+    s = np.sqrt(x * x + y * y + z * z)
+    angle = 2.0 * np.arctan2(s, w)
+    k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0 / np.maximum(w, 1e-300))
+    return np.stack([k * x, k * y, k * z])
+
+
 def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
     """Per-body white pose noise estimated from the recording: (position sigma per axis [m],
     rotation sigma per axis [rad]), each (b,).
@@ -203,18 +233,14 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
         pair = ok[1:] & ok[:-1] & consecutive
         if pair.sum() < 20:
             continue
-        p = series.position[i]
-        d3 = np.diff(p, n=3, axis=0)
         good3 = pair[2:] & pair[1:-1] & pair[:-2]
-        if good3.sum() >= 10:
-            sp[i] = 1.4826 * np.median(np.abs(d3[good3] - np.median(d3[good3], axis=0))) / np.sqrt(20)
-        q = series.quat[i]
-        qa = np.where(ok[:, None], q, [0, 0, 0, 1.0])
-        qa = qa / np.linalg.norm(qa, axis=1, keepdims=True)
-        inc = rotvec_from_quat(quat_multiply(quat_conjugate(qa[:-1]), qa[1:]))
-        d2 = np.diff(inc, n=2, axis=0)
-        if good3.sum() >= 10:
-            sr[i] = 1.4826 * np.median(np.abs(d2[good3] - np.median(d2[good3], axis=0))) / np.sqrt(20)
+        if good3.sum() < 10:
+            continue
+        # components as rows (3, n): the differences and medians run over contiguous memory
+        d3 = np.diff(series.position[i].T, n=3, axis=1)[:, good3]
+        sp[i] = _mad_pooled(d3) / np.sqrt(20)
+        d2 = np.diff(_increments(series.quat[i], ok), n=2, axis=1)[:, good3]
+        sr[i] = _mad_pooled(d2) / np.sqrt(20)
     return sp, sr
 
 
