@@ -148,20 +148,29 @@ def block_length(coefs: Sequence[np.ndarray], h: float, window: int) -> int:
     return max(int(window), 2 * k0)
 
 
-def block_sse(coefs: Sequence[np.ndarray], length: int, grid: np.ndarray) -> np.ndarray:
-    """SSE(h) of every block of ``length`` consecutive samples of each recording: (n_blocks, g)."""
-    from euc_ros.core.euc.identify import _sse_grid
-
-    rows = []
+def _blocks_of(coefs: Sequence[np.ndarray], length: int) -> list[np.ndarray]:
+    """The blocks of ``length`` consecutive samples of each recording (k blocks of ~length, the rest spread)."""
+    out = []
     for c in coefs:
         n = c.shape[1]
         if n == 0:
             continue
         k = max(1, n // length)
-        edges = np.linspace(0, n, k + 1).astype(int)      # k blocks of ~length (the rest spread)
-        for a, b in zip(edges[:-1], edges[1:]):
-            rows.append(_sse_grid(c[:, a:b], grid))
+        edges = np.linspace(0, n, k + 1).astype(int)
+        out += [c[:, a:b] for a, b in zip(edges[:-1], edges[1:])]
+    return out
+
+
+def block_sse(coefs: Sequence[np.ndarray], length: int, grid: np.ndarray) -> np.ndarray:
+    """SSE(h) of every block of ``length`` consecutive samples of each recording: (n_blocks, g)."""
+    from euc_ros.core.euc.identify import _sse_grid
+
+    rows = [_sse_grid(c, grid) for c in _blocks_of(coefs, length)]
     return np.array(rows).reshape(-1, grid.size)
+
+
+#: The bootstrap's coarse grid takes every this many points of the fine grid (:func:`block_bootstrap`).
+COARSE_EVERY = 10
 
 
 def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: float, *, n_boot: int = 1000,
@@ -170,17 +179,32 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
 
     Replicates whose optimum sits on the fine grid's edge are returned as +-inf (the data do not
     bound h there).
+
+    The replicates' SSE curves are first found on every :data:`COARSE_EVERY`-th point of the fine grid;
+    the fine grid is then evaluated only from one coarse step below the lowest replicate optimum to
+    one above the highest. A replicate's fine optimum lies within one coarse step of its coarse one
+    whenever its SSE curve has a single minimum on the scale of a coarse step (5 mm), so the
+    replicates are those of the whole fine grid, at the cost of the span the replicates cover.
     """
+    from euc_ros.core.euc.identify import _sse_grid
+
     length = block_length(coefs, h, window)
     lo = max(h_bounds[0], h - LOCAL_HALF_WIDTH_M)
     hi = min(h_bounds[1], h + LOCAL_HALF_WIDTH_M)
     grid = np.arange(lo, hi + LOCAL_STEP_M / 2, LOCAL_STEP_M)
-    S = block_sse(coefs, length, grid)
-    nb = S.shape[0]
+    blocks = _blocks_of(coefs, length)
+    nb = len(blocks)
     rng = np.random.default_rng(seed)
     W = rng.multinomial(nb, np.full(nb, 1.0 / nb), size=n_boot).astype(float)
-    boot = W @ S
-    k = np.argmin(boot, axis=1)
+    coarse = np.arange(0, grid.size, COARSE_EVERY)
+    if coarse[-1] != grid.size - 1:
+        coarse = np.append(coarse, grid.size - 1)
+    Sc = np.array([_sse_grid(c, grid[coarse]) for c in blocks]).reshape(-1, coarse.size)
+    kc = np.argmin(W @ Sc, axis=1)
+    f0 = int(coarse[max(int(kc.min()) - 1, 0)]) if kc.size else 0
+    f1 = int(coarse[min(int(kc.max()) + 1, coarse.size - 1)]) if kc.size else grid.size - 1
+    S = np.array([_sse_grid(c, grid[f0:f1 + 1]) for c in blocks]).reshape(-1, f1 + 1 - f0)
+    k = f0 + np.argmin(W @ S, axis=1)
     hb = grid[k].astype(float)
     hb[k == 0] = -np.inf
     hb[k == grid.size - 1] = np.inf
