@@ -88,7 +88,8 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
             mad = float(np.median(np.abs(e - med)))
             threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
             del v, e
-            devs = [(d - vector, both) for d, both in devs]
+            for d, _ in devs:
+                d -= vector                                 # in place: no second copy of the deviations
         seen += 1
         ia, ib = chain.index(a), chain.index(b)
         for s, (d, both) in zip(series_list, devs):
@@ -134,11 +135,17 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
 
 
 def _usable(series) -> np.ndarray:
-    """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames)."""
-    q = series.quat
-    fin = np.all(np.isfinite(q), -1)
-    q0 = np.where(fin[..., None], q, 0.0)
-    return fin & (np.einsum("bni,bni->bn", q0, q0) > 0) & np.all(np.isfinite(series.position), -1) & series.tracked
+    """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
+
+    Body by body (the temporaries are one body's, never a copy of the recording's quaternions)."""
+    b, n = series.quat.shape[0], series.quat.shape[1]
+    out = np.empty((b, n), dtype=bool)
+    for i in range(b):
+        q = series.quat[i]
+        # a NaN component makes the squared norm NaN, which is not > 0
+        out[i] = (np.einsum("ni,ni->n", q, q) > 0) & np.isfinite(q).all(-1) \
+            & np.isfinite(series.position[i]).all(-1) & series.tracked[i]
+    return out
 
 
 def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):

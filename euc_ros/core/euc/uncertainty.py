@@ -216,29 +216,36 @@ def _mad_pooled(v: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(v - np.median(v, axis=1, keepdims=True))))
 
 
-def _increments(quat: np.ndarray, ok: np.ndarray) -> np.ndarray:
+def _increments(quat: np.ndarray, ok: np.ndarray, block: int = 1 << 14) -> np.ndarray:
     """Rotation vectors (3, n - 1) of ``conj(q_k) q_{k+1}`` (body-frame increments), identity where not ``ok``.
 
     :func:`~euc_ros.core.rotations.quat_multiply` and :func:`~euc_ros.core.rotations.rotvec_from_quat`
-    written out on component rows (the same arithmetic).
+    written out on component rows (the same arithmetic), block by block into the output (the
+    temporaries are one block's).
     """
-    q = np.where(ok[:, None], quat, [0.0, 0.0, 0.0, 1.0]).T
-    q = q / np.sqrt(np.einsum("in,in->n", q, q))
-    ax, ay, az, aw = q[:, :-1]
-    bx, by, bz, bw = q[:, 1:]
-    # conj(a) b = (aw bv - bw av - av x bv, aw bw + av . bv)
-    x = aw * bx - bw * ax - (ay * bz - az * by)
-    y = aw * by - bw * ay - (az * bx - ax * bz)
-    z = aw * bz - bw * az - (ax * by - ay * bx)
-    w = aw * bw + (ax * bx + ay * by + az * bz)
-    flip = np.where(w < 0, -1.0, 1.0)            # the rotation of angle <= pi
-    x, y, z, w = x * flip, y * flip, z * flip, w * flip
-    nrm = np.sqrt(x * x + y * y + z * z + w * w)
-    x, y, z, w = x / nrm, y / nrm, z / nrm, w / nrm
-    s = np.sqrt(x * x + y * y + z * z)
-    angle = 2.0 * np.arctan2(s, w)
-    k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0 / np.maximum(w, 1e-300))
-    return np.stack([k * x, k * y, k * z])
+    n = quat.shape[0]
+    out = np.empty((3, max(n - 1, 0)))
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    for lo in range(0, n - 1, block):
+        hi = min(n, lo + block + 1)                  # block + 1 orientations give block increments
+        q = np.where(ok[lo:hi, None], quat[lo:hi], ident).T
+        q = q / np.sqrt(np.einsum("in,in->n", q, q))
+        ax, ay, az, aw = q[:, :-1]
+        bx, by, bz, bw = q[:, 1:]
+        # conj(a) b = (aw bv - bw av - av x bv, aw bw + av . bv)
+        x = aw * bx - bw * ax - (ay * bz - az * by)
+        y = aw * by - bw * ay - (az * bx - ax * bz)
+        z = aw * bz - bw * az - (ax * by - ay * bx)
+        w = aw * bw + (ax * bx + ay * by + az * bz)
+        flip = np.where(w < 0, -1.0, 1.0)            # the rotation of angle <= pi
+        x, y, z, w = x * flip, y * flip, z * flip, w * flip
+        nrm = np.sqrt(x * x + y * y + z * z + w * w)
+        x, y, z, w = x / nrm, y / nrm, z / nrm, w / nrm
+        s = np.sqrt(x * x + y * y + z * z)
+        angle = 2.0 * np.arctan2(s, w)
+        k = np.where(s > 1e-12, angle / np.where(s > 1e-12, s, 1.0), 2.0 / np.maximum(w, 1e-300))
+        out[0, lo:hi - 1], out[1, lo:hi - 1], out[2, lo:hi - 1] = k * x, k * y, k * z
+    return out
 
 
 def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
