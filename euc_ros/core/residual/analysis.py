@@ -102,17 +102,13 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
     """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time."""
     t = st.t
     psi, theta = st.psi, st.theta
-    base: dict = {}
+    A = _hinge(st, params.l0)
 
     def phi_of(G):
-        if "A" not in base:
-            # the hinge and the unshifted phi, made on the first shift (a prepare for a model without a
-            # time shift, e.g. the noise floor's, never pays their whole-recording arrays)
-            base["A"] = _hinge(st, params.l0)
-            base["phi0"] = phi_of(st.G)
-        r = to_moving_frame(G - base["A"], psi, theta)
+        r = to_moving_frame(G - A, psi, theta)
         return np.arctan2(r[:, 0], r[:, 2])
 
+    phi0 = phi_of(st.G)
     idx = np.flatnonzero(valid)
     half = (window - 1) // 2
     uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
@@ -124,8 +120,7 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
 
     def shift(dt: float):
         Gs = np.stack([np.interp(t + dt, t, st.G[:, k], left=np.nan, right=np.nan) for k in range(3)], axis=1)
-        phi = phi_of(Gs)
-        d = phi - base["phi0"]
+        d = phi_of(Gs) - phi0
         if uniform:
             W = np.lib.stride_tricks.sliding_window_view(np.pad(d, half, constant_values=np.nan), window)[idx]
             out = W @ weights.T
