@@ -242,11 +242,14 @@ def _fmt(v: float, digits: int) -> str:
     return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
 
 
-def uncertainty(states, session, params, result, args, tolerances, *, with_budget: bool = True) -> dict:
+def uncertainty(states, session, params, result, args, tolerances, *, with_budget: bool = True,
+                simex_share=None) -> dict:
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
     ``args`` needs ``window_s``, ``polyorder``, and optionally ``phi_definition``, ``cog_method``, ``h_min``,
     ``h_max``, ``sliding_bias`` (default True: the soft-tissue sliding's SIMEX bias joins the interval).
+    ``simex_share``: a :class:`~euc_ros.core.euc.uncertainty.SimexShare` holding SIMEX's first replicate
+    (made by the residual's noise floor).
     """
     from euc_ros.core.euc import uncertainty as U
     from euc_ros.core.euc.identify import _coefficients_for
@@ -260,7 +263,8 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     bias = err = float("nan")
     if np.isfinite(fit.h_m) and all(s is not None for s in series):
         bias, err = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                               phi_definition=phi_definition, with_error=True, cog_method=cog_method)
+                               phi_definition=phi_definition, with_error=True, cog_method=cog_method,
+                               share=simex_share)
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
     slide = None

@@ -90,7 +90,12 @@ def main(args: argparse.Namespace) -> int:
     params = EucParams.from_session(session)
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     series = [st.meta.get("series") for st in states]
-    noise_of = make_noise_floor(series, states, session, params) if all(s is not None for s in series) else None
+    # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
+    from euc_ros.core.euc.uncertainty import SimexShare
+
+    simex = SimexShare()
+    noise_of = make_noise_floor(series, states, session, params, share=simex) \
+        if all(s is not None for s in series) else None
     result = analyze(states, params, candidates=candidates, alpha=args.alpha, min_gain=args.min_gain,
                      max_effects=args.max_effects, use_geometry=not args.no_geometry,
                      discover=not args.no_discovery, noise_floor_of=noise_of, progress=say)
@@ -101,7 +106,7 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.euc.uncertainty import DEFAULT_TOLERANCES
 
     base = uncertainty(states, session, params, identify_h(states, params, models=("3dof",)), args,
-                       DEFAULT_TOLERANCES, with_budget=False)
+                       DEFAULT_TOLERANCES, with_budget=False, simex_share=simex)
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     data["uncertainty"] = base["uncertainty"]

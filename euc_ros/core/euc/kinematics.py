@@ -452,17 +452,22 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     gap = ~fin & d_C.filled
     if gap.any() and fin.sum() >= 2:
         psi_x[gap] = np.interp(frame[gap], frame[fin], psi[fin])
-    e_x = np.stack([np.cos(psi_x), np.sin(psi_x)], -1)
-    x_dot = np.sum(e_x * d_C.y_dot[:, :2], -1)
-    x_ddot = np.sum(e_x * d_C.y_ddot[:, :2], -1)
+    cx, sx = np.cos(psi_x), np.sin(psi_x)          # e_x = (cos psi, sin psi)
+    x_dot = cx * d_C.y_dot[:, 0] + sx * d_C.y_dot[:, 1]
+    x_ddot = cx * d_C.y_ddot[:, 0] + sx * d_C.y_ddot[:, 1]
+    del cx, sx
     t = np.asarray(series.t, dtype=float)
     xd0 = np.where(np.isfinite(x_dot), x_dot, 0.0)
     x = np.concatenate(([0.0], np.cumsum(0.5 * (xd0[1:] + xd0[:-1]) * np.diff(t)))) if t.size else t.copy()
     x[~np.isfinite(x_dot)] = np.nan
     filled = d_gamma.filled | d_phi.filled | d_C.filled
     fields_ = (x_dot, x_ddot, d_gamma.y, d_gamma.y_dot, d_gamma.y_ddot, d_phi.y, d_phi.y_dot, d_phi.y_ddot)
-    # measured samples at least half a window inside their stretch (where the SG fit interpolates)
-    valid = trim_edges(np.all(np.isfinite(np.stack(fields_)), axis=0), d_gamma.window // 2, frame, max_gap) & ~filled
+    # measured samples at least half a window inside their stretch (where the SG fit interpolates);
+    # the fields' finiteness and-ed one at a time (no (8, n) stack of the fields)
+    finite = np.isfinite(fields_[0])
+    for f in fields_[1:]:
+        finite &= np.isfinite(f)
+    valid = trim_edges(finite, d_gamma.window // 2, frame, max_gap) & ~filled
     return RiderStates(
         name=series.name, t=t, frame=frame, x=x, x_dot=x_dot, x_ddot=x_ddot,
         gamma=d_gamma.y, gamma_dot=d_gamma.y_dot, gamma_ddot=d_gamma.y_ddot,

@@ -50,21 +50,53 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
         ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
         power normalised to sum 1) for :func:`sliding_bias`.
     """
-    from euc_ros.core.euc.skeleton_fit import SkeletonModel
+    from euc_ros.core.errors import ConfigError
+    from euc_ros.core.euc.skeleton_fit import DEFAULT_LINKS, SkeletonFitConfig
 
-    model = skeleton or SkeletonModel.estimate(list(series_list), session)
-    chain = list(model.bodies) + [model.euc_body]
-    m = len(model.bodies)
+    if skeleton is not None:
+        names, euc_body = list(skeleton.bodies), skeleton.euc_body
+        links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
+    else:
+        # the chain's links as SkeletonModel.estimate defines them (vector: the median of R_a^T (p_b - p_a)
+        # over every recording's usable frames; threshold: median + fault_sigmas robust standard deviations of
+        # the distance to it, at least fault_floor_m), made here link by link from the same deviations the
+        # sliding is measured on, without the chain's relative rotations (the sliding does not use them)
+        names_, _, _ = session.segment_arrays()
+        names, euc_body = list(names_), session.euc.body
+        known = set(names) | {euc_body}
+        links = [(a, b, None, None) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
+        if not links:
+            raise ConfigError("no chain link between the session's bodies", key="cog_method")
+    config = SkeletonFitConfig()
+    chain = names + [euc_body]
+    m = len(names)
     rows, vals = [], []
     spec_f, spec_p = None, None
-    for s in series_list:
-        n = s.n_frames
-        if n < 16:
-            continue
-        for k, (a, b) in enumerate(model.links):
-            ia, ib = chain.index(a), chain.index(b)
-            d, both = _link_deviation(s, a, b, model.vectors[k])
-            good = both & (np.linalg.norm(d, axis=1) <= model.threshold_m[k])
+    usable = [_usable(s) for s in series_list]
+    seen = 0
+    for a, b, vector, threshold in links:
+        # one link at a time: its deviation over every recording (no other link's arrays exist meanwhile)
+        devs = [_link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
+                for s, ok in zip(series_list, usable)]
+        if vector is None:
+            v = np.concatenate([d[both] for d, both in devs])
+            if v.shape[0] == 0:
+                continue                                # links never seen together are left out
+            vector = np.median(v, axis=0)
+            e = np.linalg.norm(v - vector, axis=1)
+            med = float(np.median(e))
+            mad = float(np.median(np.abs(e - med)))
+            threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
+            del v, e
+            for d, _ in devs:
+                d -= vector                                 # in place: no second copy of the deviations
+        seen += 1
+        ia, ib = chain.index(a), chain.index(b)
+        for s, (d, both) in zip(series_list, devs):
+            n = s.n_frames
+            if n < 16:
+                continue
+            good = both & (np.linalg.norm(d, axis=1) <= threshold)
             if good.sum() < 16:
                 continue
             dg = d[good] - d[good].mean(0)
@@ -88,24 +120,41 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
                 spec_f = f
             p = np.interp(spec_f, f, p)
             spec_p = p if spec_p is None else spec_p + p
+        del devs
+    if skeleton is None and not seen:
+        raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
     if not rows:
-        return {"bodies": list(model.bodies), "rms_m": [0.0] * m, "rms_max_m": 0.0, "spectrum": None}
+        return {"bodies": list(names), "rms_m": [0.0] * m, "rms_max_m": 0.0, "spectrum": None}
     q, _ = nnls(np.array(rows), np.array(vals))
     spectrum = None
     if spec_p is not None and spec_p.sum() > 0:
         spectrum = (spec_f, spec_p / spec_p.sum())
     rms = np.sqrt(q)
-    return {"bodies": list(model.bodies), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
+    return {"bodies": list(names), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
             "spectrum": spectrum}
 
 
-def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14):
+def _usable(series) -> np.ndarray:
+    """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
+
+    Body by body (the temporaries are one body's, never a copy of the recording's quaternions)."""
+    b, n = series.quat.shape[0], series.quat.shape[1]
+    out = np.empty((b, n), dtype=bool)
+    for i in range(b):
+        q = series.quat[i]
+        # a NaN component makes the squared norm NaN, which is not > 0
+        out[i] = (np.einsum("ni,ni->n", q, q) > 0) & np.isfinite(q).all(-1) \
+            & np.isfinite(series.position[i]).all(-1) & series.tracked[i]
+    return out
+
+
+def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):
     """``R_a^T (p_b - p_a) - vector`` (n, 3) of one link over a recording, and where both bodies are usable.
 
     Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
-    the caller). Computed block by block: the rotation matrices of the whole recording never exist.
+    the caller). Computed block by block with the quaternions (no rotation matrices).
     """
-    from euc_ros.core.euc.skeleton_fit import _rotmats
+    from euc_ros.core.euc.kinematics import _rotate
 
     n = series.n_frames
     d = np.empty((n, 3))
@@ -114,17 +163,19 @@ def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 <
         return d, np.zeros(n, bool)
     ja, jb = series.bodies.index(a), series.bodies.index(b)
     both = np.zeros(n, bool)
-    eye = np.eye(3)
+    ident = np.array([0.0, 0.0, 0.0, 1.0])
+    vector = np.asarray(vector, float)
+
+    if usable is None:
+        usable = _usable(series)
     for lo in range(0, n, block):
         hi = min(n, lo + block)
-        Ra, oka = _rotmats(series.quat[ja, lo:hi])
-        _, okb = _rotmats(series.quat[jb, lo:hi])
-        oka = oka & np.all(np.isfinite(series.position[ja, lo:hi]), -1) & series.tracked[ja, lo:hi]
-        okb = okb & np.all(np.isfinite(series.position[jb, lo:hi]), -1) & series.tracked[jb, lo:hi]
-        Ra = np.where(oka[:, None, None], Ra, eye)
+        oka, okb = usable[ja, lo:hi], usable[jb, lo:hi]
+        qa = np.where(oka[:, None], series.quat[ja, lo:hi], ident)
+        qa = qa * np.array([-1.0, -1.0, -1.0, 1.0])                # R_a^T: the conjugate rotation
         Pa = np.where(oka[:, None], series.position[ja, lo:hi], 0.0)
         Pb = np.where(okb[:, None], series.position[jb, lo:hi], 0.0)
-        d[lo:hi] = np.einsum("nji,nj->ni", Ra, Pb - Pa) - vector
+        d[lo:hi] = _rotate(qa, Pb - Pa) - vector
         both[lo:hi] = oka & okb
     return d, both
 

@@ -167,21 +167,26 @@ def _stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
     return coeffs
 
 
-def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float) -> np.ndarray:
-    """Value and derivatives (3, L, k) of a gap-free stretch ``seg`` (L >= w, k columns)."""
+def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None) -> np.ndarray:
+    """Value and derivatives (3, L, k) of a gap-free stretch ``seg`` (L >= w, k columns).
+
+    ``out``: three (L, k) arrays to write into (e.g. views of the whole recording's outputs), so no
+    (3, L, k) result is made and copied; the only temporary is the offset-free stretch.
+    """
     half = (w - 1) // 2
     length = seg.shape[0]
     coeffs = _stretch_coefficients(int(w), int(polyorder), float(dt))
     centre, head, tail = coeffs[:, 0], coeffs[:, 1:half + 1], coeffs[:, half + 1:]
-    out = np.empty((3,) + seg.shape)
+    if out is None:
+        out = np.empty((3,) + seg.shape)
     # a constant offset cancels exactly in the derivatives; removing it keeps round-off at the
     # scale of the motion, not of the distance from the origin
-    ref = seg[length // 2]
+    ref = np.array(seg[length // 2])
     x = seg - ref
     for d in range(3):
-        out[d] = _correlate1d()(x, centre[d], axis=0, mode="constant")
-        out[d, :half] = head[d] @ x[:w]
-        out[d, length - half:] = tail[d] @ x[length - w:]
+        _correlate1d()(x, centre[d], axis=0, mode="constant", output=out[d])
+        out[d][:half] = head[d] @ x[:w]
+        out[d][length - half:] = tail[d] @ x[length - w:]
     out[0] += ref
     return out
 
@@ -317,18 +322,22 @@ def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int
     if n < 2 or not np.isfinite(dt):
         return Derivatives(*out, filled, 0, dt)
     w = window_samples(dt, window_s, window, polyorder)
-    filter_stretches(y, k, max_gap, w, lambda seg: _filter_stretch(seg, w, polyorder, dt), out, filled)
+    filter_stretches(y, k, max_gap, w, lambda seg: _filter_stretch(seg, w, polyorder, dt), out, filled,
+                     filter_into=lambda seg, dst: _filter_stretch(seg, w, polyorder, dt, out=dst))
     return Derivatives(out[0], out[1], out[2], filled, w, dt)
 
 
 def filter_stretches(y: np.ndarray, k: np.ndarray, max_gap: int, min_length: int, filter_stretch,
-                     out: list[np.ndarray], filled: np.ndarray) -> None:
+                     out: list[np.ndarray], filled: np.ndarray, filter_into=None) -> None:
     """Apply ``filter_stretch`` to every gap-free stretch of ``y`` (in place into ``out`` and ``filled``).
 
     Stretches come from :func:`gap_stretches`; those shorter than ``min_length`` grid samples are skipped.
     Within a stretch the missing grid samples (at most ``max_gap`` in a row) are filled by linear
     interpolation and flagged in ``filled``; ``filter_stretch(seg)`` maps the gap-free (L, c) stretch to its
-    value and derivatives (3, L, c), written back at the recorded samples.
+    value and derivatives (3, L, c), written back at the recorded samples. ``filter_into(seg, dst)``, if
+    given, does the same for a stretch without missing samples straight into ``dst``, three (L, c) views
+    of ``out`` (no copy of the stretch, no (3, L, c) result: the memory of filtering a long recording is
+    its outputs plus one stretch).
     """
     n = y.shape[0]
     y2 = y.reshape(n, -1)
@@ -337,8 +346,11 @@ def filter_stretches(y: np.ndarray, k: np.ndarray, max_gap: int, min_length: int
         length = int(k[i1] - k[i0]) + 1
         if length < min_length:
             continue
-        kk = k[i0:i1 + 1] - k[i0]
         v = valid[i0:i1 + 1]
+        if filter_into is not None and length == i1 - i0 + 1 and bool(v.all()):
+            filter_into(y2[i0:i1 + 1], [o.reshape(n, -1)[i0:i1 + 1] for o in out])
+            continue
+        kk = k[i0:i1 + 1] - k[i0]
         grid = np.arange(length)
         seg = np.empty((length, y2.shape[1]))
         for c in range(y2.shape[1]):

@@ -1295,10 +1295,17 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
 
 
 def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
-                     seed: int = 0, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ
+                     seed: int | None = None, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, share=None
                      ) -> Callable[[Model, np.ndarray], float]:
     """``noise_floor_of`` for :func:`analyze`: the recordings' own pose noise propagated through the
-    reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`)."""
+    reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`).
+
+    The re-noised recordings are the first replicate of the h interval's SIMEX
+    (:func:`euc_ros.core.euc.uncertainty.first_replicate`, ``seed`` default its seed); with ``share`` (a
+    :class:`~euc_ros.core.euc.uncertainty.SimexShare` later given to ``eiv_bias``) that replicate's h is
+    kept so SIMEX does not reconstruct it again.
+    """
+    from euc_ros.core.euc.uncertainty import SIMEX_SEED, first_replicate
     from euc_ros.core.residual.noise import noise_floor
 
     floor = floor_from_states(states, params.R)
@@ -1316,7 +1323,12 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
                 out.append((full, mask))
             return out
 
-        return noise_floor(series_list, states, session, residual_of, seed=seed, window_s=window_s,
-                           polyorder=st0.polyorder)
+        noisy = None
+        if window_s is not None:
+            noisy = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
+                                    phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
+                                    seed=SIMEX_SEED if seed is None else seed, share=share)
+        return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
+                           window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
 
     return of

@@ -23,7 +23,7 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy import ndimage, optimize
+from scipy import ndimage
 
 #: Length of path over which the smooth deviation from the plane is the running median [m].
 DEVIATION_WINDOW_M = 0.5
@@ -76,6 +76,36 @@ def _robust_std(r: np.ndarray) -> float:
     return float(1.4826 * np.median(np.abs(r - np.median(r))))
 
 
+def _soft_l1_fit(A: np.ndarray, z: np.ndarray, b0: np.ndarray, f_scale: float, *, max_iter: int = 200,
+                 rtol: float = 1e-12) -> np.ndarray:
+    """The linear fit ``A b ~ z`` under scipy's ``soft_l1`` loss (``rho(s) = 2 (sqrt(1 + s) - 1)``,
+    ``s = (r / f_scale)^2``) by iteratively reweighted least squares.
+
+    The loss is convex, and its minimum solves ``sum w_i r_i a_i = 0`` with ``w = rho'(s) = 1 / sqrt(1 + s)``:
+    each step solves the weighted normal equations (a few columns) with the weights of the last
+    residuals, which decreases the loss monotonically. The same minimum as
+    ``scipy.optimize.least_squares(loss="soft_l1")``, to within its tolerances, with the memory of a few
+    sample arrays (its trust-region solver kept several (n, k) Jacobian copies: ~100 MB on a 60-minute
+    recording).
+    """
+    b = np.asarray(b0, dtype=float).copy()
+    for _ in range(max_iter):
+        r = A @ b - z
+        r /= f_scale
+        r *= r
+        r += 1.0
+        w = 1.0 / np.sqrt(r)                          # rho'(s)
+        del r
+        Aw = A * w[:, None]
+        b_new = np.linalg.solve(Aw.T @ A, Aw.T @ z)
+        del Aw, w
+        done = np.max(np.abs(b_new - b)) <= rtol * (1.0 + np.max(np.abs(b_new)))
+        b = b_new
+        if done:
+            break
+    return b
+
+
 def fit_floor(C: np.ndarray, theta: np.ndarray, valid: np.ndarray, radius: float,
               segments: np.ndarray | None = None) -> FloorFit | None:
     """Fit the floor to the contact points of one or more runs; None when the path is too short.
@@ -114,7 +144,7 @@ def fit_floor(C: np.ndarray, theta: np.ndarray, valid: np.ndarray, radius: float
     # robust plane: soft-L1 loss with the noise scale from a first least-squares pass
     b_ls = np.linalg.lstsq(A, z, rcond=None)[0]
     f_scale = max(_robust_std(z - A @ b_ls), 1e-5)
-    b_uv = optimize.least_squares(lambda p: A @ p - z, b_ls, loss="soft_l1", f_scale=f_scale).x
+    b_uv = _soft_l1_fit(A, z, b_ls, f_scale)
     resid = z - A @ b_uv
     b = np.concatenate([[b_uv[0]], b_uv[1:] @ axes[keep] if keep else np.zeros(2)])
     # smooth deviation along each run's path: running median over DEVIATION_WINDOW_M of path length

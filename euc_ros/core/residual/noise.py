@@ -9,7 +9,10 @@ measured on the data itself, not assumed:
    (robust: median absolute deviation per component; a unit quaternion's noise has 3 directions,
    perpendicular to it, a position's 3), quaternion signs made continuous first;
 2. the recording is reconstructed once more with a second, independent noise of that size added
-   (same filter, same session), and the residual of the same model recomputed;
+   (same filter, same session), and the residual of the same model recomputed. The residual
+   analysis takes for this the first replicate of the h interval's SIMEX
+   (:func:`euc_ros.core.euc.uncertainty.first_replicate`: the noise estimated from third
+   differences, rotations per body axis), so the one reconstruction serves both;
 3. the RMS of the change is the contribution of one realisation of the recording's own noise: the
    noise floor of the residual.
 
@@ -75,24 +78,19 @@ def renoise(series, rng: np.random.Generator):
 
 def renoised(series, rng: np.random.Generator):
     """:func:`renoise` as a :class:`~euc_ros.core.euc.blockwise.PerturbedSeries`: the same poses (the
-    same draws of ``rng``, which is left where :func:`renoise` leaves it), made block by block on
-    demand, so the re-noised recording never exists whole."""
-    from euc_ros.core.euc.blockwise import BLOCK_FRAMES, NoiseStream, PerturbedSeries, block_counts, block_span
+    draws of one :class:`~euc_ros.core.euc.blockwise.BlockNoise` seeded by one draw of ``rng``), made
+    block by block on demand (every body at once), so the re-noised recording never exists whole."""
+    from euc_ros.core.euc.blockwise import BlockNoise, PerturbedSeries
 
     sp, sq = pose_noise(series)
     b, n = series.position.shape[0], series.position.shape[1]
-    counts = block_counts(n)
-    # renoise's order: every body's position noise (b, n, 3), then every body's quaternion noise
-    stream = NoiseStream(rng, [(("p", i), counts, 3) for i in range(b)] + [(("q", i), counts, 4) for i in range(b)])
+    noise = BlockNoise(rng, n, b, 7)
+    sp_col, sq_col = sp[:, None, None], sq[:, None, None]
 
     def perturb(lo: int, hi: int):
-        k0, k1 = block_span(lo, hi)
-        rows = slice(lo - k0 * BLOCK_FRAMES, hi - k0 * BLOCK_FRAMES)
-        pos = np.empty((b, hi - lo, 3))
-        quat = np.empty((b, hi - lo, 4))
-        for i in range(b):
-            pos[i] = series.position[i, lo:hi] + stream.draw(("p", i), k0, k1)[rows] * sp[i]
-            quat[i] = series.quat[i, lo:hi] + stream.draw(("q", i), k0, k1)[rows] * sq[i]
+        z = noise.draw(lo, hi)                                   # (b, m, 7): position, quaternion
+        pos = series.position[:, lo:hi] + z[..., :3] * sp_col
+        quat = series.quat[:, lo:hi] + z[..., 3:] * sq_col
         quat /= np.linalg.norm(quat, axis=2, keepdims=True)
         return pos, quat
 
@@ -100,25 +98,29 @@ def renoised(series, rng: np.random.Generator):
 
 
 def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *, seed: int = 0,
-                window_s: float | None = None, polyorder: int | None = None) -> float:
+                window_s: float | None = None, polyorder: int | None = None, noisy: Sequence | None = None) -> float:
     """RMS [N m] of the residual's change when the recordings' own pose noise is added once more.
 
     ``residual_of(states_list) -> list of (residual, mask)`` computes the residual of a fixed model
     (e.g. the selected one) on reconstructed states; ``states`` are the states of ``series_list``.
+    ``noisy``: the re-noised recordings' states, made by the caller (the residual's floor takes the
+    first SIMEX replicate, :func:`euc_ros.core.euc.uncertainty.first_replicate`); without them the
+    recordings are re-noised here (:func:`renoised`, ``seed``) and reconstructed.
     """
     from euc_ros.core.euc.kinematics import reconstruct_states
 
-    rng = np.random.default_rng(seed)
-    noisy = []
-    for series, st in zip(series_list, states):
-        kw = {}
-        if window_s is not None:
-            kw["window_s"] = window_s
-        if polyorder is not None:
-            kw["polyorder"] = polyorder
-        # the same rider CoG method as the states (the skeleton's links re-estimated on the re-noised run)
-        noisy.append(reconstruct_states(renoised(series, rng), session, phi_definition=st.phi_definition,
-                                        cog_method=getattr(st, "cog_method", "segments"), **kw))
+    if noisy is None:
+        rng = np.random.default_rng(seed)
+        noisy = []
+        for series, st in zip(series_list, states):
+            kw = {}
+            if window_s is not None:
+                kw["window_s"] = window_s
+            if polyorder is not None:
+                kw["polyorder"] = polyorder
+            # the same rider CoG method as the states (the skeleton's links re-estimated on the re-noised run)
+            noisy.append(reconstruct_states(renoised(series, rng), session, phi_definition=st.phi_definition,
+                                            cog_method=getattr(st, "cog_method", "segments"), **kw))
     diffs = []
     for (r0, m0), (r1, m1) in zip(residual_of(states), residual_of(noisy)):
         n = min(len(r0), len(r1))

@@ -1,9 +1,10 @@
 """Block-by-block reconstruction and re-noising (issue 15, memory) give what the whole-array code gives.
 
-The references below are the whole-array versions the block code replaced (bridging and
-``frame_geometry`` of the whole recording; ``add_pose_noise`` and ``renoise`` drawing all their
-noise at once). Blocks are made small (64 frames) so a 3 s recording spans several, with gaps of
-every length up to beyond ``max_gap`` placed across block edges.
+The geometry's reference is the whole-array version the block code replaced (bridging and
+``frame_geometry`` of the whole recording). The re-noised recordings draw their noise per block
+(:class:`~euc_ros.core.euc.blockwise.BlockNoise`): any spans read must give the whole recording, and
+the noise added must have the stated sizes. Blocks are made small (64 frames) so a 3 s recording
+spans several, with gaps of every length up to beyond ``max_gap`` placed across block edges.
 """
 from __future__ import annotations
 
@@ -56,32 +57,6 @@ def test_block_geometry_equals_whole_recording(ride, small_blocks):
         assert geo[key].dtype == np.asarray(ref[key]).dtype
 
 
-def _add_pose_noise_whole(series, sigma_pos, sigma_rot, rng):
-    from euc_ros.core.rotations import quat_from_rotvec, quat_multiply
-
-    pos = series.position.copy()
-    quat = series.quat.copy()
-    for i in range(len(series.bodies)):
-        if np.isfinite(sigma_pos[i]):
-            pos[i] = pos[i] + rng.normal(0.0, sigma_pos[i], pos[i].shape)
-        if np.isfinite(sigma_rot[i]):
-            ok = np.all(np.isfinite(quat[i]), axis=1)
-            dq = quat_from_rotvec(rng.normal(0.0, sigma_rot[i], (int(ok.sum()), 3)))
-            qi = quat[i, ok] / np.linalg.norm(quat[i, ok], axis=1, keepdims=True)
-            quat[i, ok] = quat_multiply(qi, dq)
-    return pos, quat
-
-
-def _renoise_whole(series, rng):
-    from euc_ros.core.residual.noise import pose_noise
-
-    sp, sq = pose_noise(series)
-    pos = series.position + rng.normal(size=series.position.shape) * sp[:, None, None]
-    quat = series.quat + rng.normal(size=series.quat.shape) * sq[:, None, None]
-    quat /= np.linalg.norm(quat, axis=2, keepdims=True)
-    return pos, quat
-
-
 def _blocks(noisy, n, spans):
     pos = np.full((len(noisy.bodies), n, 3), np.nan)
     quat = np.full((len(noisy.bodies), n, 4), np.nan)
@@ -91,39 +66,78 @@ def _blocks(noisy, n, spans):
     return pos, quat
 
 
-def test_pose_noise_series_is_add_pose_noise(ride, small_blocks):
+def _z_bound(m: int) -> float:
+    """Bound on |sample std / sigma - 1| of m Gaussian draws: the std's relative standard error is
+    1 / sqrt(2 m); 5 of those (a false failure once in ~3.5 million runs)."""
+    return 5.0 / np.sqrt(2.0 * m)
+
+
+def test_pose_noise_series_blocks_are_one_recording(ride, small_blocks):
+    """Any spans, overlapping and out of order, give the poses of the whole; the same seed gives the same noise."""
     from euc_ros.core.euc.uncertainty import pose_noise_series
 
     series, _ = ride
     b, n = len(series.bodies), series.n_frames
-    sp = np.full(b, 2e-4)
-    sr = np.full(b, 0.008)
-    sp[3], sr[5] = np.nan, np.nan                 # a body without position noise, one without rotation noise
-    ref_rng, rng = np.random.default_rng(4), np.random.default_rng(4)
-    ref = _add_pose_noise_whole(series, sp, sr, ref_rng)
-    noisy = pose_noise_series(series, sp, sr, rng)
-    assert rng.normal() == ref_rng.normal()          # the generator is left where the whole draw leaves it
-    # odd spans across block edges, overlapping, in any order
-    pos, quat = _blocks(noisy, n, [(100, 200), (0, 70), (60, 101), (199, n)])
-    np.testing.assert_array_equal(pos, ref[0])
-    np.testing.assert_array_equal(quat, ref[1])
+    sp, sr = np.full(b, 2e-4), np.full(b, 0.008)
+    noisy = pose_noise_series(series, sp, sr, np.random.default_rng(4))
     whole = noisy.materialize()
-    np.testing.assert_array_equal(whole.position, ref[0])
+    pos, quat = _blocks(noisy, n, [(100, 200), (0, 70), (60, 101), (199, n)])
+    np.testing.assert_array_equal(pos, whole.position)
+    np.testing.assert_array_equal(quat, whole.quat)
+    again = pose_noise_series(series, sp, sr, np.random.default_rng(4)).materialize()
+    np.testing.assert_array_equal(again.position, whole.position)
+    other = pose_noise_series(series, sp, sr, np.random.default_rng(5)).materialize()
+    assert not np.array_equal(np.nan_to_num(other.position), np.nan_to_num(whole.position))
     assert whole.tracked is series.tracked or np.array_equal(whole.tracked, series.tracked)
 
 
-def test_renoised_is_renoise(ride, small_blocks):
-    from euc_ros.core.residual.noise import renoised
+def test_pose_noise_series_adds_the_stated_noise(ride, small_blocks):
+    """Position offsets of sigma_pos per axis, body-frame rotations of sigma_rot per axis, nothing where a
+    sigma is NaN, and sign=-1 the mirror image of the same draws (antithetic SIMEX)."""
+    from euc_ros.core.euc.uncertainty import pose_noise_draws, pose_noise_series
+    from euc_ros.core.rotations import quat_conjugate, quat_multiply, rotvec_from_quat
+
+    series, _ = ride
+    b, n = len(series.bodies), series.n_frames
+    sp, sr = np.full(b, 2e-4), np.full(b, 0.008)
+    sp[3], sr[5] = np.nan, np.nan                 # a body without position noise, one without rotation noise
+    draws = pose_noise_draws(series, np.random.default_rng(4))
+    plus = pose_noise_series(series, sp, sr, noise=draws).materialize()
+    minus = pose_noise_series(series, sp, sr, noise=draws, sign=-1.0).materialize()
+    dp = plus.position - series.position
+    fin = np.isfinite(dp)
+    keep = np.ones(b, bool)
+    keep[3] = False
+    z = dp[keep][fin[keep]] / 2e-4
+    assert abs(np.std(z) - 1.0) < _z_bound(z.size) and abs(np.mean(z)) < 5.0 / np.sqrt(z.size)
+    np.testing.assert_array_equal(plus.position[3], series.position[3])
+    np.testing.assert_allclose(minus.position - series.position, -dp, rtol=0, atol=1e-15)
+    ok = np.all(np.isfinite(series.quat), axis=2)
+    qn = series.quat / np.linalg.norm(series.quat, axis=2, keepdims=True)
+    rot = rotvec_from_quat(quat_multiply(quat_conjugate(qn[ok]), plus.quat[ok]))        # body-frame rotation
+    rot_minus = rotvec_from_quat(quat_multiply(quat_conjugate(qn[ok]), minus.quat[ok]))
+    body = np.broadcast_to(np.arange(b)[:, None], ok.shape)[ok]
+    r = rot[body != 5] / 0.008
+    assert abs(np.std(r) - 1.0) < _z_bound(r.size)
+    np.testing.assert_allclose(rot_minus, -rot, rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(plus.quat[5], series.quat[5])
+
+
+def test_renoised_blocks_are_one_recording_with_the_estimated_noise(ride, small_blocks):
+    from euc_ros.core.residual.noise import pose_noise, renoised
 
     series, _ = ride
     n = series.n_frames
-    ref_rng, rng = np.random.default_rng(9), np.random.default_rng(9)
-    ref = _renoise_whole(series, ref_rng)
-    noisy = renoised(series, rng)
-    assert rng.normal() == ref_rng.normal()
+    noisy = renoised(series, np.random.default_rng(9))
+    whole = noisy.materialize()
     pos, quat = _blocks(noisy, n, [(0, 1), (1, 65), (65, 300), (300, n)])
-    np.testing.assert_array_equal(pos, ref[0])
-    np.testing.assert_array_equal(quat, ref[1])
+    np.testing.assert_array_equal(pos, whole.position)
+    np.testing.assert_array_equal(quat, whole.quat)
+    sp, _ = pose_noise(series)
+    dp = (whole.position - series.position) / sp[:, None, None]
+    z = dp[np.isfinite(dp)]
+    assert abs(np.std(z) - 1.0) < _z_bound(z.size)
+    np.testing.assert_allclose(np.linalg.norm(whole.quat, axis=2)[np.isfinite(whole.quat[..., 0])], 1.0, atol=1e-12)
 
 
 def test_reconstruct_states_of_a_perturbed_series(ride, small_blocks):

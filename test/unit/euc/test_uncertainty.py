@@ -140,3 +140,33 @@ def test_a_long_ride_is_not_a_confident_wrong_number():
     r = run_case("deceleration", 1, 600.0, 0)
     assert (not r["identifiable"]) or r["covered"], r
     assert r["identifiable"] or "excitation" in r["reason"]
+
+
+def test_the_noise_floor_replicate_is_simex_first_replicate():
+    """The residual's noise floor reconstructs SIMEX's first replicate once (SimexShare); eiv_bias given the
+    share returns exactly what it returns when it reconstructs that replicate itself, and the share holds
+    the h of that replicate's states (not, e.g., of the recording as given)."""
+    from euc_ros.core.residual.analysis import Model, fit_base_h, make_noise_floor, prepare
+
+    ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=3))
+    params, states, fit = _identify(ride)
+    series = [r.mocap for r in ride.runs]
+    share = U.SimexShare()
+    x = np.array([fit_base_h(prepare(states, params))])
+    floor = make_noise_floor(series, states, ride.session, params, share=share)(Model(), x)
+    assert np.isfinite(floor) and floor > 0
+    noisy = U.first_replicate(series, ride.session, params, window_s=1.2, polyorder=6)
+    h1 = identify_h(noisy, params, models=("3dof",)).pooled["3dof"].h_m
+    assert share.h_m == h1 != fit.h_m
+    kw = dict(window_s=1.2, polyorder=6, with_error=True)
+    shared = U.eiv_bias(series, ride.session, params, fit.h_m, share=share, **kw)
+    alone = U.eiv_bias(series, ride.session, params, fit.h_m, **kw)
+    assert shared == alone
+    assert np.isfinite(shared[1]) and shared[1] > 0
+    # the share is what eiv_bias used: its replicate's h moved by 10 mm moves the mean of 2 pairs by 2.5 mm
+    import copy
+
+    moved = copy.copy(share)
+    moved.h_m = share.h_m + 0.01
+    assert U.eiv_bias(series, ride.session, params, fit.h_m, share=moved, **kw)[0] == pytest.approx(
+        shared[0] + 0.0025, abs=1e-12)
