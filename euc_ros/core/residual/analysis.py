@@ -716,11 +716,6 @@ def max_t_adjusted(base: HeldOut, cands: Sequence[HeldOut], n_flips: int = MAX_T
     nb = D.shape[1]
     if nb == 0:
         return np.ones(len(cands))
-    if 2 ** nb <= n_flips:
-        S = 1.0 - 2.0 * ((np.arange(2 ** nb)[:, None] >> np.arange(nb)[None, :]) & 1)
-    else:
-        S = np.random.default_rng(seed).choice([-1.0, 1.0], size=(n_flips, nb))
-        S[0] = 1.0
     ss = np.sum(D0 ** 2, axis=1)                      # invariant under sign flips
     nn = np.maximum(n, 2).astype(float)
 
@@ -729,9 +724,25 @@ def max_t_adjusted(base: HeldOut, cands: Sequence[HeldOut], n_flips: int = MAX_T
         return mean / np.sqrt(np.maximum(var, 1e-300) / nn)
 
     t_obs = t_of(D0.sum(axis=1) / nn)
-    T = t_of((S @ D0.T) / nn)                         # (flips, candidates)
-    T[:, n < 3] = -np.inf
-    t_max = np.sort(T.max(axis=1))
+    exact = 2 ** nb <= n_flips
+    total = 2 ** nb if exact else n_flips
+    # the flips in chunks of ~2^21 signs: a 60-minute recording has ~6000 blocks, and all 2^15 flips at once
+    # were 1.5 GB (memory that grows with the recording, and most of the step's time)
+    chunk = max(1, (1 << 21) // nb)
+    rng = None if exact else np.random.default_rng(seed)
+    t_max = np.empty(total)
+    for lo in range(0, total, chunk):
+        hi = min(lo + chunk, total)
+        if exact:
+            S = 1.0 - 2.0 * ((np.arange(lo, hi)[:, None] >> np.arange(nb)[None, :]) & 1)
+        else:
+            S = 1.0 - 2.0 * rng.integers(0, 2, size=(hi - lo, nb), dtype=np.int8)
+            if lo == 0:
+                S[0] = 1.0                            # the identity
+        T = t_of((S @ D0.T) / nn)                     # (flips, candidates)
+        T[:, n < 3] = -np.inf
+        t_max[lo:hi] = T.max(axis=1)
+    t_max.sort()
     exceed = t_max.size - np.searchsorted(t_max, t_obs - 1e-12 * np.abs(t_obs), side="left")
     # (the random flips include the identity: exceed / flips is (1 + others) / (1 + other flips), a valid p)
     p = np.minimum(exceed / t_max.size, 1.0)
