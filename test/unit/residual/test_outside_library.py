@@ -117,3 +117,13 @@ def test_swinging_arms_name_nothing():
     assert out["effect"] in ("none", "unexplained")
     assert out["unexplained"] == (out["effect"] == "unexplained")
     assert abs(out["h_after_m"] - H_TRUE) < 0.010, out["h_after_m"]
+
+
+def test_arms_swinging_wide_are_unexplained_not_none():
+    """20 deg at 1.5 Hz: the arms' torque leaves the residual well above its noise floor (1.8 floors) with
+    nothing in the library or the basis for it: `unexplained`, never `none`, and h still within 10 mm."""
+    out = run(arms=ArmSwing(20.0, 1.5))
+    assert named(out) == [] and not out["discovered"], (out["effect"], out["discovery"])
+    assert out["rmse_after_nm"] > NOISE_FLOOR_FACTOR * out["noise_floor_nm"]
+    assert out["effect"] == "unexplained" and out["unexplained"] and out["residual_significant"]
+    assert abs(out["h_after_m"] - H_TRUE) < 0.010, out["h_after_m"]
