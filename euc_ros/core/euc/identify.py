@@ -374,5 +374,8 @@ def identify_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models:
         sses = [_sse_grid(c, h_grid) for c in coefs]
         for rec, c, s in zip(per_rec, coefs, sses):
             rec.fits[model] = _fit(c, h_grid, model, s)
-        pooled[model] = _fit(np.concatenate(coefs, axis=1), h_grid, model, np.sum(sses, axis=0))
+        # one recording: its coefficients are the pooled ones (np.concatenate would copy them, 48 bytes a frame)
+        pooled_coef = coefs[0] if len(coefs) == 1 else np.concatenate(coefs, axis=1)
+        pooled[model] = _fit(pooled_coef, h_grid, model, np.sum(sses, axis=0))
+        del pooled_coef
     return IdentifyResult(h_grid, per_rec, pooled, dict(settings or {}))

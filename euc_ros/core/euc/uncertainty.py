@@ -194,17 +194,29 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
     grid = np.arange(lo, hi + LOCAL_STEP_M / 2, LOCAL_STEP_M)
     blocks = _blocks_of(coefs, length)
     nb = len(blocks)
-    rng = np.random.default_rng(seed)
-    W = rng.multinomial(nb, np.full(nb, 1.0 / nb), size=n_boot).astype(float)
+    p_blocks = np.full(nb, 1.0 / nb)
+    # the replicates' block counts, drawn in chunks of replicates (the same draws as all at once: the
+    # generator fills the rows in order) and drawn again for the second pass: 1000 replicates x ~3600
+    # blocks of an hour held at once were 58 MB (int64 and its float copy), the residual's memory peak
+    chunk = max(1, min(n_boot, (1 << 20) // max(nb, 1)))
+
+    def argmin_of(S: np.ndarray) -> np.ndarray:
+        rng = np.random.default_rng(seed)
+        out = np.empty(n_boot, dtype=np.int64)
+        for a in range(0, n_boot, chunk):
+            W = rng.multinomial(nb, p_blocks, size=min(chunk, n_boot - a)).astype(float)
+            out[a:a + W.shape[0]] = np.argmin(W @ S, axis=1)
+        return out
+
     coarse = np.arange(0, grid.size, COARSE_EVERY)
     if coarse[-1] != grid.size - 1:
         coarse = np.append(coarse, grid.size - 1)
     Sc = np.array([_sse_grid(c, grid[coarse]) for c in blocks]).reshape(-1, coarse.size)
-    kc = np.argmin(W @ Sc, axis=1)
+    kc = argmin_of(Sc)
     f0 = int(coarse[max(int(kc.min()) - 1, 0)]) if kc.size else 0
     f1 = int(coarse[min(int(kc.max()) + 1, coarse.size - 1)]) if kc.size else grid.size - 1
     S = np.array([_sse_grid(c, grid[f0:f1 + 1]) for c in blocks]).reshape(-1, f1 + 1 - f0)
-    k = f0 + np.argmin(W @ S, axis=1)
+    k = f0 + argmin_of(S)
     hb = grid[k].astype(float)
     hb[k == 0] = -np.inf
     hb[k == grid.size - 1] = np.inf
