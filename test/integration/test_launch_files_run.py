@@ -91,7 +91,9 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
     assert frames == len(read_motive_csv(csv).t), counts
     # States lose one 1.2 s filter window (144 frames), torques up to two; the ingest waits start_delay
     # (3 s) so that the five processes have discovered each other before the first frame.
-    assert counts["/rider/state"] >= frames - 144 - 2, counts["_span"]   # 2: the last ones may race the shutdown
+    # 2: the last ones may race the shutdown; 12 (0.1 s): the first states rider_state publishes (volatile) can
+    # precede the recorder's match of its writer on a loaded host (a clean-clone run lost 6 at the start)
+    assert counts["/rider/state"] >= frames - 144 - 12, counts["_span"]
     assert counts["/euc/torque"] >= frames - 288 - 4, counts
 
     second = tmp_path / "second"
