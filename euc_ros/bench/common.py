@@ -257,6 +257,21 @@ class PeakRssSampler:
 
 
 @contextlib.contextmanager
+def environ(values: dict):
+    """Set environment variables for the block (and the processes it starts); restore them after."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update({k: str(v) for k, v in values.items()})
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+@contextlib.contextmanager
 def pinned_to_one_core():
     """Run the block on one CPU (the last allowed one) where the OS allows it; yields the CPU or None."""
     if not hasattr(os, "sched_setaffinity"):

@@ -188,14 +188,17 @@ def _stamped_template(msg, tf: bool) -> tuple[bytearray, list[int]]:
     return buf, offsets
 
 
-def _blast(node, args) -> dict:
+def blast_mix(n_bodies: int) -> list[tuple]:
+    """The pipeline's message mix of one frame, ``[(topic, message class, message), ...]``: a MocapFrame of
+    ``n_bodies``, one PoseStamped per body, a TFMessage of their transforms, a RiderState, a TorqueEstimate
+    (stamps left at 0: a publisher sets them per frame)."""
     from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
     from geometry_msgs.msg import PoseStamped, TransformStamped
     from tf2_msgs.msg import TFMessage
 
     from euc_ros.nodes import interfaces as itf
 
-    frame = mocap_frame(args.bodies)
+    frame = mocap_frame(n_bodies)
     names = list(frame.body_names)
     mix = [(itf.MOCAP_FRAME, MocapFrame, frame)]
     for i, name in enumerate(names):
@@ -213,8 +216,14 @@ def _blast(node, args) -> dict:
             p.position.x, p.position.y, p.position.z)
         t.transform.rotation = p.orientation
         tf.transforms.append(t)
-    mix += [(itf.TF, TFMessage, tf), (itf.RIDER_STATE, RiderState, rider_state()),
-            (itf.TORQUE, TorqueEstimate, torque_estimate())]
+    return mix + [(itf.TF, TFMessage, tf), (itf.RIDER_STATE, RiderState, rider_state()),
+                  (itf.TORQUE, TorqueEstimate, torque_estimate())]
+
+
+def _blast(node, args) -> dict:
+    from euc_ros.nodes import interfaces as itf
+
+    mix = blast_mix(args.bodies)
     part, parts = (int(x) for x in args.part.split("/"))
     if not 0 <= part < parts:
         raise SystemExit(f"relay blast: --part {args.part}: expected K/N with 0 <= K < N")

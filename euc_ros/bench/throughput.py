@@ -19,10 +19,9 @@ from __future__ import annotations
 
 import contextlib
 import io
-import os
 import time
 
-from euc_ros.bench.common import BenchContext, figure, pinned_to_one_core
+from euc_ros.bench.common import BenchContext, environ, figure, pinned_to_one_core
 
 #: Recording lengths [s]: full and --quick.
 DURATION_S = {False: 600.0, True: 60.0}
@@ -76,23 +75,9 @@ def measure_command(argv: list[str], warmup_argv: list[str] | None = None) -> di
 ONE_CORE_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
-@contextlib.contextmanager
-def _one_core_env():
-    old = {k: os.environ.get(k) for k in ONE_CORE_ENV}
-    os.environ.update(ONE_CORE_ENV)
-    try:
-        yield
-    finally:
-        for k, v in old.items():
-            if v is None:
-                os.environ.pop(k, None)
-            else:
-                os.environ[k] = v
-
-
 def run(ctx: BenchContext) -> dict:
     """Benchmark 2 (see the module docstring)."""
-    with _one_core_env():                     # inherited by the isolated workers
+    with environ(ONE_CORE_ENV):               # inherited by the isolated workers
         return _run(ctx)
 
 

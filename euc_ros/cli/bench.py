@@ -58,7 +58,7 @@ def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=No
 
     from domain_coordinator import domain_id
 
-    from euc_ros.bench.common import BenchContext, machine_info
+    from euc_ros.bench.common import BenchContext, environ, machine_info
 
     ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir), realtime=realtime)
     if log is not None:
@@ -68,28 +68,18 @@ def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=No
               "machine": machine_info(), "load_average_start": [round(x, 2) for x in os.getloadavg()],
               "benchmarks": []}
     t0 = time.monotonic()
-    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
-    with domain_id() as did:
-        os.environ["ROS_DOMAIN_ID"] = str(did)
-        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-        try:
-            for name in names:
-                ctx.log(f"[bench] {name}")
-                tb = time.monotonic()
-                try:
-                    res = importlib.import_module(f"euc_ros.bench.{name}").run(ctx)
-                except Exception as exc:   # one failed benchmark must not lose the others
-                    res = {"name": name, "error": f"{type(exc).__name__}: {exc}", "figures": [], "peak_rss_mb": {}}
-                    ctx.log(f"[bench] {name} failed: {res['error']}")
-                res.setdefault("wall_s", time.monotonic() - tb)
-                ctx.log(f"[bench] {name} done in {res['wall_s']:.1f} s")
-                result["benchmarks"].append(res)
-        finally:
-            for k, v in saved.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
+    with domain_id() as did, environ({"ROS_DOMAIN_ID": str(did), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}):
+        for name in names:
+            ctx.log(f"[bench] {name}")
+            tb = time.monotonic()
+            try:
+                res = importlib.import_module(f"euc_ros.bench.{name}").run(ctx)
+            except Exception as exc:   # one failed benchmark must not lose the others
+                res = {"name": name, "error": f"{type(exc).__name__}: {exc}", "figures": [], "peak_rss_mb": {}}
+                ctx.log(f"[bench] {name} failed: {res['error']}")
+            res.setdefault("wall_s", time.monotonic() - tb)
+            ctx.log(f"[bench] {name} done in {res['wall_s']:.1f} s")
+            result["benchmarks"].append(res)
     result["wall_s"] = time.monotonic() - t0
     result["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
     return result

@@ -91,10 +91,6 @@ SPECS = (
 )
 
 
-def _point(msg_point, xyz) -> None:
-    msg_point.x, msg_point.y, msg_point.z = (float(v) for v in xyz)
-
-
 class RiderStateNode(Node):
     """Reconstruct the planar model's state from mocap frames (see the module docstring).
 
@@ -225,20 +221,6 @@ class RiderStateNode(Node):
                 float(s.gamma_ddot), float(s.phi), float(s.phi_dot), float(s.phi_ddot), float(s.phi_eq3),
                 float(s.phi_hinge), s.phi_definition, float(s.psi), float(s.theta), float(C[0]), float(C[1]),
                 float(C[2]), float(G[0]), float(G[1]), float(G[2]), float(s.filter_lag_s))
-
-    def _to_msg(self, s, frame_id: str) -> RiderState:
-        m = RiderState()
-        m.header.stamp = convert.ns_to_stamp(self._origin_ns + int(round(s.t * 1e9)))
-        m.header.frame_id = frame_id
-        m.has_rider = bool(s.has_rider)
-        for k in ("x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot",
-                  "phi_eq3", "phi_hinge", "psi", "theta"):
-            setattr(m, k, float(getattr(s, k)))
-        m.phi_definition = s.phi_definition
-        _point(m.c, s.C)
-        _point(m.g, s.G)
-        m.filter_lag = float(s.filter_lag_s)
-        return m
 
     def _publish_diagnostics(self) -> None:
         c = self.counts

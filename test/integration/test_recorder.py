@@ -64,30 +64,10 @@ def test_recorder_records_every_message_and_discovers_a_late_topic(ros_domain, t
 
 
 def _expected_mix(n_bodies: int = 14) -> dict:
-    """The blast mix as rclpy messages, built here from the message constructors (stamps set per frame)."""
-    from geometry_msgs.msg import PoseStamped, TransformStamped
-    from tf2_msgs.msg import TFMessage
+    """The blast mix as rclpy messages, by topic (stamps set per frame)."""
+    from euc_ros.bench.relay import blast_mix
 
-    from euc_ros.bench.relay import mocap_frame, rider_state, torque_estimate
-
-    frame = mocap_frame(n_bodies)
-    mix = {"/mocap/frame": frame, "/rider/state": rider_state(), "/euc/torque": torque_estimate()}
-    tf = TFMessage()
-    for i, name in enumerate(frame.body_names):
-        ps = PoseStamped()
-        ps.header.frame_id = "world"
-        ps.pose = frame.poses[i]
-        mix[f"/mocap/{name}/pose"] = ps
-        t = TransformStamped()
-        t.header.frame_id = "world"
-        t.child_frame_id = name
-        p = frame.poses[i]
-        t.transform.translation.x, t.transform.translation.y, t.transform.translation.z = (
-            p.position.x, p.position.y, p.position.z)
-        t.transform.rotation = p.orientation
-        tf.transforms.append(t)
-    mix["/tf"] = tf
-    return mix
+    return {"/" + topic.lstrip("/"): msg for topic, _, msg in blast_mix(n_bodies)}   # absolute, as in the bag
 
 
 @pytest.mark.ros

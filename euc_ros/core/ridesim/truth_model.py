@@ -140,6 +140,23 @@ def _substitute(e, subs):
     return e
 
 
+def _lam(args, expr, module):
+    import sympy as sp  # lazily: only simulations need it
+
+    return sp.lambdify(args, expr, modules=module, cse=True)
+
+
+def _extension(M, b, mass_args, m_entries, bias_args, syms) -> _Compiled:
+    """A model that extends the planar one (:func:`_derive`): its own mass matrix and bias, lambdified, with
+    the planar model's rider-CoG Jacobian and velocity (the rider's geometry is the same)."""
+    base = _derive()
+    return _Compiled(
+        mass_s=_lam(mass_args, m_entries, "math"), bias_s=_lam(bias_args, list(b), "math"),
+        jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
+        mass_v=_lam(mass_args, m_entries, "numpy"), bias_v=_lam(bias_args, list(b), "numpy"),
+        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b, syms=syms)
+
+
 @lru_cache(maxsize=1)
 def _derive() -> _Compiled:
     """Form Lagrange's equations from the point kinematics (once per process, about 0.8 s)."""
@@ -197,19 +214,16 @@ def _derive() -> _Compiled:
     jac_args = (gam, phi, h) + pars
     vel_args = (gam, phi, xd, gd, pd, h, hd) + pars
 
-    def lam(args, expr, module):
-        return sp.lambdify(args, expr, modules=module, cse=True)
-
     jac_list = [jac_G[i, j] for i in range(2) for j in range(3)]
     return _Compiled(
-        mass_s=lam(mass_args, m_entries, "math"),
-        bias_s=lam(bias_args, list(b), "math"),
-        jac_g_s=lam(jac_args, jac_list, "math"),
-        vel_g_s=lam(vel_args, list(vel_G), "math"),
-        mass_v=lam(mass_args, m_entries, "numpy"),
-        bias_v=lam(bias_args, list(b), "numpy"),
-        jac_g_v=lam(jac_args, jac_list, "numpy"),
-        vel_g_v=lam(vel_args, list(vel_G), "numpy"),
+        mass_s=_lam(mass_args, m_entries, "math"),
+        bias_s=_lam(bias_args, list(b), "math"),
+        jac_g_s=_lam(jac_args, jac_list, "math"),
+        vel_g_s=_lam(vel_args, list(vel_G), "math"),
+        mass_v=_lam(mass_args, m_entries, "numpy"),
+        bias_v=_lam(bias_args, list(b), "numpy"),
+        jac_g_v=_lam(jac_args, jac_list, "numpy"),
+        vel_g_v=_lam(vel_args, list(vel_G), "numpy"),
         M=M, b=b,
         syms={"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
               "g": (gx, gz), "params": pars, "G": Gs},
@@ -367,18 +381,9 @@ def _derive_floor() -> _Compiled:
     bias_args = (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1) + pars
     m_entries = [M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2]]
 
-    def lam(args, expr, module):
-        return sp.lambdify(args, expr, modules=module, cse=True)
-
-    base = _derive()
-    return _Compiled(
-        mass_s=lam(mass_args, m_entries, "math"), bias_s=lam(bias_args, list(b), "math"),
-        jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
-        mass_v=lam(mass_args, m_entries, "numpy"), bias_v=lam(bias_args, list(b), "numpy"),
-        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b,
-        syms={"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
-              "g": (gx, gz), "floor": (a, a1), "params": pars},
-    )
+    return _extension(M, b, mass_args, m_entries, bias_args,
+                      {"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
+                       "g": (gx, gz), "floor": (a, a1), "params": pars})
 
 
 class FloorModel:
@@ -486,18 +491,9 @@ def _derive_pedal() -> _Compiled:
     bias_args = (gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz) + pars
     m_entries = [M[i, j] for i in range(4) for j in range(4)]
 
-    def lam(args, expr, module):
-        return sp.lambdify(args, expr, modules=module, cse=True)
-
-    base = _derive()
-    return _Compiled(
-        mass_s=lam(mass_args, m_entries, "math"), bias_s=lam(bias_args, list(b), "math"),
-        jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
-        mass_v=lam(mass_args, m_entries, "numpy"), bias_v=lam(bias_args, list(b), "numpy"),
-        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b,
-        syms={"q": (x, gam, phi, u), "qd": (xd, gd, pd, ud), "qdd": (xdd, gdd, pdd, udd), "h": (h, hd, hdd),
-              "g": (gx, gz), "params": pars},
-    )
+    return _extension(M, b, mass_args, m_entries, bias_args,
+                      {"q": (x, gam, phi, u), "qd": (xd, gd, pd, ud), "qdd": (xdd, gdd, pdd, udd),
+                       "h": (h, hd, hdd), "g": (gx, gz), "params": pars})
 
 
 class PedalModel:
