@@ -36,6 +36,27 @@ from rclpy.utilities import timeout_sec_to_nsec
 from rclpy.waitable import NumberOfEntities
 
 
+#: Longest wait, after a signal, for rclpy's signal thread to shut the context down [s].
+SIGNAL_THREAD_S = 2.0
+
+
+def wait_for_context_shutdown(context, timeout_s: float = SIGNAL_THREAD_S) -> bool:
+    """After SIGINT/SIGTERM, wait until rclpy's signal thread has shut ``context`` down; True if it has.
+
+    rclpy (Jazzy) handles a signal on a thread of its own: it triggers every executor's signal guard
+    condition, **then** shuts the contexts down. So a context that is no longer ok means the signal
+    thread is done with the guard conditions, and an executor (and its guard condition) may be
+    destroyed; before that, destroying it is a use after free (SIGSEGV at exit), and waiting again
+    may never wake (the shutdown itself wakes no wait set).
+    """
+    deadline = time.monotonic() + timeout_s
+    while context.ok():
+        if time.monotonic() >= deadline:
+            return False
+        time.sleep(0.002)
+    return True
+
+
 class _Entities:
     """The entities of the executor's nodes, and a wait set sized for them (kept across spins)."""
 
@@ -222,6 +243,12 @@ class LeanExecutor(SingleThreadedExecutor):
             services = [ents.srv_by_ptr[p] for p in ws.get_ready_entities("service") if p in ents.srv_by_ptr]
             guards = [ents.gc_by_ptr[p] for p in ws.get_ready_entities("guard_condition") if p in ents.gc_by_ptr]
 
+        if self._sigint_gc is not None and any(g is self._sigint_gc for g in guards):
+            # a SIGINT/SIGTERM: rclpy's signal thread triggers this, then shuts the context down. Waiting
+            # again meanwhile would wait forever (nothing wakes a wait set when the context shuts down):
+            # wait for the shutdown instead (seen: a steering_controller left spinning after SIGTERM)
+            if wait_for_context_shutdown(self._context):
+                raise ExternalShutdownException()
         for waitable in ready_waitables:
             for future in getattr(waitable, "_futures", ()):   # as rclpy does (e.g. an ActionClient's)
                 future._set_executor(self)

@@ -15,32 +15,12 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from euc_ros.core.errors import EucError
-from euc_ros.nodes.executor import LeanExecutor
+from euc_ros.nodes.executor import LeanExecutor, wait_for_context_shutdown
 from euc_ros.nodes.params import params_files_in, validate_params_file
 from euc_ros.sched import realtime_from_env
 
 #: How long an exception raised inside spin waits for a signal-triggered shutdown to complete [s].
 SHUTDOWN_RACE_S = 0.5
-#: Longest wait, after a signal, for rclpy's signal thread to finish before the executor is destroyed [s].
-SIGNAL_THREAD_S = 2.0
-
-
-def wait_for_signal_thread(context=None, timeout_s: float = SIGNAL_THREAD_S) -> bool:
-    """After SIGINT/SIGTERM, wait until rclpy's signal thread has shut the context down; True if it has.
-
-    rclpy (Jazzy) handles a signal on a thread of its own: it triggers every executor's signal guard
-    condition, then shuts the contexts down. The main thread can see the signal first (Python's
-    ``KeyboardInterrupt``) and destroy its executor, whose guard condition the signal thread may still
-    be triggering from a list it read before: a use after free (SIGSEGV at shutdown, seen here about
-    one exit in three). The contexts are shut down only after every guard condition was triggered,
-    so a context that is no longer ok means the signal thread is done with them.
-    """
-    deadline = time.monotonic() + timeout_s
-    while rclpy.ok(context=context):
-        if time.monotonic() >= deadline:
-            return False
-        time.sleep(0.005)
-    return True
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
@@ -106,7 +86,9 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
             raise
     finally:
         if signalled:
-            wait_for_signal_thread()     # before the executor's signal guard condition is destroyed
+            # before the executor's signal guard condition is destroyed: rclpy's signal thread may still be
+            # triggering it (a use after free: SIGSEGV at exit, about one exit in three here)
+            wait_for_context_shutdown(rclpy.get_default_context())
         if executor is not None:
             executor.shutdown(timeout_sec=0.0)
         for node in reversed(nodes):

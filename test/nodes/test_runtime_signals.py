@@ -1,4 +1,4 @@
-"""A node process ended by SIGINT exits cleanly, every time (euc_ros.nodes.runtime).
+"""A node process ended by SIGINT or SIGTERM exits cleanly, every time (euc_ros.nodes.runtime, executor).
 
 rclpy (Jazzy) handles a signal on a thread of its own that triggers every executor's signal guard
 condition and then shuts the contexts down; the main thread, woken by Python's KeyboardInterrupt,
@@ -9,6 +9,7 @@ One child process runs a node through ``run_node`` many times, each run ended by
 sends itself from its timer (the earliest moment a spinning node can be signalled); the child must
 exit 0 with every run returning 0. Without the wait for the signal thread, 100 such runs crashed the
 process in 2 of 3 trials here; a crash is a non-zero (negative) exit code whatever the machine.
+The second test signals an idle node (see its docstring): it must end, not wait forever.
 """
 from __future__ import annotations
 
@@ -41,5 +42,48 @@ CHILD = textwrap.dedent("""
 def test_sigint_while_spinning_exits_cleanly_every_time():
     runs = 300
     proc = subprocess.run([sys.executable, "-c", CHILD, str(runs)], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, (proc.returncode, proc.stdout[-1000:], proc.stderr[-2000:])
+    assert f"codes {[0] * runs}" in proc.stdout
+
+
+IDLE_CHILD = textwrap.dedent("""
+    import os, random, signal, sys, threading, time
+    from rclpy.node import Node
+    from euc_ros.nodes import runtime
+
+    class Idle(Node):
+        def __init__(self):
+            super().__init__("sigterm_idle")
+            def later():
+                time.sleep(0.05 + random.random() * 0.02)
+                os.kill(os.getpid(), signal.SIGTERM)
+            threading.Thread(target=later, daemon=True).start()
+
+    def watchdog(done):
+        if not done.wait(10):
+            print("HANG", flush=True)
+            os._exit(3)
+
+    codes = []
+    for _ in range(int(sys.argv[1])):
+        done = threading.Event()
+        threading.Thread(target=watchdog, args=(done,), daemon=True).start()
+        codes.append(runtime.run_node(Idle, ["sigterm_idle"]))
+        done.set()
+    print("codes", codes, flush=True)
+    sys.exit(max(codes))
+""")
+
+
+def test_sigterm_to_an_idle_node_ends_it():
+    """SIGTERM reaches a node waiting with nothing to do (no timer: the executor waits without a timeout).
+
+    rclpy's signal thread triggers the executor's signal guard condition and only then shuts the context
+    down; an executor that woke in between saw the context still ok and waited again, forever (a
+    steering_controller in the colcon test, 1 of 15 SIGTERMs here under load). Each run must end within
+    10 s (it takes ~0.1 s); without the fix, 200 runs hung in each of two trials."""
+    runs = 100
+    proc = subprocess.run([sys.executable, "-c", IDLE_CHILD, str(runs)], capture_output=True, text=True, timeout=600)
+    assert "HANG" not in proc.stdout, proc.stderr[-2000:]
     assert proc.returncode == 0, (proc.returncode, proc.stdout[-1000:], proc.stderr[-2000:])
     assert f"codes {[0] * runs}" in proc.stdout
