@@ -99,7 +99,7 @@ def unwrap_turns(psi_wrapped, turns_before: int = 0, last_wrapped: float | None 
     return out, int(m[-1]), float(seq[-1])
 
 
-def split_pieces(position, quat, tracked, session, bodies) -> dict[str, np.ndarray]:
+def split_pieces(position, quat, tracked, session, bodies, *, geo: dict | None = None) -> dict[str, np.ndarray]:
     """Per-frame pieces of the split estimator (module docstring), from rigid-body poses.
 
     Parameters
@@ -111,6 +111,9 @@ def split_pieces(position, quat, tracked, session, bodies) -> dict[str, np.ndarr
     tracked : array_like (b, n) of bool, optional
     session : Session
     bodies : sequence of str
+    geo : dict, optional
+        :func:`~euc_ros.core.euc.kinematics.frame_geometry` of the same poses (``segments`` CoG), if
+        already computed.
 
     Returns
     -------
@@ -121,7 +124,8 @@ def split_pieces(position, quat, tracked, session, bodies) -> dict[str, np.ndarr
     position = np.asarray(position, dtype=float)
     quat = np.asarray(quat, dtype=float)
     bodies = list(bodies)
-    geo = frame_geometry(position, quat, tracked, session, bodies)
+    if geo is None:
+        geo = frame_geometry(position, quat, tracked, session, bodies)
     psi, theta = geo["psi"], geo["theta"]
     E = geo["E"]
     u = geo["C"] - E

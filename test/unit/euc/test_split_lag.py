@@ -205,3 +205,35 @@ def test_default_smoothing_and_memory():
     f = StreamingSplit(DT)
     assert f.lag == 12 and set(f.smoothing) == set(SPLIT_SMOOTHING)
     assert f.window == max(w.shape[1] for w in split_weights(DT, 12).values())
+
+
+def test_rider_state_estimator_runs_the_split_estimator(ride):
+    """RiderStateEstimator(estimator="split") gives, per frame, exactly what StreamingSplit gives on
+    the pieces of each frame, 0.1 s late; the settings it cannot honour are refused."""
+    from euc_ros.core.errors import ConfigError
+    from euc_ros.core.euc.estimators import RiderStateEstimator
+    from euc_ros.core.filters.causal import streaming_filter
+
+    session, s = ride
+    est = RiderStateEstimator(session, DT, estimator="split")
+    assert est.lag_s == pytest.approx(0.1)
+    ref = StreamingSplit(DT)
+    got, want = [], {}
+    for i in range(s.position.shape[1]):
+        fr = int(s.frame[i])
+        got += est.update(fr, float(fr) * DT, s.position[:, i], s.quat[:, i], s.tracked[:, i], s.bodies)
+        pc = split_pieces(s.position[:, i], s.quat[:, i], s.tracked[:, i], session, s.bodies)
+        for f, stt, filled in ref.push(pc, frame=fr):
+            if not filled:
+                want[f] = stt
+    assert len(got) == len(want) > 100
+    for o in got:
+        w = want[o.frame]
+        assert (o.x_ddot, o.phi_ddot, o.gamma_ddot, o.x_dot, o.phi) == (
+            float(w.x_ddot), float(w.phi_ddot), float(w.gamma_ddot), float(w.x_dot), float(w.phi))
+        assert o.valid and o.filter_lag_s == pytest.approx(0.1)
+    for bad in (dict(phi_definition="eq3"), dict(cog_method="skeleton")):
+        with pytest.raises(ConfigError):
+            RiderStateEstimator(session, DT, estimator="split", **bad)
+    with pytest.raises(ConfigError):
+        streaming_filter("split", DT, window_s=1.2, polyorder=6)
