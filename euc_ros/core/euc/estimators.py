@@ -108,12 +108,17 @@ class RiderStateEstimator:
         ``skeleton_calibration_frames`` frames.
     skeleton_calibration_frames : int
         Frames of the live calibration of the chain's link vectors.
+    split_euc_center : array_like (3,)
+        ``split`` only: where the EUC body's orientation noise leaves the position unmoved, in its
+        body frame from its pivot [m] (:func:`~euc_ros.core.euc.split_lag.split_pieces`): the pivot
+        (default) or the markers' centroid when the pivot was placed elsewhere.
     """
 
     def __init__(self, session, dt: float, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
                  polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP, estimator: str = "savgol",
                  lag_s: float | None = None, smoothing_s: float | None = None, cog_method: str = "segments",
-                 skeleton=None, skeleton_calibration_frames: int = 240) -> None:
+                 skeleton=None, skeleton_calibration_frames: int = 240,
+                 split_euc_center=(0.0, 0.0, 0.0)) -> None:
         if phi_definition not in PHI_DEFINITIONS:
             raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
                               key="phi_definition")
@@ -138,6 +143,7 @@ class RiderStateEstimator:
                                   key="estimator")
             self._split = StreamingSplit(self.dt, lag_s=SPLIT_LAG_S if lag_s is None else lag_s, max_gap=max_gap)
             self._euc = self._rider = None
+            self._split_center = tuple(float(v) for v in split_euc_center)
         else:
             make = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, lag_s=lag_s, smoothing_s=smoothing_s)
             self._euc = streaming_filter(estimator, self.dt, **make)
@@ -245,7 +251,7 @@ class RiderStateEstimator:
         return out
 
     def _update_split(self, frame: int, t: float, position, quat, tracked, bodies, geo) -> list[RiderStateSample]:
-        pieces = split_pieces(position, quat, tracked, self.session, bodies, geo=geo)
+        pieces = split_pieces(position, quat, tracked, self.session, bodies, geo=geo, euc_center=self._split_center)
         self._raw[frame] = (float(t), float(geo["psi"]), float(geo["theta"]), float(geo["phi_eq3"]),
                             float(geo["phi_hinge"]), np.asarray(geo["G"], float), bool(geo["has_rider"]),
                             np.asarray(geo["C"], float))

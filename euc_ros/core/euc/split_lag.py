@@ -99,7 +99,8 @@ def unwrap_turns(psi_wrapped, turns_before: int = 0, last_wrapped: float | None 
     return out, int(m[-1]), float(seq[-1])
 
 
-def split_pieces(position, quat, tracked, session, bodies, *, geo: dict | None = None) -> dict[str, np.ndarray]:
+def split_pieces(position, quat, tracked, session, bodies, *, geo: dict | None = None,
+                 euc_center=(0.0, 0.0, 0.0)) -> dict[str, np.ndarray]:
     """Per-frame pieces of the split estimator (module docstring), from rigid-body poses.
 
     Parameters
@@ -114,6 +115,11 @@ def split_pieces(position, quat, tracked, session, bodies, *, geo: dict | None =
     geo : dict, optional
         :func:`~euc_ros.core.euc.kinematics.frame_geometry` of the same poses (``segments`` CoG), if
         already computed.
+    euc_center : array_like (3,)
+        Where the EUC body's orientation noise does not move the position, in the EUC body's frame
+        relative to its pivot [m]: the pivot itself (default; the simulator's noise, and Motive's
+        when the pivot is at the markers' centroid) or the markers' centroid. The split is made
+        there: ``E`` is that point, the lever arms start from it.
 
     Returns
     -------
@@ -128,6 +134,10 @@ def split_pieces(position, quat, tracked, session, bodies, *, geo: dict | None =
         geo = frame_geometry(position, quat, tracked, session, bodies)
     psi, theta = geo["psi"], geo["theta"]
     E = geo["E"]
+    center = np.asarray(euc_center, dtype=float)
+    if np.any(center != 0.0):
+        i = bodies.index(session.euc.body)
+        E = E + _rotate(quat[i], np.broadcast_to(center, quat[i].shape[:-1] + (3,)))
     u = geo["C"] - E
     v = geo["A"] - E
     names, fractions, offsets = session.segment_arrays()

@@ -27,9 +27,10 @@ def ride():
     return r.session, series
 
 
-def test_pieces_add_up_to_the_geometry(ride):
+@pytest.mark.parametrize("center", [(0.0, 0.0, 0.0), (0.1, -0.05, -0.25)])
+def test_pieces_add_up_to_the_geometry(ride, center):
     session, s = ride
-    pc = split_pieces(s.position, s.quat, s.tracked, session, s.bodies)
+    pc = split_pieces(s.position, s.quat, s.tracked, session, s.bodies, euc_center=center)
     geo = frame_geometry(s.position, s.quat, s.tracked, session, s.bodies)
     c, si = np.cos(pc["psi"]), np.sin(pc["psi"])
     C_x = pc["E_x"] + c * pc["u_f"] - si * pc["u_l"]
