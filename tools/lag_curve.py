@@ -18,9 +18,9 @@ aligned with the frame it describes, i.e. for the lag). Filters, at every lag fr
 
 * ``split`` (:mod:`euc_ros.core.euc.split_lag`): the pivot positions, the segments' and the EUC's
   orientation-borne pieces smoothed each with its own smoothing time and composed (the smoothing
-  times of ``SPLIT_SMOOTHING``, chosen at 0.1 s, used unchanged at every lag). Its memory (about
-  6 s) is longer than the others', so its rows are scored on its own frames (within the common
-  ones) against the default on those same frames ("x default" is that ratio).
+  times of ``SPLIT_SMOOTHING``, chosen at 0.1 s, used unchanged at every lag). Its rows are
+  scored on the frames it has an output for, within the common ones, against the default on those
+  same frames ("x default" is that ratio). With its 3.1 s memory, these are all the common frames.
 
 * ``trained_fir_bound`` (unless ``--no-bound``): the best ``kalman4`` filter's values and rates, with
   acceleration weights of the same length fitted (least squares, cubics kept exact) to the true M_d

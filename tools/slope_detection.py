@@ -4,8 +4,9 @@
 Usage: python tools/slope_detection.py [--seeds 3 4 5 6 7] [--slopes 3 5] [--rmse-window 0.5]
        [--duration 8] [--ramp-x0 15] [--filters kalman split ...]
 
-The ``split`` estimator (:mod:`euc_ros.core.euc.split_lag`) has a 6 s memory: give it longer rides
-with a later ramp (e.g. ``--duration 20 --ramp-x0 40``).
+The ``split`` estimator (:mod:`euc_ros.core.euc.split_lag`) has a 3.1 s memory: its first state comes
+about 3.2 s into a ride (with 8 s rides, about 2 s before the ramp). Longer rides with a later ramp
+(e.g. ``--duration 20 --ramp-x0 40``) give it more level riding before the onset.
 
 A level-calibrated lab whose floor turns into a ramp at X = 15 m (5 cm blend), ridden at constant
 speed; the chain of the nodes (RiderStateEstimator -> TorqueEstimator -> the monitor's consistency

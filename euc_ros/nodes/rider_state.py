@@ -68,7 +68,7 @@ SPECS = (
     ParamSpec("polyorder", DEFAULT_SG_POLYORDER, "Savitzky-Golay polynomial order", "", 2, 8),
     ParamSpec("estimator", "savgol", "derivative filter: savgol (Savitzky-Golay, window_s/polyorder) or kalman "
               f"(low-lag fixed-lag Kalman smoother, {LOW_LAG_S:g} s late by default; noisier, docs/low_lag.md) or "
-              "split (low-lag, positions and orientation-borne pieces smoothed separately; 6 s start-up; "
+              "split (low-lag, positions and orientation-borne pieces smoothed separately; 3 s start-up; "
               "phi_definition hinge and cog_method segments only)",
               choices=STATE_ESTIMATORS),
     ParamSpec("lag_s", -1.0, "delay of the published states behind their frames; negative: the estimator's "

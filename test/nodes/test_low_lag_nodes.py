@@ -66,7 +66,8 @@ def _calibrate(ride, estimator="kalman") -> float:
     return rmse_threshold(res, int(round(RMSE_WINDOW_S / dt)), ALPHA)
 
 
-# kalman: 0.1 s lag, 1.6 s memory; split: 0.1 s lag, 6.2 s memory (longer rides, a later ramp)
+# kalman: 0.1 s lag, 1.6 s memory; split: 0.1 s lag, 3.1 s memory (longer rides, a later ramp: level
+# riding enough for the sliding window before the onset)
 CASES = {"kalman": dict(level_s=6.0, x0_m=12.0, ride_s=5.5, onset=(3.0, 4.5)),
          "split": dict(level_s=14.0, x0_m=26.0, ride_s=10.5, onset=(8.0, 9.5))}
 
