@@ -92,9 +92,10 @@ class RiderStateEstimator:
         Derivative filter (:func:`~euc_ros.core.filters.causal.streaming_filter`): the Savitzky-Golay
         filter (default) or the low-lag Kalman fixed-lag smoother (issue 15); or ``split``
         (:mod:`~euc_ros.core.euc.split_lag`: pivot positions and orientation-borne pieces smoothed
-        separately, then composed; half the M_d1 and a quarter of the M_d2 error of ``kalman`` at 0.1 s, but a 3 s
-        start-up, ``phi_definition`` hinge and ``cog_method`` segments only, a frame without the
-        rider gives no EUC state either, and ``C`` is the frame's unsmoothed wheel centre).
+        separately, then composed; half the M_d1 and a quarter of the M_d2 error of ``kalman`` at
+        0.1 s, but a 3 s start-up, ``phi_definition`` hinge and ``cog_method`` segments only, a
+        frame without the rider gives no EUC state either, and ``C`` is the frame's unsmoothed
+        wheel centre).
     lag_s : float, optional
         Output delay [s]: default half the Savitzky-Golay window, or 0.1 s for ``kalman`` and ``split``.
     smoothing_s : float, optional

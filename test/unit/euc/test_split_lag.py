@@ -118,7 +118,8 @@ def test_composition_is_exact_on_cubic_pieces():
 
         i = np.flatnonzero(t == tt)[0]
         psi0 = _poly(cs["psi"], tt)
-        for g, ref in ((phi_at, (st.phi_dot[i], st.phi_ddot[i])), (lambda x: xc_at(x, psi0), (st.x_dot[i], st.x_ddot[i]))):
+        cases = ((phi_at, (st.phi_dot[i], st.phi_ddot[i])), (lambda x: xc_at(x, psi0), (st.x_dot[i], st.x_ddot[i])))
+        for g, ref in cases:
             d1 = [(g(tt + hh) - g(tt - hh)) / (2 * hh) for hh in (h, h / 2)]
             d2 = [(g(tt + hh) - 2 * g(tt) + g(tt - hh)) / hh**2 for hh in (h, h / 2)]
             # truncation error O(h^2): the difference between h and h/2 bounds it (x 4/3), plus round-off
