@@ -16,6 +16,12 @@ aligned with the frame it describes, i.e. for the lag). Filters, at every lag fr
   :mod:`euc_ros.core.filters.causal` on a constant-acceleration / constant-jerk model (smoothing
   time chosen from a grid).
 
+* ``split`` (:mod:`euc_ros.core.euc.split_lag`): the pivot positions, the segments' and the EUC's
+  orientation-borne pieces smoothed each with its own smoothing time and composed (the smoothing
+  times of ``SPLIT_SMOOTHING``, chosen at 0.1 s, used unchanged at every lag). Its rows are
+  scored on the frames it has an output for, within the common ones, against the default on those
+  same frames ("x default" is that ratio). With its 3.1 s memory, these are all the common frames.
+
 * ``trained_fir_bound`` (unless ``--no-bound``): the best ``kalman4`` filter's values and rates, with
   acceleration weights of the same length fitted (least squares, cubics kept exact) to the true M_d
   of the training seeds: what a fixed-lag FIR can reach on these rides when tuned on the truth. A
@@ -39,6 +45,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from euc_ros.core.bridging import bridge_series  # noqa: E402
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, frame_geometry  # noqa: E402
 from euc_ros.core.euc.model import EucParams  # noqa: E402
+from euc_ros.core.euc.split_lag import SPLIT_SMOOTHING, split_derivatives, split_pieces  # noqa: E402
 from euc_ros.core.euc.torque import torques  # noqa: E402
 from euc_ros.core.filters.causal import fir_derivatives, kalman_weights  # noqa: E402
 from euc_ros.core.filters.derivatives import savgol_coefficients, window_samples  # noqa: E402
@@ -50,6 +57,7 @@ SG_WINDOWS_S = (0.2, 0.3, 0.4, 0.6, 0.8, 1.0, 1.2, 1.6)
 SG_ORDERS = (2, 3, 4, 5, 6)
 TAUS_S = (0.04, 0.05, 0.065, 0.08, 0.1, 0.13)
 H_TRUE = 0.61
+SPLIT_LAGS_S = (0.05, 0.075, 0.1, 0.15, 0.2)
 
 
 def simulate(seeds, duration_s):
@@ -68,7 +76,9 @@ def simulate(seeds, duration_s):
                 fin = np.isfinite(psi)
                 psi[fin] = np.unwrap(psi[fin])
                 item[key] = dict(frame=np.asarray(series.frame), gamma=geo["gamma"], phi=geo["phi_hinge"],
-                                 C=geo["C"], psi=psi)
+                                 C=geo["C"], psi=psi,
+                                 pieces=split_pieces(series.position, series.quat, series.tracked, ride.session,
+                                                     series.bodies))
             runs.append(item)
     return runs
 
@@ -84,6 +94,15 @@ def torque_errors(run, weights, lag, recording="noisy"):
     c, s = np.cos(g["psi"]), np.sin(g["psi"])
     x_ddot = c * dc.y_ddot[:, 0] + s * dc.y_ddot[:, 1]
     m1, m2 = torques(dg.y, dp.y, dg.y_dot, dp.y_dot, x_ddot, dg.y_ddot, dp.y_ddot, run["params"])
+    return m1 - run["M_d"], m2 - run["M_d"]
+
+
+def split_errors(run, lag_s, recording="noisy"):
+    """(M_d1 - M_d, M_d2 - M_d) per frame of the split estimator (:mod:`euc_ros.core.euc.split_lag`)."""
+    g = run[recording]
+    st = split_derivatives(run["dt"], g["pieces"], lag_s=lag_s, frame=g["frame"], max_gap=5)
+    m1, m2 = torques(st.gamma, st.phi, st.gamma_dot, st.phi_dot, st.x_ddot, st.gamma_ddot, st.phi_ddot,
+                     run["params"])
     return m1 - run["M_d"], m2 - run["M_d"]
 
 
@@ -218,12 +237,31 @@ def main() -> int:
             best[("trained_fir_bound", lag_s)] = (0.0, ("trained_fir_bound", lag_s,
                                                        f"kalman4 {c[2]}, accelerations fitted", c[3], c[4]),
                                                   rms(e, train), rms(e, test))
+    split_rows = []
+    setting = "tau " + "; ".join(f"{k} {v:g}" for k, v in SPLIT_SMOOTHING.items()) + " s"
+    for lag_s in SPLIT_LAGS_S:
+        e = [split_errors(r, lag_s) for r in runs]
+        eb = [split_errors(r, lag_s, "clean") for r in runs]
+        own = [common[i] & np.isfinite(e[i][0]) & np.isfinite(e[i][1]) for i in range(len(runs))]
+
+        def rms_own(err, idx):
+            e1 = np.concatenate([err[i][0][own[i]] for i in idx])
+            e2 = np.concatenate([err[i][1][own[i]] for i in idx])
+            return float(np.sqrt(np.mean(e1**2))), float(np.sqrt(np.mean(e2**2)))
+
+        ref_own = rms_own(errs[[c[0] for c in cands].index("savgol")], test)
+        te, b = rms_own(e, test), rms_own(eb, test)
+        ratio = max(te[0] / ref_own[0], te[1] / ref_own[1])
+        n_own = sum(int(own[i].sum()) for i in test)
+        split_rows.append((lag_s, "split", f"{setting} ({n_own} frames, default there "
+                           f"{ref_own[0]:.3f} / {ref_own[1]:.3f})", te[0], te[1], ratio, b[0], b[1]))
     rows = []
     for (family, lag_s), (_, c, tr, te) in sorted(best.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         ratio = max(te[0] / ref_test[0], te[1] / ref_test[1])
         bias = (rms([torque_errors(r, c[3], c[4], "clean") for r in runs], test) if family != "trained_fir_bound"
                 else (np.nan, np.nan))
         rows.append((lag_s, family, c[2], te[0], te[1], ratio, bias[0], bias[1]))
+    rows = sorted(rows + split_rows, key=lambda r: (r[0], r[1]))
     a.out.mkdir(parents=True, exist_ok=True)
     n_test = sum(int(common[i].sum()) for i in test)
     lines = [f"Test seeds {sorted(set(runs[i]['seed'] for i in test))} (settings chosen on seeds "
@@ -250,7 +288,7 @@ def main() -> int:
 
     fig, axes = plt.subplots(1, 2, figsize=(11, 4.2), sharey=True)
     styles = {"savgol_offcentre": ("C0", "o"), "kalman3": ("C1", "s"), "kalman4": ("C2", "^"),
-              "trained_fir_bound": ("C3", "x")}
+              "trained_fir_bound": ("C3", "x"), "split": ("C4", "D")}
     for ax, k, label in zip(axes, (3, 4), ("M_d1 (eq 9)", "M_d2 (eq 10)")):
         for family, (color, marker) in styles.items():
             pts = [(r[0], r[k]) for r in rows if r[1] == family]

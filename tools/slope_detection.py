@@ -2,6 +2,11 @@
 """How fast does the live residual monitor flag a slope that starts mid-ride, per derivative filter?
 
 Usage: python tools/slope_detection.py [--seeds 3 4 5 6 7] [--slopes 3 5] [--rmse-window 0.5]
+       [--duration 8] [--ramp-x0 15] [--filters kalman split ...]
+
+The ``split`` estimator (:mod:`euc_ros.core.euc.split_lag`) has a 3.1 s memory: its first state comes
+about 3.2 s into a ride (with 8 s rides, about 2 s before the ramp). Longer rides with a later ramp
+(e.g. ``--duration 20 --ramp-x0 40``) give it more level riding before the onset.
 
 A level-calibrated lab whose floor turns into a ramp at X = 15 m (5 cm blend), ridden at constant
 speed; the chain of the nodes (RiderStateEstimator -> TorqueEstimator -> the monitor's consistency
@@ -34,6 +39,7 @@ FILTERS = {
     "savgol 0.6 s order 4, lag 0.2 s": dict(estimator="savgol", window_s=0.6, polyorder=4, lag_s=0.2),
     "kalman, lag 0.2 s": dict(estimator="kalman", lag_s=0.2),
     "kalman, lag 0.1 s (low-lag mode)": dict(estimator="kalman", lag_s=0.1),
+    "split, lag 0.1 s": dict(estimator="split", lag_s=0.1),
 }
 ALPHA = 1e-8
 
@@ -60,17 +66,25 @@ def main() -> int:
     ap.add_argument("--seeds", type=int, nargs="+", default=[3, 4, 5, 6, 7])
     ap.add_argument("--slopes", type=float, nargs="+", default=[3.0, 5.0])
     ap.add_argument("--rmse-window", type=float, default=0.5, help="sliding RMSE window [s]")
+    ap.add_argument("--duration", type=float, default=8.0, help="duration of every ride [s]")
+    ap.add_argument("--ramp-x0", type=float, default=15.0, help="where the ramp starts [m]")
+    ap.add_argument("--filters", nargs="+", default=None,
+                    help="only the filters whose name contains one of these words (default: all)")
     a = ap.parse_args()
-    level = simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=11, duration_s=8.0))
+    global FILTERS
+    if a.filters:
+        FILTERS = {k: v for k, v in FILTERS.items() if any(w in k for w in a.filters)}
+    level = simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=11, duration_s=a.duration))
     thresholds = {}
     for name, settings in FILTERS.items():
         rows, n_full = live(level, settings, a.rmse_window)
         thresholds[name] = rmse_threshold(rows[:, 3], n_full, ALPHA)
     results = {(name, s): [] for name in FILTERS for s in a.slopes}
     for slope in a.slopes:
-        floor = FloorProfile.of(("ramp_from", {"slope_deg": slope, "x0_m": 15.0, "width_m": 0.05}))
+        floor = FloorProfile.of(("ramp_from", {"slope_deg": slope, "x0_m": a.ramp_x0, "width_m": 0.05}))
         for seed in a.seeds:
-            ride = simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=seed, floor=floor, duration_s=8.0))
+            ride = simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=seed, floor=floor,
+                                             duration_s=a.duration))
             run = ride.runs[0]
             onset = float(run.t[np.argmax(np.abs(run.signals["floor_slope"]) > 0.05 * np.radians(slope))])
             for name, settings in FILTERS.items():
@@ -81,7 +95,8 @@ def main() -> int:
                 before = full & (rows[:, 0] < onset)
                 hit = rows[(rows[:, 0] >= onset) & (levels >= mon.WARN), 0]
                 results[(name, slope)].append((rows[before, 1].max(), hit[0] - onset if hit.size else np.nan))
-    print(f"Sliding RMSE window {a.rmse_window:g} s; seeds {a.seeds}; threshold calibrated on a level ride "
+    print(f"Rides of {a.duration:g} s, ramp from X = {a.ramp_x0:g} m. "
+          f"Sliding RMSE window {a.rmse_window:g} s; seeds {a.seeds}; threshold calibrated on a level ride "
           f"(seed 11, false-alarm probability {ALPHA:g} per independent window).\n")
     print("| filter | threshold [N m] | slope [deg] | largest RMSE before onset [N m] | false alarms | "
           "delay to flag [s]: median (max) | missed |")

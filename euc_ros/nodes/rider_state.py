@@ -43,7 +43,7 @@ from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.euc.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.euc.skeleton_fit import COG_METHODS
 from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
-from euc_ros.core.filters.causal import ESTIMATORS, LOW_LAG_S
+from euc_ros.core.filters.causal import LOW_LAG_S, STATE_ESTIMATORS
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.presence import BodyPresence
 from euc_ros.core.session import load_session
@@ -67,10 +67,12 @@ SPECS = (
               "s", 0.02, 10.0),
     ParamSpec("polyorder", DEFAULT_SG_POLYORDER, "Savitzky-Golay polynomial order", "", 2, 8),
     ParamSpec("estimator", "savgol", "derivative filter: savgol (Savitzky-Golay, window_s/polyorder) or kalman "
-              f"(low-lag fixed-lag Kalman smoother, {LOW_LAG_S:g} s late by default; noisier, docs/low_lag.md)",
-              choices=ESTIMATORS),
+              f"(low-lag fixed-lag Kalman smoother, {LOW_LAG_S:g} s late by default; noisier, docs/low_lag.md) or "
+              "split (low-lag, positions and orientation-borne pieces smoothed separately; 3 s start-up; "
+              "phi_definition hinge and cog_method segments only)",
+              choices=STATE_ESTIMATORS),
     ParamSpec("lag_s", -1.0, "delay of the published states behind their frames; negative: the estimator's "
-              f"default (half the Savitzky-Golay window, {LOW_LAG_S:g} s for kalman)", "s", -1.0, 10.0),
+              f"default (half the Savitzky-Golay window, {LOW_LAG_S:g} s for kalman and split)", "s", -1.0, 10.0),
     ParamSpec("smoothing_s", 0.0, "smoothing time of the kalman estimator (bandwidth 1/smoothing_s rad/s); 0: the "
               "value measured best for the lag", "s", 0.0, 10.0),
     ParamSpec("max_gap", DEFAULT_MAX_GAP, "longest run of missing frames bridged (bridged frames give no state)",

@@ -1,4 +1,4 @@
-"""Issue 15 through the nodes: rider_state with ``estimator: kalman`` -> torque_estimator -> monitor.
+"""Issue 15 through the nodes: rider_state with ``estimator: kalman`` or ``split`` -> torque_estimator -> monitor.
 
 The ride: a level-calibrated lab whose floor turns into a 5 deg ramp at X = 12 m, ridden at constant
 speed (test/unit/euc/test_low_lag_monitor.py does the same with the core classes). The frames are fed
@@ -51,9 +51,9 @@ H = _load_helpers()
 pipes = H.pipes
 
 
-def _calibrate(ride) -> float:
+def _calibrate(ride, estimator="kalman") -> float:
     dt = 1.0 / ride.session.rate_hz
-    states = RiderStateEstimator(ride.session, dt, estimator="kalman")
+    states = RiderStateEstimator(ride.session, dt, estimator=estimator)
     torque = TorqueEstimator(EucParams.from_session(ride.session, ride.config.h), dt, rmse_window_s=RMSE_WINDOW_S)
     m = ride.runs[0].mocap
     res = []
@@ -66,17 +66,27 @@ def _calibrate(ride) -> float:
     return rmse_threshold(res, int(round(RMSE_WINDOW_S / dt)), ALPHA)
 
 
-def test_low_lag_pipeline_flags_a_slope_within_one_second(pipes, ros_context, tmp_path):
-    threshold = _calibrate(simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=11, duration_s=6.0)))
-    floor = FloorProfile.of(("ramp_from", {"slope_deg": SLOPE_DEG, "x0_m": 12.0, "width_m": 0.05}))
-    ride = simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=3, floor=floor, duration_s=5.5))
+# kalman: 0.1 s lag, 1.6 s memory; split: 0.1 s lag, 3.1 s memory (longer rides, a later ramp: level
+# riding enough for the sliding window before the onset)
+CASES = {"kalman": dict(level_s=6.0, x0_m=12.0, ride_s=5.5, onset=(3.0, 4.5)),
+         "split": dict(level_s=14.0, x0_m=26.0, ride_s=10.5, onset=(8.0, 9.5))}
+
+
+@pytest.mark.parametrize("estimator", list(CASES))
+def test_low_lag_pipeline_flags_a_slope_within_one_second(pipes, ros_context, tmp_path, estimator):
+    case = CASES[estimator]
+    threshold = _calibrate(simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=11,
+                                                    duration_s=case["level_s"])), estimator)
+    floor = FloorProfile.of(("ramp_from", {"slope_deg": SLOPE_DEG, "x0_m": case["x0_m"], "width_m": 0.05}))
+    ride = simulate_ride(RideConfig(maneuver="constant_speed", runs=1, seed=3, floor=floor,
+                                    duration_s=case["ride_s"]))
     run = ride.runs[0]
     onset = float(run.t[np.argmax(np.abs(run.signals["floor_slope"]) > 0.05 * np.radians(SLOPE_DEG))])
-    assert 3.0 < onset < 4.5
+    assert case["onset"][0] < onset < case["onset"][1]
     save_session(ride.session, tmp_path / "session.yaml")
     path = str(tmp_path / "session.yaml")
     rider = RiderStateNode(context=ros_context, parameter_overrides=[
-        Parameter("session_file", value=path), Parameter("estimator", value="kalman")])
+        Parameter("session_file", value=path), Parameter("estimator", value=estimator)])
     assert rider.estimator.lag_s == pytest.approx(0.1)
     te = TorqueEstimatorNode(context=ros_context, parameter_overrides=[
         Parameter("session_file", value=path), Parameter("rmse_window_s", value=RMSE_WINDOW_S),
@@ -102,11 +112,11 @@ def test_low_lag_pipeline_flags_a_slope_within_one_second(pipes, ros_context, tm
     assert first_flag is not None and first_flag - onset <= 1.0, (first_flag, onset, threshold)
     # every state 0.1 s after its frame, equal to the core estimator's
     assert pipe.states and all(s.filter_lag == pytest.approx(0.1) for s in pipe.states)
-    core = H.core_states(series, ride.session, estimator="kalman", window_s=1.2, polyorder=6)
+    core = H.core_states(series, ride.session, estimator=estimator, window_s=1.2, polyorder=6)
     for s in pipe.states:
         c = core[H.stamp_ns(s.header.stamp)]
         assert s.x_ddot == c.x_ddot and s.phi_ddot == c.phi_ddot and s.gamma_ddot == c.gamma_ddot
     rider._publish_diagnostics()
-    pipe.spin_until(lambda: any(kv.key == "estimator" and kv.value == "kalman"
+    pipe.spin_until(lambda: any(kv.key == "estimator" and kv.value == estimator
                                 for a in pipe.diag for st in a.status for kv in st.values),
                     what="rider_state diagnostics naming the estimator")

@@ -68,6 +68,10 @@ SMOOTHING_TABLE = ((0.0, 0.065), (0.3, 0.065), (0.4, 0.08), (0.6, 0.08))
 #: Derivative estimators of the state reconstruction: centred (or off-centre) Savitzky-Golay, or the
 #: Kalman fixed-lag smoother of this module.
 ESTIMATORS = ("savgol", "kalman")
+#: State estimators of :class:`~euc_ros.core.euc.estimators.RiderStateEstimator` (and the ``rider_state``
+#: node): the per-coordinate filters above, or ``split`` (:mod:`euc_ros.core.euc.split_lag`: pieces
+#: split by noise source, filtered per group; it needs the poses, so it has no :func:`streaming_filter`).
+STATE_ESTIMATORS = ESTIMATORS + ("split",)
 #: Lag [s] of the shipped low-lag mode (``estimator="kalman"`` without ``lag_s``).
 LOW_LAG_S = 0.1
 #: Longest impulse response considered [samples] before giving up (a very slow filter).
@@ -403,6 +407,9 @@ def streaming_filter(estimator: str, dt: float, *, window_s: float, polyorder: i
     """
     from euc_ros.core.filters.derivatives import window_samples
 
+    if estimator == "split":
+        raise ConfigError("the split estimator filters pieces of the poses, not one coordinate: use "
+                          "RiderStateEstimator(estimator='split')", key="estimator")
     if estimator not in ESTIMATORS:
         raise ConfigError(f"estimator must be one of {ESTIMATORS}, got {estimator!r}", key="estimator")
     if estimator == "kalman":
