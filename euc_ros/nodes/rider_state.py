@@ -73,6 +73,9 @@ SPECS = (
               choices=STATE_ESTIMATORS),
     ParamSpec("lag_s", -1.0, "delay of the published states behind their frames; negative: the estimator's "
               f"default (half the Savitzky-Golay window, {LOW_LAG_S:g} s for kalman and split)", "s", -1.0, 10.0),
+    ParamSpec("split_euc_center", [0.0, 0.0, 0.0], "split only: where the EUC body's orientation noise leaves "
+              "the position unmoved, in its body frame from its pivot: the pivot (default, Motive's marker centroid "
+              "unless moved) or the markers' centroid if the pivot was placed elsewhere", "m"),
     ParamSpec("smoothing_s", 0.0, "smoothing time of the kalman estimator (bandwidth 1/smoothing_s rad/s); 0: the "
               "value measured best for the lag", "s", 0.0, 10.0),
     ParamSpec("max_gap", DEFAULT_MAX_GAP, "longest run of missing frames bridged (bridged frames give no state)",
@@ -152,7 +155,8 @@ class RiderStateNode(Node):
                                              lag_s=cfg["lag_s"] if cfg["lag_s"] >= 0 else None,
                                              smoothing_s=cfg["smoothing_s"] or None, cog_method=cfg["cog_method"],
                                              skeleton_calibration_frames=max(
-                                                 1, int(round(cfg["skeleton_calibration_s"] * rate))))
+                                                 1, int(round(cfg["skeleton_calibration_s"] * rate))),
+                                             split_euc_center=cfg["split_euc_center"])
         self.sequencer = FrameSequencer(rate, cfg["restart_jump"])
 
     def _on_frames(self, raw: bytes) -> None:

@@ -144,7 +144,11 @@ class RiderStateEstimator:
                                   key="estimator")
             self._split = StreamingSplit(self.dt, lag_s=SPLIT_LAG_S if lag_s is None else lag_s, max_gap=max_gap)
             self._euc = self._rider = None
-            self._split_center = tuple(float(v) for v in split_euc_center)
+            center = np.asarray(split_euc_center, dtype=float)
+            if center.shape != (3,) or not np.isfinite(center).all():
+                raise ConfigError(f"split_euc_center must be 3 finite numbers [m], got {list(np.ravel(center))}",
+                                  key="split_euc_center")
+            self._split_center = tuple(float(v) for v in center)
         else:
             make = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, lag_s=lag_s, smoothing_s=smoothing_s)
             self._euc = streaming_filter(estimator, self.dt, **make)

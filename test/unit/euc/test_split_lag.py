@@ -237,5 +237,8 @@ def test_rider_state_estimator_runs_the_split_estimator(ride):
     for bad in (dict(phi_definition="eq3"), dict(cog_method="skeleton")):
         with pytest.raises(ConfigError):
             RiderStateEstimator(session, DT, estimator="split", **bad)
+    for center in ((0.0, 0.1), (0.0, float("nan"), 0.0)):
+        with pytest.raises(ConfigError, match="split_euc_center"):
+            RiderStateEstimator(session, DT, estimator="split", split_euc_center=center)
     with pytest.raises(ConfigError):
         streaming_filter("split", DT, window_s=1.2, polyorder=6)
