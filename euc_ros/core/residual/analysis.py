@@ -1363,12 +1363,17 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
                 out.append((full, mask))
             return out
 
-        noisy = None
+        def floor_of(noisy):
+            return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
+                               window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
+
         if window_s is not None:
-            noisy = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
-                                    phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
-                                    seed=SIMEX_SEED if seed is None else seed, share=share)
-        return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
-                           window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
+            # the replicate's states go to the floor, then (dropped) to SIMEX's h: never beside its fit
+            out = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
+                                  phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
+                                  seed=SIMEX_SEED if seed is None else seed, share=share, use=floor_of)
+            if out is not None:
+                return out
+        return floor_of(None)
 
     return of
