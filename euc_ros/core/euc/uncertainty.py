@@ -348,7 +348,6 @@ def _rotate_by_rotvec(q: np.ndarray, r: np.ndarray, apply: np.ndarray) -> np.nda
     if keep.any():
         out[keep] = q[keep]
     return out
-    return PerturbedSeries(series, perturb)
 
 
 def pose_noise_draws(series, rng):
