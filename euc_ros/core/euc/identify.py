@@ -117,17 +117,18 @@ def _sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
     if n == 0:
         return sse
     c, a0, a1, a2, d0, d1 = coef
-    a0c, a1c, a2c = c * a0, c * a1, c * a2
     H = h[:, None]
     step = max(1, min(n, _CHUNK_ELEMENTS // h.size))
     num_buf = np.empty((h.size, step))
     den_buf = np.empty((h.size, step))
     for s in range(0, n, step):
         e = min(n, s + step)
-        num = np.multiply(H, a2c[s:e], out=num_buf[:, :e - s])
-        num += a1c[s:e]
+        # c a_k of the chunk only (elementwise: the same numbers as made for all samples at once)
+        cs = c[s:e]
+        num = np.multiply(H, cs * a2[s:e], out=num_buf[:, :e - s])
+        num += cs * a1[s:e]
         num *= H
-        num += a0c[s:e]
+        num += cs * a0[s:e]
         den = np.multiply(H, d1[s:e], out=den_buf[:, :e - s])
         den += d0[s:e]
         num /= den
@@ -150,10 +151,38 @@ def _valid_args(st, extra_Q) -> tuple[tuple[np.ndarray, ...], Any]:
     return args, extra_Q
 
 
+def _valid_coefficients(st, params: EucParams, model: str, extra_Q) -> np.ndarray:
+    """:func:`residual_coefficients` of the valid samples of ``st`` (6, n_valid), made block by block of
+    the recording (:data:`_COEF_BLOCK` samples), so the valid samples' seven state arrays are never
+    copied whole (56 bytes a sample beside the coefficients' 48). Per-sample arithmetic: the numbers
+    are those of the masked copies. Scalar parameters only."""
+    mask = np.asarray(st.valid, dtype=bool)
+    if extra_Q is not None:
+        extra_Q = np.asarray(extra_Q, dtype=float)
+        if extra_Q.shape != (st.n, 3):
+            raise InputError(f"extra_Q must have shape ({st.n}, 3), got {extra_Q.shape}", key="extra_Q")
+    arrs = st.torque_args()
+    out = np.empty((6, int(np.count_nonzero(mask))))
+    j = 0
+    for lo in range(0, mask.size, _COEF_BLOCK):
+        m = mask[lo:lo + _COEF_BLOCK]
+        k = int(np.count_nonzero(m))
+        if k == 0:
+            continue
+        out[:, j:j + k] = residual_coefficients([np.asarray(a)[lo:lo + _COEF_BLOCK][m] for a in arrs], params, model,
+                                                None if extra_Q is None else extra_Q[lo:lo + _COEF_BLOCK][m])
+        j += k
+    return out
+
+
 def _coefficients_for(states_list, params: EucParams, model: str, extra_Q) -> list[np.ndarray]:
     extras = extra_Q if isinstance(extra_Q, (list, tuple)) else [extra_Q] * len(states_list)
+    scalar = all(np.ndim(v) == 0 for v in dataclasses.astuple(model_params(params, model)))
     out = []
     for st, ex in zip(states_list, extras):
+        if scalar and not callable(ex):
+            out.append(_valid_coefficients(st, params, model, ex))
+            continue
         args, ex = _valid_args(st, ex)
         out.append(residual_coefficients(args, params, model, ex))
     return out
@@ -374,8 +403,27 @@ def identify_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models:
         sses = [_sse_grid(c, h_grid) for c in coefs]
         for rec, c, s in zip(per_rec, coefs, sses):
             rec.fits[model] = _fit(c, h_grid, model, s)
-        # one recording: its coefficients are the pooled ones (np.concatenate would copy them, 48 bytes a frame)
-        pooled_coef = coefs[0] if len(coefs) == 1 else np.concatenate(coefs, axis=1)
-        pooled[model] = _fit(pooled_coef, h_grid, model, np.sum(sses, axis=0))
-        del pooled_coef
+        pooled[model] = pooled_fit(coefs, h_grid, model, sses)
     return IdentifyResult(h_grid, per_rec, pooled, dict(settings or {}))
+
+
+def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = "3dof",
+               sses: Sequence[np.ndarray] | None = None) -> ModelFit:
+    """The pooled fit of :func:`identify_h` from the recordings' residual coefficients (and their SSE
+    curves over ``h_grid``, computed here when not given): what ``identify_h(...).pooled[model]`` is."""
+    h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
+    if sses is None:
+        sses = [_sse_grid(c, h_grid) for c in coefs]
+    # one recording: its coefficients are the pooled ones (np.concatenate would copy them, 48 bytes a frame)
+    pooled_coef = coefs[0] if len(coefs) == 1 else np.concatenate(coefs, axis=1)
+    return _fit(pooled_coef, h_grid, model, np.sum(sses, axis=0))
+
+
+def pooled_h_of_states(states: list, params: EucParams) -> float:
+    """``identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, emptying the list ``states``:
+    each recording's states are dropped as soon as they are reduced to their residual coefficients
+    (48 bytes a valid sample, where the states are ~170 a frame), so the fit runs without them."""
+    coefs = []
+    while states:
+        coefs += _coefficients_for([states.pop(0)], params, "3dof", None)
+    return float(pooled_fit(coefs, DEFAULT_H_GRID, "3dof").h_m)

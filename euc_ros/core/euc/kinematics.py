@@ -437,10 +437,11 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         geo, n_bridged, n_bridged_frames = block_geometry(series, session, max_gap)
     frame = np.asarray(series.frame, dtype=np.int64)
     sg = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, frame=frame)
-    d_gamma = savgol_derivatives(dt, geo["gamma"], **sg)
-    phi_raw = geo["phi_hinge"] if phi_definition == "hinge" else geo["phi_eq3"]
-    d_phi = savgol_derivatives(dt, phi_raw, **sg)
-    d_C = savgol_derivatives(dt, geo["C"], **sg)
+    # Order for memory: each filter input is dropped from ``geo`` once filtered (those the states do not
+    # keep) and the wheel centre's derivatives once reduced to x_dot and x_ddot, so the working set
+    # beyond the states is at most one filter's. The numbers are those of any other order.
+    n_faults = int(geo.pop("n_faults").sum())
+    d_C = savgol_derivatives(dt, geo.pop("C"), **sg)
     psi = geo["psi"].copy()
     fin = np.isfinite(psi)
     if fin.any():
@@ -452,15 +453,24 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     gap = ~fin & d_C.filled
     if gap.any() and fin.sum() >= 2:
         psi_x[gap] = np.interp(frame[gap], frame[fin], psi[fin])
+    del gap, fin
     cx, sx = np.cos(psi_x), np.sin(psi_x)          # e_x = (cos psi, sin psi)
+    del psi_x
     x_dot = cx * d_C.y_dot[:, 0] + sx * d_C.y_dot[:, 1]
     x_ddot = cx * d_C.y_ddot[:, 0] + sx * d_C.y_ddot[:, 1]
     del cx, sx
+    C, filled = d_C.y, d_C.filled.copy()
+    del d_C                                        # its (n, 3) y_dot and y_ddot
     t = np.asarray(series.t, dtype=float)
     xd0 = np.where(np.isfinite(x_dot), x_dot, 0.0)
     x = np.concatenate(([0.0], np.cumsum(0.5 * (xd0[1:] + xd0[:-1]) * np.diff(t)))) if t.size else t.copy()
+    del xd0
     x[~np.isfinite(x_dot)] = np.nan
-    filled = d_gamma.filled | d_phi.filled | d_C.filled
+    d_gamma = savgol_derivatives(dt, geo.pop("gamma"), **sg)
+    phi_raw = geo["phi_hinge"] if phi_definition == "hinge" else geo["phi_eq3"]
+    d_phi = savgol_derivatives(dt, phi_raw, **sg)
+    filled |= d_gamma.filled
+    filled |= d_phi.filled
     fields_ = (x_dot, x_ddot, d_gamma.y, d_gamma.y_dot, d_gamma.y_ddot, d_phi.y, d_phi.y_dot, d_phi.y_ddot)
     # measured samples at least half a window inside their stretch (where the SG fit interpolates);
     # the fields' finiteness and-ed one at a time (no (8, n) stack of the fields)
@@ -473,9 +483,9 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         gamma=d_gamma.y, gamma_dot=d_gamma.y_dot, gamma_ddot=d_gamma.y_ddot,
         phi=d_phi.y, phi_dot=d_phi.y_dot, phi_ddot=d_phi.y_ddot,
         phi_eq3=geo["phi_eq3"], phi_hinge=geo["phi_hinge"], psi=psi, theta=geo["theta"],
-        C=d_C.y, G=geo["G"], has_euc=geo["has_euc"], has_rider=geo["has_rider"], valid=valid,
+        C=C, G=geo["G"], has_euc=geo["has_euc"], has_rider=geo["has_rider"], valid=valid,
         phi_definition=phi_definition, cog_method=cog_method, window=d_gamma.window, polyorder=polyorder, dt=dt,
         meta={"source": src, "bridged_samples": n_bridged,
-              "bridged_frames": n_bridged_frames, "cog_faults": int(geo["n_faults"].sum()),
+              "bridged_frames": n_bridged_frames, "cog_faults": n_faults,
               **({"cog_fault_bodies": geo["cog_fault_bodies"]} if "cog_fault_bodies" in geo else {})},
     )

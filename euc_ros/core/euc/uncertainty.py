@@ -348,7 +348,6 @@ def _rotate_by_rotvec(q: np.ndarray, r: np.ndarray, apply: np.ndarray) -> np.nda
     if keep.any():
         out[keep] = q[keep]
     return out
-    return PerturbedSeries(series, perturb)
 
 
 def pose_noise_draws(series, rng):
@@ -410,11 +409,18 @@ def _replicate_states(series_list, noise, draws, sign, session, *, window_s, pol
 
 
 def first_replicate(series_list, session, params, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
-                    cog_method: str = "segments", seed: int = SIMEX_SEED, share: SimexShare | None = None):
+                    cog_method: str = "segments", seed: int = SIMEX_SEED, share: SimexShare | None = None,
+                    use=None):
     """The states of :func:`eiv_bias`'s first replicate (the recordings with their estimated white pose
     noise added once more: pair 1, ``+z``), or None when the noise cannot be estimated. With ``share``
-    its h is kept for :func:`eiv_bias`."""
-    from euc_ros.core.euc.identify import identify_h
+    its h is kept for :func:`eiv_bias`.
+
+    ``use(states)``: what the caller does with the states (e.g. the residual's noise floor); then
+    ``use``'s result is returned instead of the states, and the h is fitted after it with the states
+    dropped (reduced to their residual coefficients first: :func:`~euc_ros.core.euc.identify.pooled_h_of_states`),
+    so the states and the fit's working set are never held together. ``use`` is not called (None is
+    returned) when the noise cannot be estimated."""
+    from euc_ros.core.euc.identify import pooled_h_of_states
 
     share = share if share is not None else SimexShare()
     noise = share.noise_of(series_list)
@@ -425,8 +431,12 @@ def first_replicate(series_list, session, params, *, window_s: float, polyorder:
     states = _replicate_states(series_list, noise, draws, 1.0, session, window_s=window_s, polyorder=polyorder,
                                phi_definition=phi_definition, cog_method=cog_method)
     share.key = _share_key(series_list, window_s, polyorder, phi_definition, cog_method, seed, params)
-    share.h_m = float(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
-    return states
+    if use is None:
+        share.h_m = pooled_h_of_states(list(states), params)      # a copy of the list: the states are returned
+        return states
+    out = use(states)
+    share.h_m = pooled_h_of_states(states, params)
+    return out
 
 
 def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyorder: int,
@@ -449,7 +459,7 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     ``share``: a :class:`SimexShare` whose first replicate (made by :func:`first_replicate` with the
     same settings) is used instead of being made again.
     """
-    from euc_ros.core.euc.identify import identify_h
+    from euc_ros.core.euc.identify import pooled_h_of_states
 
     share = share if share is not None else SimexShare()
     noise = share.noise_of(series_list)
@@ -462,7 +472,8 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     def h_of(draws, sign):
         states = _replicate_states(series_list, noise, draws, sign, session, window_s=window_s, polyorder=polyorder,
                                    phi_definition=phi_definition, cog_method=cog_method)
-        return identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m
+        # identify_h's pooled 3-DoF h, the states dropped once reduced to their coefficients
+        return pooled_h_of_states(states, params)
 
     hs = []
     pairs = antithetic and replicates >= 2

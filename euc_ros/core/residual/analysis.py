@@ -107,40 +107,67 @@ class Recording:
     index: np.ndarray | None = None  # sample index in the recording of each valid sample
 
 
+#: Samples per block of the time-shift hook's geometry (:func:`_hinge`, :func:`_phi_about_hinge`): the
+#: temporaries of the whole recording's (n, 3) rotations were ~60 MB an hour at 120 Hz.
+_SHIFT_BLOCK = 1 << 16
+
+
 def _hinge(st: RiderStates, l0: float) -> np.ndarray:
-    """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis."""
-    gamma, psi, theta = st.gamma, st.psi, st.theta
-    zb = np.stack([np.sin(gamma), -np.sin(theta) * np.cos(gamma), np.cos(theta) * np.cos(gamma)], axis=1)
-    zw = np.stack([np.cos(psi) * zb[:, 0] - np.sin(psi) * zb[:, 1],
-                   np.sin(psi) * zb[:, 0] + np.cos(psi) * zb[:, 1], zb[:, 2]], axis=1)
-    return st.C - l0 * zw
+    """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis
+    (block by block: elementwise, so the same numbers as the whole at once)."""
+    n = st.C.shape[0]
+    out = np.empty((n, 3))
+    for lo in range(0, n, _SHIFT_BLOCK):
+        hi = min(n, lo + _SHIFT_BLOCK)
+        gamma, psi, theta = st.gamma[lo:hi], st.psi[lo:hi], st.theta[lo:hi]
+        zb = np.stack([np.sin(gamma), -np.sin(theta) * np.cos(gamma), np.cos(theta) * np.cos(gamma)], axis=1)
+        zw = np.stack([np.cos(psi) * zb[:, 0] - np.sin(psi) * zb[:, 1],
+                       np.sin(psi) * zb[:, 0] + np.cos(psi) * zb[:, 1], zb[:, 2]], axis=1)
+        out[lo:hi] = st.C[lo:hi] - l0 * zw
+    return out
+
+
+def _phi_about_hinge(G: np.ndarray, A: np.ndarray, psi: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Rider pitch of G about A in the moving frame, ``arctan2(r_x, r_z)`` of ``r = T(G - A)`` (n,), block by block."""
+    n = G.shape[0]
+    out = np.empty(n)
+    for lo in range(0, n, _SHIFT_BLOCK):
+        hi = min(n, lo + _SHIFT_BLOCK)
+        r = to_moving_frame(G[lo:hi] - A[lo:hi], psi[lo:hi], theta[lo:hi])
+        out[lo:hi] = np.arctan2(r[:, 0], r[:, 2])
+    return out
 
 
 def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: int, valid: np.ndarray
                   ) -> Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
-    """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time."""
+    """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time.
+
+    The hinge path and the unshifted pitch (4 numbers a sample) are made on the first call and kept:
+    every recording is prepared (the noise floor's re-noised ones too), few are shifted.
+    """
     t = st.t
     psi, theta = st.psi, st.theta
-    A = _hinge(st, params.l0)
-
-    def phi_of(G):
-        r = to_moving_frame(G - A, psi, theta)
-        return np.arctan2(r[:, 0], r[:, 2])
-
-    phi0 = phi_of(st.G)
     idx = np.flatnonzero(valid)
     half = (window - 1) // 2
-    uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
-        and np.isfinite(st.dt)
-    if uniform:
-        # the filter's centre weights evaluated only at the samples the analysis uses (valid samples lie at
-        # least half a window inside their stretch, so the centre weights are the ones the full filter uses)
-        weights = savgol_coefficients(window, polyorder, st.dt, [half])[:, 0, :]      # (3, window)
+    base: dict = {}
+
+    def geometry():
+        if not base:
+            A = _hinge(st, params.l0)
+            base["A"], base["phi0"] = A, _phi_about_hinge(st.G, A, psi, theta)
+            uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
+                and np.isfinite(st.dt)
+            # the filter's centre weights evaluated only at the samples the analysis uses (valid samples lie at
+            # least half a window inside their stretch, so the centre weights are the ones the full filter uses)
+            base["weights"] = savgol_coefficients(window, polyorder, st.dt, [half])[:, 0, :] if uniform else None
+        return base["A"], base["phi0"], base["weights"]
 
     def shift(dt: float):
+        A, phi0, weights = geometry()
         Gs = np.stack([np.interp(t + dt, t, st.G[:, k], left=np.nan, right=np.nan) for k in range(3)], axis=1)
-        d = phi_of(Gs) - phi0
-        if uniform:
+        d = _phi_about_hinge(Gs, A, psi, theta)
+        d -= phi0
+        if weights is not None:
             W = np.lib.stride_tricks.sliding_window_view(np.pad(d, half, constant_values=np.nan), window)[idx]
             out = W @ weights.T
             return out[:, 0], out[:, 1], out[:, 2]
@@ -1336,12 +1363,17 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
                 out.append((full, mask))
             return out
 
-        noisy = None
+        def floor_of(noisy):
+            return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
+                               window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
+
         if window_s is not None:
-            noisy = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
-                                    phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
-                                    seed=SIMEX_SEED if seed is None else seed, share=share)
-        return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
-                           window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
+            # the replicate's states go to the floor, then (dropped) to SIMEX's h: never beside its fit
+            out = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
+                                  phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
+                                  seed=SIMEX_SEED if seed is None else seed, share=share, use=floor_of)
+            if out is not None:
+                return out
+        return floor_of(None)
 
     return of
