@@ -70,17 +70,23 @@ def simulate(seeds, duration_s):
             item = dict(maneuver=m, seed=seed, M_d=r.M_d, params=EucParams.from_session(ride.session, H_TRUE),
                         dt=1.0 / ride.session.rate_hz)
             for key, rec in (("noisy", r.mocap), ("clean", r.mocap_clean)):
-                series, _ = bridge_series(rec, 5)
-                geo = frame_geometry(series.position, series.quat, series.tracked, ride.session, series.bodies)
-                psi = geo["psi"].copy()
-                fin = np.isfinite(psi)
-                psi[fin] = np.unwrap(psi[fin])
-                item[key] = dict(frame=np.asarray(series.frame), gamma=geo["gamma"], phi=geo["phi_hinge"],
-                                 C=geo["C"], psi=psi,
-                                 pieces=split_pieces(series.position, series.quat, series.tracked, ride.session,
-                                                     series.bodies))
+                item[key] = recording_geometry(rec, ride.session)
             runs.append(item)
     return runs
+
+
+def recording_geometry(rec, session, euc_center=(0.0, 0.0, 0.0)):
+    """What the filters need of one recording (bridged): frames, gamma, phi, C, unwrapped psi and the
+    split estimator's pieces (split at ``euc_center`` on the EUC body, see
+    :func:`~euc_ros.core.euc.split_lag.split_pieces`)."""
+    series, _ = bridge_series(rec, 5)
+    geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies)
+    psi = geo["psi"].copy()
+    fin = np.isfinite(psi)
+    psi[fin] = np.unwrap(psi[fin])
+    return dict(frame=np.asarray(series.frame), gamma=geo["gamma"], phi=geo["phi_hinge"], C=geo["C"], psi=psi,
+                pieces=split_pieces(series.position, series.quat, series.tracked, session, series.bodies,
+                                    euc_center=euc_center))
 
 
 def torque_errors(run, weights, lag, recording="noisy"):
