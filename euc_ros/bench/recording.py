@@ -159,7 +159,10 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     peaks = sampler.peaks_mb()
     tail = " | ".join(log.getvalue().strip().splitlines()[-6:])
     if not finished or not all(r.exists() for r in results) or any(launcher.exit_codes.get(n) != 0 for n in names):
-        raise BenchError(f"recorder step at {frame_rate:g} frames/s failed: {tail}")
+        codes = ", ".join(f"{n} exit {launcher.exit_codes.get(n)}" for n in names)
+        missing = [r.name for r in results if not r.exists()]
+        raise BenchError(f"recorder step at {frame_rate:g} frames/s failed ({'finished' if finished else 'timed out'}; "
+                         f"{codes}; results missing: {missing or 'none'}): {tail}")
     if launcher.exit_codes.get("recorder") != 0 or not (bag / "metadata.yaml").exists():
         raise BenchError(f"the recorder did not close its bag (exit {launcher.exit_codes.get('recorder')}): {tail}")
     blasts = [json.loads(r.read_text(encoding="utf-8")) for r in results]

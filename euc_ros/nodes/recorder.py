@@ -20,6 +20,10 @@ chosen already (``FASTRTPS_DEFAULT_PROFILES_FILE``, ``FASTDDS_DEFAULT_PROFILES_F
 RMW is not Fast DDS. A publisher's own segment bounds how many of its messages can wait for any
 receiver (512 by default): above ~50k msgs/s from one process, give it :data:`FAST_PUBLISHER_PROFILE`.
 
+Before it starts, the console script removes the Fast DDS shared-memory files that no process maps
+(:mod:`euc_ros.nodes.shm_clean`): Fast DDS reuses a stale port file of the same number unresized, which
+would give the recorder a 512-descriptor port whatever its profile asks.
+
 Subscribes
     the configured ``topics`` (default: the pipeline's), or every topic with ``all_topics``.
 Publishes
@@ -42,6 +46,7 @@ from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.drain import SubscriptionDrain
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.runtime import main_for
+from euc_ros.nodes.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files
 
 SPECS = (
     ParamSpec("output", "", "bag directory to create (default: bags/euc_<UTC time>); must not exist"),
@@ -176,4 +181,11 @@ def main(args: list[str] | None = None) -> None:
     os.environ.update(chosen)          # before rclpy.init: Fast DDS reads it when the participant is created
     if chosen:
         print(f"[recorder] Fast DDS profile {chosen['FASTRTPS_DEFAULT_PROFILES_FILE']}", flush=True)
+    if (os.environ.get("RMW_IMPLEMENTATION", "") or "rmw_fastrtps_cpp").startswith("rmw_fastrtps"):
+        # a stale port file of the number the recorder's participant gets would be reused unresized
+        removed = remove_stale_fastdds_files()
+        if removed:
+            ports = sum(p.name.startswith("fastrtps_port") for p in removed)
+            print(f"[recorder] removed {len(removed)} stale Fast DDS shared-memory files ({ports} ports) that no "
+                  f"process maps ({SHM_CLEAN_ENV}=0 keeps them)", flush=True)
     _run(args)
