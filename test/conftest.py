@@ -23,18 +23,10 @@ def ros_domain():
     """Reserve a ROS_DOMAIN_ID for this test run (host-wide, via domain_coordinator) and export it."""
     from domain_coordinator import domain_id
 
-    with domain_id() as did:
-        old = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
-        os.environ["ROS_DOMAIN_ID"] = str(did)
-        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-        try:
-            yield did
-        finally:
-            for k, v in old.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
+    from euc_ros.bench.common import environ
+
+    with domain_id() as did, environ({"ROS_DOMAIN_ID": did, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}):
+        yield did
 
 
 @pytest.fixture

@@ -70,12 +70,16 @@ FAST_PUBLISHER_PROFILE = _DATA / "fastdds_fast_publisher.xml"
 TRANSPORT_CHOICES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", "FASTDDS_BUILTIN_TRANSPORTS")
 
 
+def uses_fast_dds(env) -> bool:
+    """Whether ``env`` selects Fast DDS (``RMW_IMPLEMENTATION`` unset is Jazzy's default, Fast DDS)."""
+    return (env.get("RMW_IMPLEMENTATION", "") or "rmw_fastrtps_cpp").startswith("rmw_fastrtps")
+
+
 def transport_env(env, cwd=".", profile: Path = RECORDER_PROFILE) -> dict:
     """The variables to add to ``env`` so that Fast DDS uses ``profile``: ``{}`` when the transports are
     chosen already (see :data:`TRANSPORT_CHOICES`; Fast DDS also reads ``DEFAULT_FASTRTPS_PROFILES.xml``
     from the working directory) or the RMW is not Fast DDS."""
-    rmw = env.get("RMW_IMPLEMENTATION", "") or "rmw_fastrtps_cpp"
-    if not rmw.startswith("rmw_fastrtps") or any(env.get(k) for k in TRANSPORT_CHOICES) \
+    if not uses_fast_dds(env) or any(env.get(k) for k in TRANSPORT_CHOICES) \
             or (Path(cwd) / "DEFAULT_FASTRTPS_PROFILES.xml").exists():
         return {}
     if not profile.is_file():
@@ -181,7 +185,7 @@ def main(args: list[str] | None = None) -> None:
     os.environ.update(chosen)          # before rclpy.init: Fast DDS reads it when the participant is created
     if chosen:
         print(f"[recorder] Fast DDS profile {chosen['FASTRTPS_DEFAULT_PROFILES_FILE']}", flush=True)
-    if (os.environ.get("RMW_IMPLEMENTATION", "") or "rmw_fastrtps_cpp").startswith("rmw_fastrtps"):
+    if uses_fast_dds(os.environ):
         # a stale port file of the number the recorder's participant gets would be reused unresized
         removed = remove_stale_fastdds_files()
         if removed:

@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import gc
 import sys
-import time
 from typing import Callable
 
 import rclpy
@@ -79,10 +78,7 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
         # A SIGINT/SIGTERM can land while rclpy is taking a message; the take then fails (e.g. a pybind
         # RuntimeError) a moment before the signal handler has shut the context down. Give the shutdown
         # that moment; only an error with the context still up is a real one.
-        deadline = time.monotonic() + SHUTDOWN_RACE_S
-        while rclpy.ok() and time.monotonic() < deadline:
-            time.sleep(0.01)
-        if rclpy.ok():
+        if not wait_for_context_shutdown(rclpy.get_default_context(), SHUTDOWN_RACE_S):
             raise
     finally:
         if signalled:

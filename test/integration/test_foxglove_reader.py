@@ -76,18 +76,10 @@ def recorded_bag(tmp_path_factory, ros_domain_module):
 def ros_domain_module():
     from domain_coordinator import domain_id
 
-    with domain_id() as did:
-        old = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
-        os.environ["ROS_DOMAIN_ID"] = str(did)
-        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
-        try:
-            yield did
-        finally:
-            for k, v in old.items():
-                if v is None:
-                    os.environ.pop(k, None)
-                else:
-                    os.environ[k] = v
+    from euc_ros.bench.common import environ
+
+    with domain_id() as did, environ({"ROS_DOMAIN_ID": did, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}):
+        yield did
 
 
 def same(a, b) -> bool:
