@@ -1,10 +1,16 @@
 """Launch nodes as separate OS processes (there is no ``ros2 launch`` on PyPI).
 
 Each node runs its console script with ``--ros-args`` (params file, overrides, remaps, name and
-namespace). Output lines are prefixed with the node name and streamed. SIGINT/SIGTERM to the
-launcher are forwarded; shutdown escalates SIGINT -> SIGTERM -> SIGKILL in reverse start order.
-When a ``required`` node exits, everything is shut down and the launcher returns non-zero if that
-exit was not clean.
+namespace). Output lines are prefixed with the node name and streamed. SIGINT, SIGTERM and SIGHUP
+(a closed terminal, a lost SSH session) to the launcher stop every node; shutdown escalates SIGINT ->
+SIGTERM -> SIGKILL in reverse start order. When a ``required`` node exits, everything is shut down
+and the launcher returns non-zero if that exit was not clean.
+
+Children never outlive the launcher: each is started with the Linux parent-death signal set to
+SIGTERM (``prctl(PR_SET_PDEATHSIG)``), so a launcher killed by SIGKILL or a crash still ends them, and
+they end as on SIGTERM (a recorder closes its bag with its metadata). The signal fires when the
+*thread* that started the child ends: start launchers from a thread that outlives them (the main
+thread does).
 
 Examples
 --------
@@ -14,6 +20,8 @@ Examples
 """
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import os
 import re
 import shutil
@@ -32,6 +40,20 @@ from euc_ros.core.yamlfile import load_yaml
 #: Grace periods of the shutdown escalation [s].
 SIGINT_GRACE_S = 5.0
 SIGTERM_GRACE_S = 3.0
+
+
+_PR_SET_PDEATHSIG = 1
+_libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6", use_errno=True) if sys.platform == "linux" else None
+
+
+def _die_with_parent(parent_pid: int):
+    """A ``preexec_fn``: SIGTERM to the child when its parent ends; the parent may already be gone."""
+    def preexec() -> None:
+        if _libc is not None:
+            _libc.prctl(_PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() != parent_pid:      # the parent died before prctl took effect
+            os.kill(os.getpid(), signal.SIGTERM)
+    return preexec
 
 
 def _format_value(value: Any) -> str:
@@ -170,8 +192,11 @@ class Launcher:
             env.update({k: str(v) for k, v in spec.env.items()})
             env.setdefault("PYTHONUNBUFFERED", "1")
             env.setdefault("RCUTILS_LOGGING_BUFFERED_STREAM", "0")
+            # a session of its own: a terminal's SIGINT/SIGHUP reach the launcher only, which stops the
+            # nodes in order; the parent-death signal covers the launcher's own death
             proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, stdin=subprocess.DEVNULL,
-                                    env=env, start_new_session=True, text=True, bufsize=1, errors="replace")
+                                    env=env, start_new_session=True, text=True, bufsize=1, errors="replace",
+                                    preexec_fn=_die_with_parent(os.getpid()))
             self.procs[spec.label] = proc
             t = threading.Thread(target=self._pump, args=(spec.label, proc), daemon=True)
             t.start()
@@ -180,10 +205,17 @@ class Launcher:
 
     def _pump(self, label: str, proc: subprocess.Popen) -> None:
         assert proc.stdout is not None
-        for line in proc.stdout:
-            with self._lock:
-                self.stream.write(f"[{label}] {line}" if self.prefix_logs else line)
+        for line in proc.stdout:   # always drained: a child blocked on a full pipe would never stop
+            self.say(f"[{label}] {line}" if self.prefix_logs else line)
+
+    def say(self, text: str) -> None:
+        """Write to the log stream; a closed terminal (EIO, EPIPE) loses the text, never the launch."""
+        with self._lock:
+            try:
+                self.stream.write(text)
                 self.stream.flush()
+            except (OSError, ValueError):
+                pass
 
     def poll(self) -> bool:
         """Update exit codes; return True while the launch should go on."""
@@ -251,15 +283,25 @@ class Launcher:
         self.shutdown()
 
 
+#: Signals that stop a launch: Ctrl-C, ``kill``, and a closed terminal or lost SSH session.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGHUP)
+
+
 def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[str] | None = None) -> int:
-    """Launch ``specs``, forward SIGINT/SIGTERM, run until done or ``duration``; return the exit code."""
+    """Launch ``specs`` and run until done, ``duration`` or a stop signal; return the exit code.
+
+    SIGINT, SIGTERM and SIGHUP stop every node in order (:data:`STOP_SIGNALS`); a required node that
+    ends stops the others, with one line saying which and its exit code.
+    """
     launcher = Launcher(specs, stream=stream)
     stop = threading.Event()
+    received: list[int] = []
 
     def _forward(signum, _frame):
+        received.append(signum)
         stop.set()
 
-    old = {s: signal.signal(s, _forward) for s in (signal.SIGINT, signal.SIGTERM)}
+    old = {s: signal.signal(s, _forward) for s in STOP_SIGNALS}
     try:
         launcher.start()
         deadline = None if duration is None else time.monotonic() + duration
@@ -267,6 +309,10 @@ def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[
             if deadline is not None and time.monotonic() >= deadline:
                 break
             time.sleep(0.05)
+        if launcher.failed is not None and not received:
+            code = launcher.exit_codes.get(launcher.failed)
+            how = "finished" if code == 0 else f"exited with code {code}"
+            launcher.say(f"launch: {launcher.failed} {how}: stopping the other nodes\n")
     finally:
         launcher.shutdown()
         for s, h in old.items():

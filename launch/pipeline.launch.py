@@ -48,6 +48,7 @@ def generate_launch_description() -> LaunchDescription:
         Node(package="euc_ros", executable="mocap_ingest", name="mocap_ingest", output="screen",
              on_exit=Shutdown(reason="mocap_ingest ended"), condition=UnlessCondition(compose),
              parameters=[_params_file("mocap_ingest"), {
+                 "session_file": session,
                  "source": LaunchConfiguration("source"),
                  "server_ip": LaunchConfiguration("server_ip"),
                  "local_ip": LaunchConfiguration("local_ip"),

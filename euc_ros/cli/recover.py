@@ -3,7 +3,8 @@
 Reads every complete chunk of the bag's MCAP file(s), also when the file is truncated (no summary,
 no footer) or metadata.yaml is missing or broken, and writes a new, complete bag (MCAP with summary
 and a fresh metadata.yaml) next to it, ``BAG_recovered`` by default. The input is never modified.
-It reports how many messages per topic were recovered and where reading stopped.
+It reports how many messages per topic were recovered and where reading stopped. A bag that a live
+process still holds open (a recorder still writing it) is refused: it is not damaged, only unfinished.
 """
 from __future__ import annotations
 
@@ -24,10 +25,17 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.cli.outputs import Output, check_outputs
     from euc_ros.core.errors import InputError
     from euc_ros.core.io.bags import recover_bag
+    from euc_ros.core.io.open_files import processes_with_open
 
     src = Path(args.bag)
     if not src.exists():
         raise InputError("no such file or directory", path=src)
+    writers = processes_with_open(src)
+    if writers:
+        who = ", ".join(f"{name} (pid {pid})" for pid, name in writers)
+        raise InputError(f"is still open in {who}: a bag being recorded is not damaged; stop the recorder "
+                         f"(Ctrl-C in its terminal, or kill -INT {writers[0][0]}) and it closes the bag itself; "
+                         f"recover bags whose recorder has died", path=src)
     standalone = src.is_file()
     out = Path(args.out) if args.out else src.with_name((src.stem if standalone else src.name) + "_recovered")
     if out.exists():

@@ -36,7 +36,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
-from euc_ros.core.errors import ConfigError
+from euc_ros.core.errors import ConfigError, EucError
 from euc_ros.core.io import cdr_frame
 from euc_ros.core.ingest import (
     Frame,
@@ -48,6 +48,8 @@ from euc_ros.core.ingest import (
     natnet_capture_stamp,
     replay_schedule,
 )
+from euc_ros.core.session import load_session
+from euc_ros.core.up_axis_watch import UpAxisWatch
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.intra import LocalFanout
@@ -57,9 +59,13 @@ from euc_ros.nodes.runtime import main_for
 SPECS = (
     ParamSpec("source", "csv", "where poses come from", choices=("csv", "topics", "natnet")),
     ParamSpec("csv_path", "", "Motive CSV export to replay (source csv)"),
-    ParamSpec("world_up", "y", "up axis of the Motive world: CSV, NatNet and rigid_bodies topics (Motive's default "
-              "is y)",
-              choices=("y", "z")),
+    ParamSpec("session_file", "", "session file: its world_up is the up axis of the Motive world (CSV, NatNet and "
+              "rigid_bodies topics), and its EUC geometry lets the node check that axis against the data"),
+    ParamSpec("world_up", "", "up axis of the Motive world when no session_file gives it (empty: the session's, "
+              "else y, Motive's default); a value that contradicts the session is refused",
+              choices=("", "y", "z")),
+    ParamSpec("check_up_axis", True, "check the up axis against the first seconds of data (as every offline "
+              "analysis does) and stop with an error when the data contradict it"),
     ParamSpec("bodies", [""], "rigid bodies to publish, in order (empty: all in the source; required for topics)"),
     ParamSpec("rate_factor", 1.0, "replay speed relative to real time (source csv)", "", 0.01, 1000.0),
     ParamSpec("loop", False, "restart the CSV replay at the end (replay stamps keep increasing)"),
@@ -110,6 +116,19 @@ SPECS = (
 SETTLE_S = 0.3
 
 
+def up_axis_config(session_file: str, world_up: str):
+    """(session or None, the up axis to convert with) from the parameters: the session is the one source of
+    ``world_up``; a ``world_up`` parameter that contradicts it is a ConfigError naming both."""
+    session = load_session(session_file) if session_file else None
+    if session is None:
+        return None, world_up or "y"
+    if world_up and world_up != session.world_up:
+        raise ConfigError(f"world_up {world_up!r} contradicts the session's world_up {session.world_up!r} "
+                          f"({session_file}): leave world_up empty, the session gives it",
+                          key="mocap_ingest.ros__parameters.world_up")
+    return session, session.world_up
+
+
 class MocapIngest(Node):
     """Publish OptiTrack rigid bodies as MocapFrame, poses, TF and diagnostics.
 
@@ -138,6 +157,7 @@ class MocapIngest(Node):
         super().__init__(self.NAME, **kwargs)
         self.config = cfg = declare_params(self, SPECS)
         self.bodies = [b for b in cfg["bodies"] if b]
+        self.session, self.world_up = up_axis_config(cfg["session_file"], cfg["world_up"])
         self.frame_pub = self.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS,
                                                event_callbacks=itf.pub_events())
         self.tf_pub = self.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS,
@@ -160,6 +180,12 @@ class MocapIngest(Node):
         self.hardware_id = {"natnet": f"natnet://{cfg['server_ip']}", "csv": f"csv:{Path(cfg['csv_path']).name}",
                             "topics": f"topics:{cfg['topic_prefix']}"}.get(cfg["source"], cfg["source"])
         self.create_timer(cfg["diagnostics_period"], self._publish_diagnostics)
+        # PoseStamped topics are Z-up by contract; the other sources are converted with world_up
+        converted = cfg["source"] != "topics" or cfg["topic_type"] == "rigid_bodies"
+        self.up_watch = (UpAxisWatch(self.bodies, self.world_up if converted else None, self.session,
+                                     label=self.hardware_id) if cfg["check_up_axis"] else None)
+        if self.up_watch is not None:
+            self.create_timer(0.5, self._check_up_axis)
 
     # -- csv -------------------------------------------------------------------------------------
     def _setup_csv(self) -> None:
@@ -168,7 +194,7 @@ class MocapIngest(Node):
         cfg = self.config
         if not cfg["csv_path"]:
             raise ConfigError("parameter 'csv_path' is required with source 'csv'", key="csv_path")
-        series = read_motive_csv(cfg["csv_path"], world_up=cfg["world_up"])
+        series = read_motive_csv(cfg["csv_path"], world_up=self.world_up)
         if self.bodies:
             series = series.select(self.bodies)
         self.series = series
@@ -292,7 +318,7 @@ class MocapIngest(Node):
                                  itf.mocap_input_qos(cfg["input_reliability"]))
         which = ", ".join(self.bodies) if self.bodies else "the bodies of the first message"
         self.get_logger().info(f"frames of {which} from {cfg['rigid_bodies_topic']} (mocap4r2_msgs/RigidBodies, "
-                               f"world {cfg['world_up']}-up)")
+                               f"world {self.world_up}-up)")
 
     def _on_rigid_bodies(self, msg) -> None:
         self.received += 1
@@ -301,7 +327,7 @@ class MocapIngest(Node):
             if not self.bodies:               # the first message names the bodies (their order kept)
                 self._set_bodies(list(dict.fromkeys(names)))
             frame, unknown = frame_from_named_poses(convert.stamp_to_ns(msg.header.stamp), int(msg.frame_number),
-                                                    names, pos, quat, self.bodies, self.config["world_up"])
+                                                    names, pos, quat, self.bodies, self.world_up)
             if unknown and not set(unknown) <= self.unknown_bodies:
                 self.unknown_bodies.update(unknown)
                 self.get_logger().warning(f"ignoring bodies not in 'bodies': {', '.join(sorted(self.unknown_bodies))}")
@@ -368,7 +394,7 @@ class MocapIngest(Node):
         receive = m.receive_time_ns if m.receive_time_ns is not None else self.get_clock().now().nanoseconds
         latency = latency_s(m, self.client.server_info) if self.client.server_info is not None else float("nan")
         stamp, corrected = natnet_capture_stamp(receive, latency, self.config["max_latency"])
-        frame = frame_from_natnet(m, self.names_by_id, self.bodies, stamp, self.config["world_up"])
+        frame = frame_from_natnet(m, self.names_by_id, self.bodies, stamp, self.world_up)
         self._publish(frame, MocapFrame.STAMP_CAPTURE_TIME if corrected else MocapFrame.STAMP_RECEIVE_TIME)
 
     # -- output ----------------------------------------------------------------------------------
@@ -376,11 +402,28 @@ class MocapIngest(Node):
         """Use ``bodies`` from now on; create their pose publishers up front (subscribers match early)."""
         self.bodies = list(bodies)
         self.stats.set_bodies(self.bodies)
+        if getattr(self, "up_watch", None) is not None:
+            self.up_watch.reset(self.bodies)
         if self.config["publish_poses"]:
             for body in self.bodies:
                 if body not in self.pose_pubs:
                     self.pose_pubs[body] = self.create_publisher(PoseStamped, itf.body_pose_topic(body),
                                                                  itf.RELIABLE_QOS, event_callbacks=itf.pub_events())
+
+    def _check_up_axis(self) -> None:
+        """Run the up-axis check once enough frames are in; a contradiction ends the node (exit 2)."""
+        watch = self.up_watch
+        if watch is None or not watch.due():
+            return
+        try:
+            warnings = watch.check()
+        except EucError as exc:
+            self.get_logger().error(f"wrong up axis, stopping: {exc}")
+            raise
+        for w in warnings:
+            self.get_logger().warning(w)
+        if watch.done and not warnings:
+            self.get_logger().info(f"up axis checked: {self.world_up}-up ({watch.result['reason']})")
 
     def _input_error(self, exc: Exception) -> None:
         self.errors += 1
@@ -391,6 +434,8 @@ class MocapIngest(Node):
         if not stats.accept(frame.frame_number, frame.stamp_ns):
             return
         stats.update(frame.tracked, frame.stamp_ns)
+        if self.up_watch is not None and not self.up_watch.done:
+            self.up_watch.push(frame.stamp_ns, frame.position, frame.quat, frame.tracked)
         self._last_frame_wall = time.monotonic()
         fid = self.config["frame_id"]
         source = self.stamp_source if stamp_source is None else stamp_source

@@ -94,3 +94,25 @@ def test_recover_rebuilds_what_was_flushed(bags, damage, tmp_path, capsys):
     np.testing.assert_array_equal(series.frame[k], got.frame)
     np.testing.assert_array_equal(np.nan_to_num(series.position[:, k]), np.nan_to_num(got.position))
     assert main(["recover", str(made[damage]), "--out", str(out)]) == 2     # never overwrites
+
+
+def test_recover_refuses_a_bag_that_a_live_process_holds_open(bags, tmp_path, capsys):
+    import subprocess
+    import sys
+
+    d, _, made = bags
+    bag = tmp_path / "live"
+    shutil.copytree(made["cut70"], bag)
+    mcap = next(bag.glob("*.mcap"))
+    holder = subprocess.Popen([sys.executable, "-c", f"f = open({str(mcap)!r}, 'ab'); print('open', flush=True); "
+                               "import time; time.sleep(60)"], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "open"
+        assert main(["recover", str(bag), "--out", str(tmp_path / "out")]) == 2
+        err = capsys.readouterr().err
+        assert str(bag) in err and f"pid {holder.pid}" in err and "still open" in err, err
+        assert not (tmp_path / "out").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main(["recover", str(bag), "--out", str(tmp_path / "out")]) == 0     # its writer is gone: recovered
