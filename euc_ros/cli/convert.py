@@ -93,10 +93,11 @@ def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
     """Convert a Motive CSV into a new bag at ``out`` (atomically); return messages per topic."""
     from euc_ros.core.ingest import capture_start_ns
     from euc_ros.core.io.bags import write_mocap_bag
-    from euc_ros.core.io.motive_csv import read_motive_csv
+    from euc_ros.core.io.motive_csv import read_motive_csv, require_rigid_bodies
 
     stages = _Stages(args, ["read CSV", "write bag"])
     series = read_motive_csv(src, world_up=args.world_up, bodies=args.bodies)
+    require_rigid_bodies(series, src)
     stages.next()
     poses = not args.no_poses
     frame_topic = (args.frame_topic or "/mocap/frame") if (args.frames or args.no_poses) else None

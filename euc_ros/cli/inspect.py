@@ -69,6 +69,7 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
         "format_version": m.get("format_version"),
         "bodies": list(s.bodies),
         "n_bodies": len(s.bodies),
+        "skipped": {k: len(v) for k, v in s.meta.get("skipped", {}).items()},
         "n_frames": n,
         "rate_hz": m["rate_hz"],
         "capture_rate_hz": m.get("capture_rate_hz"),
@@ -142,6 +143,7 @@ def format_summary(summary: dict) -> str:
         f"Motive CSV     {s['path']}",
         f"take           {s['take_name']}  (format {s['format_version']}, started {s['start_time'] or '?'})",
         f"bodies         {s['n_bodies']}: {', '.join(s['bodies']) if s['bodies'] else '(no rigid bodies)'}",
+        *([f"not read       {_skipped_line(s['skipped'])}"] if s.get("skipped") else []),
         f"frames         {s['n_frames']} (first {s['first_frame']}, last {s['last_frame']}), "
         f"{s['n_dropped']} dropped, {s['n_duplicates_dropped']} duplicate/out-of-order dropped",
         f"rate           {num(s['rate_hz'], 'g')} Hz export, {num(s['capture_rate_hz'], 'g')} Hz capture; "
@@ -244,3 +246,8 @@ def main(args: argparse.Namespace) -> int:
     if args.json:
         write_json(summary, args.json)
     return rc
+
+
+def _skipped_line(skipped: dict) -> str:
+    """``{"Bone": 13, "Marker": 4}`` -> ``13 Bone, 4 Marker (euc_ros reads rigid bodies only)``."""
+    return ", ".join(f"{n} {kind}" for kind, n in skipped.items()) + " (euc_ros reads rigid bodies only)"

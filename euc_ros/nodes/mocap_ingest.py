@@ -189,12 +189,13 @@ class MocapIngest(Node):
 
     # -- csv -------------------------------------------------------------------------------------
     def _setup_csv(self) -> None:
-        from euc_ros.core.io.motive_csv import read_motive_csv
+        from euc_ros.core.io.motive_csv import read_motive_csv, require_rigid_bodies
 
         cfg = self.config
         if not cfg["csv_path"]:
             raise ConfigError("parameter 'csv_path' is required with source 'csv'", key="csv_path")
         series = read_motive_csv(cfg["csv_path"], world_up=self.world_up)
+        require_rigid_bodies(series, cfg["csv_path"])
         if self.bodies:
             series = series.select(self.bodies)
         self.series = series

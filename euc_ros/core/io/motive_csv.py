@@ -18,8 +18,12 @@ Layout of a file (1.23; in 1.21/1.22 the label cells ``Type``, ``Name``, ``ID`` 
 Conventions
 -----------
 * Columns are grouped by (Type, Name, ID) read from the header rows, never by position. Only
-  ``Rigid Body`` groups are read; Marker, Rigid Body Marker, Bone and unknown types or components
-  are skipped.
+  ``Rigid Body`` groups are read. Skeleton bones, markers and unknown types are skipped and counted
+  (``meta["skipped"]``, :func:`skipped_assets`), bones and unknown types with a warning naming them
+  (markers beside rigid bodies are the usual export): euc_ros tracks the rider
+  by rigid bodies at the pivots of the recording contract, and a bone's frame is not one of them. A
+  file with no rigid body at all is refused by every command (:func:`require_rigid_bodies`), with
+  what it holds instead and what to export.
 * Time is ``t = Frame / Export Frame Rate`` [s] (spec, section 1): the ``Time (Seconds)`` column is
   rounded to whole milliseconds by some exporters and is not used.
 * Y-up files (Motive's default, ``world_up="y"``): with REP-103 axes (x, y, z) the Motive axes are
@@ -75,6 +79,8 @@ QUATERNION = "Quaternion"
 ERROR_COMPONENTS = ("mean marker error", "error per marker")
 #: The header is searched for the ``Frame`` row within this many lines.
 MAX_HEADER_LINES = 64
+#: Column types of markers: skipped without a warning (every export with rigid bodies has them).
+MARKER_TYPES = ("marker", "rigid body marker")
 #: Rows per chunk when an error has to be located.
 _CHUNK_ROWS = 2048
 #: |norm - 1| of a file quaternion above which a warning is added (Motive writes 6 decimals).
@@ -127,6 +133,7 @@ class _Header:
     bodies: list[_BodyColumns]
     row_lines: dict[str, int]       # "type"/"name"/"id"/"component" -> 1-based line number
     crlf: bool
+    skipped: dict[str, list[str]] = field(default_factory=dict)   # column type -> asset names, file order
 
     def get(self, key: str) -> tuple[str | None, int | None]:
         """Value and 1-based column of metadata ``key`` (case-insensitive), or (None, None)."""
@@ -269,8 +276,51 @@ def _parse_header(raw: bytes, path: str) -> _Header:
                 raise InputError(f"missing header rows: the {key} row is empty although there are "
                                  f"{width - 2} data columns", path=path, line=idx[key] + 1, column=3)
     bodies = _group_bodies(columns, path, {k: i + 1 for k, i in idx.items()}, a + 1)
+    skipped: dict[str, list[str]] = {}
+    for c in columns[2:]:
+        if c.type and c.type.lower() != "rigid body":
+            names = skipped.setdefault(c.type, [])
+            name = c.name or c.id
+            if name not in names:
+                names.append(name)
     return _Header(path=path, meta=meta, meta_col=meta_col, axis_line=a + 1, data_offset=ends[-1], width=width,
-                   columns=columns, bodies=bodies, row_lines={k: i + 1 for k, i in idx.items()}, crlf=crlf)
+                   columns=columns, bodies=bodies, row_lines={k: i + 1 for k, i in idx.items()}, crlf=crlf,
+                   skipped=skipped)
+
+
+def _skipped_text(skipped: dict[str, list[str]]) -> str:
+    """``{"Bone": [...13], "Marker": [...4]}`` -> ``13 Bone (Skeleton:Hip, ...), 4 Marker (...)``."""
+    parts = []
+    for kind, names in skipped.items():
+        shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
+        parts.append(f"{len(names)} {kind} ({shown})")
+    return "; ".join(parts)
+
+
+def skipped_assets(series_or_header: dict) -> dict[str, list[str]]:
+    """The asset names a read skipped, by Motive column type (``meta`` of a series or a header summary)."""
+    return dict(series_or_header.get("skipped") or {})
+
+
+def require_rigid_bodies(series, path=None) -> None:
+    """Refuse a Motive CSV with no rigid body: say what it holds and what to export instead.
+
+    Raises
+    ------
+    InputError
+        No rigid body in the file (markers only, skeleton bones only, or no asset at all).
+    """
+    if series.bodies:
+        return
+    skipped = skipped_assets(series.meta)
+    held = _skipped_text(skipped) if skipped else "no asset columns at all"
+    fix = ("in Motive, define a rigid body for the EUC and for each rider segment (the recording contract's "
+           "bodies: docs/motive_csv.md) and export with 'Rigid Bodies' enabled")
+    if any(k.lower().startswith("bone") for k in skipped):
+        fix += ("; skeleton bones are not read: their frames are not the contract's pivots, so track the "
+                "segments as rigid bodies (a skeleton may stay in the take beside them)")
+    raise InputError(f"no rigid bodies in the file: it holds {held}; {fix}",
+                     path=path if path is not None else series.meta.get("path"))
 
 
 def _group_bodies(columns: list[_Column], path: str, lines: dict[str, int], axis_line: int) -> list[_BodyColumns]:
@@ -839,6 +889,7 @@ def read_motive_header(path: str | Path) -> dict:
     warnings: list[str] = []
     out = _header_summary(hdr, warnings)
     out["bodies"] = [b.name for b in hdr.bodies]
+    out["skipped"] = {k: list(v) for k, v in hdr.skipped.items()}
     out["n_columns"] = hdr.width
     out["warnings"] = warnings
     return out
@@ -954,8 +1005,12 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     total, _ = hdr.get("Total Exported Frames")
     if total and total.isdigit() and int(total) != block.n_rows:
         warnings.append(f"header says Total Exported Frames {total} but the file has {block.n_rows} data rows")
+    unread = {k: v for k, v in hdr.skipped.items() if k.lower() not in MARKER_TYPES}
+    if unread:   # markers beside rigid bodies are the usual export; anything else is worth a word
+        warnings.append(f"not read (euc_ros reads rigid bodies): {_skipped_text(unread)}")
     meta = {
         **{k: v for k, v in info.items() if k != "header"},
+        "skipped": {k: list(v) for k, v in hdr.skipped.items()},
         "rate_hz": float(rate),
         "rate_source": rate_source,
         "world_up": world_up,

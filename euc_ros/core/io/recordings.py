@@ -48,12 +48,18 @@ def load_recording(path: str | Path, world_up: str = "y", *, bodies: list[str] |
     -------
     MocapSeries
         With ``meta["path"]`` set to ``path``.
+
+    Raises
+    ------
+    InputError
+        A CSV with no rigid body (markers or skeleton bones only), naming what it holds.
     """
     kind = recording_kind(path)
     if kind == "csv":
-        from euc_ros.core.io.motive_csv import read_motive_csv
+        from euc_ros.core.io.motive_csv import read_motive_csv, require_rigid_bodies
 
         series = read_motive_csv(path, world_up=world_up, bodies=bodies)
+        require_rigid_bodies(series, path)
     else:
         from euc_ros.core.io.bags import read_mocap_bag
 

@@ -732,3 +732,74 @@ def test_fuzz_binary_junk(tmp_path, pos, junk):
         _check_series(read_motive_csv(p))
     except InputError:
         pass
+
+
+# ------------------------------------------------------------------------------ skeletons, markers only
+BONES = ("Hip", "Ab", "Chest", "Neck", "Head", "LShoulder", "LUArm", "LFArm", "LHand", "RShoulder", "RUArm",
+         "RFArm", "RHand")
+
+
+def _bone_columns(name):
+    cols = [("Bone", f"Skeleton_001:{name}", "2", "Rotation", a) for a in "XYZW"]
+    return cols + [("Bone", f"Skeleton_001:{name}", "2", "Position", a) for a in "XYZ"]
+
+
+def _skeleton_file(tmp_path, with_euc=True):
+    cols = (rb_columns("E") if with_euc else []) + sum((_bone_columns(b) for b in BONES), [])
+    bone_cells = pose_cells(np.eye(3), [0.0, 1.0, 0.0])[:7] * len(BONES)
+    rows = [row(k, ((pose_cells(np.eye(3), [0.0, 0.9, 0.0]) if with_euc else []) + bone_cells)) for k in range(3)]
+    path = tmp_path / ("skeleton_e.csv" if with_euc else "skeleton.csv")
+    path.write_text(motive_text(cols, rows))
+    return path
+
+
+def test_skeleton_bones_are_counted_and_named_not_silently_dropped(tmp_path):
+    s = read_motive_csv(_skeleton_file(tmp_path))
+    assert s.bodies == ["E"]
+    assert s.meta["skipped"]["Bone"] == [f"Skeleton_001:{b}" for b in BONES]
+    warn = [w for w in s.meta["warnings"] if "not read" in w]
+    assert len(warn) == 1 and "13 Bone" in warn[0] and "Skeleton_001:Hip" in warn[0]
+    assert read_motive_header(_skeleton_file(tmp_path))["skipped"]["Bone"][0] == "Skeleton_001:Hip"
+
+
+def test_markers_beside_rigid_bodies_are_counted_without_a_warning(tmp_path):
+    path = tmp_path / "m.csv"
+    path.write_text(motive_text(rb_columns("E") + marker_columns("E:Marker1", kind="Rigid Body Marker"),
+                                [r + ["1", "2", "3"] for r in simple_rows(3)]))
+    s = read_motive_csv(path)
+    assert s.meta["skipped"] == {"Rigid Body Marker": ["E:Marker1"]}
+    assert not any("not read" in w for w in s.meta["warnings"])
+
+
+@pytest.mark.parametrize("command", ["identify", "residual", "convert", "inspect"])
+def test_a_file_without_rigid_bodies_is_refused_by_every_command_that_writes(tmp_path, command, capsys):
+    from euc_ros.cli.main import main
+    from euc_ros.core.session import default_session, save_session
+
+    src = _skeleton_file(tmp_path, with_euc=False)
+    save_session(default_session(), tmp_path / "session.yaml")
+    out = tmp_path / "out"
+    argv = {"identify": ["identify", str(tmp_path / "session.yaml"), str(src), "--json", str(out), "--no-progress"],
+            "residual": ["residual", str(tmp_path / "session.yaml"), str(src), "--json", str(out), "--no-progress"],
+            "convert": ["convert", str(src), str(out)],
+            "inspect": ["inspect", str(src)]}[command]
+    code = main(argv)
+    captured = capsys.readouterr()
+    if command == "inspect":           # shows what the file holds, writes nothing
+        assert code == 0 and "13 Bone" in captured.out
+        return
+    assert code == 2 and not out.exists()
+    err = captured.err.strip().splitlines()
+    assert len(err) == 1 and str(src) in err[0] and "no rigid bodies" in err[0] and "13 Bone" in err[0], err
+    assert "skeleton bones are not read" in err[0]
+
+
+@needs_real
+@pytest.mark.shared
+def test_real_markers_only_export_is_refused_with_what_it_holds(tmp_path, capsys):
+    from euc_ros.cli.main import main
+
+    src = REAL / "ha5dzs_markers_only_360hz_mm_v1.23.csv"
+    assert main(["convert", str(src), str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "no rigid bodies" in err and "18 Marker" in err and not (tmp_path / "out").exists()
