@@ -375,7 +375,7 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.core.euc.model import EucParams
     from euc_ros.core.session import load_session
 
-    from euc_ros.cli.outputs import Output, check_outputs
+    from euc_ros.cli.outputs import Output, check_outputs, write_output
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
@@ -418,8 +418,6 @@ def main(args: argparse.Namespace) -> int:
     print(format_cog_faults(faults))
     print_warnings(warnings)
     if args.json:
-        out = Path(args.json)
-        out.parent.mkdir(parents=True, exist_ok=True)
         data = result.to_json(head)
         usage = {u["recording"]: u for u in usage_table(states)}
         for rec in data.get("per_recording", []):
@@ -429,7 +427,7 @@ def main(args: argparse.Namespace) -> int:
             data.update({k: v for k, v in unc.items() if not k.startswith("_")})
         data["cog"] = faults
         data["warnings"] = warnings
-        out.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+        write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     if args.plots:
         write_plots(result, states, params, Path(args.plots))
     return 0

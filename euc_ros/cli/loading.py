@@ -108,9 +108,31 @@ def format_cog_faults(info: dict) -> str:
             f"{info['excluded_body_frames']} ({bodies})")
 
 
+#: A rider body excluded from G in more than this share of a recording's frames is worth a warning.
+EXCLUDED_WARN_SHARE = 0.05
+
+
 def collect_warnings(states) -> list[str]:
-    """Return every recording's warnings, each prefixed with the recording's name."""
-    return [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]
+    """Return every recording's warnings, each prefixed with the recording's name.
+
+    Besides the warnings of the reading, every exclusion that changes G is said with its count: a rider
+    body the fitted skeleton excluded in more than :data:`EXCLUDED_WARN_SHARE` of the frames, and bodies
+    the skeleton's chain does not know (their poses are used as measured, without swap or flip checks).
+    """
+    out = [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]
+    for st in states:
+        n = max(int(np.size(st.t)), 1)
+        for body, count in sorted(st.meta.get("cog_fault_bodies", {}).items()):
+            if count > EXCLUDED_WARN_SHARE * n:
+                out.append(f"{st.name}: rider body {body} excluded from the CoG in {count} of {n} frames "
+                           f"({100 * count / n:.0f} %): its pivot or orientation disagrees with the fitted skeleton "
+                           "(a swapped or flipped body, or a session offset that does not fit it)")
+        unlinked = st.meta.get("cog_unlinked_bodies")
+        if unlinked:
+            out.append(f"{st.name}: the skeleton's chain has no link for {', '.join(unlinked)}: used as measured, "
+                       "without swap or flip checks (the chain knows the contract's body names H, CHR, CHL, UAR, "
+                       "UAL, LAR, LAL, HR, HL, TR, TL, LR, LL)")
+    return out
 
 
 def print_warnings(warnings, file=None) -> None:

@@ -7,9 +7,11 @@ command being run, so ``euc-ros --help`` stays fast and ROS-free.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import sys
 
+from euc_ros.cli import outputs
 from euc_ros.core.errors import EucError
 
 #: command -> (module, one-line help shown when the module cannot be imported cheaply)
@@ -75,7 +77,12 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not hasattr(args, "_main"):
         parser.error(f"command {command!r} is not available in this build")
+    to_stdout = any(outputs.is_stdout(v) for k, v in vars(args).items() if k in ("json", "report"))
     try:
+        if to_stdout:   # the output goes to standard output: the command's messages go to standard error
+            outputs.stdout_stream = sys.stdout
+            with contextlib.redirect_stdout(sys.stderr):
+                return int(args._main(args) or 0)
         return int(args._main(args) or 0)
     except EucError as exc:
         print(f"euc-ros {command}: error: {exc}", file=sys.stderr)
@@ -85,6 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     except BrokenPipeError:  # output piped into head & co.
         sys.stderr.close()
         return 0
+    finally:
+        outputs.stdout_stream = None
 
 
 def build_parser_light() -> argparse.ArgumentParser:

@@ -10,11 +10,15 @@ analysis runs, so a typo costs nothing and never costs a recording:
 * a file output is never an existing directory; a folder output is never an existing file;
 * the nearest existing ancestor of an output must be a writable directory (missing folders are
   created by the commands);
-* two outputs are never the same path.
+* two outputs are never the same path;
+* ``-`` as a file output is standard output (:data:`STDOUT`); the command's own messages then go to
+  standard error, so that the output can be piped.
 """
 from __future__ import annotations
 
 import os
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable
@@ -39,6 +43,54 @@ class Output:
     option: str
     path: str | Path | None
     kind: str = "file"
+
+
+#: The path that means standard output.
+STDOUT = "-"
+#: Where a ``-`` output goes: the dispatcher points it at the real standard output while the command's
+#: messages are redirected to standard error.
+stdout_stream = None
+
+
+def is_stdout(path) -> bool:
+    """Whether ``path`` is ``-`` (standard output)."""
+    return path is not None and str(path) == STDOUT
+
+
+def write_output(path, text: str, option: str = "--json") -> None:
+    """Write ``text`` to ``path`` atomically (a ``.part`` file renamed), or to standard output for ``-``.
+
+    Raises
+    ------
+    ConfigError
+        The file cannot be written, naming the option, the path and the reason (the analysis is done:
+        the message says so, so that only the output needs another path).
+    """
+    if is_stdout(path):
+        stream = stdout_stream or sys.stdout
+        stream.write(text)
+        stream.flush()
+        return
+    p = Path(path)
+    tmp = p.with_name(p.name + ".part")
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(p)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True) if tmp.parent.is_dir() else None
+        raise ConfigError(f"cannot be written ({exc.strerror or exc}); nothing else was affected: run again "
+                          "with another path", key=option, path=str(p)) from None
+
+
+def _probe_writable(anchor: Path) -> str | None:
+    """Create and remove a file in ``anchor``: the reason it fails (a read-only or virtual file system,
+    where permission bits and ``os.access`` say yes), or None."""
+    try:
+        with tempfile.NamedTemporaryFile(dir=anchor, prefix=".euc_ros_probe_"):
+            return None
+    except OSError as exc:
+        return exc.strerror or str(exc)
 
 
 def _real(p: Path) -> Path:
@@ -74,8 +126,17 @@ def check_outputs(outputs: Iterable[Output], inputs: Iterable[str | Path] = ()) 
         if out.path is None or str(out.path) == "":
             continue
         path = Path(out.path)
-        real = _real(path)
         where = dict(key=out.option, path=str(path))
+        if is_stdout(path):
+            if out.kind != "file":
+                raise ConfigError("'-' (standard output) is for file outputs such as --json; give a folder",
+                                  **where)
+            if STDOUT in seen.values():
+                raise ConfigError(f"is also given to {seen[Path(STDOUT)]}: only one output can go to "
+                                  "standard output", **where)
+            seen[Path(STDOUT)] = out.option
+            continue
+        real = _real(path)
         for src in ins:
             if real == src:
                 raise ConfigError("is an input of this command: writing it would destroy the input; "
@@ -94,3 +155,6 @@ def check_outputs(outputs: Iterable[Output], inputs: Iterable[str | Path] = ()) 
             raise ConfigError(f"cannot be created: {anchor} is a file, not a folder", **where)
         if not os.access(anchor, os.W_OK | os.X_OK):
             raise ConfigError(f"cannot be written: no write permission in {anchor}", **where)
+        reason = _probe_writable(anchor)
+        if reason is not None:
+            raise ConfigError(f"cannot be written: {anchor} does not take new files ({reason})", **where)

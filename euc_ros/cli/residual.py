@@ -58,13 +58,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
-def _atomic_write(path: Path, text: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.name + ".part")
-    tmp.write_text(text, encoding="utf-8")
-    tmp.replace(path)
-
-
 def main(args: argparse.Namespace) -> int:
     """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
     from euc_ros.core.euc.model import EucParams
@@ -75,7 +68,7 @@ def main(args: argparse.Namespace) -> int:
                                      usage_table)
     from euc_ros.core.session import load_session
 
-    from euc_ros.cli.outputs import Output, check_outputs
+    from euc_ros.cli.outputs import Output, check_outputs, write_output
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
                    Output("--report", args.report)], [args.session, *args.recordings])
@@ -116,7 +109,7 @@ def main(args: argparse.Namespace) -> int:
     data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
                         "candidates": [c.name for c in candidates], "cog_method": args.cog_method}
     data["cog"] = cog_faults(states)
-    _atomic_write(Path(args.json), json.dumps(data, indent=2) + "\n")
+    write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     print(format_summary(data))
     if not data["identifiable"]:
         print(f"h (base model) is NOT identifiable from these recordings: {data['identifiability_reason']}")
@@ -129,7 +122,7 @@ def main(args: argparse.Namespace) -> int:
     if args.plots:
         figures = write_plots(result, states, params, Path(args.plots))
     if args.report:
-        _atomic_write(Path(args.report), markdown_report(data, figures, Path(args.report).parent))
+        write_output(args.report, markdown_report(data, figures, Path(args.report).parent), "--report")
     return 0
 
 

@@ -28,9 +28,11 @@ def check_recording(series, session, path: str | Path | None = None) -> list[str
         Warnings (the analysis goes on); errors raise.
     """
     from euc_ros.core.conventions import check_conventions
+    from euc_ros.core.length_scale import check_length_scale
     from euc_ros.core.rate import check_rate
 
     warnings: list[str] = []
+    warnings += check_length_scale(series, session, path)   # first: a unit slip misleads every other check
     warnings += check_rate(series, session, path)
     warnings += check_conventions(series, session, path)
     return warnings

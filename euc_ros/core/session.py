@@ -286,6 +286,10 @@ def parse_session(data: Any, source: str | Path | None = None) -> Session:
 def load_session(path: str | Path) -> Session:
     """Read and validate a session YAML file (spec section 4)."""
     p = Path(path)
+    if p.is_dir() or p.suffix.lower() in (".csv", ".mcap", ".db3"):
+        what = "a bag" if p.is_dir() or p.suffix.lower() != ".csv" else "a Motive CSV export"
+        raise ConfigError(f"is {what}, not a session file: commands take the session first, then the recordings "
+                          "(euc-ros identify SESSION.yaml RECORDING...); were the two swapped?", path=p)
     data = load_yaml(p, "session file")
     return parse_session(data, p)
 

@@ -181,7 +181,9 @@ def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str 
         sk = skeleton_cog(position, quat, tracked, session, bodies, skeleton, threshold_m=fault_threshold_m)
         G, has_rider, n_faults = sk["G"], sk["has_rider"], sk["n_faults"]
         per_body = sk["faults"].reshape(len(skeleton.bodies), -1).sum(axis=1)
-        extra = {"cog_fault_bodies": {nm: int(c) for nm, c in zip(skeleton.bodies, per_body) if c}}
+        linked = {b for link in skeleton.links for b in link}
+        extra = {"cog_fault_bodies": {nm: int(c) for nm, c in zip(skeleton.bodies, per_body) if c},
+                 "cog_unlinked_bodies": [nm for nm in skeleton.bodies if nm not in linked]}
     else:
         extra = {}
 
@@ -422,7 +424,11 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     names, fractions, _ = session.segment_arrays()
     absent = [nm for nm, f in zip(names, fractions) if f > 0 and nm not in series.bodies]
     if absent:
-        raise InputError(f"rider segment(s) {', '.join(absent)} of the session not in recording", path=src)
+        extra = [b for b in series.bodies if b not in names and b != session.euc.body]
+        hint = (f"; bodies the session does not name: {', '.join(extra)} (rename the segment keys of "
+                f"rider.segments to the recording's Motive names)") if extra else ""
+        raise InputError(f"rider segment(s) {', '.join(absent)} of the session not in recording (has: "
+                         f"{', '.join(series.bodies)}){hint}", path=src, key="rider.segments")
     dt = 1.0 / series.rate_hz
     # each body's short gaps are bridged before any geometry (as the live estimator does); for the
     # segments CoG block by block (blockwise.block_geometry: no copy of the whole recording)
@@ -487,5 +493,6 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         phi_definition=phi_definition, cog_method=cog_method, window=d_gamma.window, polyorder=polyorder, dt=dt,
         meta={"source": src, "bridged_samples": n_bridged,
               "bridged_frames": n_bridged_frames, "cog_faults": n_faults,
-              **({"cog_fault_bodies": geo["cog_fault_bodies"]} if "cog_fault_bodies" in geo else {})},
+              **({"cog_fault_bodies": geo["cog_fault_bodies"]} if "cog_fault_bodies" in geo else {}),
+              **({"cog_unlinked_bodies": geo["cog_unlinked_bodies"]} if geo.get("cog_unlinked_bodies") else {})},
     )

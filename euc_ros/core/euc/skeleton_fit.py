@@ -347,6 +347,8 @@ def detect_faults(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.nda
     pos_fault = np.zeros((len(chain), n), bool)
     for i in range(m):
         out_i, in_i = np.flatnonzero(src == i), np.flatnonzero(dst == i)
+        if out_i.size == 0 and in_i.size == 0:
+            continue                             # a body on no link: the chain says nothing about it
         pos_fault[i] = all_bad(out_i) & (all_bad(in_i) if in_i.size else True) & ok[i]
     explained = pos_fault[dst]                   # a bad link into a body with a wrong pivot
     rest = bad & ~explained
