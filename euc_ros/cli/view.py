@@ -48,7 +48,8 @@ def port_number(text: str) -> int:
     try:
         value = int(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(f"not a port number: {text!r} (give 0-65535; 0 picks a free port)")
+        raise argparse.ArgumentTypeError(f"not a port number: {text!r} (give 0-65535; 0 picks a free port)") \
+            from None
     if not 0 <= value <= 65535:
         raise argparse.ArgumentTypeError(f"port {value} is out of range (give 0-65535; 0 picks a free port)")
     return value

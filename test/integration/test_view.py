@@ -153,8 +153,8 @@ def node_specs(ride_dir: Path) -> list[NodeSpec]:
                  parameters={"session_file": session}),
         NodeSpec("rider_state", params_file=str(CONFIG / "rider_state.yaml"), parameters={"session_file": session}),
         NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"),
-                 parameters={"session_file": session, "source": "csv", "csv_path": str(ride_dir / "deceleration_01.csv"),
-                             "start_delay": 1.0}),
+                 parameters={"session_file": session, "source": "csv", "start_delay": 1.0,
+                             "csv_path": str(ride_dir / "deceleration_01.csv")}),
     ]
 
 

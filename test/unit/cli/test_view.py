@@ -11,8 +11,15 @@ import pytest
 from euc_ros.cli.main import build_parser, main
 from euc_ros.cli.view import start_line
 from euc_ros.core.errors import ConfigError
-from euc_ros.ros.foxglove_bridge import (DEFAULT_ADDRESS, DEFAULT_PORT, VIEW_TOPICS, SchemaBook, is_local_address,
-                                         is_viewed, websocket_url)
+from euc_ros.ros.foxglove_bridge import (
+    DEFAULT_ADDRESS,
+    DEFAULT_PORT,
+    VIEW_TOPICS,
+    SchemaBook,
+    is_local_address,
+    is_viewed,
+    websocket_url,
+)
 
 REPO = Path(__file__).resolve().parents[3]
 LAYOUT = REPO / "config" / "foxglove" / "euc_pipeline.json"
