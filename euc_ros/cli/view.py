@@ -89,8 +89,8 @@ def start_line(address: str, port: int, local: bool) -> str:
     if local:
         return (f"view: Foxglove WebSocket server at {url}, this machine only (live data leave this machine "
                 f"only when --address names a non-local address)")
-    return (f"view: Foxglove WebSocket server at {url}, reachable from other machines: live data leave this "
-            f"machine (--address {address} is not a loopback address)")
+    return (f"view: Foxglove WebSocket server at {url}, reachable from other machines: live data can leave "
+            f"this machine (--address {address} is not a loopback address)")
 
 
 class _Stop:

@@ -225,7 +225,8 @@ class FoxgloveBridge:
     topics : dict of str to BridgedTopic
         The topics bridged so far.
     skipped : dict of str to str
-        Selected topics not bridged, with the reason.
+        Selected topics not bridged, and bridged topics that publishers of another type joined, with
+        the reason.
     """
 
     def __init__(self, node, context, *, schemas: SchemaBook | None = None,
@@ -248,7 +249,10 @@ class FoxgloveBridge:
         """
         new = []
         for topic, types in self.node.get_topic_names_and_types():
-            if topic in self.topics or not self.select(topic):
+            if topic in self.topics:
+                self._check_type(topic, types)
+                continue
+            if not self.select(topic):
                 continue
             reason = self._bridge(topic, types)
             if reason is None:
@@ -259,6 +263,14 @@ class FoxgloveBridge:
                 self.skipped[topic] = reason
                 self.report(f"view: skipping {topic}: {reason}")
         return new
+
+    def _check_type(self, topic: str, types: Iterable[str]) -> None:
+        """Say once when publishers of another type join a bridged topic (they do not match its subscription)."""
+        others = sorted(set(types) - {self.topics[topic].type_name})
+        reason = f"publishers of {', '.join(others)} are not shown (bridged as {self.topics[topic].type_name})"
+        if others and self.skipped.get(topic) != reason:
+            self.skipped[topic] = reason
+            self.report(f"view: {topic}: {reason}")
 
     def _bridge(self, topic: str, types: Iterable[str]) -> str | None:
         """Create the channel and the subscription of ``topic``; return why not, or None."""

@@ -1,8 +1,8 @@
-"""FoxgloveBridge (euc_ros.ros.foxglove_bridge) on a real graph, in-process: it bridges the viewed topics
-it finds, with the publishers' type, skips the others (and says why when a viewed topic cannot be
-bridged), and forwards the CDR bytes unchanged on a ros2msg/cdr channel. A foxglove-sdk MCAP sink
-on the bridge's context records what the channels carry; mcap-ros2-support decodes it back from
-the schema the bridge wrote."""
+"""FoxgloveBridge (euc_ros.ros.foxglove_bridge) on a real graph, in-process: it bridges the viewed
+topics it finds, with the publishers' type, skips the others (and says why when a viewed topic
+cannot be bridged, or when publishers of another type join a bridged one), and forwards the CDR
+bytes unchanged on a ros2msg/cdr channel. A foxglove-sdk MCAP sink on the bridge's context records
+what the channels carry; mcap-ros2-support decodes it back from the schema the bridge wrote."""
 from __future__ import annotations
 
 import time
@@ -91,6 +91,13 @@ def test_viewed_topics_are_forwarded_as_ros2msg_cdr(ros_context, other_context, 
             pose_pub.publish(msg)
             sent.append(msg)
         assert spin_until(ex, lambda: bridge.topics["/mocap/Box/pose"].forwarded == 5)
+
+        other.create_publisher(String, "mocap/Box/pose", qos)     # joins a bridged topic with another type
+        graph["/mocap/Box/pose"] = 2
+        assert spin_until(ex, graph_complete)
+        assert bridge.discover() == [] and bridge.discover() == []
+        assert "std_msgs/msg/String are not shown" in bridge.skipped["/mocap/Box/pose"]
+        assert sum("view: /mocap/Box/pose: publishers of" in line for line in lines) == 1
     finally:
         bridge.close()
         writer.close()

@@ -65,7 +65,7 @@ def test_start_line_gives_the_url_and_whether_data_leave_the_machine():
     assert "ws://127.0.0.1:8765" in local and "this machine only" in local
     assert "only when --address names a non-local address" in local
     remote = start_line("0.0.0.0", 9000, False)
-    assert "ws://0.0.0.0:9000" in remote and "live data leave this machine" in remote
+    assert "ws://0.0.0.0:9000" in remote and "live data can leave this machine" in remote
     assert "\n" not in local + remote
     assert websocket_url("::1", 8765) == "ws://[::1]:8765"
 
