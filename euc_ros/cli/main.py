@@ -29,6 +29,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "residual": ("residual", "trace the M_d1 - M_d2 residual to a missing physical effect"),
     "unicycle": ("unicycle", "autonomous unicycle: gains, steady states, stability maps"),
     "steer": ("steer", "run a steering maneuver in closed loop over topics"),
+    "view": ("view", "serve the live topics to Foxglove over WebSocket (this machine only unless --address)"),
     "bench": ("bench", "benchmarks against their floors"),
 }
 
