@@ -25,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.plots import add_figure_arguments, configure_from_args
 from euc_ros.core.errors import ConfigError, InputError
 
 HELP = "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"
@@ -39,7 +40,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
                         help="Motive CSV export, rosbag2 directory or .mcap file")
     parser.add_argument("--json", metavar="OUT", default=None, help="write the results as JSON to OUT")
-    parser.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures (Figs 6-8 style) into DIR")
+    parser.add_argument("--plots", metavar="DIR", default=None, help="write figures (Figs 6-8 style) into DIR")
+    add_figure_arguments(parser)
     parser.add_argument("--phi-definition", choices=PHI_DEFINITIONS, default="hinge",
                         help="rider pitch about the ankle hinge A (model, default) or about the wheel centre C (eq 3)")
     parser.add_argument("--cog-method", choices=COG_METHODS, default="segments",
@@ -379,6 +381,7 @@ def main(args: argparse.Namespace) -> int:
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
+    configure_from_args(args)
     from euc_ros.core.euc.uncertainty import parse_tolerances
 
     tolerances = parse_tolerances(args.tolerance)
@@ -429,12 +432,13 @@ def main(args: argparse.Namespace) -> int:
         data["warnings"] = warnings
         write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     if args.plots:
-        write_plots(result, states, params, Path(args.plots))
+        write_plots(result, states, params, Path(args.plots), interval=None if unc is None else unc.get("h_ci95_m"))
     return 0
 
 
-def write_plots(result, states, params, out_dir: Path) -> list[Path]:
-    """Write ``<recording>_states.png`` per recording and ``rmse_curves.png`` into ``out_dir``."""
+def write_plots(result, states, params, out_dir: Path, *, interval=None) -> list[Path]:
+    """Write ``<recording>_states`` per recording and ``rmse_curves`` (with h's 95 % ``interval`` when given)
+    into ``out_dir``, in the configured formats."""
     from euc_ros.cli.plots import plot_ride_states, plot_rmse_curves
     from euc_ros.core.euc.torque import torques
 
@@ -454,5 +458,6 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     if len(result.per_recording) > 1:
         panels["pooled"] = {m: (f.rmse_curve_nm, f.h_m, f.rmse_nm) for m, f in result.pooled.items()}
     written.append(plot_rmse_curves(result.h_grid, panels, out_dir / "rmse_curves.png",
-                                    title="RMSE of M_d1 - M_d2 against h (EUC paper, Fig. 8)"))
+                                    title="RMSE of M_d1 - M_d2 against h (EUC paper, Fig. 8)",
+                                    interval=None if interval is None or None in interval else tuple(interval)))
     return written

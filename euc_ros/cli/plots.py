@@ -1,4 +1,10 @@
-"""Figure helpers shared by the CLI commands (PNG files, matplotlib imported lazily with Agg).
+"""Figure helpers shared by the CLI commands (matplotlib imported lazily with Agg).
+
+Figures are written in the formats and at the resolution :func:`configure` sets (``--plot-format``,
+``--dpi``): PNG for a quick look, PDF and SVG (vector) for a paper. Every figure is laid out by
+matplotlib's constrained layout and then checked by :func:`figure_problems` (text inside the canvas,
+no empty axes, legends clear of the data); a legend over the data is moved below its axes, and what
+cannot be fixed is a warning on the console, never a lost analysis.
 
 * :func:`plot_ride_states`: the EUC paper's Figs 6-7 layout: yaw psi, tilt theta, EUC pitch gamma,
   rider pitch phi (degrees) and the driving torque from both expressions, M_d1 against M_d2 (N m),
@@ -8,13 +14,60 @@
 """
 from __future__ import annotations
 
+import os
+import sys
+import warnings
 from pathlib import Path
 from typing import Mapping, Sequence
 
 import numpy as np
 
-#: Figure resolution [dots per inch].
-DPI = 110
+#: Default raster resolution [dots per inch] (print quality; vector formats ignore it).
+DPI = 200
+#: Formats a figure can be written in.
+FORMATS = ("png", "pdf", "svg")
+#: Current output settings (:func:`configure`).
+_settings = {"formats": ("png",), "dpi": DPI, "strict": False}
+
+
+def configure(formats: Sequence[str] = ("png",), dpi: float = DPI, *, strict: bool = False) -> None:
+    """Set the formats and resolution of the figures written from now on.
+
+    Parameters
+    ----------
+    formats : sequence of {"png", "pdf", "svg"}
+        Every figure is written once per format (same stem).
+    dpi : float
+        Raster resolution [dots per inch].
+    strict : bool
+        A layout problem (:func:`figure_problems`) raises instead of warning (tests; also with the
+        environment variable ``EUC_ROS_STRICT_FIGURES=1``).
+    """
+    bad = [f for f in formats if f not in FORMATS]
+    if bad or not formats:
+        from euc_ros.core.errors import ConfigError
+
+        raise ConfigError(f"plot formats are {', '.join(FORMATS)}, got {', '.join(bad) or 'none'}", key="--plot-format")
+    if not 30 <= dpi <= 2400:
+        from euc_ros.core.errors import ConfigError
+
+        raise ConfigError(f"--dpi must be in 30-2400, got {dpi:g}", key="--dpi")
+    strict = strict or os.environ.get("EUC_ROS_STRICT_FIGURES", "") not in ("", "0")
+    _settings.update(formats=tuple(dict.fromkeys(formats)), dpi=float(dpi), strict=strict)
+
+
+def add_figure_arguments(parser) -> None:
+    """``--plot-format`` and ``--dpi`` for a command that writes figures."""
+    parser.add_argument("--plot-format", default="png", metavar="FMT[,FMT]",
+                        help="figure formats: png, pdf, svg, comma-separated (pdf/svg are vector, for papers) [png]")
+    parser.add_argument("--dpi", type=float, default=DPI, help=f"raster resolution of PNG figures [{DPI}]")
+
+
+def configure_from_args(args) -> None:
+    """Apply ``--plot-format`` and ``--dpi`` (when the command has them)."""
+    fmt = getattr(args, "plot_format", None)
+    if fmt is not None:
+        configure([f.strip().lower() for f in str(fmt).split(",") if f.strip()], getattr(args, "dpi", DPI))
 
 
 def pyplot():
@@ -27,16 +80,101 @@ def pyplot():
     return plt
 
 
+def _data_points(ax) -> np.ndarray:
+    """Display coordinates (m, 2) of the data drawn in ``ax`` (lines, markers, bars)."""
+    pts = []
+    for line in ax.get_lines():
+        xy = np.asarray(line.get_xydata(), float)
+        if xy.size:
+            pts.append(ax.transData.transform(xy[np.all(np.isfinite(xy), axis=1)]))
+    for coll in ax.collections:
+        off = np.asarray(coll.get_offsets(), float)
+        if off.size and off.ndim == 2:
+            pts.append(coll.get_offset_transform().transform(off[np.all(np.isfinite(off), axis=1)]))
+    for patch in ax.patches:
+        bb = patch.get_window_extent()
+        if np.all(np.isfinite([bb.x0, bb.y0, bb.x1, bb.y1])) and bb.width < 0.5 * ax.bbox.width:
+            pts.append(np.array([[bb.x0, bb.y1], [bb.x1, bb.y1], [0.5 * (bb.x0 + bb.x1), bb.y1]]))
+    return np.concatenate(pts) if pts else np.zeros((0, 2))
+
+
+def _has_content(ax) -> bool:
+    return bool(ax.get_lines() or ax.collections or ax.patches or ax.images or ax.tables
+                or [t for t in ax.texts if t.get_text().strip()])
+
+
+def figure_problems(fig) -> list[str]:
+    """What makes a figure unfit to print: text outside the canvas, visible empty axes, a legend over data.
+
+    The figure is drawn first (the layout is final). Returns one sentence per problem (empty: fit).
+    """
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    canvas = fig.bbox
+    problems = []
+    def outside(bb) -> bool:
+        return bb.x0 < canvas.x0 - 1 or bb.y0 < canvas.y0 - 1 or bb.x1 > canvas.x1 + 1 or bb.y1 > canvas.y1 + 1
+
+    # what is drawn: each axes' tight box (its ticks, labels, title and legend) and the figure's own texts
+    for ax in fig.axes:
+        if ax.get_visible() and outside(ax.get_tightbbox(renderer)):
+            problems.append(f"labels of the axes {ax.get_title()[:40]!r} are cut by the canvas edge")
+    for t in [*fig.texts, *([fig._suptitle] if fig._suptitle is not None else []), *fig.legends]:
+        if t.get_visible() and outside(t.get_window_extent(renderer)):
+            problems.append("a figure title or legend is cut by the canvas edge")
+    for ax in fig.axes:
+        if not ax.get_visible():
+            continue
+        if not _has_content(ax):
+            problems.append(f"axes {ax.get_title()[:40]!r} are empty")
+        leg = ax.get_legend()
+        if leg is not None and leg.get_visible():
+            bb = leg.get_window_extent(renderer)
+            pts = _data_points(ax)
+            inside = ((pts[:, 0] > bb.x0) & (pts[:, 0] < bb.x1) & (pts[:, 1] > bb.y0) & (pts[:, 1] < bb.y1)).sum() \
+                if pts.size else 0
+            if inside:
+                problems.append(f"the legend of {ax.get_title()[:40]!r} covers {inside} data point(s)")
+    return problems
+
+
+def _move_legends_below(fig) -> None:
+    for ax in fig.axes:
+        leg = ax.get_legend()
+        if leg is not None:
+            handles, labels = ax.get_legend_handles_labels()
+            ax.legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.18), fontsize=8,
+                      ncols=min(3, max(1, len(labels))), frameon=False)
+
+
 def save_figure(fig, path: str | Path, title: str = "") -> Path:
-    """Title, tighten, write ``path`` (parent created) at :data:`DPI`, close the figure; return the path."""
+    """Title, lay out, check, write ``path`` in every configured format (parent created), close the figure.
+
+    Returns the path of the first format written (the one a report links).
+    """
     if title:
         fig.suptitle(title, fontsize=10)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI)
+    fig.set_layout_engine("constrained")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)      # layout notes: checked below instead
+        problems = figure_problems(fig)
+        if any("legend" in p for p in problems):
+            _move_legends_below(fig)
+            problems = figure_problems(fig)
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        written = []
+        for fmt in _settings["formats"]:
+            out = path.with_suffix(f".{fmt}")
+            fig.savefig(out, dpi=_settings["dpi"], format=fmt, metadata={"Creator": "euc_ros"} if fmt != "png" else None)
+            written.append(out)
     pyplot().close(fig)
-    return path
+    if problems:
+        text = f"figure {path.name}: " + "; ".join(problems)
+        if _settings["strict"]:
+            raise AssertionError(text)
+        print(f"warning: {text}", file=sys.stderr)
+    return written[0]
 
 
 def _deg(a) -> np.ndarray:
@@ -80,7 +218,8 @@ def plot_ride_states(states_list: Sequence, torques: Sequence[tuple[np.ndarray, 
 
 
 def plot_rmse_curves(h_grid: np.ndarray, panels: Mapping[str, Mapping[str, tuple[np.ndarray, float, float]]],
-                     path: str | Path, *, title: str = "") -> Path:
+                     path: str | Path, *, title: str = "", interval: tuple[float, float] | None = None,
+                     interval_panel: str | None = None) -> Path:
     """Write a Fig. 8 style figure: RMSE of M_d1 - M_d2 against h, both models per panel.
 
     Parameters
@@ -90,27 +229,43 @@ def plot_rmse_curves(h_grid: np.ndarray, panels: Mapping[str, Mapping[str, tuple
     panels : mapping panel title -> mapping model -> (rmse curve (g,) [N m], h_opt [m], rmse_opt [N m])
         One panel per recording (and the pooled one).
     path : str or Path
-        PNG file to write.
+        Figure file to write (its suffix is replaced by each configured format).
     title : str
         Figure title.
+    interval : (float, float), optional
+        The 95 % interval of h [m], shaded on ``interval_panel`` (default: the last panel, the pooled
+        one when there are several recordings).
     """
     plt = pyplot()
     n = max(1, len(panels))
     cols = min(n, 3)
     rows = int(np.ceil(n / cols))
-    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.2 * rows), squeeze=False)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.2 * cols, 3.4 * rows + 0.4), squeeze=False)
     styles = {"3dof": ("C0", "-", "3 DoF"), "2dof": ("C3", "--", "2 DoF")}
+    names = list(panels)
+    target = interval_panel if interval_panel in panels else (names[-1] if names else None)
     for ax, (name, models) in zip(axes.ravel(), panels.items()):
+        drawn = False
+        if interval is not None and name == target and all(np.isfinite(interval)):
+            ax.axvspan(interval[0], interval[1], color="C0", alpha=0.15, lw=0,
+                       label=f"95 % interval [{interval[0]:.3f}, {interval[1]:.3f}] m")
         for model, (curve, h_opt, r_opt) in models.items():
+            curve = np.asarray(curve, float)
+            if not np.isfinite(curve).any():
+                continue
             col, ls, lab = styles.get(model, ("C2", ":", model))
-            ax.plot(h_grid, curve, color=col, ls=ls, lw=1.4, label=f"{lab}: h={h_opt:.3f} m, {r_opt:.2f} N m")
+            ax.plot(h_grid, curve, color=col, ls=ls, lw=1.4, label=f"{lab}: h = {h_opt:.3f} m, {r_opt:.2f} N m")
             if np.isfinite(h_opt):
                 ax.plot([h_opt], [r_opt], "o", color=col, ms=4)
+            drawn = True
+        if not drawn:
+            ax.text(0.5, 0.5, "no valid samples", ha="center", va="center", transform=ax.transAxes)
         ax.set_title(name, fontsize=9)
         ax.set_xlabel("h [m]")
-        ax.set_ylabel("RMSE [N m]")
+        ax.set_ylabel("RMSE of M_d1 - M_d2 [N m]")
         ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=7)
+        if drawn:
+            ax.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     for ax in axes.ravel()[n:]:
-        ax.set_visible(False)
+        fig.delaxes(ax)
     return save_figure(fig, path, title)

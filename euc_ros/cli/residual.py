@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.plots import add_figure_arguments, configure_from_args
 from euc_ros.core.errors import ConfigError, InputError
 
 HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the error before and after"
@@ -33,7 +34,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
                         help="Motive CSV export, rosbag2 directory or .mcap file")
     parser.add_argument("--json", metavar="OUT", required=True, help="write the analysis JSON (spec section 5)")
-    parser.add_argument("--plots", metavar="DIR", default=None, help="write PNG figures into DIR")
+    parser.add_argument("--plots", metavar="DIR", default=None, help="write figures into DIR")
+    add_figure_arguments(parser)
     parser.add_argument("--report", metavar="OUT.md", default=None, help="write a Markdown report")
     parser.add_argument("--alpha", type=float, default=DEFAULT_ALPHA,
                         help=f"significance level of each selection step ({DEFAULT_ALPHA})")
@@ -72,6 +74,7 @@ def main(args: argparse.Namespace) -> int:
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
                    Output("--report", args.report)], [args.session, *args.recordings])
+    configure_from_args(args)
     if not 0 < args.alpha < 1:
         raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}", key="--alpha")
     if not 0 <= args.min_gain < 1:
@@ -171,6 +174,29 @@ def format_summary(data: dict) -> str:
     return "\n".join(lines)
 
 
+def paper_paragraph(data: dict) -> str:
+    """One paragraph that states the result as a paper would (numbers, their intervals, the method)."""
+    n = len(data.get("recordings", []))
+    settings = data.get("settings", {})
+    ci = data.get("h_ci95_m") or [None, None]
+    base = f"h = {data['h_m']:.3f} m" + (f" (95 % interval {ci[0]:.3f}-{ci[1]:.3f} m)" if None not in ci else "")
+    text = (f"The rider's centre-of-gravity height above the ankle hinge was identified from {n} recording(s) by "
+            f"minimising the RMS difference of the two model expressions of the driving torque, M_d1 - M_d2, of the "
+            f"3-DoF model (states from Savitzky-Golay filtering, window {settings.get('window_s', float('nan')):g} s, "
+            f"order {settings.get('polyorder', '?')}): {base}, held-out RMS residual "
+            f"{data['rmse_before_nm']:.2f} N m.")
+    if data["effect"] == "none":
+        return text + " No candidate effect reduced the held-out residual significantly."
+    params = ", ".join(f"{k} = {v:.3g}" for k, v in data["effect_parameters"].items())
+    text += (f" Adding {data['effect'].replace('_', ' ')} ({params}) reduced it to {data['rmse_after_nm']:.2f} N m "
+             f"(significant at the {data['significance_level']:g} level, family-wise over "
+             f"{len(data.get('candidates', []))} candidates); with it h = {data['h_after_m']:.3f} m.")
+    lo, hi = data.get("h_range_m") or (None, None)
+    if lo is not None and hi - lo > 0.001:
+        text += f" Explanations the data cannot tell apart put h between {lo:.3f} and {hi:.3f} m."
+    return text
+
+
 def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     """A Markdown report of the analysis (figures linked relative to the report)."""
     import os
@@ -180,6 +206,7 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
            f"Held-out evaluation: {data['held_out']['kind']} ({data['held_out']['folds']} folds); "
            f"significance level {data['significance_level']} (family-wise over the candidates: max-T), "
            f"minimum gain {100 * data['min_relative_gain']:.0f} %.", "",
+           "## Summary", "", paper_paragraph(data), "",
            "## Verdict", ""]
     if data["effect"] == "none":
         out.append("**No effect**: no candidate explains the residual better than chance.")
@@ -252,24 +279,32 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
             ax.plot(st.C[v, 0], 1e3 * plane, "k-", lw=0.8)
         ax.set_xlabel("lab x [m]")
         ax.set_ylabel("contact height C_z - R cos(theta) [mm]")
-        ax.set_title(f"floor from the contact path: plane slope {np.degrees(fl.slope_rad):.2f} deg, deviation "
-                     f"{1e3 * fl.deviation_m:.1f} mm, scatter {1e3 * fl.scatter_m:.2f} mm"
-                     f" ({'flat' if fl.flat else 'not flat'}); black: fitted plane", fontsize=9)
+        ax.set_title(f"floor from the contact path ({'flat' if fl.flat else 'not flat'}): plane slope "
+                     f"{np.degrees(fl.slope_rad):.2f} deg, deviation {1e3 * fl.deviation_m:.1f} mm,\n"
+                     f"scatter {1e3 * fl.scatter_m:.2f} mm; black: fitted plane", fontsize=9)
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, markerscale=4, loc="best")
         paths.append(save_figure(fig, out_dir / "floor.png"))
     tied = result.tied
     if tied:
-        fig, ax = plt.subplots(figsize=(6, 0.45 * len(tied) + 1.4))
-        names = [t["effect"] for t in tied]
-        ax.barh(range(len(tied)), [t["h_m"] for t in tied], color="tab:blue", alpha=0.7)
-        ax.axvspan(result.h_range[0], result.h_range[1], color="tab:orange", alpha=0.2, label="h range")
-        ax.axvline(result.h_base, color="k", ls="--", lw=1, label=f"base model {result.h_base:.3f} m")
+        import textwrap
+
+        fig, ax = plt.subplots(figsize=(8.0, 0.55 * len(tied) + 2.6))
+        names = ["\n".join(textwrap.wrap(t["effect"], 30)) for t in tied]
+        ax.axvspan(result.h_range[0], result.h_range[1], color="tab:orange", alpha=0.2,
+                   label=f"h range [{result.h_range[0]:.3f}, {result.h_range[1]:.3f}] m")
+        ax.plot([t["h_m"] for t in tied], range(len(tied)), "o", color="tab:blue", ms=6, label="h of the model")
+        ax.axvline(result.h_base, color="k", ls="--", lw=1, label=f"base 3-DoF model: {result.h_base:.3f} m")
         ax.set_yticks(range(len(tied)), names)
-        ax.set_xlim(min(result.h_range[0], result.h_base) - 0.05, max(result.h_range[1], result.h_base) + 0.05)
-        ax.set_xlabel("h implied [m]")
+        ax.set_ylim(-0.7, len(tied) - 0.3)
+        lo = min(result.h_range[0], result.h_base, *(t["h_m"] for t in tied))
+        hi = max(result.h_range[1], result.h_base, *(t["h_m"] for t in tied))
+        ax.set_xlim(lo - 0.05, hi + 0.05)
+        ax.set_xlabel("rider CoG height h [m]")
+        ax.set_ylabel("model")
         ax.set_title("models the held-out data cannot tell apart", fontsize=9)
-        ax.legend(fontsize=8)
+        ax.grid(axis="x", alpha=0.3)
+        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
         paths.append(save_figure(fig, out_dir / "h_range.png"))
     base_x = np.array([result.h_base])
     final = result.final_model
@@ -288,26 +323,39 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     axes[-1, 0].set_xlabel("t [s]")
     paths.append(save_figure(fig, out_dir / "residual_time.png"))
 
-    fig, ax = plt.subplots(figsize=(5.5, 5))
+    # the residual against the selected effect's contribution: over time (always readable, also for an
+    # effect that is nearly constant, such as rolling resistance at one sign of the speed), and as a
+    # scatter when the contribution varies enough to spread the points
+    rec = recs[0]
+    r0, m0 = Model().residual(rec, np.array([result.h_after]))
     if final.effects:
-        xs, ys = [], []
-        for rec in recs:
-            r0, m0 = Model().residual(rec, np.array([result.h_after]))
-            r1, m1 = final.residual(rec, result.final_x)
-            m = m0 & m1
-            xs.append((r0 - r1)[m])
-            ys.append(r0[m])
-        x, y = np.concatenate(xs), np.concatenate(ys)
-        ax.plot(x, y, ".", ms=2, alpha=0.5)
-        lim = np.nanmax(np.abs(np.concatenate([x, y]))) if x.size else 1.0
-        ax.plot([-lim, lim], [-lim, lim], "k--", lw=1, label="1:1")
-        ax.set_xlabel(f"signature of {final.name} [N m]")
-        ax.legend(fontsize=8)
+        r1, m1 = final.residual(rec, result.final_x)
+        m = m0 & m1
+        sig = (r0 - r1)[m]
     else:
-        ax.text(0.5, 0.5, "no effect selected", ha="center", va="center", transform=ax.transAxes)
-        ax.set_xlabel("signature [N m]")
-    ax.set_ylabel(f"residual of the 3-DoF model at h = {result.h_after:.3f} m [N m]")
+        m, sig = m0, np.zeros(int(m0.sum()))
+    varies = final.effects and sig.size > 2 and np.std(sig) > 0.1 * max(abs(np.mean(sig)), 1e-9)
+    fig, axes = plt.subplots(1, 2 if varies else 1, figsize=(10 if varies else 7, 3.8), squeeze=False)
+    ax = axes[0, 0]
+    ax.plot(rec.ctx.t[m], r0[m], lw=0.7, color="tab:gray", label=f"residual of the 3-DoF model, h = {result.h_after:.3f} m")
+    if final.effects:
+        ax.plot(rec.ctx.t[m], sig, lw=1.2, color="tab:blue", label=f"fitted {final.name}")
+    else:
+        ax.axhline(0.0, color="tab:blue", lw=1, label="no effect selected")
+    ax.set_xlabel("t [s]")
+    ax.set_ylabel("torque [N m]")
+    ax.set_title(rec.name, fontsize=9)
     ax.grid(alpha=0.3)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False, ncols=2)
+    if varies:
+        ax = axes[0, 1]
+        ax.plot(sig, r0[m], ".", ms=2, alpha=0.5)
+        lim = float(np.nanmax(np.abs(np.concatenate([sig, r0[m]]))))
+        ax.plot([-lim, lim], [-lim, lim], "k--", lw=1, label="1:1")
+        ax.set_xlabel(f"fitted {final.name} [N m]")
+        ax.set_ylabel("residual [N m]")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
     paths.append(save_figure(fig, out_dir / "residual_signature.png"))
 
     fig, ax = plt.subplots(figsize=(5, 3.5))

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.plots import save_figure
 from euc_ros.core.errors import ConfigError
 
 HELP = "autonomous unicycle: steering gains, steady states, stability maps, maneuver simulation"
@@ -258,10 +259,7 @@ def stability_figures(params, out_dir: Path, grid: int = 160) -> list[Path]:
     fig.suptitle(f"Rolling wheel (R = {params.R} m), turning rolling: green stable, red unstable, dark green two "
                  f"stable states, yellow a stable and an unstable one, white none;\nblue: critical yaw rates (22), "
                  f"critical tilt (23), critical pitch rate (27)")
-    fig.tight_layout()
-    paths.append(out_dir / "fig3_wheel_stability.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "fig3_wheel_stability.png"))
 
     # Fig. 5: unicycle steady states
     if params.m0 > 0:
@@ -283,10 +281,7 @@ def stability_figures(params, out_dir: Path, grid: int = 160) -> list[Path]:
                title=f"Unicycle steady states (m = {params.m} kg, m0 = {params.m0} kg, u = 0)\n"
                      "light blue: mass below the centre, purple: above, white: mass below the ground (47)")
         ax.legend(loc="lower left", fontsize=8)
-        fig.tight_layout()
-        paths.append(out_dir / "fig5_unicycle_steady_states.png")
-        fig.savefig(paths[-1], dpi=110)
-        plt.close(fig)
+        paths.append(save_figure(fig, out_dir / "fig5_unicycle_steady_states.png"))
 
     # Fig. 6: stability for several point masses
     fig, axes = plt.subplots(2, 4, figsize=(18, 8.5), sharex=True, sharey=True)
@@ -301,10 +296,7 @@ def stability_figures(params, out_dir: Path, grid: int = 160) -> list[Path]:
         a.set_ylabel("yaw rate psi_dot* [rad/s]")
     fig.suptitle(f"Unicycle turning rolling (m = {params.m} kg, R = {params.R} m, u = 0): green stable, red unstable, "
                  "white: no feasible steady state")
-    fig.tight_layout()
-    paths.append(out_dir / "fig6_unicycle_stability.png")
-    fig.savefig(paths[-1], dpi=110)
-    plt.close(fig)
+    paths.append(save_figure(fig, out_dir / "fig6_unicycle_stability.png"))
     return paths
 
 
@@ -343,10 +335,7 @@ def plot_run(result, controller, path: Path) -> None:
     ax[4].set(xlabel="x0 [m]", ylabel="y0 [m]", aspect="equal")
     ax[4].legend(fontsize=8)
     fig.suptitle(f"{controller.maneuver} at {controller.speed:g} m/s ({result.status})")
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def _simulate(args: argparse.Namespace) -> int:
