@@ -166,7 +166,8 @@ def save_figure(fig, path: str | Path, title: str = "") -> Path:
         written = []
         for fmt in _settings["formats"]:
             out = path.with_suffix(f".{fmt}")
-            fig.savefig(out, dpi=_settings["dpi"], format=fmt, metadata={"Creator": "euc_ros"} if fmt != "png" else None)
+            meta = {"Creator": "euc_ros"} if fmt != "png" else None
+            fig.savefig(out, dpi=_settings["dpi"], format=fmt, metadata=meta)
             written.append(out)
     pyplot().close(fig)
     if problems:

@@ -337,7 +337,8 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     varies = final.effects and sig.size > 2 and np.std(sig) > 0.1 * max(abs(np.mean(sig)), 1e-9)
     fig, axes = plt.subplots(1, 2 if varies else 1, figsize=(10 if varies else 7, 3.8), squeeze=False)
     ax = axes[0, 0]
-    ax.plot(rec.ctx.t[m], r0[m], lw=0.7, color="tab:gray", label=f"residual of the 3-DoF model, h = {result.h_after:.3f} m")
+    ax.plot(rec.ctx.t[m], r0[m], lw=0.7, color="tab:gray",
+            label=f"residual of the 3-DoF model, h = {result.h_after:.3f} m")
     if final.effects:
         ax.plot(rec.ctx.t[m], sig, lw=1.2, color="tab:blue", label=f"fitted {final.name}")
     else:

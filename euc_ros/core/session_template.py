@@ -112,7 +112,8 @@ def render_session(rider: RiderMeasures, euc: dict | None = None, *, names: dict
         f"# Rider: {_num(rider.mass)} kg, {_num(rider.height)} m, {rider.sex}; segments from {REFERENCE}.",
         "# Frames: a body frame is x forward, y left, z up when the rider stands upright facing +x; SI units.",
         "",
-        f"world_up: {world_up}          # Motive's up axis (Edit > Settings > General > Up Axis); Y is Motive's default",
+        f"world_up: {world_up}          # Motive's up axis (Edit > Settings > General > Up Axis); "
+        "Y is Motive's default",
         f"rate_hz: {_num(rate_hz)}          # capture rate [Hz] (Motive's frame rate)",
         "rider:",
         f"  mass: {_num(rider.mass)}          # rider with clothes, helmet and gear [kg]",

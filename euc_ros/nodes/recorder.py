@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import importlib
 import os
+import shutil
 import time
 from pathlib import Path
 
@@ -171,6 +172,10 @@ class Recorder(Node):
         self.writer.close()
         total = sum(self.counts.values())
         # the context may already be shut down (rosout unavailable): print instead of the node logger
+        if total == 0:   # nothing was recorded: leave no empty bag that looks like a recording
+            shutil.rmtree(self.path, ignore_errors=True)
+            print(f"[recorder] no message arrived: no bag written ({self.path} removed)", flush=True)
+            return
         print(f"[recorder] closed {self.path}: {total} messages "
               + ", ".join(f"{t}={n}" for t, n in sorted(self.counts.items())), flush=True)
 

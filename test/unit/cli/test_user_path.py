@@ -3,7 +3,6 @@ missing bodies named with the ones the file has, bodies excluded by the skeleton
 from __future__ import annotations
 
 import json
-import shutil
 from pathlib import Path
 
 import pytest
