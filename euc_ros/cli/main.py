@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "unicycle": ("unicycle", "autonomous unicycle: gains, steady states, stability maps"),
     "steer": ("steer", "run a steering maneuver in closed loop over topics"),
     "view": ("view", "serve the live topics to Foxglove over WebSocket (this machine only unless --address)"),
+    "campaign": ("campaign", "run identify (and residual) over many sessions or simulated seeds on a Dask cluster"),
     "bench": ("bench", "benchmarks against their floors"),
 }
 
