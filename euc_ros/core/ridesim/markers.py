@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.ridesim.mocap_synth import rotations_to_quats
 from euc_ros.core.rotations import rotation_matrices
 

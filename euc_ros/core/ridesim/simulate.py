@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from euc_ros.core.errors import ConfigError, EucError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.ridesim.controllers import EucBalanceController, RiderLeanController
 from euc_ros.core.ridesim.effects import AIR_DENSITY, ROLLING_SIGN_SPEED, EffectSet
 from euc_ros.core.ridesim.floors import FloorProfile
