@@ -18,6 +18,7 @@ the kernel's own high-water mark, so short peaks between samples are not missed)
 from __future__ import annotations
 
 import contextlib
+import importlib
 import json
 import os
 import platform
@@ -338,6 +339,14 @@ def machine_info() -> dict:
     return info
 
 
+def resolve_target(target: str) -> Callable:
+    """The function named ``module:function`` (imported now)."""
+    module, sep, func = target.partition(":")
+    if not sep or not module or not func:
+        raise BenchError(f"expected module:function, got {target!r}")
+    return getattr(importlib.import_module(module), func)
+
+
 @dataclass
 class BenchContext:
     """Settings shared by every benchmark of one run.
@@ -354,12 +363,17 @@ class BenchContext:
         Progress lines (stderr by default).
     realtime : int, optional
         SCHED_FIFO priority of the latency-critical processes of the live benchmarks (``--realtime``).
+    command : str
+        The command-line entry point the offline benchmarks run in process, as ``module:function``
+        (the function takes the argument list and returns an exit code). The caller names it
+        (``euc-ros bench`` gives its own dispatcher), so the benchmarks depend on no command module.
     """
 
     quick: bool
     cache_dir: Path
     tmp_dir: Path
     realtime: int | None = None
+    command: str = ""
     log: Callable[[str], None] = field(default=lambda s: print(s, file=sys.stderr, flush=True))
 
     def isolated(self, target: str, timeout_s: float = 600.0, **kwargs) -> dict:

@@ -58,7 +58,7 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.bench.common import BenchContext, BenchError, figure, pinned_to_one_core
+from euc_ros.bench.common import BenchContext, BenchError, figure, pinned_to_one_core, resolve_target
 
 #: Recording lengths [min]: full and --quick.
 LENGTHS_MIN = {False: (1, 10, 60), True: (1, 3)}
@@ -195,10 +195,12 @@ def measure_load(path: str, world_up: str = "y", warmup_path: str | None = None)
             "peak_mb": rss["peak_mb"], "above_mb": rss["increase_mb"], "hwm_reset": rss["hwm_reset"], "cpu": cpu}
 
 
-def measure_command(argv: list[str], warmup_argv: list[str] | None = None) -> dict:
-    """Run ``euc-ros ARGV`` in process on one core after an untimed warm-up; time, baseline and peak RSS."""
-    from euc_ros.cli.main import main
+def measure_command(argv: list[str], warmup_argv: list[str] | None = None, *, entry: str) -> dict:
+    """Run ``euc-ros ARGV`` in process on one core after an untimed warm-up; time, baseline and peak RSS.
 
+    ``entry``: the command-line entry point, ``module:function`` (:attr:`BenchContext.command`).
+    """
+    main = resolve_target(entry)
     sink = io.StringIO()
     with pinned_to_one_core() as cpu, contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
         if warmup_argv:
@@ -331,7 +333,7 @@ def run(ctx: BenchContext) -> dict:
                 argv += ["--json", str(ctx.tmp_dir / f"growth_residual_{mm:g}.json")]
                 warm_argv += ["--json", str(ctx.tmp_dir / "growth_residual_warmup.json")]
             r = ctx.isolated("euc_ros.bench.growth:measure_command", argv=argv, warmup_argv=warm_argv,
-                             timeout_s=3600.0)
+                             entry=ctx.command, timeout_s=3600.0)
             if r["exit_code"] != 0:
                 raise BenchError(f"euc-ros {' '.join(argv)} exited {r['exit_code']}: {r['output_tail']}")
             r.pop("output_tail", None)

@@ -142,14 +142,14 @@ def rt_env(realtime: int | None) -> dict:
     return {} if realtime is None else {REALTIME_ENV: str(int(realtime))}
 
 
-def _probe_spec(out: Path, realtime: int | None = None):
+def probe_spec(out: Path, realtime: int | None = None):
     from euc_ros.launch import NodeSpec
 
     return NodeSpec(sys.executable, name="probe", args=["-m", "euc_ros.bench.probe", "--out", str(out)],
                     ros_args=False, required=False, env=rt_env(realtime))
 
 
-def _run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO):
+def run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO):
     """Run the processes until the source (required) exits; return the sampler (peak RSS, CPU series)."""
     launcher, finished, sampler = run_launched_sampled(specs, timeout_s, log)
     tail = " | ".join(log.getvalue().strip().splitlines()[-8:])
@@ -171,14 +171,14 @@ def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) 
     series = read_motive_csv(csv)
     n_frames, rate_hz = series.n_frames, float(series.rate_hz)
     specs = [
-        _probe_spec(probe_out),
+        probe_spec(probe_out),
         NodeSpec("torque_estimator", parameters={"session_file": str(session), "h": 0.61}, required=False),
         NodeSpec("rider_state", parameters={"session_file": str(session)}, required=False),
         NodeSpec("mocap_ingest", parameters={"csv_path": str(csv), "rate_factor": 1.0, "exit_when_done": True,
                                              "wait_subscribers": 2, "start_delay": 1.0, "linger": 2.0}),
     ]
     log = io.StringIO()
-    rss = _run_chain(specs, probe_out, timeout_s, log).peaks_mb()
+    rss = run_chain(specs, probe_out, timeout_s, log).peaks_mb()
     res = analyze(load(probe_out), n_frames, rate_hz)
     res["peak_rss_mb"] = rss
     return res
@@ -196,7 +196,7 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
     relay = ["-m", "euc_ros.bench.relay"]
     env = rt_env(realtime)
     specs = [
-        _probe_spec(probe_out, realtime),
+        probe_spec(probe_out, realtime),
         NodeSpec(sys.executable, name="relay_torque", args=[*relay, "hop", "--kind", "torque"], ros_args=False,
                  required=False, env=env),
         NodeSpec(sys.executable, name="relay_state", args=[*relay, "hop", "--kind", "state"], ros_args=False,
@@ -206,7 +206,7 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
                        "--wait-subscribers", "2", "--start-delay", "1.0", "--linger", "2.0"], ros_args=False, env=env),
     ]
     log = io.StringIO()
-    rss = _run_chain(specs, probe_out, timeout_s, log).peaks_mb()
+    rss = run_chain(specs, probe_out, timeout_s, log).peaks_mb()
     res = analyze(load(probe_out), n_frames, rate_hz)
     res["peak_rss_mb"] = rss
     return res

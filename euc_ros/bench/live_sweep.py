@@ -102,9 +102,9 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     SCHED_FIFO priority of the estimation chain and the probe (the monitor and recorder stay at normal
     priority), and of every process of the floor.
     """
-    from euc_ros.bench.latency import _probe_spec, _run_chain, analyze, measure_floor, rt_env
-    from euc_ros.bench.recording import bag_counts
+    from euc_ros.bench.latency import analyze, measure_floor, probe_spec, rt_env, run_chain
     from euc_ros.bench.probe import load
+    from euc_ros.bench.recording import bag_counts
     from euc_ros.core.io.motive_csv import read_motive_csv
     from euc_ros.launch import NodeSpec
 
@@ -118,7 +118,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     session = str(rec["session"])
     env = rt_env(realtime)
     specs = [
-        _probe_spec(probe_out, realtime),
+        probe_spec(probe_out, realtime),
         NodeSpec("monitor", parameters={"expected_rate_hz": rate}, required=False),
     ]
     ingest = {"csv_path": str(rec["csv"]), "rate_factor": 1.0, "exit_when_done": True,
@@ -134,7 +134,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
         ]
     if record:
         specs.insert(1, NodeSpec("recorder", parameters={"output": str(bag)}, required=False))
-    sampler = _run_chain(specs, probe_out, duration + 120.0, io.StringIO())
+    sampler = run_chain(specs, probe_out, duration + 120.0, io.StringIO())
     data = load(probe_out)
     pipe = analyze(data, n_frames, rate)
     pipe["cpu"] = stream_cpu(sampler, data)

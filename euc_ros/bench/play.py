@@ -73,9 +73,9 @@ def measure_floor(stamps_ns: list[int], rate: float, realtime: bool = True) -> d
     With ``realtime`` the loop asks for SCHED_FIFO as ``euc-ros play --realtime`` does (same priority).
     Returns the summary of the wake-up errors (:func:`summary_ms`) and ``priority``.
     """
-    from euc_ros.cli.play import set_realtime
+    from euc_ros.sched import set_realtime
 
-    priority = set_realtime(10) if realtime else "normal priority"
+    priority = set_realtime(10, "playing") if realtime else "normal priority"
     stamps = np.asarray(stamps_ns, dtype=np.int64)
     offsets = (stamps - stamps[0]) * 1e-9 / rate
     done = np.empty(stamps.size)

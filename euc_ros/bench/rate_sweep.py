@@ -6,12 +6,12 @@ For every rate this measures
 
 * offline: ``reconstruct_states`` (Savitzky-Golay, same window in seconds) and the pooled 3-DoF h of
   ``identify_h``;
-* live: the nodes' cores frame by frame (:class:`~euc_ros.core.euc.estimators.RiderStateEstimator`
-  -> :class:`~euc_ros.core.euc.estimators.TorqueEstimator`), the final online h;
+* live: the nodes' cores frame by frame (:class:`~euc_ros.core.online.estimators.RiderStateEstimator`
+  -> :class:`~euc_ros.core.online.estimators.TorqueEstimator`), the final online h;
 * the driving torques M_d1, M_d2 at the true h, interpolated onto the reference rate's capture
   times, and their RMS difference from the reference rate's (interior samples both have).
 
-``tools/rate_sweep.py`` prints the table of the README; ``test/unit/euc/test_rate_sweep.py`` runs a
+``studies/rate_sweep.py`` prints the table of the README; ``test/unit/euc/test_rate_sweep.py`` runs a
 small version.
 """
 from __future__ import annotations
@@ -39,10 +39,10 @@ def simulate_at(rate_hz: float, *, runs: int = 3, seed: int = 5, noise: bool = T
 
 def offline(ride, h_true: float):
     """Offline states per run, the pooled 3-DoF h and the torques at ``h_true``."""
-    from euc_ros.core.euc.identify import identify_h
-    from euc_ros.core.euc.kinematics import reconstruct_states
-    from euc_ros.core.euc.model import EucParams
-    from euc_ros.core.euc.torque import torques
+    from euc_ros.core.identify.fit import identify_h
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.model.torque import torques
+    from euc_ros.core.states.kinematics import reconstruct_states
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)
     states = [reconstruct_states(r.mocap, ride.session) for r in ride.runs]
@@ -57,8 +57,8 @@ def offline(ride, h_true: float):
 
 def live(ride, h_true: float):
     """The live cores frame by frame; returns the final online h and the torques per run."""
-    from euc_ros.core.euc.estimators import RiderStateEstimator, TorqueEstimator
-    from euc_ros.core.euc.model import EucParams
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)
     dt = 1.0 / ride.runs[0].mocap.rate_hz

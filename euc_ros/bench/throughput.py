@@ -21,7 +21,7 @@ import contextlib
 import io
 import time
 
-from euc_ros.bench.common import BenchContext, environ, figure, pinned_to_one_core
+from euc_ros.bench.common import BenchContext, environ, figure, pinned_to_one_core, resolve_target
 
 #: Recording lengths [s]: full and --quick.
 DURATION_S = {False: 600.0, True: 60.0}
@@ -47,14 +47,15 @@ def measure_load(path: str, warmup_path: str | None = None) -> dict:
             "frames": int(s.n_frames), "cpu": cpu}
 
 
-def measure_command(argv: list[str], warmup_argv: list[str] | None = None) -> dict:
+def measure_command(argv: list[str], warmup_argv: list[str] | None = None, *, entry: str) -> dict:
     """Run ``euc-ros ARGV`` in process on one core; ``{"wall_s", "warmup_s", "exit_code", "cpu"}``.
+
+    ``entry``: the command-line entry point, ``module:function`` (:attr:`BenchContext.command`).
 
     ``warmup_argv`` (the same command on a short recording) runs first, untimed, so the one-time
     imports (scipy.signal alone takes about 1 s) are not charged to the throughput.
     """
-    from euc_ros.cli.main import main
-
+    main = resolve_target(entry)
     sink = io.StringIO()
     warm = float("nan")
     with pinned_to_one_core() as cpu, contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
@@ -105,7 +106,7 @@ def _run(ctx: BenchContext) -> dict:
                 argv += ["--json", str(ctx.tmp_dir / f"residual_{kind}.json")]
                 warm_argv += ["--json", str(ctx.tmp_dir / f"residual_warmup_{kind}.json")]
             r = ctx.isolated("euc_ros.bench.throughput:measure_command", argv=argv, warmup_argv=warm_argv,
-                             timeout_s=1800.0)
+                             entry=ctx.command, timeout_s=1800.0)
             if r["exit_code"] != 0:
                 from euc_ros.bench.common import BenchError
 

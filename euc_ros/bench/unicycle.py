@@ -7,7 +7,7 @@ number of RK4 substeps of the same equations of motion
 (:func:`~euc_ros.core.unicycle.simulate.rk4_step`) in a bare loop, no controller and no
 bookkeeping: the physics alone.
 
-Lockstep over topics: ``euc-ros steer`` (:func:`euc_ros.cli.steer.run_steer`: ``unicycle_sim`` in
+Lockstep over topics: ``euc-ros steer`` (:func:`euc_ros.lockstep.run_steer`: ``unicycle_sim`` in
 lockstep mode, ``steering_controller`` and ``recorder`` as processes); its real-time factor is the
 simulated time over the wall time of the stepping (from the first answered state on). Floor: a bare
 rclpy lockstep ping-pong (:mod:`euc_ros.bench.relay` ``lockstep-sim``/``lockstep-ctrl``) exchanging
@@ -20,8 +20,7 @@ import json
 import sys
 import time
 
-from euc_ros.bench.common import (BenchContext, BenchError, PeakRssSampler, figure, pinned_to_one_core,
-                                  run_launched)
+from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure, pinned_to_one_core, run_launched
 
 #: Simulated time [s] in process and over topics: full and --quick.
 IN_PROCESS_S = {False: 600.0, True: 100.0}
@@ -91,7 +90,7 @@ def run(ctx: BenchContext) -> dict:
     """Benchmark 5 (see the module docstring)."""
     import os
 
-    from euc_ros.cli.steer import run_steer
+    from euc_ros.lockstep import run_steer
 
     t_start = time.monotonic()
     t_in = IN_PROCESS_S[ctx.quick]

@@ -6,11 +6,10 @@ result is written to ``OUT.json`` with ``peak_rss_mb``, this process's peak resi
 """
 from __future__ import annotations
 
-import importlib
 import json
 import sys
 
-from euc_ros.bench.common import self_peak_rss_mb
+from euc_ros.bench.common import resolve_target, self_peak_rss_mb
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -21,8 +20,7 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     with open(argv[0], encoding="utf-8") as f:
         req = json.load(f)
-    module, func = req["target"].split(":")
-    result = getattr(importlib.import_module(module), func)(**req.get("kwargs", {}))
+    result = resolve_target(req["target"])(**req.get("kwargs", {}))
     result = dict(result)
     result["peak_rss_mb"] = round(self_peak_rss_mb(), 1)
     with open(argv[1], "w", encoding="utf-8") as f:

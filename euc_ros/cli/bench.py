@@ -60,7 +60,8 @@ def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=No
 
     from euc_ros.bench.common import BenchContext, environ, machine_info
 
-    ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir), realtime=realtime)
+    ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir), realtime=realtime,
+                       command="euc_ros.cli.main:main")
     if log is not None:
         ctx.log = log
     ctx.cache_dir.mkdir(parents=True, exist_ok=True)

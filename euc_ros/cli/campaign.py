@@ -6,7 +6,7 @@ import json
 import sys
 from pathlib import Path
 
-from euc_ros import campaign as cmp
+from euc_ros.cli import campaign_tasks as cmp
 from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.errors import ConfigError
 

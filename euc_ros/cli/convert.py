@@ -91,9 +91,9 @@ def _kind(path: Path) -> str:
 
 def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
     """Convert a Motive CSV into a new bag at ``out`` (atomically); return messages per topic."""
-    from euc_ros.core.ingest import capture_start_ns
     from euc_ros.core.io.bags import write_mocap_bag
     from euc_ros.core.io.motive_csv import read_motive_csv, require_rigid_bodies
+    from euc_ros.core.mocap.ingest import capture_start_ns
 
     stages = _Stages(args, ["read CSV", "write bag"])
     series = read_motive_csv(src, world_up=args.world_up, bodies=args.bodies)
@@ -129,9 +129,9 @@ def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
 
 def bag_to_csv(src: Path, out: Path, args: argparse.Namespace) -> dict:
     """Convert a bag into a new Motive CSV at ``out`` (atomically); return a summary."""
-    from euc_ros.core.ingest import format_capture_start
     from euc_ros.core.io.bags import read_mocap_bag
     from euc_ros.core.io.motive_csv import write_motive_csv
+    from euc_ros.core.mocap.ingest import format_capture_start
 
     stages = _Stages(args, ["read bag", "write CSV"])
     series = read_mocap_bag(src, prefix=args.prefix.rstrip("/"), frame_topic=args.frame_topic, bodies=args.bodies)

@@ -15,7 +15,6 @@ from __future__ import annotations
 import argparse
 import io
 import json
-import sys
 import time
 from pathlib import Path
 
@@ -183,9 +182,9 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _belongs(effect: str, param: str) -> bool:
-    from euc_ros.core.residual.candidates import LIBRARY
-
     import numpy as np
+
+    from euc_ros.core.model.effects import LIBRARY
 
     cand = LIBRARY[effect]()
     return param in cand.report(np.array([q.start for q in cand.params]))

@@ -1,7 +1,7 @@
 """`euc-ros identify SESSION.yaml RECORDING...`: identify the rider CoG height h (EUC paper, Section 4).
 
 For every recording (Motive CSV, bag directory or .mcap file) the states of the planar model are
-reconstructed from the rigid bodies (:func:`euc_ros.core.euc.kinematics.reconstruct_states`), then
+reconstructed from the rigid bodies (:func:`euc_ros.core.states.kinematics.reconstruct_states`), then
 the RMSE of ``M_d1 - M_d2`` is evaluated over a grid of h for the 3-DoF model (eqs (9)-(10)) and the
 reduced 2-DoF model (eq (13)), per recording and pooled (Fig. 8), and the optimum is refined.
 
@@ -12,7 +12,7 @@ Output: a table on stdout; with ``--json OUT`` the analysis output of the record
 Extended model (issue 5, step 5). ``--effect NAME`` (repeatable) with ``--param EFFECT.NAME=VALUE``
 (repeatable), or ``--from-residual residual.json`` (its ``effect`` and ``effect_parameters``), adds
 the effects the residual analysis selected to the 3-DoF model
-(:class:`~euc_ros.core.residual.extended.ExtendedModel`, parameters fixed at the given values). h is
+(:class:`~euc_ros.core.model.extended.ExtendedModel`, parameters fixed at the given values). h is
 then identified for that model too, on the same grid and with the same refinement, and the JSON is
 headed by it: ``"model": "3dof+ground_slope"``.
 """
@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -33,8 +32,8 @@ HELP = "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``euc-ros identify``."""
-    from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
-    from euc_ros.core.euc.skeleton_fit import COG_METHODS
+    from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+    from euc_ros.core.states.skeleton import COG_METHODS
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
@@ -101,7 +100,7 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
     ConfigError
         An unknown effect, a malformed ``--param`` or a parameter of an effect that is not added.
     """
-    from euc_ros.core.residual.extended import parse_effect_assignments
+    from euc_ros.core.model.extended import parse_effect_assignments
 
     effects: dict[str, dict[str, float]] = {}
     path = getattr(args, "from_residual", None)
@@ -135,14 +134,14 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
 
 
 def _fit_from_sse(sse_of, h_grid: np.ndarray, n: int, model: str):
-    """A :class:`~euc_ros.core.euc.identify.ModelFit` from a sum-of-squares function ``sse_of(h)``.
+    """A :class:`~euc_ros.core.identify.fit.ModelFit` from a sum-of-squares function ``sse_of(h)``.
 
     Same steps as the paper models' fits: grid minimum, bounded refinement between its neighbours,
     formal std from the curvature (``sigma^2 = 2 s^2 / SSE''``), sharpness at +-0.1 m.
     """
     from scipy.optimize import minimize_scalar
 
-    from euc_ros.core.euc.identify import SHARPNESS_STEP_M, ModelFit
+    from euc_ros.core.identify.fit import SHARPNESS_STEP_M, ModelFit
 
     sse = np.array([sse_of(float(h)) for h in h_grid])
     if n == 0 or not np.any(np.isfinite(sse)):
@@ -202,7 +201,7 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
     """Identify h for the 3-DoF model extended with ``effects``, per recording and pooled.
 
     The residual of a sample is ``M_d1 - M_d2`` of
-    :class:`~euc_ros.core.residual.extended.ExtendedModel` with the effects' parameters fixed (see
+    :class:`~euc_ros.core.model.extended.ExtendedModel` with the effects' parameters fixed (see
     :func:`_extended_inputs` for the samples). The sum of squares is evaluated at every h of the grid
     (vectorized over samples), then refined as for the paper's models.
 
@@ -213,7 +212,7 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
     per_recording : list of ModelFit
     pooled : ModelFit
     """
-    from euc_ros.core.residual.extended import ExtendedModel
+    from euc_ros.core.model.extended import ExtendedModel
 
     model = ExtendedModel(params, effects)
     inputs = _extended_inputs(states, params, effects)
@@ -250,11 +249,13 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
 
     ``args`` needs ``window_s``, ``polyorder``, and optionally ``phi_definition``, ``cog_method``, ``h_min``,
     ``h_max``, ``sliding_bias`` (default True: the soft-tissue sliding's SIMEX bias joins the interval).
-    ``simex_share``: a :class:`~euc_ros.core.euc.uncertainty.SimexShare` holding SIMEX's first replicate
+    ``simex_share``: a :class:`~euc_ros.core.identify.simex.SimexShare` holding SIMEX's first replicate
     (made by the residual's noise floor).
     """
-    from euc_ros.core.euc import uncertainty as U
-    from euc_ros.core.euc.identify import _coefficients_for
+    from euc_ros.core.identify.budget import budget
+    from euc_ros.core.identify.fit import coefficients_for
+    from euc_ros.core.identify.interval import interval, json_float, turning_rms
+    from euc_ros.core.identify.simex import eiv_bias
 
     fit = result.pooled["3dof"]
     phi_definition = getattr(args, "phi_definition", "hinge")
@@ -264,14 +265,14 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     out = {}
     bias = err = float("nan")
     if np.isfinite(fit.h_m) and all(s is not None for s in series):
-        bias, err = U.eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
+        bias, err = eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
                                phi_definition=phi_definition, with_error=True, cog_method=cog_method,
                                share=simex_share)
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
     slide = None
     if np.isfinite(fit.h_m) and all(s is not None for s in series) and getattr(args, "sliding_bias", True):
-        from euc_ros.core.euc.sliding import sliding_bias
+        from euc_ros.core.identify.sliding import sliding_bias
 
         try:
             slide = sliding_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
@@ -282,18 +283,18 @@ def uncertainty(states, session, params, result, args, tolerances, *, with_budge
     if slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0:
         total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
         total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
-    coefs = _coefficients_for(states, params, "3dof", None)
-    iv = U.interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
-                    h_bounds=h_bounds, turning_ms2=U.turning_rms(states))
+    coefs = coefficients_for(states, params, "3dof", None)
+    iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
+                    h_bounds=h_bounds, turning_ms2=turning_rms(states))
     del coefs                         # per-sample coefficients: not kept through the budget
     out.update(iv.to_json())
     if slide is not None:
-        out["uncertainty"]["eiv_bias_m"] = U._f(bias)
-        out["uncertainty"].update({k: U._f(v) for k, v in slide.items()})
+        out["uncertainty"]["eiv_bias_m"] = json_float(bias)
+        out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
     lo, hi = iv.bootstrap_ci95_m
     out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
     if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
-        b = U.budget(series, states, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
+        b = budget(series, states, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
                      phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
         out["h_range_m"] = b["h_range_m"]
         out["uncertainty_budget"] = b
@@ -373,16 +374,15 @@ def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
     from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
                                      usage_table)
-    from euc_ros.core.euc.identify import identify_h
-    from euc_ros.core.euc.model import EucParams
-    from euc_ros.core.session import load_session
-
     from euc_ros.cli.outputs import Output, check_outputs, write_output
+    from euc_ros.core.identify.fit import identify_h
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.session import load_session
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
     configure_from_args(args)
-    from euc_ros.core.euc.uncertainty import parse_tolerances
+    from euc_ros.core.identify.budget import parse_tolerances
 
     tolerances = parse_tolerances(args.tolerance)
     grid = h_grid_from_args(args)
@@ -390,7 +390,7 @@ def main(args: argparse.Namespace) -> int:
     session = load_session(args.session)
     params = EucParams.from_session(session)
     if effects:
-        from euc_ros.core.residual.extended import ExtendedModel
+        from euc_ros.core.model.extended import ExtendedModel
 
         ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
     states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
@@ -440,7 +440,7 @@ def write_plots(result, states, params, out_dir: Path, *, interval=None) -> list
     """Write ``<recording>_states`` per recording and ``rmse_curves`` (with h's 95 % ``interval`` when given)
     into ``out_dir``, in the configured formats."""
     from euc_ros.cli.plots import plot_ride_states, plot_rmse_curves
-    from euc_ros.core.euc.torque import torques
+    from euc_ros.core.model.torque import torques
 
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []

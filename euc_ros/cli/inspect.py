@@ -55,7 +55,7 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
         Where ``world_up`` came from (``"--world-up"``, ``"session"`` or ``"default"``), reported as is.
     session : Session, optional
         Adds the wheel-centre and EUC-axis evidence to the inferred up axis
-        (:func:`euc_ros.core.conventions.infer_up_axis`).
+        (:func:`euc_ros.core.mocap.conventions.infer_up_axis`).
     """
     from euc_ros.core.io.motive_csv import UP_AXIS_NOTE, read_motive_csv
 
@@ -91,7 +91,7 @@ def summarize_motive_csv(path: str | Path, *, world_up: str = "y", world_up_sour
 
 def _up_axis(series, session) -> dict:
     """The inferred up axis: ``inferred``, ``reason``, ``conclusive`` (the per-test values stay in the core)."""
-    from euc_ros.core.conventions import infer_up_axis
+    from euc_ros.core.mocap.conventions import infer_up_axis
 
     info = infer_up_axis(series, session)
     return {k: info[k] for k in ("inferred", "reason", "conclusive")}

@@ -13,22 +13,22 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
                 progress: bool = True, desc: str = "read", keep_series: bool = False, cog_method: str = "segments"):
     """Read recordings, check them against the session and reconstruct their states.
 
-    Every recording is first checked by :func:`euc_ros.core.checks.check_recording`; its warnings are
+    Every recording is first checked by :func:`euc_ros.core.mocap.checks.check_recording`; its warnings are
     kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). Names are made unique. With
     ``cog_method="skeleton"`` the chain's link vectors are estimated once from all recordings (one
     session) before any state is reconstructed.
     """
     from tqdm import tqdm
 
-    from euc_ros.core.checks import check_recording
-    from euc_ros.core.euc.kinematics import reconstruct_states
     from euc_ros.core.io.recordings import load_recording, recording_kind
+    from euc_ros.core.mocap.checks import check_recording
+    from euc_ros.core.states.kinematics import reconstruct_states
 
     for path in paths:
         recording_kind(path)  # fail early, before any long read
     skeleton = None
     if cog_method == "skeleton":
-        from euc_ros.core.euc.skeleton_fit import SkeletonModel
+        from euc_ros.core.states.skeleton import SkeletonModel
 
         skeleton = SkeletonModel.estimate([load_recording(p, session.world_up) for p in paths], session)
     states = []

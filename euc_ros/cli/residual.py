@@ -11,24 +11,23 @@ model, which ``identify --from-residual`` and the ``torque_estimator`` node (``e
 from __future__ import annotations
 
 import argparse
-import math
 import json
+import math
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from euc_ros.cli.plots import add_figure_arguments, configure_from_args
-from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.errors import ConfigError
 
 HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the error before and after"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
-    from euc_ros.core.residual.analysis import (DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER,
-                                                RESIDUAL_WINDOW_S)
-    from euc_ros.core.residual.candidates import LIBRARY
+    from euc_ros.core.model.effects import LIBRARY
+    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
@@ -62,15 +61,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
-    from euc_ros.core.euc.model import EucParams
-    from euc_ros.core.residual.analysis import analyze, make_noise_floor
-    from euc_ros.core.residual.candidates import make_candidates
     from euc_ros.cli.identify import format_usage
     from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
                                      usage_table)
-    from euc_ros.core.session import load_session
-
     from euc_ros.cli.outputs import Output, check_outputs, write_output
+    from euc_ros.core.model.effects import make_candidates
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.residual.analysis import analyze, make_noise_floor
+    from euc_ros.core.session import load_session
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
                    Output("--report", args.report)], [args.session, *args.recordings])
@@ -87,7 +85,7 @@ def main(args: argparse.Namespace) -> int:
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     series = [st.meta.get("series") for st in states]
     # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
-    from euc_ros.core.euc.uncertainty import SimexShare
+    from euc_ros.core.identify.simex import SimexShare
 
     simex = SimexShare()
     noise_of = make_noise_floor(series, states, session, params, share=simex) \
@@ -98,8 +96,8 @@ def main(args: argparse.Namespace) -> int:
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
     from euc_ros.cli.identify import uncertainty
-    from euc_ros.core.euc.identify import identify_h
-    from euc_ros.core.euc.uncertainty import DEFAULT_TOLERANCES
+    from euc_ros.core.identify.budget import DEFAULT_TOLERANCES
+    from euc_ros.core.identify.fit import identify_h
 
     base = uncertainty(states, session, params, identify_h(states, params, models=("3dof",)), args,
                        DEFAULT_TOLERANCES, with_budget=False, simex_share=simex)

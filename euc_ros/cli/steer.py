@@ -17,38 +17,25 @@ the final yaw error, max |u| and max tilt (printed, and as JSON with ``--json``)
 Exit codes: 0 the maneuver ran to the end; 1 the state left the model's domain, or a process
 failed or timed out; 2 a user error (e.g. a speed at which the gains are ill-conditioned).
 
-:func:`run_steer` is the same thing as a function (the ``euc-ros demo`` hook).
+:func:`euc_ros.lockstep.run_steer` is the same thing as a function.
 """
 from __future__ import annotations
 
 import argparse
-import io
 import json
 import math
 import sys
-import time
 from pathlib import Path
 
-import numpy as np
-
-from euc_ros.core.errors import ConfigError, EucError, InputError
+from euc_ros.cli.unicycle import add_model_args, params_from_args, plot_run
+from euc_ros.core.errors import ConfigError
+from euc_ros.lockstep import DEFAULT_TIMEOUT_S, SteerFailed, run_steer
 
 HELP = "run a steering maneuver in closed loop over topics (simulator, controller, recorder as processes)"
-
-#: Topics the recorder takes.
-STEER_TOPICS = ("unicycle/state", "unicycle/command", "unicycle/pose")
-#: Default wall-clock limit of a run [s].
-DEFAULT_TIMEOUT_S = 120.0
-
-
-class SteerFailed(EucError):
-    """A process of the closed loop failed or the run timed out (exit code 1, not a user error)."""
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros steer``."""
-    from euc_ros.cli.unicycle import _add_model_args
-
     parser.add_argument("--maneuver", required=True, choices=("lane_change", "turn"))
     parser.add_argument("--speed", required=True, type=float, metavar="M/S",
                         help="design speed; the unicycle starts in straight rolling at this speed")
@@ -65,13 +52,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help=f"wall-clock limit of the run (default {DEFAULT_TIMEOUT_S:g})")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing bag DIR/bag")
     parser.add_argument("--verbose", action="store_true", help="stream the nodes' logs")
-    _add_model_args(parser)
+    add_model_args(parser)
 
 
 def main(args: argparse.Namespace) -> int:
     """Run the maneuver over topics, print the report; 0 ok, 1 domain stop or failure."""
-    from euc_ros.cli.unicycle import _params
-
     from euc_ros.cli.outputs import Output, check_outputs
 
     check_outputs([Output("--out", args.out, "dir"), Output("--json", args.json)])
@@ -80,8 +65,9 @@ def main(args: argparse.Namespace) -> int:
         target = math.radians(target)
     try:
         report = run_steer(args.maneuver, args.speed, args.out, target=target, pole=args.pole, dt=args.dt,
-                           duration=args.duration, params=_params(args), timeout=args.timeout,
-                           stream=sys.stdout if args.verbose else None, overwrite=args.overwrite)
+                           duration=args.duration, params=params_from_args(args), timeout=args.timeout,
+                           stream=sys.stdout if args.verbose else None, overwrite=args.overwrite,
+                           plot=plot_run)
     except SteerFailed as exc:
         print(f"euc-ros steer: error: {exc}", file=sys.stderr)
         return 1
@@ -112,188 +98,3 @@ def format_report(report: dict) -> str:
     ])
 
 
-def steer_result_from_bag(bag, dt: float):
-    """The closed-loop run recorded in ``bag`` as a :class:`~euc_ros.core.unicycle.simulate.SimulationResult`.
-
-    States are taken once per step (a resent state is a duplicate), in step order. ``u[k]`` is the
-    input applied over step ``k`` (the ``u`` field of state ``k + 1``); ``y_des[k]`` is the
-    reference of the command answering state ``k``.
-
-    Returns
-    -------
-    result : SimulationResult
-    log_ns : numpy.ndarray
-        Receive times [ns] of the states at the recorder (wall clock).
-
-    Raises
-    ------
-    InputError
-        The bag holds no ``unicycle/state`` messages, or the steps are not contiguous from 0.
-    """
-    from euc_ros.core.io.bags import read_bag
-    from euc_ros.core.unicycle.simulate import SimulationResult
-    from euc_ros.nodes.unicycle_sim import STATE_FIELDS
-
-    states: dict[int, tuple] = {}
-    refs: dict[int, list] = {}
-    for topic, _, log_ns, msg in read_bag(bag, topics=["/unicycle/state", "/unicycle/command"]):
-        if topic == "/unicycle/state":
-            states.setdefault(int(msg.step), (log_ns, msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
-                                              [getattr(msg, f) for f in STATE_FIELDS], msg.u, msg.status))
-        else:
-            refs.setdefault(int(msg.step), list(msg.reference))
-    if not states:
-        raise InputError("no /unicycle/state messages", path=bag)
-    steps = np.array(sorted(states))
-    if steps[0] != 0 or np.any(np.diff(steps) != 1):
-        raise InputError(f"state steps are not contiguous from 0 (have {len(steps)}, from {steps[0]} to "
-                         f"{steps[-1]}): messages were lost", path=bag)
-    rows = [states[k] for k in steps]
-    log_ns = np.array([r[0] for r in rows], dtype=np.int64)
-    t = np.array([r[1] for r in rows], dtype=np.int64) / 1e9
-    x = np.array([r[2] for r in rows], dtype=float)
-    u = np.array([r[3] for r in rows[1:]], dtype=float)
-    y_des = np.array([refs.get(int(k), []) for k in steps[:-1]], dtype=object)
-    width = max((len(r) for r in y_des), default=0)
-    y = np.full((len(y_des), width), np.nan)
-    for i, r in enumerate(y_des):
-        y[i, :len(r)] = r
-    return SimulationResult(t, x, u, y, str(rows[-1][4]), float(dt)), log_ns
-
-
-def _remove_bag(bag: Path) -> None:
-    """Delete a rosbag2 directory, refusing anything that does not look like one."""
-    import shutil
-
-    entries = list(bag.iterdir()) if bag.is_dir() else []
-    if not bag.is_dir() or any(not (e.is_file() and (e.suffix == ".mcap" or e.name == "metadata.yaml"))
-                               for e in entries):
-        raise ConfigError("exists and is not a bag directory (metadata.yaml and .mcap files only); not replacing it",
-                          path=bag)
-    shutil.rmtree(bag)
-
-
-def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = None, pole: float = -8.0,
-              dt: float = 0.01, duration: float = 10.0, params=None, timeout: float = DEFAULT_TIMEOUT_S,
-              stream=None, overwrite: bool = False) -> dict:
-    """Run one maneuver over topics (recorder, controller, simulator as processes) and report it.
-
-    Parameters
-    ----------
-    maneuver : {'lane_change', 'turn'}
-    speed : float
-        Design and initial speed [m/s].
-    out_dir : str or Path
-        Output directory: ``bag/`` (must not exist) and ``steer_<maneuver>_<speed>.png``.
-    target : float, optional
-        Lane change: final ``y_G`` [m]; turn: final yaw [rad] (defaults as in
-        :class:`~euc_ros.core.unicycle.steering.SteeringController`).
-    pole, dt, duration : float
-        Closed-loop root [1/s], control period [s], simulated time [s].
-    params : UnicycleParams, optional
-        Model (Table I by default), used by the simulator and for the design.
-    timeout : float
-        Wall-clock limit [s].
-    stream : file, optional
-        Where the nodes' logs go (default: kept, and shown in the error of a failed run).
-    overwrite : bool
-        Replace an existing ``DIR/bag`` (only a directory that holds nothing but a bag's
-        ``metadata.yaml`` and ``.mcap`` files).
-
-    Returns
-    -------
-    dict
-        The report (keys ``maneuver``, ``speed_m_per_s``, ``final_lateral_error_m``,
-        ``final_yaw_error_rad``, ``max_abs_u_n``, ``max_tilt_rad``, ``max_tilt_deg``, ``status``,
-        ``gains``, ``closed_loop_roots``, ``sim_time_s``, ``wall_time_s`` and more; see
-        ``docs/steering.md``).
-
-    Raises
-    ------
-    ConfigError
-        Bad maneuver, speed (e.g. where the gains are ill-conditioned), pole, target, dt or duration,
-        or an existing ``DIR/bag``.
-    SteerFailed
-        A process failed or the run did not end within ``timeout``.
-    """
-    from euc_ros.cli.unicycle import plot_run
-    from euc_ros.core.unicycle.dynamics import UnicycleParams
-    from euc_ros.core.unicycle.linearize import straight_rolling_state
-    from euc_ros.core.unicycle.simulate import maneuver_metrics, simulate
-    from euc_ros.core.unicycle.steering import SteeringController
-    from euc_ros.launch import Launcher, NodeSpec
-
-    params = UnicycleParams() if params is None else params
-    ctrl = SteeringController(params, maneuver, speed, pole, target=target)   # validates; the gains for the report
-    if not (math.isfinite(dt) and 1e-4 <= dt <= 1.0):
-        raise ConfigError(f"must be a control period in [1e-4, 1] s, got {dt!r}", key="dt")
-    if not (math.isfinite(duration) and dt <= duration <= 1e5):
-        raise ConfigError(f"must be a simulated time in [dt, 1e5] s, got {duration!r}", key="duration")
-    out = Path(out_dir)
-    bag = out / "bag"
-    if bag.exists():
-        if not overwrite:
-            raise ConfigError("already exists; remove it, choose another --out or pass --overwrite", path=bag)
-        _remove_bag(bag)
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise ConfigError(f"cannot create: {exc.strerror}", path=out) from None
-
-    model = {"wheel_mass": params.m, "point_mass": params.m0, "radius": params.R, "gravity": params.g}
-    ctrl_params = {"maneuver": ctrl.maneuver, "speed": ctrl.speed, "pole": float(pole), "wait_observers": 1,
-                   "maneuver_start": ctrl.start, "maneuver_duration": ctrl.duration, **model}
-    ctrl_params["lane_offset" if ctrl.maneuver == "lane_change" else "turn_angle"] = ctrl.target
-    specs = [
-        NodeSpec("recorder", parameters={"output": str(bag), "topics": list(STEER_TOPICS)}, required=False),
-        NodeSpec("steering_controller", parameters=ctrl_params),
-        NodeSpec("unicycle_sim", parameters={"mode": "lockstep", "speed": ctrl.speed, "dt": float(dt),
-                                             "duration": float(duration), "wait_observers": 1, **model}),
-    ]
-    log = io.StringIO() if stream is None else stream
-    t0 = time.monotonic()
-    with Launcher(specs, stream=log) as launcher:
-        finished = launcher.wait(timeout=timeout)
-    wall = time.monotonic() - t0
-    codes = launcher.exit_codes
-
-    def _fail(why: str) -> SteerFailed:
-        tail = "" if stream is not None else " | ".join(log.getvalue().strip().splitlines()[-6:])
-        return SteerFailed(why + (f"; last log lines: {tail}" if tail else ""))
-
-    if not finished or "unicycle_sim" not in codes or launcher.failed != "unicycle_sim":
-        if launcher.failed and launcher.failed != "unicycle_sim":
-            raise _fail(f"{launcher.failed} exited with code {codes.get(launcher.failed)} before the simulation ended")
-        raise _fail(f"the simulation did not end within {timeout:g} s of wall time")
-    if codes["unicycle_sim"] not in (0, 1):
-        raise _fail(f"unicycle_sim exited with code {codes['unicycle_sim']}")
-    if not bag.exists():
-        raise _fail("the recorder wrote no bag")
-
-    try:
-        result, log_ns = steer_result_from_bag(bag, dt)
-    except InputError as exc:
-        raise _fail(f"the recorded run is unusable: {exc}") from None
-    met = maneuver_metrics(result, ctrl)
-    # wall time of the stepping, from the first answered state on (start-up waits for DDS discovery)
-    stepping_s = max((log_ns[-1] - log_ns[min(1, len(log_ns) - 1)]) / 1e9, 1e-9) * len(log_ns) / max(len(log_ns) - 1, 1)
-    # the same run in process (a check that the topics changed nothing)
-    ref = simulate(params, ctrl, straight_rolling_state(params, ctrl.speed), duration, dt)
-    n = min(len(ref.x), len(result.x))
-    diff = float(np.hypot(*(result.x[n - 1, 8:10] - ref.x[n - 1, 8:10])))
-    png = out / f"steer_{ctrl.maneuver}_{ctrl.speed:g}.png"
-    plot_run(result, ctrl, png)
-    return {
-        "maneuver": ctrl.maneuver, "speed_m_per_s": ctrl.speed, "target": ctrl.target,
-        "target_unit": "m" if ctrl.maneuver == "lane_change" else "rad",
-        "final_lateral_error_m": met.final_lateral_error, "final_yaw_error_rad": met.final_yaw_error,
-        "final_yaw_error_deg": math.degrees(met.final_yaw_error), "max_abs_u_n": met.max_abs_u,
-        "max_tilt_rad": met.max_abs_tilt, "max_tilt_deg": math.degrees(met.max_abs_tilt), "status": met.status,
-        "gains": {name: float(k) for name, k in zip(ctrl.gains.names, ctrl.gains.K)},
-        "gain_units": ctrl.gains.as_dict()["units"],
-        "closed_loop_roots": [[float(z.real), float(z.imag)] for z in ctrl.gains.closed_loop_roots],
-        "pole": ctrl.gains.pole, "dt_s": float(dt), "steps": int(len(result.x) - 1), "sim_time_s": met.t_end,
-        "wall_time_s": wall, "stepping_wall_time_s": stepping_s, "real_time_factor": met.t_end / stepping_s,
-        "final_x_g_m": float(result.x[-1, 8]), "final_y_g_m": float(result.x[-1, 9]),
-        "in_process_difference_m": diff, "exit_codes": dict(codes), "bag": str(bag), "png": str(png),
-    }

@@ -32,7 +32,7 @@ MAP_TILT_DEG = 85.0
 MAP_YAW_RATE = 15.0
 
 
-def _add_model_args(p: argparse.ArgumentParser) -> None:
+def add_model_args(p: argparse.ArgumentParser) -> None:
     from euc_ros.core.unicycle.dynamics import UnicycleParams
 
     d = UnicycleParams()
@@ -44,7 +44,7 @@ def _add_model_args(p: argparse.ArgumentParser) -> None:
     g.add_argument("--gravity", type=float, default=d.g, metavar="M/S2", help=f"gravity g (default {d.g})")
 
 
-def _params(args: argparse.Namespace):
+def params_from_args(args: argparse.Namespace):
     from euc_ros.core.unicycle.dynamics import UnicycleParams
 
     return UnicycleParams(m=args.wheel_mass, m0=args.point_mass, R=args.radius, g=args.gravity)
@@ -59,18 +59,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--speed", required=True, type=float, metavar="M/S", help="design speed v = R phi_dot*")
     p.add_argument("--pole", type=float, default=-8.0, metavar="1/S", help="closed-loop root (default -8)")
     p.add_argument("--json", type=Path, metavar="OUT", help="write the gains and closed-loop roots as JSON")
-    _add_model_args(p)
+    add_model_args(p)
 
     p = sub.add_parser("steady-states", help="critical pitch rates, speeds and tilt angle; controllability ranks")
     p.add_argument("--speed", type=float, nargs="+", default=[1.0, 5.0], metavar="M/S",
                    help="speeds for the controllability ranks (default 1 5)")
     p.add_argument("--json", type=Path, metavar="OUT", help="write the values as JSON")
-    _add_model_args(p)
+    add_model_args(p)
 
     p = sub.add_parser("stability", help="stability maps like Figs 3, 5 and 6 of the paper (PNG)")
     p.add_argument("--out", type=Path, required=True, metavar="DIR", help="directory for the PNG files")
     p.add_argument("--grid", type=int, default=160, metavar="N", help="grid points per axis (default 160)")
-    _add_model_args(p)
+    add_model_args(p)
 
     p = sub.add_parser("simulate", help="run a maneuver in closed loop on the nonlinear model (in-process)")
     p.add_argument("--maneuver", required=True, choices=("lane_change", "turn"))
@@ -84,7 +84,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     p.add_argument("--max-tilt", type=float, default=80.0, metavar="DEG", help="stop at this |tilt| (default 80)")
     p.add_argument("--json", type=Path, metavar="OUT", help="write the metrics as JSON")
     p.add_argument("--plot", type=Path, metavar="PNG", help="plot the run (like Fig. 8)")
-    _add_model_args(p)
+    add_model_args(p)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -110,7 +110,7 @@ def _write_json(path: Path | None, data: dict) -> None:
 def _gains(args: argparse.Namespace) -> int:
     from euc_ros.core.unicycle.steering import steering_gains
 
-    g = steering_gains(_params(args), args.maneuver, args.speed, args.pole)
+    g = steering_gains(params_from_args(args), args.maneuver, args.speed, args.pole)
     data = g.as_dict()
     print(f"{g.maneuver} at {g.speed:g} m/s, every non-zero closed-loop root at {g.pole:g} 1/s")
     for name, k in zip(g.names, g.K):
@@ -151,7 +151,7 @@ def steady_state_summary(params, speeds=(1.0, 5.0)) -> dict:
 
 
 def _steady_states(args: argparse.Namespace) -> int:
-    params = _params(args)
+    params = params_from_args(args)
     s = steady_state_summary(params, args.speed)
     print(f"wheel:    critical pitch rate sqrt(g/3R) = {s['wheel_critical_pitch_rate']:.4f} rad/s "
           f"({s['wheel_critical_speed']:.4f} m/s)")
@@ -302,7 +302,7 @@ def stability_figures(params, out_dir: Path, grid: int = 160) -> list[Path]:
 
 def _stability(args: argparse.Namespace) -> int:
     try:
-        paths = stability_figures(_params(args), args.out, args.grid)
+        paths = stability_figures(params_from_args(args), args.out, args.grid)
     except OSError as exc:
         raise ConfigError(f"cannot write figures: {exc.strerror}", path=args.out) from None
     for p in paths:
@@ -343,7 +343,7 @@ def _simulate(args: argparse.Namespace) -> int:
     from euc_ros.core.unicycle.simulate import maneuver_metrics, simulate
     from euc_ros.core.unicycle.steering import SteeringController
 
-    params = _params(args)
+    params = params_from_args(args)
     target = args.target
     if target is not None and args.maneuver == "turn":
         target = math.radians(target)

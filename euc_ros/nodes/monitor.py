@@ -1,7 +1,7 @@
 """Node ``monitor``: the pipeline's health for a rider-assist or lab operator, on ``/diagnostics``.
 
 Every ``period`` seconds it publishes one ``diagnostic_msgs/DiagnosticArray`` with five statuses
-(rules and levels in :mod:`euc_ros.core.monitoring`):
+(rules and levels in :mod:`euc_ros.core.online.monitoring`):
 
 * ``monitor: mocap``: arrival rate against ``expected_rate_hz``, dropped frames (gaps in the frame
   numbering) and bodies untracked over the last ``rate_window_s``;
@@ -32,7 +32,7 @@ from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
-from euc_ros.core import monitoring as mon
+from euc_ros.core.online import monitoring as mon
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.drain import SubscriptionDrain

@@ -9,7 +9,7 @@ import textwrap
 
 import pytest
 
-from euc_ros import campaign as cmp
+from euc_ros.cli import campaign_tasks as cmp
 
 distributed = pytest.importorskip("distributed", reason="dask.distributed (requirements.txt) runs campaigns")
 pytestmark = [pytest.mark.slow]
@@ -21,7 +21,7 @@ SIM = {"maneuver": "deceleration", "runs": 1, "duration_s": 4.0, "h": 0.61, "eff
 CLUSTER_RUN = textwrap.dedent("""
     import json, os, signal, sys
     from distributed import Client, LocalCluster
-    from euc_ros import campaign as cmp
+    from euc_ros.cli import campaign_tasks as cmp
     tasks = [cmp.Task(**t) for t in json.loads(sys.stdin.read())]
     killed = []
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \\

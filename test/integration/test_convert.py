@@ -18,7 +18,7 @@ import pytest
 from euc_ros.cli.main import main
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 
 RATE = 120.0
 START_TEXT = "2020-06-16 07.51.41.245 PM"

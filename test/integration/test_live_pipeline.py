@@ -26,13 +26,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from euc_ros.core.euc.estimators import RiderStateEstimator
-from euc_ros.core.euc.kinematics import reconstruct_states
-from euc_ros.core.euc.model import EucParams
-from euc_ros.core.euc.torque import torques, torques_2dof
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques, torques_2dof
+from euc_ros.core.online.estimators import RiderStateEstimator
 from euc_ros.core.session import load_session
+from euc_ros.core.states.kinematics import reconstruct_states
 from euc_ros.launch import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]

@@ -133,9 +133,9 @@ def test_controller_process_exits_with_one_line_and_code_2(ros_domain, tmp_path,
 def test_bag_reader_dedupes_resent_states_and_rejects_lost_steps(tmp_path):
     from rclpy.serialization import serialize_message
 
-    from euc_ros.cli.steer import steer_result_from_bag
     from euc_ros.core.errors import InputError
     from euc_ros.core.io.bags import BagWriter
+    from euc_ros.lockstep import steer_result_from_bag
     from euc_ros.nodes.unicycle_sim import state_to_msg
 
     def write(path, steps):

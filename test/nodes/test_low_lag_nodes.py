@@ -5,7 +5,7 @@ speed (test/unit/euc/test_low_lag_monitor.py does the same with the core classes
 one at a time through the graph (each drained before the next, as in test_rider_state.py) and the
 monitor's rules evaluated after every frame, so the flag's time is the newest frame's capture time.
 The monitor's threshold comes from a level calibration ride through the core chain
-(:func:`euc_ros.core.euc.alarm.rmse_threshold`). Checked: the states are 0.1 s late and say so
+(:func:`euc_ros.core.online.alarm.rmse_threshold`). Checked: the states are 0.1 s late and say so
 (``filter_lag``, diagnostics), the node's states equal the core estimator's to the last bits, no flag
 before the onset, a flag within 1 s after it.
 """
@@ -21,10 +21,10 @@ pytest.importorskip("rclpy")
 
 from rclpy.parameter import Parameter  # noqa: E402
 
-from euc_ros.core.euc.alarm import rmse_threshold  # noqa: E402
-from euc_ros.core.euc.estimators import RiderStateEstimator, TorqueEstimator  # noqa: E402
-from euc_ros.core.euc.model import EucParams  # noqa: E402
-from euc_ros.core.monitoring import OK, WARN  # noqa: E402
+from euc_ros.core.model.terms import EucParams  # noqa: E402
+from euc_ros.core.online.alarm import rmse_threshold  # noqa: E402
+from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator  # noqa: E402
+from euc_ros.core.online.monitoring import OK, WARN  # noqa: E402
 from euc_ros.core.ridesim.floors import FloorProfile  # noqa: E402
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402

@@ -29,7 +29,7 @@ from rclpy.qos import qos_profile_sensor_data  # noqa: E402
 from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from euc_ros.core.errors import ConfigError  # noqa: E402
-from euc_ros.core.mocap import MocapSeries  # noqa: E402
+from euc_ros.core.mocap.series import MocapSeries  # noqa: E402
 from euc_ros.nodes import interfaces as itf  # noqa: E402
 from euc_ros.nodes.mocap_ingest import MocapIngest  # noqa: E402
 

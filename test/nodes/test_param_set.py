@@ -52,7 +52,7 @@ def test_a_live_threshold_is_used_at_the_next_report_and_others_are_refused_with
         [no] = node.set_parameters([Parameter("warn_fraction", value=1.5)])      # outside [0, 1]
         assert not no.successful and node.config["warn_fraction"] == 0.8
         # the report uses the new threshold: a residual RMSE of 3 N m is an ERROR (> 2 x 2.5 is not, > 2.5 WARN)
-        from euc_ros.core import monitoring as mon
+        from euc_ros.core.online import monitoring as mon
 
         h = mon.consistency_health(3.0, node.config["rmse_threshold_nm"], residual_nm=0.0, h_online_m=np.nan)
         assert h.level == mon.WARN

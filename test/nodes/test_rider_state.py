@@ -26,10 +26,10 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.core.errors import ConfigError, InputError  # noqa: E402
-from euc_ros.core.euc.estimators import RiderStateEstimator  # noqa: E402
-from euc_ros.core.euc.kinematics import reconstruct_states  # noqa: E402
-from euc_ros.core.ingest import Frame  # noqa: E402
+from euc_ros.core.mocap.ingest import Frame  # noqa: E402
+from euc_ros.core.online.estimators import RiderStateEstimator  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402
+from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
 from euc_ros.nodes import convert  # noqa: E402
 from euc_ros.nodes import interfaces as itf  # noqa: E402
 from euc_ros.nodes.rider_state import RiderStateNode  # noqa: E402
@@ -172,7 +172,7 @@ class Pipe:
 def ride(tmp_path_factory):
     """A 4 s deceleration run of the ride simulator (Z-up mocap) with a lost EUC, a lost rider segment
     (short and long) and dropped frames; the session written to a file."""
-    from euc_ros.core.mocap import MocapSeries
+    from euc_ros.core.mocap.series import MocapSeries
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 
     result = simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=8, duration_s=4.0))

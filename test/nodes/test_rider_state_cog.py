@@ -14,7 +14,7 @@ pytest.importorskip("rclpy")
 
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from euc_ros.core.euc.estimators import RiderStateEstimator  # noqa: E402
+from euc_ros.core.online.estimators import RiderStateEstimator  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -22,8 +22,8 @@ from euc_msgs.msg import RiderState  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.core.errors import ConfigError  # noqa: E402
-from euc_ros.core.euc.estimators import TorqueEstimator  # noqa: E402
-from euc_ros.core.euc.model import EucParams  # noqa: E402
+from euc_ros.core.model.terms import EucParams  # noqa: E402
+from euc_ros.core.online.estimators import TorqueEstimator  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode  # noqa: E402
 

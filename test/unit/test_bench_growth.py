@@ -65,7 +65,7 @@ def test_derive_csv_repeats_with_continuous_frames_and_blank_seams(tmp_path):
 
 
 def test_series_nbytes_counts_every_array():
-    from euc_ros.core.mocap import MocapSeries
+    from euc_ros.core.mocap.series import MocapSeries
 
     b, n = 2, 10
     s = MocapSeries(t=np.zeros(n), frame=np.zeros(n, np.int64), bodies=["a", "b"], position=np.zeros((b, n, 3)),

@@ -3,7 +3,7 @@
     python docs/figures/session/pivots.py
 
 Side view (x forward, z up) of a rider standing on an EUC, with segment heights from
-euc_ros.core.anthropometry (a 1.75 m male) and the EUC paper's geometry (R = 0.2 m, l0, h0).
+euc_ros.core.model.anthropometry (a 1.75 m male) and the EUC paper's geometry (R = 0.2 m, l0, h0).
 """
 from __future__ import annotations
 
@@ -14,7 +14,7 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from euc_ros.core.anthropometry import SHOULDER_BELOW_C7, STATURE_M, _ankle_height, _lengths  # noqa: E402
+from euc_ros.core.model.anthropometry import SHOULDER_BELOW_C7, STATURE_M, _ankle_height, _lengths  # noqa: E402
 
 H, R, L0, H0 = 1.75, 0.2, 0.05, 0.075
 L = _lengths(H, "male")

@@ -53,8 +53,8 @@ from math import factorial
 import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.filters.derivatives import (DEFAULT_MAX_GAP, Derivatives, StreamingSavgol, _grid_positions,
-                                              filter_stretches)
+from euc_ros.core.filters.derivatives import (DEFAULT_MAX_GAP, Derivatives, StreamingSavgol, filter_stretches,
+                                              grid_positions)
 
 #: Default model order (number of states per coordinate): 4 is a constant-jerk model.
 DEFAULT_ORDER = 4
@@ -63,13 +63,13 @@ DEFAULT_TOL = 1e-4
 #: Measured smoothing time [s] per lag [s] on simulated rides with the paper's noise (0.2 mm, 0.5 deg),
 #: order 4, the same filter on every coordinate: the smoothing time (of 0.04, 0.05, 0.065, 0.08, 0.1,
 #: 0.13 s) that minimised the RMS error of M_d1 and M_d2 against the simulator's true M_d on the
-#: training seeds (tools/lag_curve.py, docs/low_lag.md). Linear between the tabulated lags.
+#: training seeds (studies/lag_curve.py, docs/low_lag.md). Linear between the tabulated lags.
 SMOOTHING_TABLE = ((0.0, 0.065), (0.3, 0.065), (0.4, 0.08), (0.6, 0.08))
 #: Derivative estimators of the state reconstruction: centred (or off-centre) Savitzky-Golay, or the
 #: Kalman fixed-lag smoother of this module.
 ESTIMATORS = ("savgol", "kalman")
-#: State estimators of :class:`~euc_ros.core.euc.estimators.RiderStateEstimator` (and the ``rider_state``
-#: node): the per-coordinate filters above, or ``split`` (:mod:`euc_ros.core.euc.split_lag`: pieces
+#: State estimators of :class:`~euc_ros.core.online.estimators.RiderStateEstimator` (and the ``rider_state``
+#: node): the per-coordinate filters above, or ``split`` (:mod:`euc_ros.core.states.split_lag`: pieces
 #: split by noise source, filtered per group; it needs the poses, so it has no :func:`streaming_filter`).
 STATE_ESTIMATORS = ESTIMATORS + ("split",)
 #: Lag [s] of the shipped low-lag mode (``estimator="kalman"`` without ``lag_s``).
@@ -267,7 +267,7 @@ def kalman_derivatives(t_or_dt, y, *, lag_s: float, smoothing_s: float | None = 
         ``lag`` samples of every stretch, stretches shorter than ``window``, unfilled missing
         samples. ``window`` is the filter's memory [samples], ``lag`` its delay [frames].
     """
-    dt = _grid_positions(t_or_dt, np.shape(y)[0], frame)[0] if np.ndim(t_or_dt) else float(t_or_dt)
+    dt = grid_positions(t_or_dt, np.shape(y)[0], frame)[0] if np.ndim(t_or_dt) else float(t_or_dt)
     if not (np.isfinite(dt) and dt > 0):
         return fir_derivatives(t_or_dt, y, np.zeros((3, 1)), 0, max_gap=max_gap, frame=frame)
     lag = lag_frames(lag_s, dt)
@@ -304,7 +304,7 @@ def fir_derivatives(t_or_dt, y, weights: np.ndarray, lag: int, *, max_gap: int =
     w = np.asarray(weights, dtype=float)
     if w.ndim != 2 or w.shape[0] != 3 or not 0 <= lag < w.shape[1]:
         raise ConfigError(f"weights must have shape (3, window > lag), got {w.shape} with lag {lag}", key="weights")
-    dt, k = _grid_positions(t_or_dt, n, frame)
+    dt, k = grid_positions(t_or_dt, n, frame)
     out = [np.full(y.shape, np.nan) for _ in range(3)]
     filled = np.zeros(n, dtype=bool)
     if n < 2 or not np.isfinite(dt):

@@ -219,7 +219,7 @@ class Derivatives:
         return iter((self.y, self.y_dot, self.y_ddot))
 
 
-def _grid_positions(t_or_dt, n: int, frame) -> tuple[float, np.ndarray]:
+def grid_positions(t_or_dt, n: int, frame) -> tuple[float, np.ndarray]:
     """Return (dt [s], integer grid position of every sample)."""
     t_arr = np.asarray(t_or_dt, dtype=float)
     if frame is not None:
@@ -316,7 +316,7 @@ def savgol_derivatives(t_or_dt, y, *, window_s: float | None = None, window: int
     n = y.shape[0]
     if not isinstance(max_gap, (int, np.integer)) or max_gap < 0:
         raise ConfigError(f"max_gap must be an integer >= 0, got {max_gap!r}", key="max_gap")
-    dt, k = _grid_positions(t_or_dt, n, frame)
+    dt, k = grid_positions(t_or_dt, n, frame)
     out = [np.full(y.shape, np.nan) for _ in range(3)]
     filled = np.zeros(n, dtype=bool)
     if n < 2 or not np.isfinite(dt):

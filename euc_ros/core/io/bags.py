@@ -13,7 +13,7 @@ Contents
   summary, every record of every chunk, counts, decoding with mcap-ros2-support).
 * :func:`recover_bag` - rebuild a valid bag from the complete chunks of a truncated MCAP.
 * :func:`inspect_bag` - what a bag holds, with the check's problems.
-* :func:`read_mocap_bag`, :func:`write_mocap_bag` - :class:`~euc_ros.core.mocap.MocapSeries` from/to
+* :func:`read_mocap_bag`, :func:`write_mocap_bag` - :class:`~euc_ros.core.mocap.series.MocapSeries` from/to
   ``euc_msgs/msg/MocapFrame`` and/or one ``geometry_msgs/msg/PoseStamped`` per body (spec section 2).
 
 See ``docs/bags.md``.
@@ -34,7 +34,7 @@ import numpy as np
 
 from euc_ros.core.errors import InputError
 from euc_ros.core.io.msgdefs import make_typestore
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 
 log = logging.getLogger(__name__)
 
@@ -1188,7 +1188,7 @@ def _custom_data(bag: Path, info: dict | None = None) -> dict:
 
 def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None = None, bodies=None,
                    merge_tolerance: float = 0.25) -> MocapSeries:
-    """Read mocap from a bag into a :class:`~euc_ros.core.mocap.MocapSeries`.
+    """Read mocap from a bag into a :class:`~euc_ros.core.mocap.series.MocapSeries`.
 
     Source, in order: ``frame_topic`` (``euc_msgs/msg/MocapFrame``); else the first MocapFrame topic
     of the bag; else one ``geometry_msgs/msg/PoseStamped`` per body on ``<prefix>/<Body>/pose``
@@ -1332,7 +1332,7 @@ def _series_from_rigid_bodies(reader, conn, bag: Path) -> MocapSeries:
 
     Bodies are taken in order of first appearance; a body missing from a message, or with a pose that
     is not finite with a unit quaternion, is a gap (NaN, untracked)."""
-    from euc_ros.core.ingest import frame_from_named_poses
+    from euc_ros.core.mocap.ingest import frame_from_named_poses
 
     msgs = [reader.deserialize(data, conn.msgtype) for _, _, data in reader.messages(connections=[conn])]
     if not msgs:

@@ -1,7 +1,7 @@
 """OptiTrack Motive CSV exports: a fast, strict-where-broken, lenient-where-real reader and a writer.
 
 The reader turns a Motive "Export Tracking Data" CSV (format 1.21, 1.22, 1.23; recording-format spec,
-section 1) into a :class:`~euc_ros.core.mocap.MocapSeries` in the REP-103 Z-up world, SI units.
+section 1) into a :class:`~euc_ros.core.mocap.series.MocapSeries` in the REP-103 Z-up world, SI units.
 It is ROS-free and used by the mocap node and by every offline command.
 
 Layout of a file (1.23; in 1.21/1.22 the label cells ``Type``, ``Name``, ``ID`` are empty)::
@@ -57,7 +57,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import (
     z_up_to_y_up_position,
     z_up_to_y_up_quat,

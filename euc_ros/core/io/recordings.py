@@ -1,4 +1,4 @@
-"""Open a recording of any supported kind as a :class:`~euc_ros.core.mocap.MocapSeries` (Z-up, metres).
+"""Open a recording of any supported kind as a :class:`~euc_ros.core.mocap.series.MocapSeries` (Z-up, metres).
 
 * ``*.csv``: a Motive CSV export (recording-format spec, section 1), read with
   :func:`euc_ros.core.io.motive_csv.read_motive_csv` in the Motive world given by ``world_up``;
@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from euc_ros.core.errors import InputError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 
 
 def recording_kind(path: str | Path) -> str:
@@ -33,7 +33,7 @@ def recording_kind(path: str | Path) -> str:
 
 
 def load_recording(path: str | Path, world_up: str = "y", *, bodies: list[str] | None = None) -> MocapSeries:
-    """Read a Motive CSV or a bag into a Z-up :class:`~euc_ros.core.mocap.MocapSeries`.
+    """Read a Motive CSV or a bag into a Z-up :class:`~euc_ros.core.mocap.series.MocapSeries`.
 
     Parameters
     ----------

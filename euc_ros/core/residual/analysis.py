@@ -8,7 +8,7 @@ blocks of the held-out residual (family-wise over the candidates: max-T) and a m
 gain; repeat greedily with the selected effects in the model until nothing significant remains.
 
 The residual of a model is ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - dQ)) / D``
-(:mod:`euc_ros.core.euc.torque`), so an extra force with ``w . dQ = 0`` cannot change it.
+(:mod:`euc_ros.core.model.torque`), so an extra force with ``w . dQ = 0`` cannot change it.
 """
 from __future__ import annotations
 
@@ -19,12 +19,13 @@ from typing import Callable, Sequence
 import numpy as np
 from scipy import optimize, signal, stats
 
-from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, to_moving_frame
-from euc_ros.core.euc.model import EucParams, consistency_weights
-from euc_ros.core.euc.torque import torque_difference
 from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
-from euc_ros.core.residual.candidates import Candidate, FloorGeometry, ModelContext, make_candidates
+from euc_ros.core.model.effects import Candidate, FloorGeometry, ModelContext, make_candidates
+from euc_ros.core.model.terms import EucParams, consistency_weights
+from euc_ros.core.model.torque import torque_difference
 from euc_ros.core.residual.floor import FloorFit, fit_floor, rolling_radius_from_floor, slope_along_path
+from euc_ros.core.states.geometry import to_moving_frame
+from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates
 
 #: Savitzky-Golay settings of the residual analysis: the project defaults (measured: with a 0.9 s
 #: quartic the attenuation of the accelerations inflated inertia-type parameters, rider mass by
@@ -199,7 +200,7 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
 
     With a ``floor`` that is not flat, each context also carries the floor's slope along travel under
     the wheel (``extras['floor_a']``) and the wheel centre's vertical acceleration (``extras['c_zdd']``,
-    the states' derivative filter) for :class:`~euc_ros.core.residual.candidates.FloorGeometry`.
+    the states' derivative filter) for :class:`~euc_ros.core.model.effects.FloorGeometry`.
     """
     out = []
     for st in states:
@@ -444,7 +445,7 @@ def detectability(candidate: Candidate, recs: Sequence[Recording], h: float) -> 
 
 def _equivalent_force(model: Model, rec: Recording, x: np.ndarray) -> np.ndarray:
     """Generalized force a model adds, in the base model's terms: f_base - f_model (n, 3)."""
-    from euc_ros.core.euc.model import bias_terms, gravity_forces, mass_matrix
+    from euc_ros.core.model.terms import bias_terms, gravity_forces, mass_matrix
 
     h, thetas = model.split(x)
     ctx = rec.ctx.copy()
@@ -879,7 +880,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     params : EucParams
         Nominal parameters (``h`` is identified).
     candidates : sequence of Candidate, optional
-        The library (default: all of :data:`~euc_ros.core.residual.candidates.LIBRARY`).
+        The library (default: all of :data:`~euc_ros.core.model.effects.LIBRARY`).
     alpha : float
         Family-wise significance level of each selection step (max-T over the candidates, :func:`max_t_adjusted`).
     min_gain : float
@@ -1341,11 +1342,11 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
     reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`).
 
     The re-noised recordings are the first replicate of the h interval's SIMEX
-    (:func:`euc_ros.core.euc.uncertainty.first_replicate`, ``seed`` default its seed); with ``share`` (a
-    :class:`~euc_ros.core.euc.uncertainty.SimexShare` later given to ``eiv_bias``) that replicate's h is
+    (:func:`euc_ros.core.identify.simex.first_replicate`, ``seed`` default its seed); with ``share`` (a
+    :class:`~euc_ros.core.identify.simex.SimexShare` later given to ``eiv_bias``) that replicate's h is
     kept so SIMEX does not reconstruct it again.
     """
-    from euc_ros.core.euc.uncertainty import SIMEX_SEED, first_replicate
+    from euc_ros.core.identify.simex import SIMEX_SEED, first_replicate
     from euc_ros.core.residual.noise import noise_floor
 
     floor = floor_from_states(states, params.R)

@@ -35,7 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from euc_ros.core.residual.candidates import Candidate, ParamInfo, jacobian_G
+from euc_ros.core.model.effects import Candidate, ParamInfo, jacobian_G
 
 #: Most terms a discovered model may have.
 MAX_TERMS = 4

@@ -10,7 +10,7 @@ centimetres off.
 This module is the generator side only: it shares no code with the analysis (:mod:`euc_ros.core.euc`).
 Everything is seeded and vectorized over bodies and frames.
 
-* :func:`apply_artefacts` turns a clean :class:`~euc_ros.core.mocap.MocapSeries` into a recorded one
+* :func:`apply_artefacts` turns a clean :class:`~euc_ros.core.mocap.series.MocapSeries` into a recorded one
   and returns the list of injected faults (swaps, flips) as :class:`ArtefactEvent`;
 * :func:`perturb_session` returns a copy of a session with every segment's CoM offset moved by
   1-3 cm: record with the true session, analyse with the perturbed one.
@@ -34,7 +34,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import canonical_quat
 from euc_ros.core.session import Segment, Session
 

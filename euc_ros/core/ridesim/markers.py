@@ -3,7 +3,7 @@
 :func:`~euc_ros.core.ridesim.mocap_synth.corrupt` adds the noise to the poses directly (a small
 rotation about the pivot plus independent position noise). Motive does not: it sees markers and
 computes each rigid body's pose by a least-squares rigid fit of the body's marker layout. This
-module does the same on a noise-free :class:`~euc_ros.core.mocap.MocapSeries`:
+module does the same on a noise-free :class:`~euc_ros.core.mocap.series.MocapSeries`:
 
 * each body gets a **marker layout**, the markers' positions in the body frame relative to the
   pivot (``(k, 3)``, 3-6 markers; :func:`random_layout` makes asymmetric ones of a given spread,
@@ -29,7 +29,7 @@ import math
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.ridesim.mocap_synth import rotations_to_quats
 from euc_ros.core.rotations import rotation_matrices
 

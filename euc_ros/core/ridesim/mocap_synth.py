@@ -1,7 +1,7 @@
 """Measurement side of the ride simulator: OptiTrack-like noise, occlusion gaps and dropped frames.
 
 The EUC paper's system (Section 2) tracks positions to about 0.2 mm and angles to about 0.5 deg at
-120 Hz. :func:`corrupt` turns a noise-free :class:`~euc_ros.core.mocap.MocapSeries` into a recorded
+120 Hz. :func:`corrupt` turns a noise-free :class:`~euc_ros.core.mocap.series.MocapSeries` into a recorded
 one:
 
 * position noise ``N(0, pos_sigma_m)`` per axis, independent per frame and body;
@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import canonical_quat
 
 

@@ -29,7 +29,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import fsolve
 
 from euc_ros.core.errors import ConfigError, EucError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.ridesim.controllers import EucBalanceController, RiderLeanController
 from euc_ros.core.ridesim.effects import AIR_DENSITY, ROLLING_SIGN_SPEED, EffectSet
 from euc_ros.core.ridesim.floors import FloorProfile
@@ -548,7 +548,7 @@ def simulate_ride(config: RideConfig, progress=None) -> RideResult:
     -------
     RideResult
         Per run the true states, accelerations, inputs, 3-D points and the synthesized
-        :class:`~euc_ros.core.mocap.MocapSeries` (Z-up), plus true and nominal parameters.
+        :class:`~euc_ros.core.mocap.series.MocapSeries` (Z-up), plus true and nominal parameters.
 
     Raises
     ------

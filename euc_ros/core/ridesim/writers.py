@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.core.errors import InputError
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.ridesim.simulate import RideResult, RunResult
 from euc_ros.core.rotations import z_up_to_y_up_position, z_up_to_y_up_quat
 from euc_ros.core.session import save_session

@@ -263,7 +263,7 @@ def wheel_energy(x, params: UnicycleParams):
             + p.m * p.g * p.R * np.cos(th))
 
 
-def _scalar_rhs(x: list[float], u: float, p: UnicycleParams) -> list[float]:
+def scalar_rhs(x: list[float], u: float, p: UnicycleParams) -> list[float]:
     """Unicycle right-hand side on plain floats (``math``), used by the fixed-step simulator.
 
     Same formula as :func:`unicycle_rhs` (shared :func:`_unicycle_rates`), about 20x faster than

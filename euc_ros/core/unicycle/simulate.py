@@ -22,7 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams, _scalar_rhs
+from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams, scalar_rhs
 
 __all__ = [
     "STATUS_OK", "STATUS_TILT", "STATUS_GROUND", "STATUS_NON_FINITE", "DEFAULT_DT", "DEFAULT_SUBSTEPS",
@@ -59,10 +59,10 @@ def domain_status(x, params: UnicycleParams, max_tilt: float = DEFAULT_MAX_TILT)
 
 def rk4_step(params: UnicycleParams, x: list[float], u: float, h: float) -> list[float]:
     """One classical Runge-Kutta step of eq (36) with constant input ``u`` [N] over ``h`` [s]."""
-    k1 = _scalar_rhs(x, u, params)
-    k2 = _scalar_rhs([a + 0.5 * h * b for a, b in zip(x, k1)], u, params)
-    k3 = _scalar_rhs([a + 0.5 * h * b for a, b in zip(x, k2)], u, params)
-    k4 = _scalar_rhs([a + h * b for a, b in zip(x, k3)], u, params)
+    k1 = scalar_rhs(x, u, params)
+    k2 = scalar_rhs([a + 0.5 * h * b for a, b in zip(x, k1)], u, params)
+    k3 = scalar_rhs([a + 0.5 * h * b for a, b in zip(x, k2)], u, params)
+    k4 = scalar_rhs([a + h * b for a, b in zip(x, k3)], u, params)
     return [a + h / 6 * (b1 + 2 * b2 + 2 * b3 + b4) for a, b1, b2, b3, b4 in zip(x, k1, k2, k3, k4)]
 
 

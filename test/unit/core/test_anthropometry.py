@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.anthropometry import (
+from euc_ros.core.model.anthropometry import (
     SHOULDER_BELOW_C7,
     STATURE_M,
     TABLE,

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from euc_ros.core.bridging import PoseBridge, bridge_series, slerp
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.bridging import PoseBridge, bridge_series, slerp
+from euc_ros.core.mocap.series import MocapSeries
 
 EPS = np.finfo(float).eps
 

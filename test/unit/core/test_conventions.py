@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from euc_ros.cli.main import main
-from euc_ros.core.checks import check_recording
-from euc_ros.core.conventions import infer_up_axis, poses_with_up
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
 from euc_ros.core.io.recordings import load_recording
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.checks import check_recording
+from euc_ros.core.mocap.conventions import infer_up_axis, poses_with_up
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.session import default_session, load_session, save_session
 
 
@@ -184,7 +184,7 @@ def test_wheel_centre_evidence_matches_an_independent_computation(files):
 
 def test_long_recordings_are_thinned_to_the_same_verdict(files, monkeypatch):
     """Above MAX_FRAMES frames the tests run on evenly spaced frames: same inference, same refusal."""
-    import euc_ros.core.conventions as conv
+    import euc_ros.core.mocap.conventions as conv
 
     session = load_session(files["session"]["z"])
     series = load_recording(files["yup"], "z")

@@ -1,4 +1,4 @@
-"""Frame assembly from per-body poses, tracking statistics, start stamps, NatNet frames (euc_ros.core.ingest).
+"""Frame assembly from per-body poses, tracking statistics, start stamps, NatNet frames (euc_ros.core.mocap.ingest).
 
 Tolerances: assembled frames carry the poses of the messages; positions go through float32 where
 the message type is float32 (1e-6 of a ~1.5 m value is 17x its half-ulp 6e-8); rates are ratios
@@ -11,16 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from euc_ros.core.ingest import (
-    PoseSynchronizer,
-    TrackingStats,
-    capture_start_ns,
-    format_capture_start,
-    frame_from_natnet,
-    natnet_capture_stamp,
-    replay_schedule,
-)
 from euc_ros.core.io.natnet import FrameOfData, RigidBodyData
+from euc_ros.core.mocap.ingest import (PoseSynchronizer, TrackingStats, capture_start_ns, format_capture_start,
+                                       frame_from_natnet, natnet_capture_stamp, replay_schedule)
 
 MS = 1_000_000
 Q0 = [0, 0, 0, 1]

@@ -10,7 +10,7 @@ import pytest
 from euc_ros.cli.main import main
 from euc_ros.core.errors import InputError
 from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
-from euc_ros.core.length_scale import check_length_scale, median_span
+from euc_ros.core.mocap.length_scale import check_length_scale, median_span
 from euc_ros.core.session import load_session
 
 

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap import MocapSeries
-from euc_ros.core.rate import RateMeter, check_rate, measured_rate_hz
+from euc_ros.core.mocap.rate import RateMeter, check_rate, measured_rate_hz
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.session import default_session
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.ingest import frame_from_named_poses
+from euc_ros.core.mocap.ingest import frame_from_named_poses
 
 S = np.sqrt(0.5)
 

@@ -14,7 +14,7 @@ import pytest
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
 from euc_ros.core.session import load_session
-from euc_ros.core.up_axis_watch import UpAxisWatch
+from euc_ros.core.mocap.up_axis_watch import UpAxisWatch
 
 CHECKS = (1.0, 2.0)
 

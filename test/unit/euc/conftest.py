@@ -116,7 +116,7 @@ def synthesize_mocap(session, *, t, C, psi, theta, gamma, phi, h, rng=None, pos_
     """
     from scipy.spatial.transform import Rotation
 
-    from euc_ros.core.mocap import MocapSeries
+    from euc_ros.core.mocap.series import MocapSeries
 
     n = t.size
     rE = Rotation.from_euler("ZXY", np.column_stack([psi, theta, gamma]))

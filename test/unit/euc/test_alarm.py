@@ -6,7 +6,7 @@ import pytest
 from numpy.lib.stride_tricks import sliding_window_view
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.euc.alarm import integrated_autocorrelation, rmse_threshold
+from euc_ros.core.online.alarm import integrated_autocorrelation, rmse_threshold
 
 
 def _ar1(n, a, rng):

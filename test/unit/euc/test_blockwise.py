@@ -2,7 +2,7 @@
 
 The geometry's reference is the whole-array version the block code replaced (bridging and
 ``frame_geometry`` of the whole recording). The re-noised recordings draw their noise per block
-(:class:`~euc_ros.core.euc.blockwise.BlockNoise`): any spans read must give the whole recording, and
+(:class:`~euc_ros.core.mocap.blocks.BlockNoise`): any spans read must give the whole recording, and
 the noise added must have the stated sizes. Blocks are made small (64 frames) so a 3 s recording
 spans several, with gaps of every length up to beyond ``max_gap`` placed across block edges.
 """
@@ -13,7 +13,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from euc_ros.core.euc import blockwise
+from euc_ros.core.mocap import blocks
+from euc_ros.core.states import geometry
 
 BLOCK = 64
 
@@ -38,21 +39,21 @@ def ride(short_ride):
 
 @pytest.fixture()
 def small_blocks(monkeypatch):
-    monkeypatch.setattr(blockwise, "BLOCK_FRAMES", BLOCK)
+    monkeypatch.setattr(blocks, "BLOCK_FRAMES", BLOCK)
 
 
 def test_block_geometry_equals_whole_recording(ride, small_blocks):
-    from euc_ros.core.bridging import bridge_series
-    from euc_ros.core.euc.kinematics import frame_geometry
+    from euc_ros.core.mocap.bridging import bridge_series
+    from euc_ros.core.states.geometry import frame_geometry
 
     series, session = ride
     assert series.n_frames > 4 * BLOCK
     whole, bridged = bridge_series(series, 5)
     ref = frame_geometry(whole.position, whole.quat, whole.tracked, session, whole.bodies)
-    geo, n_samples, n_frames = blockwise.block_geometry(series, session, 5)
+    geo, n_samples, n_frames = geometry.block_geometry(series, session, 5)
     assert n_samples == int(bridged.sum()) > 0
     assert n_frames == int(bridged.any(axis=0).sum())
-    for key in blockwise.GEOMETRY_KEYS:
+    for key in geometry.GEOMETRY_KEYS:
         np.testing.assert_allclose(geo[key], ref[key], rtol=1e-12, atol=1e-12, err_msg=key)
         assert geo[key].dtype == np.asarray(ref[key]).dtype
 
@@ -74,7 +75,7 @@ def _z_bound(m: int) -> float:
 
 def test_pose_noise_series_blocks_are_one_recording(ride, small_blocks):
     """Any spans, overlapping and out of order, give the poses of the whole; the same seed gives the same noise."""
-    from euc_ros.core.euc.uncertainty import pose_noise_series
+    from euc_ros.core.mocap.noise import pose_noise_series
 
     series, _ = ride
     b, n = len(series.bodies), series.n_frames
@@ -94,7 +95,7 @@ def test_pose_noise_series_blocks_are_one_recording(ride, small_blocks):
 def test_pose_noise_series_adds_the_stated_noise(ride, small_blocks):
     """Position offsets of sigma_pos per axis, body-frame rotations of sigma_rot per axis, nothing where a
     sigma is NaN, and sign=-1 the mirror image of the same draws (antithetic SIMEX)."""
-    from euc_ros.core.euc.uncertainty import pose_noise_draws, pose_noise_series
+    from euc_ros.core.mocap.noise import pose_noise_draws, pose_noise_series
     from euc_ros.core.rotations import quat_conjugate, quat_multiply, rotvec_from_quat
 
     series, _ = ride
@@ -124,7 +125,7 @@ def test_pose_noise_series_adds_the_stated_noise(ride, small_blocks):
 
 
 def test_renoised_blocks_are_one_recording_with_the_estimated_noise(ride, small_blocks):
-    from euc_ros.core.residual.noise import pose_noise, renoised
+    from euc_ros.core.mocap.noise import pose_noise, renoised
 
     series, _ = ride
     n = series.n_frames
@@ -141,8 +142,8 @@ def test_renoised_blocks_are_one_recording_with_the_estimated_noise(ride, small_
 
 
 def test_reconstruct_states_of_a_perturbed_series(ride, small_blocks):
-    from euc_ros.core.euc.kinematics import reconstruct_states
-    from euc_ros.core.residual.noise import renoised
+    from euc_ros.core.mocap.noise import renoised
+    from euc_ros.core.states.kinematics import reconstruct_states
 
     series, session = ride
     noisy = renoised(series, np.random.default_rng(1))

@@ -15,7 +15,7 @@ import pytest
 
 from euc_ros.cli import identify as identify_cmd
 from euc_ros.cli.main import main
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.session import default_session, save_session
 
 H_TRUE = 0.61

@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.euc.estimators import RiderStateEstimator, TorqueEstimator
-from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, reconstruct_states
-from euc_ros.core.euc.model import EucParams
-from euc_ros.core.euc.torque import torques, torques_2dof
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques, torques_2dof
+from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
 from euc_ros.core.session import default_session
+from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, reconstruct_states
 from euc_ros.testing import savgol_roundoff
 
 SESSION = default_session("z")
@@ -120,7 +120,7 @@ def test_torque_estimator_never_returns_nan_and_matches_the_offline_torques(reco
 
 # --- stream handling: frame numbers, gaps, restarts ---------------------------------------------------------
 def test_frame_sequencer_orders_frames_and_detects_restarts():
-    from euc_ros.core.euc.estimators import FrameSequencer
+    from euc_ros.core.online.estimators import FrameSequencer
 
     ms = 1_000_000
     seq = FrameSequencer(100.0, restart_jump_s=1.0)
@@ -136,7 +136,7 @@ def test_frame_sequencer_orders_frames_and_detects_restarts():
 
 
 def test_frame_sequencer_numbers_frames_from_stamps_when_the_source_has_none():
-    from euc_ros.core.euc.estimators import FrameSequencer
+    from euc_ros.core.online.estimators import FrameSequencer
 
     seq = FrameSequencer(120.0)
     t0 = 1_700_000_000_000_000_000
@@ -201,7 +201,7 @@ def sloped_ride():
 
 def test_extended_model_explains_a_slope_on_the_simulators_true_states(sloped_ride):
     """The simulator derives the slope's gravity independently: with the effect, M_d1 = M_d2 = true M_d."""
-    from euc_ros.core.residual.extended import ExtendedModel
+    from euc_ros.core.model.extended import ExtendedModel
 
     run = sloped_ride.runs[0]
     p = EucParams.from_session(sloped_ride.session, 0.61)
@@ -222,7 +222,7 @@ def test_extended_model_explains_a_slope_on_the_simulators_true_states(sloped_ri
 
 
 def test_extended_model_with_a_yaw_rate_effect_uses_a_causal_yaw_rate():
-    from euc_ros.core.residual.extended import ExtendedModel
+    from euc_ros.core.model.extended import ExtendedModel
     from euc_ros.core.ridesim.effects import make_effects
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 

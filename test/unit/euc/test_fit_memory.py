@@ -6,10 +6,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.euc import identify as I
-from euc_ros.core.euc.kinematics import reconstruct_states, to_moving_frame
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.identify import fit as I
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.geometry import to_moving_frame
+from euc_ros.core.states.kinematics import reconstruct_states
 
 
 @pytest.fixture(scope="module")
@@ -27,7 +28,7 @@ def test_block_coefficients_are_the_masked_copies(ride, model, monkeypatch):
     for st in states:
         extra = np.random.default_rng(1).normal(size=(st.n, 3))
         for ex in (None, extra):
-            new = I._coefficients_for([st], params, model, ex)[0]
+            new = I.coefficients_for([st], params, model, ex)[0]
             args, exm = I._valid_args(st, ex)
             # the reference: the whole masked arrays at once (the block size made larger than them)
             monkeypatch.setattr(I, "_COEF_BLOCK", 10**9)
@@ -39,7 +40,7 @@ def test_block_coefficients_are_the_masked_copies(ride, model, monkeypatch):
 
 def test_sse_grid_is_the_whole_products(ride):
     _, params, states = ride
-    coef = I._coefficients_for(states[:1], params, "3dof", None)[0]
+    coef = I.coefficients_for(states[:1], params, "3dof", None)[0]
     h = np.asarray(I.DEFAULT_H_GRID)
     c, a0, a1, a2, d0, d1 = coef
     a0c, a1c, a2c = c * a0, c * a1, c * a2           # made whole, as before the chunked products
@@ -50,7 +51,7 @@ def test_sse_grid_is_the_whole_products(ride):
         e = min(coef.shape[1], s + step)
         num = (((H * a2c[s:e]) + a1c[s:e]) * H + a0c[s:e]) / (H * d1[s:e] + d0[s:e])
         ref += np.einsum("gn,gn->g", num, num)
-    assert np.array_equal(I._sse_grid(coef, h), ref)
+    assert np.array_equal(I.sse_grid(coef, h), ref)
 
 
 def test_pooled_h_of_states_is_identify_h_and_drops_the_states(ride):
@@ -64,8 +65,8 @@ def test_pooled_h_of_states_is_identify_h_and_drops_the_states(ride):
 
 
 def test_time_shift_hook_is_the_eager_whole_recording_one(ride, monkeypatch):
-    from euc_ros.core.residual import analysis as A
     from euc_ros.core.filters.derivatives import savgol_coefficients
+    from euc_ros.core.residual import analysis as A
 
     _, params, states = ride
     st = states[0]

@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.euc.identify import DEFAULT_H_GRID, identify_h, residual_coefficients, rmse_curve
-from euc_ros.core.euc.kinematics import RiderStates, reconstruct_states
-from euc_ros.core.euc.model import EucParams
-from euc_ros.core.euc.torque import torques, torques_2dof
+from euc_ros.core.identify.fit import DEFAULT_H_GRID, identify_h, residual_coefficients, rmse_curve
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques, torques_2dof
 from euc_ros.core.session import default_session
+from euc_ros.core.states.kinematics import RiderStates, reconstruct_states
 
 SESSION = default_session(world_up="z")
 P = EucParams.from_session(SESSION, 0.61)

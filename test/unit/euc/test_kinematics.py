@@ -6,10 +6,11 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.euc.kinematics import DEFAULT_SG_POLYORDER, frame_geometry, reconstruct_states, to_moving_frame
-from euc_ros.core.euc.model import EucParams
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.session import default_session
+from euc_ros.core.states.geometry import frame_geometry, to_moving_frame
+from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, reconstruct_states
 from euc_ros.testing import savgol_roundoff
 
 SESSION = default_session(world_up="z")

@@ -6,7 +6,7 @@ at X = 15 m (``ramp_from``, 5 cm blend), ridden at constant speed (~2.9 m/s) by 
 the paper's 3-DoF model knows nothing of the slope, so M_d1 - M_d2 grows once the wheel is on it.
 
 The threshold is not typed in: it is calibrated as a lab would, on a separate level ride (other
-seed) through the same chain (:func:`~euc_ros.core.euc.alarm.rmse_threshold`: the residual's RMS and
+seed) through the same chain (:func:`~euc_ros.core.online.alarm.rmse_threshold`: the residual's RMS and
 autocorrelation time give the chi-square quantile of a window's RMS), with a false-alarm probability
 ALPHA per independent window small enough for a level ride of a few seconds (a few dozen independent
 windows; not-quite-Gaussian, not-quite-stationary residuals need the margin). The test then asks
@@ -18,10 +18,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core import monitoring as mon
-from euc_ros.core.euc.alarm import rmse_threshold
-from euc_ros.core.euc.estimators import RiderStateEstimator, TorqueEstimator
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.online import monitoring as mon
+from euc_ros.core.online.alarm import rmse_threshold
+from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
 from euc_ros.core.ridesim.floors import FloorProfile
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.euc.identify import identify_h
-from euc_ros.core.euc.kinematics import RiderStates
-from euc_ros.core.euc.model import EucParams
-from euc_ros.core.euc.online import OnlineHEstimator, SlidingRmse
-from euc_ros.core.euc.torque import torques
+from euc_ros.core.identify.fit import identify_h
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
+from euc_ros.core.online.window import OnlineHEstimator, SlidingRmse
 from euc_ros.core.session import default_session
+from euc_ros.core.states.kinematics import RiderStates
 
 P = EucParams.from_session(default_session(), 0.61)
 

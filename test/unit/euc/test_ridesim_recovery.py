@@ -13,11 +13,12 @@ import pytest
 ridesim = pytest.importorskip("euc_ros.core.ridesim.simulate", reason="ride simulator not available yet")
 effects_mod = pytest.importorskip("euc_ros.core.ridesim.effects", reason="ride simulator not available yet")
 
-from euc_ros.core.euc.identify import identify_h  # noqa: E402
-from euc_ros.core.euc.kinematics import frame_geometry, reconstruct_states  # noqa: E402
-from euc_ros.core.euc.model import EucParams  # noqa: E402
-from euc_ros.core.euc.online import OnlineHEstimator  # noqa: E402
 from euc_ros.core.filters.derivatives import StreamingSavgol  # noqa: E402
+from euc_ros.core.identify.fit import identify_h  # noqa: E402
+from euc_ros.core.model.terms import EucParams  # noqa: E402
+from euc_ros.core.online.window import OnlineHEstimator  # noqa: E402
+from euc_ros.core.states.geometry import frame_geometry  # noqa: E402
+from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
 
 H_TRUE = 0.61
 

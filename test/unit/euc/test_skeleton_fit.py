@@ -17,13 +17,13 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.euc.estimators import RiderStateEstimator
-from euc_ros.core.euc.kinematics import frame_geometry, reconstruct_states
-from euc_ros.core.euc.skeleton_fit import (
-    OnlineSkeleton, SkeletonFitConfig, SkeletonModel, skeleton_cog)
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
+from euc_ros.core.online.estimators import RiderStateEstimator
 from euc_ros.core.rotations import quat_from_yaw_tilt_pitch
-from euc_ros.core.session import Rider, Segment, Session, default_session, Euc
+from euc_ros.core.session import Euc, Rider, Segment, Session, default_session
+from euc_ros.core.states.geometry import frame_geometry
+from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.skeleton import OnlineSkeleton, SkeletonFitConfig, SkeletonModel, skeleton_cog
 
 RATE = 120.0
 
@@ -325,8 +325,8 @@ def test_sliding_is_measured_from_the_links(session):
     give each body's RMS within 25 % (a 7.5 s run holds ~40 independent samples per axis of a 0.3-3 Hz
     signal: the variance's relative sampling error ~ sqrt(2 / 120) = 13 %, the RMS's half of it, x3 plus
     the least-squares split over the links); no sliding gives (nearly) none and no SIMEX work."""
-    from euc_ros.core.euc.model import EucParams
-    from euc_ros.core.euc.sliding import MIN_SLIDING_M, estimate_sliding, sliding_bias
+    from euc_ros.core.identify.sliding import MIN_SLIDING_M, estimate_sliding, sliding_bias
+    from euc_ros.core.model.terms import EucParams
     from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts
 
     clean, _ = _rider_series(n=900, seed=8)

@@ -6,13 +6,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.bridging import bridge_series
-from euc_ros.core.euc.kinematics import frame_geometry
-from euc_ros.core.euc.split_lag import (GROUPS, SPLIT_SMOOTHING, StreamingSplit, compose, group_columns,
-                                        split_derivatives, split_pieces, split_weights, unwrap_turns)
 from euc_ros.core.filters.causal import fir_derivatives
+from euc_ros.core.mocap.bridging import bridge_series
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.geometry import frame_geometry
+from euc_ros.core.states.split_lag import (GROUPS, SPLIT_SMOOTHING, StreamingSplit, compose, group_columns,
+                                           split_derivatives, split_pieces, split_weights, unwrap_turns)
 
 DT = 1.0 / 120.0
 EPS = np.finfo(float).eps
@@ -213,8 +213,8 @@ def test_rider_state_estimator_runs_the_split_estimator(ride):
     """RiderStateEstimator(estimator="split") gives, per frame, exactly what StreamingSplit gives on
     the pieces of each frame, 0.1 s late; the settings it cannot honour are refused."""
     from euc_ros.core.errors import ConfigError
-    from euc_ros.core.euc.estimators import RiderStateEstimator
     from euc_ros.core.filters.causal import streaming_filter
+    from euc_ros.core.online.estimators import RiderStateEstimator
 
     session, s = ride
     est = RiderStateEstimator(session, DT, estimator="split")

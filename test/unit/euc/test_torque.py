@@ -12,16 +12,9 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from euc_ros.core.euc.model import (
-    EucParams,
-    bias_terms,
-    consistency_weights,
-    gravity_forces,
-    input_directions,
-    mass_matrix,
-)
-from euc_ros.core.euc.torque import rider_torque, torques, torques_2dof
-
+from euc_ros.core.model.terms import (EucParams, bias_terms, consistency_weights, gravity_forces, input_directions,
+                                      mass_matrix)
+from euc_ros.core.model.torque import rider_torque, torques, torques_2dof
 
 
 def _random_params(rng, n=None):
@@ -145,7 +138,7 @@ def test_params_from_session_uses_nominal_values():
 def test_torque_difference_matches_the_symbolic_residual(symbolic, rng):
     """The residual analysis' direct M_d1 - M_d2 (no torques formed), against the sympy eqs (9)-(10),
     with per-sample parameters and an extra generalized force (which enters w . dQ)."""
-    from euc_ros.core.euc.torque import torque_difference
+    from euc_ros.core.model.torque import torque_difference
 
     n = 500
     p = _random_params(rng, n)
@@ -163,7 +156,7 @@ def test_one_sample_torques_match_the_symbolic_eqs_and_the_array_path(symbolic, 
     """The live path (torques_one: one sample, scalar parameters, written out) against the sympy
     eqs (9)-(10), and against torques() with an extra generalized force. Same tolerances as the
     array path's test above (both are double-precision evaluations of the same closed forms)."""
-    from euc_ros.core.euc.torque import torques_one
+    from euc_ros.core.model.torque import torques_one
 
     for _ in range(200):
         p = _random_params(rng)

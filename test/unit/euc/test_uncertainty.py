@@ -6,20 +6,28 @@ known h = 0.61 m or against a second simulated ride (a known change of the truth
 from __future__ import annotations
 
 import json
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from scipy.stats import binom
 
-from euc_ros.bench.coverage import run_case
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.euc import uncertainty as U
-from euc_ros.core.euc.identify import _coefficients_for, identify_h
-from euc_ros.core.euc.kinematics import reconstruct_states
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.identify.budget import budget, parse_tolerances
+from euc_ros.core.identify.fit import coefficients_for, identify_h
+from euc_ros.core.identify.interval import interval, turning_rms
+from euc_ros.core.identify.simex import SimexShare, eiv_bias, first_replicate
+from euc_ros.core.mocap.noise import estimate_pose_noise
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.kinematics import reconstruct_states
+
+# the experiment harnesses live in studies/ at the repository root, outside the package
+sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
+from studies.coverage import run_case  # noqa: E402
 
 
 def _identify(ride):
@@ -30,8 +38,8 @@ def _identify(ride):
 
 def _interval(ride, **kw):
     params, states, fit = _identify(ride)
-    return U.interval(_coefficients_for(states, params, "3dof", None), fit, window=states[0].window,
-                      dt=states[0].dt, turning_ms2=U.turning_rms(states), **kw), fit
+    return interval(coefficients_for(states, params, "3dof", None), fit, window=states[0].window,
+                      dt=states[0].dt, turning_ms2=turning_rms(states), **kw), fit
 
 
 def test_interval_width_shrinks_like_one_over_root_duration():
@@ -62,7 +70,7 @@ def test_errors_in_variables_bias_is_measured_on_the_data():
     clean = simulate_ride(RideConfig(noise=MocapNoise(0.0, 0.0, 0.0), **cfg))
     params, _, fit = _identify(noisy)
     _, _, fit_clean = _identify(clean)
-    b = U.eiv_bias([r.mocap for r in noisy.runs], noisy.session, params, fit.h_m, window_s=1.2, polyorder=6,
+    b = eiv_bias([r.mocap for r in noisy.runs], noisy.session, params, fit.h_m, window_s=1.2, polyorder=6,
                    replicates=3)
     actual = fit.h_m - fit_clean.h_m
     assert actual < -1e-3 and b < -1e-3                 # noise biases h low
@@ -71,7 +79,7 @@ def test_errors_in_variables_bias_is_measured_on_the_data():
 
 def test_pose_noise_is_estimated_from_the_recording():
     ride = simulate_ride(RideConfig(runs=1, seed=2, noise=MocapNoise(pos_sigma_m=0.3e-3, rot_rms_deg=0.6)))
-    sp, sr = U.estimate_pose_noise(ride.runs[0].mocap)
+    sp, sr = estimate_pose_noise(ride.runs[0].mocap)
     # ~840 third differences per body: the MAD estimate scatters by ~5 %
     np.testing.assert_allclose(sp, 0.3e-3, rtol=0.15)
     np.testing.assert_allclose(np.degrees(sr) * np.sqrt(3), 0.6, rtol=0.15)
@@ -83,7 +91,7 @@ def test_budget_predicts_a_ride_with_a_heavier_rider():
     heavy = simulate_ride(RideConfig(runs=3, seed=5, effects=make_effects(["rider_mass_error"], {"delta_m_kg": 8.0})))
     params, states, fit = _identify(base)
     _, _, fit_heavy = _identify(heavy)
-    b = U.budget([r.mocap for r in base.runs], states, base.session, params, fit.h_m, window_s=1.2, polyorder=6)
+    b = budget([r.mocap for r in base.runs], states, base.session, params, fit.h_m, window_s=1.2, polyorder=6)
     predicted = -8.0 * b["sensitivity"]["rider.mass"]["dh_dp"]       # the nominal mass is 8 kg too low
     actual = fit_heavy.h_m - fit.h_m
     assert np.sign(predicted) == np.sign(actual)
@@ -93,11 +101,11 @@ def test_budget_predicts_a_ride_with_a_heavier_rider():
 
 
 def test_tolerances_parse_and_name_the_bad_key():
-    tol = U.parse_tolerances(["rider.mass=2", "euc.body_inertia=20%"])
+    tol = parse_tolerances(["rider.mass=2", "euc.body_inertia=20%"])
     assert tol["rider.mass"] == 2.0 and tol["euc.body_inertia"] == "20%" and tol["euc.l0"] == 0.005
     for bad in ("rider.weight=2", "rider.mass", "rider.mass=heavy", "rider.mass=-1"):
         with pytest.raises(ConfigError) as e:
-            U.parse_tolerances([bad])
+            parse_tolerances([bad])
         assert "--tolerance" in str(e.value)
 
 
@@ -151,16 +159,16 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=3))
     params, states, fit = _identify(ride)
     series = [r.mocap for r in ride.runs]
-    share = U.SimexShare()
+    share = SimexShare()
     x = np.array([fit_base_h(prepare(states, params))])
     floor = make_noise_floor(series, states, ride.session, params, share=share)(Model(), x)
     assert np.isfinite(floor) and floor > 0
-    noisy = U.first_replicate(series, ride.session, params, window_s=1.2, polyorder=6)
+    noisy = first_replicate(series, ride.session, params, window_s=1.2, polyorder=6)
     h1 = identify_h(noisy, params, models=("3dof",)).pooled["3dof"].h_m
     assert share.h_m == h1 != fit.h_m
     kw = dict(window_s=1.2, polyorder=6, with_error=True)
-    shared = U.eiv_bias(series, ride.session, params, fit.h_m, share=share, **kw)
-    alone = U.eiv_bias(series, ride.session, params, fit.h_m, **kw)
+    shared = eiv_bias(series, ride.session, params, fit.h_m, share=share, **kw)
+    alone = eiv_bias(series, ride.session, params, fit.h_m, **kw)
     assert shared == alone
     assert np.isfinite(shared[1]) and shared[1] > 0
     # the share is what eiv_bias used: its replicate's h moved by 10 mm moves the mean of 2 pairs by 2.5 mm
@@ -168,5 +176,5 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
 
     moved = copy.copy(share)
     moved.h_m = share.h_m + 0.01
-    assert U.eiv_bias(series, ride.session, params, fit.h_m, share=moved, **kw)[0] == pytest.approx(
+    assert eiv_bias(series, ride.session, params, fit.h_m, share=moved, **kw)[0] == pytest.approx(
         shared[0] + 0.0025, abs=1e-12)

@@ -21,7 +21,7 @@ from euc_ros.core.errors import InputError
 from euc_ros.core.io import bags
 from euc_ros.core.io.bags import BagWriter, check_bag, inspect_bag, read_bag, read_mocap_bag, recover_bag
 from euc_ros.core.io.msgdefs import euc_msgs_definitions, make_typestore
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 
 START_NS = 1_700_000_000_123_456_789
 REPO = Path(__file__).resolve().parents[3]

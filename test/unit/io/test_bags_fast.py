@@ -11,7 +11,7 @@ from euc_ros.core.io import bags
 from euc_ros.core.io.bags import BagWriter, read_bag, read_mocap_bag, write_mocap_bag
 from euc_ros.core.io.mcap_fast import McapFile, read_channels
 from euc_ros.core.io.msgdefs import make_typestore
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 
 START_NS = 1_700_000_000_987_654_321
 

@@ -25,10 +25,10 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from euc_ros.core.conventions import infer_up_axis
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.io.motive_csv import read_motive_csv, read_motive_header, write_motive_csv
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.conventions import infer_up_axis
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import rotation_matrices
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "motive_real"

@@ -32,7 +32,7 @@ import pytest
 
 from euc_ros.core.io import motive_csv
 from euc_ros.core.io.motive_csv import write_motive_csv
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 
 CHUNKS = 16
 SLACK_MB = 8.0

@@ -10,7 +10,7 @@ import pytest
 
 from euc_ros.cli.main import main
 from euc_ros.core.io.motive_csv import write_motive_csv
-from euc_ros.core.mocap import MocapSeries
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.session import default_session, save_session
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "motive_real"

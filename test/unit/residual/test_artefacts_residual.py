@@ -13,12 +13,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.euc.kinematics import reconstruct_states
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.effects import LIBRARY
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import analyze, make_noise_floor
-from euc_ros.core.residual.candidates import LIBRARY
 from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts, perturb_session
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.kinematics import reconstruct_states
 
 pytestmark = pytest.mark.slow
 

@@ -9,9 +9,9 @@ few elementary operations: rel 1e-9 / atol 1e-12 are >= 1000 ulps.
 import numpy as np
 import pytest
 
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.effects import LIBRARY, ModelContext, make_candidates, theta_from_report
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import Model, Recording, detectability
-from euc_ros.core.residual.candidates import LIBRARY, ModelContext, make_candidates, theta_from_report
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride

@@ -7,9 +7,9 @@ import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.euc.model import EucParams
-from euc_ros.core.euc.torque import torques
-from euc_ros.core.residual.extended import ExtendedModel, parse_effect_assignments
+from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
 from euc_ros.core.session import default_session
 
 

@@ -3,9 +3,9 @@
 (a) a level-calibrated lab (gravity along the mocap's -Z) with a ramp, a level floor then a ramp, a
 bump or a step: the simulator's floor dynamics (:class:`~euc_ros.core.ridesim.truth_model.FloorModel`,
 sympy's Lagrange equations on a curved path) against the analysis' floor measured from the contact
-path (:class:`~euc_ros.core.residual.candidates.FloorGeometry`). (b) a mocap frame tilted against
+path (:class:`~euc_ros.core.model.effects.FloorGeometry`). (b) a mocap frame tilted against
 gravity (Motive's ground plane set on a sloped floor): the floor is flat in the data, the slope stays a
-dynamic candidate (:class:`~euc_ros.core.residual.candidates.GroundSlope`).
+dynamic candidate (:class:`~euc_ros.core.model.effects.GroundSlope`).
 
 Bounds: h within 10 mm of the truth (issue); the measured plane's slope within 0.05 deg (the contact
 path's noise over 30 m of path is far below it); held-out RMSE after <= 0.6 of before where the floor
@@ -19,13 +19,13 @@ import math
 import numpy as np
 import pytest
 
-from euc_ros.core.euc.kinematics import reconstruct_states
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.extended import ExtendedModel
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import analyze
-from euc_ros.core.residual.extended import ExtendedModel
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.floors import FloorProfile
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.kinematics import reconstruct_states
 
 pytestmark = pytest.mark.slow
 

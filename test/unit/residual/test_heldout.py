@@ -12,11 +12,11 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from euc_ros.core.euc.kinematics import reconstruct_states
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.effects import ModelContext, make_candidates
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import (Model, Recording, decimation_step, fit_base_h, fit_model, folds_of,
                                             held_out, model_jacobian, prepare, residual_block_length, with_blocks)
-from euc_ros.core.residual.candidates import ModelContext, make_candidates
+from euc_ros.core.states.kinematics import reconstruct_states
 
 
 def _fake_recs(lengths, dt=0.1, block_s=1.0):

@@ -12,8 +12,8 @@ import dataclasses
 
 import numpy as np
 
-from euc_ros.core.mocap import MocapSeries
-from euc_ros.core.residual.noise import pose_noise
+from euc_ros.core.mocap.noise import pose_noise
+from euc_ros.core.mocap.series import MocapSeries
 
 N = 6000
 
@@ -57,10 +57,10 @@ def test_the_noise_floor_is_the_noise_contribution_of_a_simulated_ride():
     recording without noise (``mocap_clean``) is the noise's contribution. One re-noised realisation
     estimates its RMS with a relative standard error of about 1/sqrt(2 n_blocks), n_blocks ~ 60
     independent ~0.35 s stretches of filtered noise in 3 x 7 s (~0.09); 3 of those allowed."""
-    from euc_ros.core.euc.kinematics import reconstruct_states
-    from euc_ros.core.euc.model import EucParams
+    from euc_ros.core.model.terms import EucParams
     from euc_ros.core.residual.analysis import Model, fit_base_h, make_noise_floor, prepare
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.states.kinematics import reconstruct_states
 
     ride = simulate_ride(RideConfig(maneuver="deceleration", runs=3, seed=11))
     p = EucParams.from_session(ride.session)

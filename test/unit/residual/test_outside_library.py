@@ -23,13 +23,13 @@ from __future__ import annotations
 
 import pytest
 
-from euc_ros.core.euc.kinematics import reconstruct_states
-from euc_ros.core.euc.model import EucParams
+from euc_ros.core.model.effects import LIBRARY
+from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import NOISE_FLOOR_FACTOR, analyze, make_noise_floor
-from euc_ros.core.residual.candidates import LIBRARY
 from euc_ros.core.ridesim.external import ExternalForce
 from euc_ros.core.ridesim.rider_motion import ArmSwing, PedalFlex
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.kinematics import reconstruct_states
 
 pytestmark = pytest.mark.slow
 H_TRUE = 0.61

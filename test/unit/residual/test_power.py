@@ -1,10 +1,10 @@
 """Issue 12, bullet 2: statistical power and false discoveries with 3 runs of 7 s.
 
 Every library family that can show in the residual of straight rides, at a magnitude whose model cuts
-the held-out RMSE by 25-40 % (:data:`~euc_ros.core.residual.campaign.POWER_MAGNITUDES`, calibrated
-with ``tools/residual_power.py --calibrate``), on seeds the calibration and the README's study did not
+the held-out RMSE by 25-40 % (:data:`~studies.campaign.POWER_MAGNITUDES`, calibrated
+with ``studies/residual_power.py --calibrate``), on seeds the calibration and the README's study did not
 use; and no-effect rides. The full study (10 seeds per family, 30 no-effect rides) is
-``tools/residual_power.py``; its table is in the README.
+``studies/residual_power.py``; its table is in the README.
 
 Each trial is its own test (it records its outcome); the last test checks the rates over all of them,
 so one marginal seed on another CPU cannot fail the suite while a method that lost its power does:
@@ -19,9 +19,14 @@ Not here: wheel_radius_error (it cannot show in the residual: found by geometry,
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import pytest
 
-from euc_ros.core.residual.campaign import POWER_MAGNITUDES, power_trial
+# the experiment harnesses live in studies/ at the repository root, outside the package
+sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
+from studies.campaign import POWER_MAGNITUDES, power_trial  # noqa: E402
 
 pytestmark = pytest.mark.slow
 

@@ -4,14 +4,20 @@ Every family at two plausible magnitudes, plus three controls (no effect over se
 undetectable wheel-body friction, two effects at once). Each must be named (or ``none``), its
 parameters recovered within 25 %, and the held-out RMSE after at most 0.6 of the RMSE before.
 The recordings come from the ride simulator (which shares no model code with the analysis); the
-scenarios live in :mod:`euc_ros.core.residual.campaign`, which also writes the README table.
+scenarios live in :mod:`studies.campaign`, which also writes the README table.
 """
 from __future__ import annotations
+
+import sys
+from pathlib import Path
 
 import pytest
 
 from euc_ros.core.residual.analysis import DEFAULT_ALPHA
-from euc_ros.core.residual.campaign import CONTROLS, SCENARIOS, run_scenario, verdict
+
+# the experiment harnesses live in studies/ at the repository root, outside the package
+sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
+from studies.campaign import CONTROLS, SCENARIOS, run_scenario, verdict  # noqa: E402
 
 pytestmark = pytest.mark.slow
 

@@ -3,7 +3,7 @@
 Two derivations meet here. The simulator's :func:`~euc_ros.core.ridesim.truth_model._derive_floor`
 is Lagrange's equations (sympy) of a wheel centre moving along a curve with tangent angle a(s) and
 angles measured from gravity's vertical. The residual analysis'
-:class:`~euc_ros.core.residual.candidates.FloorGeometry` is Newton's law projected on the path by
+:class:`~euc_ros.core.model.effects.FloorGeometry` is Newton's law projected on the path by
 hand, written with the measured signals (horizontal x_ddot, vertical C_zdd). A third, older derivation
 (:func:`_derive`: a level floor with gravity tilted) must agree with the first on a constant slope,
 once the angles are measured from the floor's normal instead of the vertical.
@@ -13,12 +13,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.euc.model import EucParams
-from euc_ros.core.residual.candidates import FloorGeometry, ModelContext
+from euc_ros.core.model.effects import FloorGeometry, ModelContext
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
 from euc_ros.core.ridesim.floors import FloorProfile
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.ridesim.truth_model import FloorModel, PlanarModel, PlanarParams
-from euc_ros.core.euc.torque import torques
 
 G = 9.81
 

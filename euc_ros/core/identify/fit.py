@@ -1,0 +1,429 @@
+"""Identification of the rider CoG height h (EUC paper, Section 4 and Fig. 8).
+
+The driving torque is not measured, so h is the value that makes the two model expressions of the
+driving torque agree best: it minimises ``RMSE(h) = sqrt(mean((M_d1 - M_d2)^2))`` over the valid
+samples, for the 3-DoF model (eqs (9)-(10)) and for the reduced 2-DoF model (eq (13)).
+
+Vectorization. With ``w = [R, 1, 1]`` (which annihilates both input directions, see
+:mod:`euc_ros.core.model.torque`) the residual of one sample is
+
+    e(h) = M_d1 - M_d2 = c N(h) / D(h),   c = R m11,
+    N(h) = w . (M q_ddot + h_vec - Q_g - Q_extra) = a0 + a1 h + a2 h^2,
+    D(h) = w . M[:, 0] = d0 + d1 h,
+
+because h enters (6)-(8) at most quadratically (``m33 = J + m h^2``) and D linearly. The six
+coefficients are computed once per sample, from the model functions themselves (at h = 0, 1, -1),
+and the whole RMSE(h) grid then costs a few multiply-adds per sample and grid point, evaluated in
+chunks. The optimum is refined with :func:`scipy.optimize.minimize_scalar` (bounded) between the
+grid neighbours of the grid minimum.
+
+Pooling over recordings means one RMSE over all their valid samples together.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass, field
+from typing import Any, Callable, Sequence
+
+import numpy as np
+from scipy.optimize import minimize_scalar
+
+from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.model.terms import EucParams, bias_terms, gravity_forces, mass_matrix
+
+#: Default grid of CoG heights [m] (0.1 to 1.2 m in 5 mm steps).
+DEFAULT_H_GRID = np.linspace(0.1, 1.2, 221)
+#: Model names: the paper's 3-DoF model and the reduced 2-DoF model of Section 3.2.
+MODELS = ("3dof", "2dof")
+#: Step [m] used for the sharpness of an RMSE(h) curve (relative RMSE increase at h* +- this).
+SHARPNESS_STEP_M = 0.1
+_CHUNK_ELEMENTS = 1 << 20
+
+
+def model_params(params: EucParams, model: str) -> EucParams:
+    """Return the parameters of ``model`` ("3dof" as given, "2dof" with ``J0 = h0 = l0 = 0``)."""
+    if model == "3dof":
+        return params
+    if model == "2dof":
+        return params.reduced()
+    raise ConfigError(f"model must be one of {MODELS}, got {model!r}", key="model")
+
+
+def _consistency(args: Sequence[np.ndarray], p: EucParams, extra_Q) -> tuple[np.ndarray, ...]:
+    """Return ``(c, N, D)`` of the residual ``e = c N / D`` at the parameters ``p`` (see module doc)."""
+    gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot = (np.asarray(a, dtype=float) for a in args)
+    zero = np.zeros_like(gamma)
+    q = np.stack([zero, gamma, phi], -1)
+    qd = np.stack([zero, gamma_dot, phi_dot], -1)
+    qdd = np.stack([x_ddot, gamma_ddot, phi_ddot], -1)
+    M = mass_matrix(q, p)
+    r = np.einsum("...ij,...j->...i", M, qdd) + bias_terms(q, qd, p) - gravity_forces(q, p)
+    if extra_Q is not None:
+        r = r - np.asarray(extra_Q, dtype=float)
+    R = np.asarray(p.R, dtype=float)
+    N = R * r[..., 0] + r[..., 1] + r[..., 2]
+    D = R * M[..., 0, 0] + M[..., 1, 0] + M[..., 2, 0]
+    return R * M[..., 0, 0], N, D
+
+
+#: Samples per block of :func:`residual_coefficients` (its temporaries are ~20 arrays of this size).
+_COEF_BLOCK = 8192
+
+
+def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: str = "3dof",
+                          extra_Q=None) -> np.ndarray:
+    """Per-sample coefficients ``(c, a0, a1, a2, d0, d1)`` of ``e(h) = c (a0 + a1 h + a2 h^2) / (d0 + d1 h)``.
+
+    Parameters
+    ----------
+    args : sequence of 7 arrays (n,)
+        ``gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot`` (see
+        :meth:`~euc_ros.core.states.kinematics.RiderStates.torque_args`).
+    params : EucParams
+        Model parameters (``h`` ignored); fields may be arrays of shape (n,).
+    model : {"3dof", "2dof"}
+    extra_Q : array_like (n, 3), optional
+        Extra generalized force independent of h [N, N m, N m].
+
+    Returns
+    -------
+    ndarray (6, n)
+        ``c`` [m], ``a0, a1, a2`` [N m, N, N/m] and ``d0, d1`` [kg m, kg].
+    """
+    p = model_params(params, model)
+    n = int(np.shape(args[0])[0]) if np.ndim(args[0]) == 1 else 0
+    scalar = all(np.ndim(v) == 0 for v in dataclasses.astuple(p))
+    if n > _COEF_BLOCK and scalar:
+        # per sample: block by block, so the mass matrices and forces of the whole recording never exist
+        out = np.empty((6, n))
+        for lo in range(0, n, _COEF_BLOCK):
+            hi = min(n, lo + _COEF_BLOCK)
+            out[:, lo:hi] = residual_coefficients([np.asarray(a, dtype=float)[lo:hi] for a in args], p, "3dof",
+                                                  None if extra_Q is None else np.asarray(extra_Q, float)[lo:hi])
+        return out
+    c, n0, d0 = _consistency(args, p.with_h(0.0), extra_Q)
+    _, n1, d1 = _consistency(args, p.with_h(1.0), extra_Q)
+    _, nm, _ = _consistency(args, p.with_h(-1.0), extra_Q)
+    a1 = 0.5 * (n1 - nm)
+    a2 = 0.5 * (n1 + nm) - n0
+    return np.stack(np.broadcast_arrays(c, n0, a1, a2, d0, d1 - d0))
+
+
+def sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Sum of squared residuals for every h (chunked over samples, in place to spare memory traffic)."""
+    h = np.asarray(h, dtype=float).reshape(-1)
+    n = coef.shape[1]
+    sse = np.zeros(h.size)
+    if n == 0:
+        return sse
+    c, a0, a1, a2, d0, d1 = coef
+    H = h[:, None]
+    step = max(1, min(n, _CHUNK_ELEMENTS // h.size))
+    num_buf = np.empty((h.size, step))
+    den_buf = np.empty((h.size, step))
+    for s in range(0, n, step):
+        e = min(n, s + step)
+        # c a_k of the chunk only (elementwise: the same numbers as made for all samples at once)
+        cs = c[s:e]
+        num = np.multiply(H, cs * a2[s:e], out=num_buf[:, :e - s])
+        num += cs * a1[s:e]
+        num *= H
+        num += cs * a0[s:e]
+        den = np.multiply(H, d1[s:e], out=den_buf[:, :e - s])
+        den += d0[s:e]
+        num /= den
+        sse += np.einsum("gn,gn->g", num, num)
+    return sse
+
+
+def _as_list(states) -> list:
+    return list(states) if isinstance(states, (list, tuple)) else [states]
+
+
+def _valid_args(st, extra_Q) -> tuple[tuple[np.ndarray, ...], Any]:
+    mask = np.asarray(st.valid, dtype=bool)
+    args = st.torque_args(mask)
+    if extra_Q is not None and not callable(extra_Q):
+        extra_Q = np.asarray(extra_Q, dtype=float)
+        if extra_Q.shape != (st.n, 3):
+            raise InputError(f"extra_Q must have shape ({st.n}, 3), got {extra_Q.shape}", key="extra_Q")
+        extra_Q = extra_Q[mask]
+    return args, extra_Q
+
+
+def _valid_coefficients(st, params: EucParams, model: str, extra_Q) -> np.ndarray:
+    """:func:`residual_coefficients` of the valid samples of ``st`` (6, n_valid), made block by block of
+    the recording (:data:`_COEF_BLOCK` samples), so the valid samples' seven state arrays are never
+    copied whole (56 bytes a sample beside the coefficients' 48). Per-sample arithmetic: the numbers
+    are those of the masked copies. Scalar parameters only."""
+    mask = np.asarray(st.valid, dtype=bool)
+    if extra_Q is not None:
+        extra_Q = np.asarray(extra_Q, dtype=float)
+        if extra_Q.shape != (st.n, 3):
+            raise InputError(f"extra_Q must have shape ({st.n}, 3), got {extra_Q.shape}", key="extra_Q")
+    arrs = st.torque_args()
+    out = np.empty((6, int(np.count_nonzero(mask))))
+    j = 0
+    for lo in range(0, mask.size, _COEF_BLOCK):
+        m = mask[lo:lo + _COEF_BLOCK]
+        k = int(np.count_nonzero(m))
+        if k == 0:
+            continue
+        out[:, j:j + k] = residual_coefficients([np.asarray(a)[lo:lo + _COEF_BLOCK][m] for a in arrs], params, model,
+                                                None if extra_Q is None else extra_Q[lo:lo + _COEF_BLOCK][m])
+        j += k
+    return out
+
+
+def coefficients_for(states_list, params: EucParams, model: str, extra_Q) -> list[np.ndarray]:
+    extras = extra_Q if isinstance(extra_Q, (list, tuple)) else [extra_Q] * len(states_list)
+    scalar = all(np.ndim(v) == 0 for v in dataclasses.astuple(model_params(params, model)))
+    out = []
+    for st, ex in zip(states_list, extras):
+        if scalar and not callable(ex):
+            out.append(_valid_coefficients(st, params, model, ex))
+            continue
+        args, ex = _valid_args(st, ex)
+        out.append(residual_coefficients(args, params, model, ex))
+    return out
+
+
+def _sse_callable(st, params: EucParams, model: str, h_grid: np.ndarray, extra_Q: Callable) -> np.ndarray:
+    """SSE over a grid when the extra force depends on h: ``extra_Q(states, h) -> (n, 3)``."""
+    mask = np.asarray(st.valid, dtype=bool)
+    args = st.torque_args(mask)
+    p = model_params(params, model)
+    sse = np.empty(h_grid.size)
+    for k, h in enumerate(h_grid):
+        ex = np.asarray(extra_Q(st, float(h)), dtype=float)[mask]
+        c, N, D = _consistency(args, p.with_h(float(h)), ex)
+        e = c * N / D
+        sse[k] = float(np.dot(e, e))
+    return sse
+
+
+def rmse_curve(states, params: EucParams, h_grid=DEFAULT_H_GRID, model: str = "3dof", extra_Q=None) -> np.ndarray:
+    """RMSE of ``M_d1 - M_d2`` over the valid samples for every CoG height in ``h_grid`` (Fig. 8).
+
+    Parameters
+    ----------
+    states : RiderStates or sequence of RiderStates
+        One recording, or several pooled (one RMSE over all their valid samples).
+    params : EucParams
+        Nominal parameters (``h`` is replaced by the grid values).
+    h_grid : array_like (g,)
+        CoG heights [m].
+    model : {"3dof", "2dof"}
+        Eqs (9)-(10) or the reduced eq (13).
+    extra_Q : array_like (n, 3), list of them, or callable, optional
+        Extra generalized force added to (5) (see :func:`~euc_ros.core.model.torque.torques`): one
+        (n, 3) array per recording (a list when pooling), or ``extra_Q(states, h) -> (n, 3)`` when it
+        depends on h.
+
+    Returns
+    -------
+    ndarray (g,)
+        RMSE [N m]; NaN if there is no valid sample.
+    """
+    h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
+    states_list = _as_list(states)
+    model_params(params, model)
+    if callable(extra_Q):
+        sse = sum(_sse_callable(st, params, model, h_grid, extra_Q) for st in states_list)
+        n = sum(int(np.count_nonzero(st.valid)) for st in states_list)
+    else:
+        coefs = coefficients_for(states_list, params, model, extra_Q)
+        coef = np.concatenate(coefs, axis=1)
+        sse, n = sse_grid(coef, h_grid), coef.shape[1]
+    return np.sqrt(sse / n) if n else np.full(h_grid.size, np.nan)
+
+
+@dataclass
+class ModelFit:
+    """Optimal h of one model on one recording (or pooled).
+
+    Attributes
+    ----------
+    model : str
+        "3dof" or "2dof".
+    h_m : float
+        Optimal CoG height [m] (NaN without data).
+    rmse_nm : float
+        RMSE of ``M_d1 - M_d2`` at ``h_m`` [N m].
+    n_samples : int
+        Valid samples used.
+    rmse_curve_nm : ndarray (g,)
+        RMSE over the grid [N m].
+    at_bound : bool
+        The grid minimum is at an end of the grid (the optimum may lie outside it).
+    h_std_m : float
+        Formal standard deviation of ``h_m`` [m] from the curvature of the sum of squares
+        (``sigma^2 = 2 s^2 / SSE''(h)``, ``s^2 = SSE / (n - 1)``); it treats samples as independent,
+        so it is optimistic for smoothed (correlated) data.
+    sharpness : float
+        Relative RMSE increase at ``h_m +- 0.1 m`` (mean of both sides): small for a flat curve.
+    """
+
+    model: str
+    h_m: float
+    rmse_nm: float
+    n_samples: int
+    rmse_curve_nm: np.ndarray
+    at_bound: bool
+    h_std_m: float
+    sharpness: float
+
+    def summary(self) -> dict[str, Any]:
+        """JSON-ready scalars."""
+        return {"model": self.model, "h_m": _f(self.h_m), "rmse_nm": _f(self.rmse_nm), "n_samples": self.n_samples,
+                "h_std_m": _f(self.h_std_m), "sharpness": _f(self.sharpness), "at_bound": bool(self.at_bound)}
+
+
+def _f(v: float) -> float | None:
+    return None if not np.isfinite(v) else float(v)
+
+
+def _fit(coef: np.ndarray, h_grid: np.ndarray, model: str, sse: np.ndarray | None = None) -> ModelFit:
+    n = coef.shape[1]
+    if sse is None:
+        sse = sse_grid(coef, h_grid)
+    if n == 0 or not np.any(np.isfinite(sse)):
+        return ModelFit(model, np.nan, np.nan, n, np.full(h_grid.size, np.nan), False, np.nan, np.nan)
+    curve = np.sqrt(sse / n)
+    i = int(np.nanargmin(sse))
+    lo, hi = h_grid[max(i - 1, 0)], h_grid[min(i + 1, h_grid.size - 1)]
+
+    def f(h: float) -> float:
+        return float(sse_grid(coef, np.array([h]))[0])
+
+    if hi > lo:
+        res = minimize_scalar(f, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7})
+        h_opt, sse_opt = (float(res.x), float(res.fun)) if res.fun <= sse[i] else (float(h_grid[i]), float(sse[i]))
+    else:
+        h_opt, sse_opt = float(h_grid[i]), float(sse[i])
+    d = 1e-3
+    s_m, s_p = sse_grid(coef, np.array([h_opt - d, h_opt + d]))
+    curv = (s_m + s_p - 2 * sse_opt) / d**2
+    h_std = float(np.sqrt(2 * sse_opt / max(n - 1, 1) / curv)) if curv > 0 else np.nan
+    r_side = np.sqrt(sse_grid(coef, np.array([h_opt - SHARPNESS_STEP_M, h_opt + SHARPNESS_STEP_M])) / n)
+    rmse_opt = np.sqrt(sse_opt / n)
+    sharp = float(np.mean(r_side) / rmse_opt - 1.0) if rmse_opt > 0 else np.inf
+    return ModelFit(model, h_opt, float(rmse_opt), n, curve, i in (0, h_grid.size - 1), h_std, sharp)
+
+
+@dataclass
+class RecordingFit:
+    """Fits of both models on one recording."""
+
+    recording: str
+    n_samples: int
+    fits: dict[str, ModelFit]
+
+
+@dataclass
+class IdentifyResult:
+    """Optimal h per recording and pooled, for each model (Section 4, Fig. 8).
+
+    Attributes
+    ----------
+    h_grid : ndarray (g,)
+        Grid of CoG heights [m].
+    per_recording : list of RecordingFit
+    pooled : dict of str -> ModelFit
+    settings : dict
+        What produced it (phi definition, filter window...), copied into the JSON.
+    """
+
+    h_grid: np.ndarray
+    per_recording: list[RecordingFit]
+    pooled: dict[str, ModelFit]
+    settings: dict = field(default_factory=dict)
+
+    def to_json(self, model: str = "3dof") -> dict[str, Any]:
+        """The analysis output of spec section 5, headed by ``model``, plus every model's results and curves."""
+        head = self.pooled[model]
+        out: dict[str, Any] = {
+            "model": model, "h_m": _f(head.h_m), "rmse_nm": _f(head.rmse_nm), "n_samples": head.n_samples,
+            "h_std_m": _f(head.h_std_m), "at_bound": bool(head.at_bound),
+            "per_recording": [],
+        }
+        for rec in self.per_recording:
+            fit = rec.fits[model]
+            entry = {"recording": rec.recording, "h_m": _f(fit.h_m), "rmse_nm": _f(fit.rmse_nm),
+                     "n_samples": rec.n_samples, "at_bound": bool(fit.at_bound)}
+            for other, ofit in rec.fits.items():
+                if other != model:
+                    entry[other] = {"h_m": _f(ofit.h_m), "rmse_nm": _f(ofit.rmse_nm), "at_bound": bool(ofit.at_bound)}
+            out["per_recording"].append(entry)
+        out["models"] = {
+            name: dict(fit.summary(), rmse_curve_nm=[_f(v) for v in fit.rmse_curve_nm],
+                       per_recording=[dict(rec.fits[name].summary(), recording=rec.recording,
+                                           rmse_curve_nm=[_f(v) for v in rec.fits[name].rmse_curve_nm])
+                                      for rec in self.per_recording])
+            for name, fit in self.pooled.items()
+        }
+        out["h_grid_m"] = [float(v) for v in self.h_grid]
+        out["settings"] = dict(self.settings)
+        return out
+
+
+def identify_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models: Sequence[str] = MODELS,
+               extra_Q=None, settings: dict | None = None) -> IdentifyResult:
+    """Identify the CoG height h per recording and pooled, for each model (Section 4).
+
+    Parameters
+    ----------
+    states_list : RiderStates or sequence of RiderStates
+        Reconstructed recordings (see :func:`~euc_ros.core.states.kinematics.reconstruct_states`).
+    params : EucParams
+        Nominal parameters of the session (``h`` ignored).
+    h_grid : array_like (g,)
+        CoG heights [m], increasing.
+    models : sequence of {"3dof", "2dof"}
+    extra_Q : optional
+        As in :func:`rmse_curve` (array or list of arrays independent of h).
+    settings : dict, optional
+        Stored in the result (and its JSON).
+
+    Returns
+    -------
+    IdentifyResult
+    """
+    states_list = _as_list(states_list)
+    h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
+    if h_grid.size < 3 or np.any(np.diff(h_grid) <= 0) or not np.all(np.isfinite(h_grid)):
+        raise ConfigError("the h grid needs at least 3 increasing finite values", key="h_grid")
+    if callable(extra_Q):
+        raise ConfigError("identify_h takes extra_Q as arrays; use rmse_curve for an h-dependent force",
+                          key="extra_Q")
+    per_rec = [RecordingFit(st.name, int(np.count_nonzero(st.valid)), {}) for st in states_list]
+    pooled: dict[str, ModelFit] = {}
+    for model in models:
+        coefs = coefficients_for(states_list, params, model, extra_Q)
+        sses = [sse_grid(c, h_grid) for c in coefs]
+        for rec, c, s in zip(per_rec, coefs, sses):
+            rec.fits[model] = _fit(c, h_grid, model, s)
+        pooled[model] = pooled_fit(coefs, h_grid, model, sses)
+    return IdentifyResult(h_grid, per_rec, pooled, dict(settings or {}))
+
+
+def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = "3dof",
+               sses: Sequence[np.ndarray] | None = None) -> ModelFit:
+    """The pooled fit of :func:`identify_h` from the recordings' residual coefficients (and their SSE
+    curves over ``h_grid``, computed here when not given): what ``identify_h(...).pooled[model]`` is."""
+    h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
+    if sses is None:
+        sses = [sse_grid(c, h_grid) for c in coefs]
+    # one recording: its coefficients are the pooled ones (np.concatenate would copy them, 48 bytes a frame)
+    pooled_coef = coefs[0] if len(coefs) == 1 else np.concatenate(coefs, axis=1)
+    return _fit(pooled_coef, h_grid, model, np.sum(sses, axis=0))
+
+
+def pooled_h_of_states(states: list, params: EucParams) -> float:
+    """``identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, emptying the list ``states``:
+    each recording's states are dropped as soon as they are reduced to their residual coefficients
+    (48 bytes a valid sample, where the states are ~170 a frame), so the fit runs without them."""
+    coefs = []
+    while states:
+        coefs += coefficients_for([states.pop(0)], params, "3dof", None)
+    return float(pooled_fit(coefs, DEFAULT_H_GRID, "3dof").h_m)

@@ -1,0 +1,140 @@
+"""Recordings worked on in blocks of frames, so memory does not grow with copies of the recording.
+
+A whole-recording step that needs, per frame, only frames nearby (the bridging, the geometry:
+:func:`~euc_ros.core.states.geometry.block_geometry`) reads the poses block by block
+(:func:`pose_block`, :data:`BLOCK_FRAMES` frames).
+
+The uncertainty and noise-floor steps reconstruct the recording again with noise added
+(SIMEX, :func:`~euc_ros.core.identify.simex.eiv_bias`; the residual's noise floor,
+:func:`~euc_ros.core.residual.noise.noise_floor`). :class:`PerturbedSeries` is such a re-noised
+recording that never exists whole: it hands out the perturbed poses of any block of frames
+(:meth:`PerturbedSeries.pose_block`), made on demand from the base recording. Its noise is
+:class:`BlockNoise`: the standard normal draws of block ``k`` (:data:`BLOCK_FRAMES` frames, every
+body and component at once) come from their own generator, seeded by one number drawn from the
+caller's generator and ``k``, so any block is drawn directly (no walk through the stream before it)
+and a block read twice, or out of order, gives the same numbers. The last few blocks are kept, so
+reading a recording block after block with margins draws every block once.
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+import numpy as np
+
+from euc_ros.core.mocap.series import MocapSeries
+
+#: Frames per block of :func:`~euc_ros.core.states.geometry.block_geometry` (and of the noise bookmarks).
+BLOCK_FRAMES = 4096
+
+
+def pose_block(series, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(position, quat, tracked)`` of frames ``lo:hi`` of every body: views of a
+    :class:`~euc_ros.core.mocap.series.MocapSeries`, or a :class:`PerturbedSeries`' block."""
+    block = getattr(series, "pose_block", None)
+    if block is not None:
+        return block(lo, hi)
+    return series.position[:, lo:hi], series.quat[:, lo:hi], series.tracked[:, lo:hi]
+
+
+def materialize(series) -> MocapSeries:
+    """``series`` as a plain :class:`~euc_ros.core.mocap.series.MocapSeries` (a :class:`PerturbedSeries` made whole)."""
+    make = getattr(series, "materialize", None)
+    return make() if make is not None else series
+
+
+class PerturbedSeries:
+    """A recording with its poses perturbed, made block by block on demand (see the module docstring).
+
+    Every attribute but ``position`` and ``quat`` is the base recording's. ``pose_block(lo, hi)``
+    gives the perturbed poses of frames ``lo:hi``; ``position``, ``quat`` and :meth:`materialize`
+    build the whole (for code that needs all frames at once, e.g. the skeleton CoG).
+
+    Parameters
+    ----------
+    base : MocapSeries
+    perturb : callable
+        ``perturb(lo, hi) -> (position, quat)``: new arrays (b, hi - lo, 3) and (b, hi - lo, 4).
+    """
+
+    def __init__(self, base, perturb: Callable[[int, int], tuple[np.ndarray, np.ndarray]]) -> None:
+        self._base = base
+        self._perturb = perturb
+
+    def __getattr__(self, name):
+        if name.startswith("_"):
+            raise AttributeError(name)
+        return getattr(self._base, name)
+
+    def pose_block(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(position, quat, tracked)`` of frames ``lo:hi``, perturbed (new arrays but ``tracked``)."""
+        pos, quat = self._perturb(lo, hi)
+        return pos, quat, self._base.tracked[:, lo:hi]
+
+    @property
+    def position(self) -> np.ndarray:
+        return self._perturb(0, self._base.n_frames)[0]
+
+    @property
+    def quat(self) -> np.ndarray:
+        return self._perturb(0, self._base.n_frames)[1]
+
+    def materialize(self) -> MocapSeries:
+        """The whole perturbed recording as a :class:`~euc_ros.core.mocap.series.MocapSeries`."""
+        from dataclasses import replace
+
+        pos, quat = self._perturb(0, self._base.n_frames)
+        return replace(materialize(self._base), position=pos, quat=quat)
+
+
+class BlockNoise:
+    """Standard normal draws for a recording of ``n`` frames, made block by block on demand.
+
+    Block ``k`` (frames ``k BLOCK_FRAMES`` to ``(k + 1) BLOCK_FRAMES``) holds an array
+    ``(rows, frames in the block, width)`` drawn by its own PCG64 generator, seeded from one integer
+    drawn from ``rng`` on construction (the caller's generator advances by that one draw) and ``k``:
+    the blocks are independent, any of them is made directly, and the same block is always the same
+    numbers. Drawn in float32 (about twice as fast as float64; the draws scale noise of ~1e-4 m and
+    ~1e-2 rad, where float32's relative 6e-8 is far below anything the analysis resolves) and
+    returned as float64. The ``cache`` most recent blocks are kept.
+    """
+
+    def __init__(self, rng: np.random.Generator, n: int, rows: int, width: int, *, cache: int = 3) -> None:
+        self._entropy = int(rng.integers(0, 2**63 - 1))
+        self.n, self.rows, self.width = int(n), int(rows), int(width)
+        self._cache: dict[int, np.ndarray] = {}
+        self._cache_size = int(cache)
+
+    def _block(self, k: int) -> np.ndarray:
+        hit = self._cache.get(k)
+        if hit is not None:
+            return hit
+        frames = min(self.n, (k + 1) * BLOCK_FRAMES) - k * BLOCK_FRAMES
+        g = np.random.Generator(np.random.PCG64(np.random.SeedSequence(self._entropy, spawn_key=(k,))))
+        z = g.standard_normal((self.rows, frames, self.width), dtype=np.float32)
+        if len(self._cache) >= self._cache_size:
+            self._cache.pop(next(iter(self._cache)))
+        self._cache[k] = z
+        return z
+
+    def draw(self, lo: int, hi: int) -> np.ndarray:
+        """The draws of frames ``lo:hi``: (rows, hi - lo, width) float64."""
+        k0, k1 = block_span(lo, hi)
+        first = k0 * BLOCK_FRAMES
+        if k1 - k0 == 1:
+            z = self._block(k0)
+        else:
+            z = np.concatenate([self._block(k) for k in range(k0, k1)], axis=1)
+        return z[:, lo - first:hi - first].astype(float)
+
+
+def block_span(lo: int, hi: int, block: int | None = None) -> tuple[int, int]:
+    """Blocks ``k0 .. k1 - 1`` (of :data:`BLOCK_FRAMES` frames) covering frames ``lo:hi``."""
+    block = block or BLOCK_FRAMES
+    return lo // block, -(-hi // block)
+
+
+def block_counts(n: int, block: int | None = None) -> np.ndarray:
+    """Frames in each block (of :data:`BLOCK_FRAMES` frames) of a recording of ``n`` frames."""
+    block = block or BLOCK_FRAMES
+    starts = np.arange(0, n, block)
+    return np.minimum(starts + block, n) - starts

@@ -1,0 +1,437 @@
+"""Library of candidate effects: physical extensions of the EUC model that may explain M_d1 - M_d2.
+
+Each candidate is a named object with parameters (name, unit, bounds) that modifies the 3-DoF model
+(eqs (5)-(8)) in one of three ways, all derived by virtual power:
+
+* an extra generalized force ``dQ(q, q_dot, q_ddot; theta)`` on the right-hand side of (5)
+  (``M q_ddot + h = Q_g + dQ + M_d b_d + M_h b_h``);
+* a change of a model parameter (wheel radius, rider mass or inertia, gravity in the plane, h(t));
+* a change of timing (rider segments delayed against the EUC body in the mocap data).
+
+A candidate acts on a :class:`ModelContext` in two phases: ``modify`` (parameters and states) then
+``force`` (extra generalized force, evaluated with the final parameters), so several candidates
+compose (greedy forward selection). The formulas (``docs/residual.md``):
+
+==========================  ======================  ==========================================================
+name                        parameters              change of the model
+==========================  ======================  ==========================================================
+rolling_resistance          c_rr [-]                dQ = [-c_rr N tanh(x_dot / 0.05), 0, 0], N = (m+m0+mw) g
+viscous_friction            c_v [N s/m]             dQ = [-c_v x_dot, 0, 0]
+aero_drag                   cda_m2 [m^2]            dQ = J_G^T F, F = -rho/2 cda |v_G| v_G (rho = 1.2 kg/m^3)
+ground_slope                alpha_deg [deg]         gravity (g_x, g_z) = (-g sin a cos psi, -g cos a):
+                                                    dQ = Q_g(g_x, g_z) - Q_g(0, -g)
+wheel_radius_error          delta_r_m [m]           R -> R + delta
+mocap_time_offset           dt_ms [ms]              rider CoG G(t) -> G(t + dt), phi recomputed
+rider_mass_error            delta_m_kg [kg]         m -> m + delta
+rider_inertia_error         delta_j_kgm2 [kg m^2]   J -> J + delta
+tilt_gravity                gain [-]                g -> g + gain (g cos(theta) - a_c sin(theta) - g), a_c = psi_dot x_dot
+time_varying_h              amplitude_m, period_s   h(t) = h + a sin(2 pi t / T + p0), dQ = -m J_G^T a_rh,
+                                                    a_rh = h_ddot (sin phi, cos phi) + 2 h_dot phi_dot (cos phi, -sin phi)
+wheel_body_friction         c_wb [N m s/rad]        dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]   (undetectable)
+==========================  ======================  ==========================================================
+
+Geometry (EUC paper, Appendix A): C = (x, R), A = C + l0 (-sin gamma, -cos gamma),
+G = A + h (sin phi, cos phi), so ``J_G = [[1, -l0 cos gamma, h cos phi], [0, l0 sin gamma, -h sin phi]]``.
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from euc_ros.core.model.terms import EucParams
+
+#: Air density of aero_drag [kg/m^3].
+AIR_DENSITY = 1.2
+#: Speed scale of the tanh regularisation of sign(x_dot) [m/s].
+ROLLING_SIGN_SPEED = 0.05
+
+
+@dataclass(frozen=True)
+class ParamInfo:
+    """One fitted parameter: reported name, unit, bounds, start value and typical magnitude.
+
+    ``low``/``high`` are the physical range: resistances, drag areas and the tilt coupling are not
+    negative (a negative drag area is a force that pushes the rider, not drag), a mass or an inertia
+    stays positive. A fit that ends on a bound explains nothing (the analysis does not select it).
+
+    ``scale`` is the parameter's typical magnitude in practice: it scales the least-squares problem and
+    is the prior scale of the tie-break between candidates the data cannot tell apart (a Motive system
+    stamps all rigid bodies of a frame together, so a rider/EUC time offset is typically ~0; a tyre's
+    rolling radius is known to ~1 cm; a rider's mass to ~5 kg; ...).
+    """
+
+    name: str
+    unit: str
+    low: float
+    high: float
+    start: float = 0.0
+    scale: float = 1.0
+    reported: bool = True
+
+
+@dataclass
+class ModelContext:
+    """The signals of one recording as a candidate model sees them (valid samples only).
+
+    Candidates may replace ``phi``/``phi_dot``/``phi_ddot`` (timing) and put parameter overrides
+    (scalars or per-sample arrays) into ``overrides``; ``extra_Q`` collects generalized forces.
+    """
+
+    t: np.ndarray
+    x_dot: np.ndarray
+    x_ddot: np.ndarray
+    gamma: np.ndarray
+    gamma_dot: np.ndarray
+    gamma_ddot: np.ndarray
+    phi: np.ndarray
+    phi_dot: np.ndarray
+    phi_ddot: np.ndarray
+    psi: np.ndarray
+    psi_dot: np.ndarray
+    theta: np.ndarray
+    params: EucParams
+    extras: dict = field(default_factory=dict)
+    overrides: dict = field(default_factory=dict)
+    extra_Q: np.ndarray | None = None
+    mask: np.ndarray | None = None
+
+    def p(self) -> EucParams:
+        """Parameters with the overrides applied."""
+        return dataclasses.replace(self.params, **self.overrides) if self.overrides else self.params
+
+    def add_force(self, dQ: np.ndarray) -> None:
+        """Accumulate a generalized force (n, 3)."""
+        self.extra_Q = dQ if self.extra_Q is None else self.extra_Q + dQ
+
+    def copy(self) -> "ModelContext":
+        """Shallow copy with fresh overrides/extra_Q (arrays shared, never modified in place)."""
+        return dataclasses.replace(self, overrides=dict(self.overrides), extra_Q=None, mask=None)
+
+
+def jacobian_G(ctx: ModelContext, p: EucParams) -> tuple[np.ndarray, np.ndarray]:
+    """Rows dG_x/dq and dG_z/dq (n, 3) of the rider CoG (Appendix A geometry)."""
+    n = ctx.gamma.shape[0]
+    h = np.broadcast_to(np.asarray(p.h, float), (n,))
+    jx = np.stack([np.ones(n), -p.l0 * np.cos(ctx.gamma), h * np.cos(ctx.phi)], axis=1)
+    jz = np.stack([np.zeros(n), p.l0 * np.sin(ctx.gamma), -h * np.sin(ctx.phi)], axis=1)
+    return jx, jz
+
+
+class Candidate:
+    """Base class: a named physical extension of the model with fitted parameters."""
+
+    name = "none"
+    params: tuple[ParamInfo, ...] = ()
+    formula = ""
+
+    def modify(self, ctx: ModelContext, theta: np.ndarray) -> None:
+        """Phase 1: change parameters or states (default: nothing)."""
+
+    def force(self, ctx: ModelContext, theta: np.ndarray) -> np.ndarray | None:
+        """Phase 2: extra generalized force (n, 3) evaluated with the final parameters (default: none)."""
+        return None
+
+    def starts(self) -> list[np.ndarray]:
+        """Initial guesses of the parameters (several for multi-modal fits)."""
+        return [np.array([q.start for q in self.params], float)]
+
+    def report(self, theta: np.ndarray) -> dict[str, float]:
+        """Parameters as reported in the JSON (spec names and units)."""
+        return {q.name: float(v) for q, v in zip(self.params, theta) if q.reported}
+
+    @property
+    def n_params(self) -> int:
+        """Number of fitted parameters."""
+        return len(self.params)
+
+
+class RollingResistance(Candidate):
+    """Coulomb-like rolling resistance at the contact: dQ = [-c_rr N tanh(x_dot / v0), 0, 0]."""
+
+    name = "rolling_resistance"
+    params = (ParamInfo("c_rr", "-", 0.0, 0.1, 0.0, 0.01),)
+    formula = "dQ = [-c_rr (m+m0+mw) g tanh(x_dot/0.05), 0, 0]"
+
+    def force(self, ctx, theta):
+        p = ctx.p()
+        F = -theta[0] * (p.m + p.m0 + p.mw) * p.g * np.tanh(ctx.x_dot / ROLLING_SIGN_SPEED)
+        return _x_force(F)
+
+
+class ViscousFriction(Candidate):
+    """Viscous friction at the contact: dQ = [-c_v x_dot, 0, 0]."""
+
+    name = "viscous_friction"
+    params = (ParamInfo("c_v", "N s/m", 0.0, 200.0, 0.0, 10.0),)
+    formula = "dQ = [-c_v x_dot, 0, 0]"
+
+    def force(self, ctx, theta):
+        return _x_force(-theta[0] * ctx.x_dot)
+
+
+class AeroDrag(Candidate):
+    """Aerodynamic drag on the rider at G: dQ = J_G^T F with F = -rho/2 cda |v_G| v_G."""
+
+    name = "aero_drag"
+    params = (ParamInfo("cda_m2", "m^2", 0.0, 3.0, 0.0, 0.5),)
+    formula = "dQ = J_G^T F, F = -0.5 rho cda |v_G| v_G"
+
+    def force(self, ctx, theta):
+        p = ctx.p()
+        jx, jz = jacobian_G(ctx, p)
+        qd = np.stack([ctx.x_dot, ctx.gamma_dot, ctx.phi_dot], axis=1)
+        vx, vz = np.sum(jx * qd, axis=1), np.sum(jz * qd, axis=1)
+        speed = np.hypot(vx, vz)
+        k = 0.5 * AIR_DENSITY * theta[0]
+        return jx * (-k * speed * vx)[:, None] + jz * (-k * speed * vz)[:, None]
+
+
+class GroundSlope(Candidate):
+    """Ground slope alpha along world +x: gravity tilted in the plane of a run with heading psi."""
+
+    name = "ground_slope"
+    params = (ParamInfo("alpha_deg", "deg", -20.0, 20.0, 0.0, 2.0),)
+    formula = "g = (-g sin(a) cos(psi), -g cos(a)); dQ = Q_g(tilted) - Q_g(vertical)"
+
+    def force(self, ctx, theta):
+        p = ctx.p()
+        a = np.deg2rad(theta[0])
+        g = np.asarray(p.g, float)
+        gx = -g * np.sin(a) * np.cos(ctx.psi)
+        gz_mag = g * np.cos(a)                      # downward component magnitude
+        k_gamma = p.m0 * p.h0 - p.m * p.l0
+        dq_x = (p.m + p.m0 + p.mw) * gx
+        dq_g = k_gamma * (gx * np.cos(ctx.gamma) + (gz_mag - g) * np.sin(ctx.gamma))
+        dq_p = p.m * np.asarray(p.h, float) * (gx * np.cos(ctx.phi) + (gz_mag - g) * np.sin(ctx.phi))
+        n = ctx.gamma.shape[0]
+        return np.stack([np.broadcast_to(dq_x, (n,)), dq_g, np.broadcast_to(dq_p, (n,))], axis=1)
+
+
+class WheelRadiusError(Candidate):
+    """Rolling radius different from nominal: R -> R + delta."""
+
+    name = "wheel_radius_error"
+    params = (ParamInfo("delta_r_m", "m", -0.08, 0.08, 0.0, 0.01),)
+    formula = "R -> R + delta_r"
+
+    def modify(self, ctx, theta):
+        ctx.overrides["R"] = ctx.params.R + theta[0]
+
+
+class RiderMassError(Candidate):
+    """Rider mass different from nominal: m -> m + delta."""
+
+    name = "rider_mass_error"
+    params = (ParamInfo("delta_m_kg", "kg", -45.0, 80.0, 0.0, 5.0),)
+    formula = "m -> m + delta_m"
+
+    def modify(self, ctx, theta):
+        ctx.overrides["m"] = ctx.params.m + theta[0]
+
+
+class RiderInertiaError(Candidate):
+    """Rider pitch inertia different from nominal: J -> J + delta."""
+
+    name = "rider_inertia_error"
+    params = (ParamInfo("delta_j_kgm2", "kg m^2", -15.0, 40.0, 0.0, 3.0),)
+    formula = "J -> J + delta_J"
+
+    def modify(self, ctx, theta):
+        ctx.overrides["J"] = ctx.params.J + theta[0]
+
+
+class TiltGravity(Candidate):
+    """Tilt-gravity coupling in turns: the in-plane gravity of a tilted, turning rider."""
+
+    name = "tilt_gravity"
+    params = (ParamInfo("gain", "-", 0.0, 10.0, 0.0, 1.0),)
+    formula = "g -> g + gain (g cos(theta) - a_c sin(theta) - g), a_c = psi_dot x_dot"
+
+    def modify(self, ctx, theta):
+        g = ctx.params.g
+        a_c = ctx.psi_dot * ctx.x_dot
+        ctx.overrides["g"] = g + theta[0] * (g * np.cos(ctx.theta) - a_c * np.sin(ctx.theta) - g)
+
+
+class TimeVaryingH(Candidate):
+    """Slowly varying rider CoG height h(t) = h + a sin(w t) + b cos(w t), with its rheonomic terms."""
+
+    name = "time_varying_h"
+    params = (ParamInfo("a_sin", "m", -0.4, 0.4, 0.0, 0.05, reported=False),
+              ParamInfo("a_cos", "m", -0.4, 0.4, 0.0, 0.05, reported=False),
+              ParamInfo("period_s", "s", 1.0, 60.0, 5.0, 1.0))
+    formula = "h(t) = h + a sin(2 pi t / T + p0); dQ = -m J_G^T [h_dd (sin phi, cos phi) + 2 h_d phi_d (cos phi, -sin phi)]"
+    #: Periods tried as starting points [s] (the fit is multi-modal in the period).
+    PERIOD_STARTS = (1.5, 2.0, 3.0, 4.5, 6.5, 9.0, 13.0, 20.0, 30.0)
+
+    def starts(self):
+        return [np.array([0.0, 0.0, T]) for T in self.PERIOD_STARTS]
+
+    def _profile(self, t, theta):
+        a, b, T = theta
+        w = 2 * np.pi / T
+        s, c = np.sin(w * t), np.cos(w * t)
+        return a * s + b * c, w * (a * c - b * s), -w * w * (a * s + b * c)
+
+    def modify(self, ctx, theta):
+        dh, _, _ = self._profile(ctx.t, theta)
+        ctx.overrides["h"] = ctx.params.h + dh
+
+    def force(self, ctx, theta):
+        p = ctx.p()
+        _, hd, hdd = self._profile(ctx.t, theta)
+        ax = hdd * np.sin(ctx.phi) + 2 * hd * ctx.phi_dot * np.cos(ctx.phi)
+        az = hdd * np.cos(ctx.phi) - 2 * hd * ctx.phi_dot * np.sin(ctx.phi)
+        jx, jz = jacobian_G(ctx, p)
+        return -p.m * (jx * ax[:, None] + jz * az[:, None])
+
+    def report(self, theta):
+        return {"amplitude_m": float(np.hypot(theta[0], theta[1])), "period_s": float(theta[2]),
+                "phase_rad": float(np.arctan2(theta[1], theta[0]))}
+
+
+class MocapTimeOffset(Candidate):
+    """Rider segments delayed by dt against the EUC body in the mocap: G(t) -> G(t + dt), phi recomputed.
+
+    Needs ``ctx.extras['phi_shift']``: a callable ``dt_s -> (dphi, dphi_dot, dphi_ddot)`` giving the
+    change of phi and its derivatives when the rider CoG is shifted by ``dt_s`` (built by the analysis
+    from the recording's geometry, so that ``dt = 0`` changes nothing).
+    """
+
+    name = "mocap_time_offset"
+    params = (ParamInfo("dt_ms", "ms", -200.0, 200.0, 0.0, 2.0),)
+    formula = "G(t) -> G(t + dt); phi, phi_dot, phi_ddot recomputed"
+
+    def starts(self):
+        return [np.array([v]) for v in (-40.0, 0.0, 40.0)]
+
+    def modify(self, ctx, theta):
+        shift = ctx.extras.get("phi_shift")
+        if shift is None or theta[0] == 0.0:
+            return
+        d0, d1, d2 = shift(theta[0] * 1e-3)
+        ctx.phi, ctx.phi_dot, ctx.phi_ddot = ctx.phi + d0, ctx.phi_dot + d1, ctx.phi_ddot + d2
+        ctx.mask = np.isfinite(d0) & np.isfinite(d1) & np.isfinite(d2)
+
+
+class WheelBodyFriction(Candidate):
+    """Friction torque between wheel and body; acts along the M_d direction (undetectable)."""
+
+    name = "wheel_body_friction"
+    params = (ParamInfo("c_wb", "N m s/rad", 0.0, 10.0, 0.0, 0.5),)
+    formula = "dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]"
+
+    def force(self, ctx, theta):
+        p = ctx.p()
+        tau = -theta[0] * (ctx.x_dot / p.R - ctx.gamma_dot)
+        return np.stack([tau / p.R, -tau, np.zeros_like(tau)], axis=1)
+
+
+class FloorGeometry(Candidate):
+    """The floor measured from the contact path, in a lab whose vertical is gravity's (issue 12).
+
+    A floor tilted in the mocap frame (a ramp or a bump in a level-calibrated lab) is known without
+    dynamics: the wheel centre C moves along it with slope ``a(t)`` along travel (measured) and vertical
+    acceleration ``C_zdd`` (measured), while gamma and phi are angles from gravity's vertical. Newton's
+    law projected on the path's tangent (s: arc length, ``s_ddot = cos a x_ddot + sin a C_zdd`` with
+    x_ddot the horizontal acceleration the states carry) and on gamma, phi in the frame translating with
+    C give, against the level model:
+
+    * gamma, phi rows: gravity ``g -> g + C_zdd`` (the frame of C accelerates vertically);
+    * x row: ``dQ_x = m_eq (x_ddot - s_ddot) + (1 - cos a) P_x - sin a P_z - m_tot g sin a``, with
+      ``P = d2/dt2 (m0 rho_0 + m rho_G)`` the rate of the body and rider's momentum relative to C
+      (``P_x = k (cos g g_dd - sin g g_d^2) + m h (cos p p_dd - sin p p_d^2)``, ``P_z = -k (sin g g_dd +
+      cos g g_d^2) - m h (sin p p_dd + cos p p_d^2)``, ``k = m0 h0 - m l0``).
+
+    No parameter is fitted: the signals come from the recording (``ctx.extras['floor_a']``,
+    ``ctx.extras['c_zdd']``). A mocap frame tilted against gravity (ground plane set on a sloped floor)
+    leaves the floor flat in the data: that stays :class:`GroundSlope`, a dynamic candidate.
+    """
+
+    name = "ground_slope"
+    params = ()
+    formula = "floor measured: g -> g + C_zdd (gamma, phi); dQ_x = m_eq (x_dd - s_dd) + (1 - cos a) P_x - sin a P_z - m_tot g sin a"
+    geometric = True
+
+    def __init__(self, alpha_x_deg: float = float("nan"), alpha_y_deg: float = float("nan")):
+        self.alpha_x_deg, self.alpha_y_deg = float(alpha_x_deg), float(alpha_y_deg)
+
+    def _signals(self, ctx):
+        """Slope along travel and C_zdd: measured (extras), or of the plane ``alpha`` (a configured model:
+        ``tan a = tan(alpha_x) cos psi + tan(alpha_y) sin psi``, ``C_zdd = x_ddot tan a``)."""
+        a, czz = ctx.extras.get("floor_a"), ctx.extras.get("c_zdd")
+        if a is None:
+            tx, ty = (math.tan(math.radians(v)) if math.isfinite(v) else 0.0 for v in (self.alpha_x_deg,
+                                                                                       self.alpha_y_deg))
+            a = np.arctan(tx * np.cos(ctx.psi) + ty * np.sin(ctx.psi)) + 0.0 * ctx.x_dot
+        if czz is None:
+            czz = ctx.x_ddot * np.tan(a)
+        return a, czz
+
+    def modify(self, ctx, theta):
+        _, czz = self._signals(ctx)
+        ctx.overrides["g"] = ctx.params.g + czz
+
+    def force(self, ctx, theta):
+        a, czz = self._signals(ctx)
+        p = ctx.p()
+        g0 = float(ctx.params.g)
+        h = np.asarray(p.h, float)
+        k = p.m0 * p.h0 - p.m * p.l0
+        cg, sg, cp, sp_ = np.cos(ctx.gamma), np.sin(ctx.gamma), np.cos(ctx.phi), np.sin(ctx.phi)
+        gd2, pd2 = ctx.gamma_dot ** 2, ctx.phi_dot ** 2
+        Px = k * (cg * ctx.gamma_ddot - sg * gd2) + p.m * h * (cp * ctx.phi_ddot - sp_ * pd2)
+        Pz = -k * (sg * ctx.gamma_ddot + cg * gd2) - p.m * h * (sp_ * ctx.phi_ddot + cp * pd2)
+        ca, sa = np.cos(a), np.sin(a)
+        m_tot = p.m + p.m0 + p.mw
+        m_eq = m_tot + p.Jw / np.asarray(p.R, float) ** 2
+        s_dd = ca * ctx.x_ddot + sa * czz
+        return _x_force(m_eq * (ctx.x_ddot - s_dd) + (1 - ca) * Px - sa * Pz - m_tot * g0 * sa)
+
+    def report(self, theta):
+        return {"alpha_deg": self.alpha_x_deg, "alpha_y_deg": self.alpha_y_deg, "level_lab": 1.0}
+
+
+def _x_force(F: np.ndarray) -> np.ndarray:
+    z = np.zeros_like(F)
+    return np.stack([F, z, z], axis=1)
+
+
+#: The library, by spec name (recording-format spec, section 5).
+LIBRARY: dict[str, type[Candidate]] = {c.name: c for c in (
+    RollingResistance, ViscousFriction, AeroDrag, GroundSlope, WheelRadiusError, MocapTimeOffset,
+    RiderMassError, RiderInertiaError, TiltGravity, TimeVaryingH, WheelBodyFriction)}
+
+
+def make_candidates(names=None) -> list[Candidate]:
+    """Instantiate library candidates (all by default) in library order."""
+    from euc_ros.core.errors import ConfigError
+
+    names = list(LIBRARY) if names is None else list(names)
+    unknown = [n for n in names if n not in LIBRARY]
+    if unknown:
+        raise ConfigError(f"unknown effect {unknown[0]!r} (known: {', '.join(LIBRARY)})", key="effect")
+    return [LIBRARY[n]() for n in names]
+
+
+def theta_from_report(candidate: Candidate, values: dict[str, float]) -> np.ndarray:
+    """Inverse of :meth:`Candidate.report`: parameters from reported values (for configured models)."""
+    from euc_ros.core.errors import ConfigError
+
+    if isinstance(candidate, FloorGeometry):
+        return np.zeros(0)
+    if isinstance(candidate, TimeVaryingH):
+        a = float(values.get("amplitude_m", 0.0))
+        T = float(values.get("period_s", 5.0))
+        phase = float(values.get("phase_rad", 0.0))
+        return np.array([a * np.cos(phase), a * np.sin(phase), T])
+    out = []
+    for q in candidate.params:
+        if q.name not in values:
+            raise ConfigError(f"missing parameter {q.name!r} of effect {candidate.name!r}",
+                              key=f"{candidate.name}.{q.name}")
+        out.append(float(values[q.name]))
+    return np.array(out, float)

@@ -1,0 +1,23 @@
+"""Recompute the README's identification table on simulated rides (seed 1, true h = 0.61 m).
+
+Usage: .venv/bin/python studies/paper_table.py
+"""
+from euc_ros.core.identify.fit import identify_h
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.ridesim.effects import make_effects
+from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+from euc_ros.core.states.kinematics import reconstruct_states
+
+ROWS = [("deceleration", 10, [], {}), ("acceleration", 10, [], {}), ("constant_speed", 10, [], {}),
+        ("figure_eight", 2, ["tilt_gravity"], {"gain": 1.0})]
+
+print("| maneuver | runs | 3-DoF h [m], RMSE [N m] | 2-DoF h [m], RMSE [N m] | sharpness 3-DoF |")
+print("|---|---|---|---|---|")
+for maneuver, runs, effects, params in ROWS:
+    res = simulate_ride(RideConfig(maneuver=maneuver, runs=runs, seed=1, effects=make_effects(effects, params)))
+    states = [reconstruct_states(r.mocap, res.session) for r in res.runs]
+    out = identify_h(states, EucParams.from_session(res.session)).to_json()
+    pooled = {m: out["models"][m] for m in ("3dof", "2dof")}
+    print(f"| {maneuver}{' + ' + '+'.join(effects) if effects else ''} | {runs} | "
+          + " | ".join(f"{pooled[m]['h_m']:.3f}, {pooled[m]['rmse_nm']:.2f}" for m in ("3dof", "2dof"))
+          + f" | {pooled['3dof'].get('sharpness', float('nan')):.2f} |")
