@@ -5,7 +5,7 @@
     euc-ros steer --maneuver lane_change|turn --speed V --out DIR [--json OUT] [--target T] [--pole -8]
                   [--dt 0.01] [--duration 10] [--timeout 120] [--overwrite] [--verbose]
 
-Starts three processes through :mod:`euc_ros.launch`: ``recorder`` (``unicycle/state``,
+Starts three processes through :mod:`euc_ros.ros.launcher`: ``recorder`` (``unicycle/state``,
 ``unicycle/command``, ``unicycle/pose`` into ``DIR/bag``), ``steering_controller`` and
 ``unicycle_sim`` in lockstep mode (each step waits for the command of that step, so the run is
 deterministic and equals the in-process simulation). When the simulator ends (after ``--duration``
@@ -221,7 +221,7 @@ def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = No
     from euc_ros.core.unicycle.linearize import straight_rolling_state
     from euc_ros.core.unicycle.simulate import maneuver_metrics, simulate
     from euc_ros.core.unicycle.steering import SteeringController
-    from euc_ros.launch import Launcher, NodeSpec
+    from euc_ros.ros.launcher import Launcher, NodeSpec
 
     params = UnicycleParams() if params is None else params
     ctrl = SteeringController(params, maneuver, speed, pole, target=target)   # validates; the gains for the report

@@ -21,7 +21,7 @@ import pytest
 
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 REPO = Path(__file__).resolve().parents[2]
@@ -147,5 +147,5 @@ def test_launch_file_errors_name_the_key(tmp_path):
 def test_required_node_death_gives_nonzero(ros_domain, tmp_path):
     # mocap_ingest with source csv and no csv_path fails at start-up: the launch returns 1
     code_specs = [NodeSpec("mocap_ingest", parameters={"source": "csv"})]
-    from euc_ros.launch import run
+    from euc_ros.ros.launcher import run
     assert run(code_specs, duration=30, stream=io.StringIO()) == 1

@@ -18,7 +18,7 @@ import psutil
 import pytest
 
 from euc_ros.core.io.bags import check_bag, read_bag
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 REPO = Path(__file__).resolve().parents[2]
