@@ -679,7 +679,8 @@ def _parameter_value(ctx: _Context, element: Element, values: Mapping[str, str])
     except yaml.YAMLError:
         if _is_literal(parts) and kind is None:
             return text
-        raise ctx.error(element, f"value {text!r} is not valid YAML; quote a string value or add type=\"str\"") from None
+        raise ctx.error(element, f"value {text!r} is not valid YAML; quote a string value or add "
+                                 "type=\"str\"") from None
     scalar = (bool, int, float, str)
     if kind is not None:
         ok = (isinstance(value, list) and bool(value) and all(type(v) is kind for v in value)) if is_list \
