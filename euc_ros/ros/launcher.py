@@ -100,7 +100,11 @@ def resolve_executable(executable: str) -> str:
 
 
 def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, Any] | None:
-    """The parameter declarations (``ParamSpec`` by name) of a node executable of this package.
+    """The declared defaults (by parameter name) of a node executable of this package.
+
+    They are read from the package's ``config/<node>.yaml``, which lists every parameter of the node's
+    ParamSpec table with its default (``python -m euc_ros.nodes.registry`` writes them; a unit test holds
+    them to the tables). Importing the node modules instead would load rclpy into the launcher.
 
     Parameters
     ----------
@@ -114,17 +118,13 @@ def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, 
     Returns
     -------
     dict or None
-        None for a program that is not one of the package's nodes (or whose module does not import).
+        None for a program that is not one of the package's nodes, or when its defaults file is not found.
     """
-    from euc_ros.nodes.registry import NODES, node_class
+    from euc_ros.nodes.registry import NODES
 
     name = Path(executable).name
     if name == "pipeline_container":
-        try:
-            from euc_ros.nodes.container import DEFAULT_NODES
-        except ImportError:
-            return None
-        nodes = list(DEFAULT_NODES)
+        nodes = list(CONTAINER_DEFAULT_NODES)
         args = list(args)
         for i, arg in enumerate(args):
             if arg == "--nodes" and i + 1 < len(args):
@@ -139,13 +139,32 @@ def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, 
     for node in (n.strip() for n in nodes):
         if node not in NODES:
             continue
-        try:
-            cls = node_class(node)
-        except ImportError:
+        defaults = _config_defaults(node)
+        if defaults is None:
             return None
-        for spec in cls.SPECS:
-            out.setdefault(spec.name, spec)
+        for key, value in defaults.items():
+            out.setdefault(key, value)
     return out
+
+
+#: The nodes ``pipeline_container`` composes without ``--nodes`` (``euc_ros.nodes.container.DEFAULT_NODES``,
+#: which imports rclpy).
+CONTAINER_DEFAULT_NODES = ("mocap_ingest", "rider_state", "torque_estimator")
+
+
+def _config_defaults(node: str) -> dict[str, Any] | None:
+    """``ros__parameters`` of the package's ``config/<node>.yaml``; None when it cannot be read."""
+    import yaml
+
+    from euc_ros.ros.launch_file import package_share
+
+    try:
+        path = package_share() / "config" / f"{node}.yaml"
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        params = data[node]["ros__parameters"]
+    except (ConfigError, OSError, yaml.YAMLError, KeyError, TypeError):
+        return None
+    return params if isinstance(params, dict) else None
 
 
 def _element_type(default: Any) -> type:
@@ -156,12 +175,9 @@ def _element_type(default: Any) -> type:
     raise TypeError(default)
 
 
-def _coerce_scalar(value: Any, kind: type, choices: Sequence[str] | None) -> Any:
+def _coerce_scalar(value: Any, kind: type) -> Any:
     if isinstance(value, bool) or kind is bool:
-        # a bool stays a bool; a string choice spelt as a bare y/n is mapped back by the node itself
-        if kind is str and not choices and isinstance(value, bool):
-            return "true" if value else "false"
-        return value
+        return value      # a string choice spelt as a bare y/n is mapped back by the node itself
     if kind is float and isinstance(value, int):
         return float(value)
     if kind is int and isinstance(value, float) and value.is_integer():
@@ -171,20 +187,18 @@ def _coerce_scalar(value: Any, kind: type, choices: Sequence[str] | None) -> Any
     return value
 
 
-def coerce_parameter(spec: Any, value: Any) -> Any:
-    """Convert an override ``value`` to the type ``spec`` (a ``ParamSpec``) declares, where that is lossless.
+def coerce_parameter(default: Any, value: Any) -> Any:
+    """Convert an override ``value`` to the type of the declared ``default``, where that is lossless.
 
-    An int for a double (``2`` -> ``2.0``), a whole float for an integer, a number or bool for a string
+    An int for a double (``2`` -> ``2.0``), a whole float for an integer, a number for a string
     (``1`` -> ``'1'``), element by element for arrays. Other values are returned unchanged: the node
     refuses them with the parameter's name.
 
     Examples
     --------
-    >>> from types import SimpleNamespace as S
-    >>> coerce_parameter(S(default=1.0, choices=None), 2), coerce_parameter(S(default=[""], choices=None), [1, "a"])
-    (2.0, ['1', 'a'])
+    >>> coerce_parameter(1.0, 2), coerce_parameter([""], [1, "a"]), coerce_parameter(0, 3.0)
+    (2.0, ['1', 'a'], 3)
     """
-    default, choices = spec.default, getattr(spec, "choices", None)
     if isinstance(default, (list, tuple)):
         if not isinstance(value, (list, tuple)):
             return value
@@ -195,12 +209,12 @@ def coerce_parameter(spec: Any, value: Any) -> Any:
             kind = kinds.pop()
         else:
             kind = float
-        return [_coerce_scalar(v, kind, None) for v in value]
+        return [_coerce_scalar(v, kind) for v in value]
     try:
         kind = _element_type(default)
     except TypeError:
         return value
-    return _coerce_scalar(value, kind, choices)
+    return _coerce_scalar(value, kind)
 
 
 def typed_parameters(executable: str, parameters: Mapping[str, Any], args: Sequence[str] = ()) -> dict[str, Any]:
@@ -303,9 +317,10 @@ class Launcher:
     # -- lifecycle -------------------------------------------------------------------------------
     def start(self) -> "Launcher":
         """Start every process in order."""
-        for spec in self.specs:
-            cmd = spec.command()
-            cmd[0] = resolve_executable(cmd[0])
+        commands = [spec.command() for spec in self.specs]
+        for cmd in commands:
+            cmd[0] = resolve_executable(cmd[0])          # all found before any starts
+        for spec, cmd in zip(self.specs, commands):
             env = dict(os.environ)
             env.update({k: str(v) for k, v in spec.env.items()})
             env.setdefault("PYTHONUNBUFFERED", "1")

@@ -228,6 +228,37 @@ def test_launcher_converts_overrides_to_the_declared_type():
     assert "x:=2" in NodeSpec("some_tool", parameters={"x": 2}).command()
 
 
+def test_declared_types_come_from_the_config_files_the_tables_write():
+    """The launcher reads the declared defaults from config/<node>.yaml (rclpy stays out of it): they must
+    be the ParamSpec tables' names and types."""
+    from euc_ros.nodes.container import DEFAULT_NODES
+    from euc_ros.ros.launcher import CONTAINER_DEFAULT_NODES, declared_parameters
+
+    assert CONTAINER_DEFAULT_NODES == DEFAULT_NODES
+    for name in NODES:
+        specs = node_class(name).SPECS
+        declared = declared_parameters(name)
+        assert set(declared) == {s.name for s in specs}, f"config/{name}.yaml: run python -m euc_ros.nodes.registry"
+        for spec in specs:
+            value = declared[spec.name]
+            assert type(value) is type(spec.default), (name, spec.name, value, spec.default)
+            if isinstance(value, list):
+                assert [type(v) for v in value] == [type(v) for v in spec.default], (name, spec.name)
+
+
+def test_the_launcher_does_not_import_rclpy():
+    import subprocess
+    import sys
+
+    code = ("import sys; from euc_ros.ros.launcher import NodeSpec; from euc_ros.ros.launch_file import "
+            "load_launch_file; load_launch_file('launch/pipeline.launch.xml', {'session': 's', 'h': '1'}); "
+            "assert 'rate_factor:=2.0' in NodeSpec('mocap_ingest', parameters={'rate_factor': 2}).command(); "
+            "print(sorted(m for m in sys.modules if m.startswith(('rclpy', 'numpy'))))")
+    r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "[]", r.stdout
+
+
 def test_launch_arguments_are_checked():
     path = LAUNCH / "pipeline.launch.xml"
     with pytest.raises(ConfigError, match="'session' is required"):
@@ -308,7 +339,8 @@ def test_substitutions_follow_the_ros2_grammar(tmp_path):
     path.write_text("""<launch>
   <arg name="bag" default="" description="b"/>
   <arg name="dir" default="$(find-pkg-share euc_ros)/x" description="a default with a substitution"/>
-  <node pkg="euc_ros" exec="recorder" name="rec_$(var bag)" if="$(eval '\\'$(var bag)\\' != \\'\\' and not \\'$(var bag)\\' == \\'skip\\'')">
+  <node pkg="euc_ros" exec="recorder" name="rec_$(var bag)"
+        if="$(eval '\\'$(var bag)\\' != \\'\\' and not \\'$(var bag)\\' == \\'skip\\'')">
     <param name="output" value="$(var dir)/$(var bag)"/>
     <remap from="in" to="/lab/$(var bag)"/>
     <env name="WHERE" value="$(var bag)"/>
