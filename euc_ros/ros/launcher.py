@@ -104,12 +104,13 @@ def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, 
 
     They are read from the package's ``config/<node>.yaml``, which lists every parameter of the node's
     ParamSpec table with its default (``python -m euc_ros.nodes.registry`` writes them; a unit test holds
-    them to the tables). Importing the node modules instead would load rclpy into the launcher.
+    them to the tables). Importing the node modules instead would load rclpy into the launcher, and
+    importing :mod:`euc_ros.nodes` would set its BLAS thread variables for every launched program.
 
     Parameters
     ----------
     executable : str
-        Console script name or path; its file name is looked up in :data:`euc_ros.nodes.registry.NODES`.
+        Console script name or path; its file name is the node name (``config/<name>.yaml``).
         ``pipeline_container`` declares the parameters of the nodes it composes: those of ``--nodes a,b``
         in ``args``, else its default composition.
     args : sequence of str
@@ -118,11 +119,10 @@ def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, 
     Returns
     -------
     dict or None
-        None for a program that is not one of the package's nodes, or when its defaults file is not found.
+        None for a program that is not one of the package's nodes (no defaults file of that name).
     """
-    from euc_ros.nodes.registry import NODES
-
     name = Path(executable).name
+    nodes = [name]
     if name == "pipeline_container":
         nodes = list(CONTAINER_DEFAULT_NODES)
         args = list(args)
@@ -131,15 +131,9 @@ def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, 
                 nodes = args[i + 1].split(",")
             elif arg.startswith("--nodes="):
                 nodes = arg.partition("=")[2].split(",")
-    elif name in NODES:
-        nodes = [name]
-    else:
-        return None
     out: dict[str, Any] = {}
     for node in (n.strip() for n in nodes):
-        if node not in NODES:
-            continue
-        defaults = _config_defaults(node)
+        defaults = _config_defaults(node) if node.isidentifier() else None
         if defaults is None:
             return None
         for key, value in defaults.items():

@@ -226,6 +226,9 @@ def test_launcher_converts_overrides_to_the_declared_type():
     assert "wait_observers:=1" in NodeSpec("unicycle_sim", parameters={"wait_observers": 1.0}).command()
     # other programs are left alone
     assert "x:=2" in NodeSpec("some_tool", parameters={"x": 2}).command()
+    # a path is typed by its file name (the colcon install's lib/euc_ros/<node>)
+    assert "expected_rate_hz:=240.0" in NodeSpec("/ws/install/lib/euc_ros/monitor",
+                                                 parameters={"expected_rate_hz": 240}).command()
 
 
 def test_declared_types_come_from_the_config_files_the_tables_write():
@@ -253,7 +256,7 @@ def test_the_launcher_does_not_import_rclpy():
     code = ("import sys; from euc_ros.ros.launcher import NodeSpec; from euc_ros.ros.launch_file import "
             "load_launch_file; load_launch_file('launch/pipeline.launch.xml', {'session': 's', 'h': '1'}); "
             "assert 'rate_factor:=2.0' in NodeSpec('mocap_ingest', parameters={'rate_factor': 2}).command(); "
-            "print(sorted(m for m in sys.modules if m.startswith(('rclpy', 'numpy'))))")
+            "print(sorted(m for m in sys.modules if m.startswith(('rclpy', 'numpy', 'euc_ros.nodes'))))")
     r = subprocess.run([sys.executable, "-c", code], cwd=REPO, capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == "[]", r.stdout
