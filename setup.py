@@ -50,7 +50,7 @@ setup(
         ("share/ament_index/resource_index/packages", ["resource/" + PACKAGE]),
         ("share/" + PACKAGE, ["package.xml"]),
         ("share/" + PACKAGE + "/config", glob("config/*.yaml")),
-        ("share/" + PACKAGE + "/launch", glob("launch/*.launch.py") + glob("launch/*.yaml")),
+        ("share/" + PACKAGE + "/launch", glob("launch/*.launch.xml")),
     ],
     python_requires=">=3.11",
     install_requires=[],  # pinned in requirements.txt; ROS 2 comes from the ros-jazzy-* wheels

@@ -1,6 +1,6 @@
 """One steering maneuver of the autonomous unicycle in closed loop over topics, in lockstep.
 
-:func:`run_steer` starts three processes through :mod:`euc_ros.launch`: ``recorder``
+:func:`run_steer` starts three processes through :mod:`euc_ros.ros.launcher`: ``recorder``
 (``unicycle/state``, ``unicycle/command``, ``unicycle/pose`` into ``DIR/bag``), ``steering_controller``
 and ``unicycle_sim`` in lockstep mode (each step waits for the command of that step, so the run is
 deterministic and equals the in-process simulation). When the simulator ends the launch is shut
@@ -25,7 +25,7 @@ from euc_ros.core.unicycle.dynamics import UnicycleParams
 from euc_ros.core.unicycle.linearize import straight_rolling_state
 from euc_ros.core.unicycle.simulate import SimulationResult, maneuver_metrics, simulate
 from euc_ros.core.unicycle.steering import SteeringController
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 #: Topics the recorder takes.
 STEER_TOPICS = ("unicycle/state", "unicycle/command", "unicycle/pose")

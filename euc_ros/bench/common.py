@@ -396,7 +396,7 @@ class BenchContext:
 
 
 def run_launched(specs, timeout_s: float, log):
-    """Launch ``specs`` (euc_ros.launch), sampling each process' peak RSS, until done or ``timeout_s``.
+    """Launch ``specs`` (euc_ros.ros.launcher), sampling each process' peak RSS, until done or ``timeout_s``.
 
     Returns ``(launcher, finished, peaks_mb)``; the processes are stopped on return.
     """
@@ -406,7 +406,7 @@ def run_launched(specs, timeout_s: float, log):
 
 def run_launched_sampled(specs, timeout_s: float, log, period_s: float = 0.2):
     """:func:`run_launched` returning the :class:`PeakRssSampler` itself (peak RSS and CPU series)."""
-    from euc_ros.launch import Launcher
+    from euc_ros.ros.launcher import Launcher
 
     launcher = Launcher(specs, stream=log)
     with PeakRssSampler(period_s) as rss:

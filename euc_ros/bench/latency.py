@@ -143,7 +143,7 @@ def rt_env(realtime: int | None) -> dict:
 
 
 def probe_spec(out: Path, realtime: int | None = None):
-    from euc_ros.launch import NodeSpec
+    from euc_ros.ros.launcher import NodeSpec
 
     return NodeSpec(sys.executable, name="probe", args=["-m", "euc_ros.bench.probe", "--out", str(out)],
                     ros_args=False, required=False, env=rt_env(realtime))
@@ -165,7 +165,7 @@ def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) 
     """Run the real pipeline on ``csv`` with the probe; returns :func:`analyze` plus ``peak_rss_mb``."""
     from euc_ros.bench.probe import load
     from euc_ros.core.io.motive_csv import read_motive_csv
-    from euc_ros.launch import NodeSpec
+    from euc_ros.ros.launcher import NodeSpec
 
     probe_out = out_dir / "pipeline_probe.npz"
     series = read_motive_csv(csv)
@@ -190,7 +190,7 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
 
     ``realtime``: SCHED_FIFO priority of every process of the chain (as the pipeline's critical ones)."""
     from euc_ros.bench.probe import load
-    from euc_ros.launch import NodeSpec
+    from euc_ros.ros.launcher import NodeSpec
 
     probe_out = out_dir / "floor_probe.npz"
     relay = ["-m", "euc_ros.bench.relay"]

@@ -106,7 +106,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     from euc_ros.bench.probe import load
     from euc_ros.bench.recording import bag_counts
     from euc_ros.core.io.motive_csv import read_motive_csv
-    from euc_ros.launch import NodeSpec
+    from euc_ros.ros.launcher import NodeSpec
 
     series = read_motive_csv(rec["csv"])
     n_frames, rate, n_bodies = series.n_frames, float(series.rate_hz), len(series.bodies)

@@ -128,7 +128,7 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     cores, microseconds per message), the publishers' CPU per message and the peak RSS of every process.
     """
     from euc_ros.bench.common import PeakRssSampler
-    from euc_ros.launch import Launcher, NodeSpec
+    from euc_ros.ros.launcher import Launcher, NodeSpec
 
     if publisher_env is None:
         publisher_env = fast_publisher_env()
@@ -191,7 +191,7 @@ def measure_publisher_alone(n_frames: int, out_dir: Path, timeout_s: float = 60.
     """One blast process with no subscriber publishing ``n_frames`` frames of the mix as fast as it goes:
     its CPU per message [us] and rate."""
     from euc_ros.bench.common import PeakRssSampler
-    from euc_ros.launch import Launcher, NodeSpec
+    from euc_ros.ros.launcher import Launcher, NodeSpec
 
     result = out_dir / "blast_alone.json"
     spec = NodeSpec(sys.executable, name="blast", ros_args=False, env=fast_publisher_env(), required=False,

@@ -68,7 +68,7 @@ def measure_lockstep_floor(steps: int, out_dir, timeout_s: float = 120.0) -> dic
     """Bare rclpy lockstep ping-pong of ``steps`` steps: ``{"steps_per_s", "rtf", "peak_rss_mb"}``."""
     from pathlib import Path
 
-    from euc_ros.launch import NodeSpec
+    from euc_ros.ros.launcher import NodeSpec
 
     result = Path(out_dir) / "lockstep_floor.json"
     relay = ["-m", "euc_ros.bench.relay"]

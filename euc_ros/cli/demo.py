@@ -52,8 +52,7 @@ def _cli(argv: list[str]) -> int:
 
 def _live(out: Path, csv: Path, session: Path, h: float, rate_factor: float, extra: dict | None = None) -> Path:
     """Run the live pipeline on one CSV; returns the bag path."""
-    from euc_ros import launch
-    from euc_ros.launch import NodeSpec
+    from euc_ros.ros.launcher import NodeSpec, run
 
     config = Path(__file__).resolve().parents[2] / "config"
     bag = out
@@ -77,7 +76,7 @@ def _live(out: Path, csv: Path, session: Path, h: float, rate_factor: float, ext
     ]
     log = io.StringIO()
     t0 = time.monotonic()
-    code = launch.run(specs, stream=log)
+    code = run(specs, stream=log)
     lines = [ln for ln in log.getvalue().splitlines() if "[INFO]" in ln or "error" in ln.lower() or "closed" in ln]
     print("\n".join("  " + ln for ln in lines[-12:]))
     print(f"  live pipeline ran {time.monotonic() - t0:.1f} s, exit code {code}")

@@ -17,7 +17,7 @@ from euc_ros.core.errors import EucError
 #: command -> (module, one-line help shown when the module cannot be imported cheaply)
 COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("demo", "run the main job end to end: simulate, stream live, record, identify, trace the residual"),
-    "launch": ("launch_cmd", "start nodes as separate processes from a launch YAML"),
+    "launch": ("launch_cmd", "start the nodes of a ROS 2 XML launch file (*.launch.xml) as separate processes"),
     "session": ("session_cmd", "write a session file from the rider's measurements and the EUC's (session init)"),
     "simulate-ride": ("simulate_ride", "generate synthetic OptiTrack recordings of a ridden EUC with known truth"),
     "inspect": ("inspect", "show what a Motive CSV or a bag holds (and check bags structurally)"),

@@ -3,8 +3,8 @@ from __future__ import annotations
 
 import argparse
 
-from euc_ros import launch
 from euc_ros.nodes import interfaces as itf
+from euc_ros.ros.launcher import NodeSpec, run
 
 HELP = "record topics into a rosbag2 bag with MCAP storage (Ctrl-C to stop; the bag is closed cleanly)"
 
@@ -27,4 +27,4 @@ def main(args: argparse.Namespace) -> int:
     params = {"output": args.output, "all_topics": args.all, "chunk_size": args.chunk_size}
     if args.topics:
         params["topics"] = list(args.topics)
-    return launch.run([launch.NodeSpec("recorder", parameters=params)], duration=args.duration)
+    return run([NodeSpec("recorder", parameters=params)], duration=args.duration)

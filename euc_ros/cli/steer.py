@@ -5,7 +5,7 @@
     euc-ros steer --maneuver lane_change|turn --speed V --out DIR [--json OUT] [--target T] [--pole -8]
                   [--dt 0.01] [--duration 10] [--timeout 120] [--overwrite] [--verbose]
 
-Starts three processes through :mod:`euc_ros.launch`: ``recorder`` (``unicycle/state``,
+Starts three processes through :mod:`euc_ros.ros.launcher`: ``recorder`` (``unicycle/state``,
 ``unicycle/command``, ``unicycle/pose`` into ``DIR/bag``), ``steering_controller`` and
 ``unicycle_sim`` in lockstep mode (each step waits for the command of that step, so the run is
 deterministic and equals the in-process simulation). When the simulator ends (after ``--duration``

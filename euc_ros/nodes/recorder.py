@@ -143,6 +143,8 @@ class Recorder(Node):
                                           throttle_duration_sec=10.0)
                 continue
             pubs = self.get_publishers_info_by_topic(topic)
+            if not pubs:   # seen through a subscriber only: wait for a publisher (its QoS decides ours, as in rosbag2)
+                continue
             best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs)
             qos = QoSProfile(depth=self.config["queue_depth"],
                              reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)

@@ -7,9 +7,9 @@ real install, and only these: the underlay is the venv (CMAKE_PREFIX_PATH / AMEN
 (``--cmake-args``, README "ROS 2 from PyPI"). The ``colcon build`` line itself is taken from the README.
 
 ``ros2`` (ros2cli) is not on PyPI either: ``ros2 run`` is emulated by the lookup it does (the package's
-prefix from the ament index, then ``<prefix>/lib/<package>/<executable>``); ``ros2 launch`` by
-``euc-ros launch`` on the installed ``share/euc_ros/launch/pipeline.yaml`` (the .launch.py files are
-checked statically in test/unit/test_launch_files.py).
+prefix from the ament index, then ``<prefix>/lib/<package>/<executable>``); ``ros2 launch euc_ros FILE``
+by ``euc-ros launch euc_ros FILE``, which reads the same XML launch file from the installed
+``share/euc_ros/launch/`` (test/unit/test_launch_files.py holds the files to what Jazzy's launch reads).
 
 Limit: the venv underlay already holds euc_msgs (``./run setup`` builds it there), and the wheels'
 start-up hook puts the venv's lib/ first on LD_LIBRARY_PATH, so the C type-support libraries load from
@@ -35,9 +35,11 @@ REPO = Path(__file__).resolve().parents[2]
 VENV = Path(sys.executable).parent.parent
 COLCON = Path(sys.executable).parent / "colcon"
 
-# ros2 run's lookup, for a shell without ros2cli: the first AMENT_PREFIX_PATH entry that indexes the package
+# ros2 run's lookup, for a shell without ros2cli: the first AMENT_PREFIX_PATH entry that indexes the package;
+# ros2 launch PACKAGE FILE: euc-ros launch, which takes the same form
 ROS2_RUN = r'''
 ros2() {
+  [ "$1" = launch ] && { shift; euc-ros launch "$@"; return $?; }
   [ "$1" = run ] || { echo "ros2 $1: not available here (ros2cli is not on PyPI)" >&2; return 2; }
   local pkg="$2" exe="$3"; shift 3
   local IFS=:
@@ -125,21 +127,24 @@ def test_install_space_has_nodes_launch_files_and_config(workspace):
     assert sorted(p.name for p in (prefix / "lib" / "euc_ros").iterdir() if p.name in NODES) == sorted(NODES)
     assert (prefix / "bin" / "euc-ros").exists()
     launch = {p.name for p in (prefix / "share" / "euc_ros" / "launch").iterdir()}
-    assert {"pipeline.launch.py", "unicycle.launch.py", "record.launch.py", "replay.launch.py"} <= launch
+    assert launch == {"pipeline.launch.xml", "unicycle.launch.xml", "record.launch.xml", "replay.launch.xml"}
     assert {f"{n}.yaml" for n in NODES} <= {p.name for p in (prefix / "share" / "euc_ros" / "config").iterdir()}
 
 
 def test_sourced_install_space_imports_from_install(workspace):
     ws, _, _ = workspace
-    r = in_sourced_shell(ws, "python -c 'import euc_msgs.msg, euc_ros, euc_ros.launch as l; "
+    r = in_sourced_shell(ws, "python -c 'import euc_msgs.msg, euc_ros, euc_ros.ros.launcher as l, "
+                             "euc_ros.ros.launch_file as f; "
                              "print(euc_msgs.msg.__file__); print(euc_ros.__file__); "
-                             "print(l.resolve_executable(\"mocap_ingest\"))'\ncommand -v euc-ros")
+                             "print(l.resolve_executable(\"mocap_ingest\")); print(f.package_share())'\n"
+                             "command -v euc-ros")
     assert r.returncode == 0, r.stderr
     install = str(ws / "install")
     lines = r.stdout.split()
     assert all(line.startswith(install) for line in lines), lines
     assert lines[2] == f"{install}/euc_ros/lib/euc_ros/mocap_ingest"      # what ros2 run would start
-    assert lines[3] == f"{install}/euc_ros/bin/euc-ros"                    # euc-ros on the PATH
+    assert lines[3] == f"{install}/euc_ros/share/euc_ros"                  # $(find-pkg-share euc_ros)
+    assert lines[4] == f"{install}/euc_ros/bin/euc-ros"                    # euc-ros on the PATH
 
 
 def test_ros2_run_starts_a_node_from_the_install_space(workspace):
@@ -154,15 +159,22 @@ def test_ros2_run_starts_a_node_from_the_install_space(workspace):
     assert "[steering_controller]: turn at 1 m/s" in r.stderr
 
 
-def test_installed_pipeline_launch_records_a_ride(workspace, short_ride, ros_domain):
+def test_readme_launch_line_names_an_installed_launch_file(workspace):
     ws, recipe, _ = workspace
-    assert any(c.startswith("ros2 launch euc_ros pipeline.launch.py") for c in recipe)
+    launches = [shlex.split(c) for c in recipe if c.startswith("ros2 launch euc_ros ")]
+    assert launches, recipe
+    installed = {p.name for p in (ws / "install" / "euc_ros" / "share" / "euc_ros" / "launch").iterdir()}
+    assert {c[3] for c in launches} <= installed, (launches, installed)
+
+
+def test_installed_pipeline_launch_records_a_ride(workspace, short_ride, ros_domain):
+    ws, _, _ = workspace
     ride_dir, _ = short_ride
     bag = ws / "bag"
-    share = ws / "install" / "euc_ros" / "share" / "euc_ros" / "launch" / "pipeline.yaml"
-    r = in_sourced_shell(ws, f"euc-ros launch {share} session:={ride_dir / 'session.yaml'} source:=csv "
-                             f"csv_path:={ride_dir / 'deceleration_01.csv'} exit_when_done:=true bag:={bag}",
-                         timeout=180)
+    # as ros2 launch is written; the file comes from install/euc_ros/share/euc_ros/launch
+    r = in_sourced_shell(ws, f"ros2 launch euc_ros pipeline.launch.xml session:={ride_dir / 'session.yaml'} h:=0.61 "
+                             f"source:=csv csv_path:={ride_dir / 'deceleration_01.csv'} rate_factor:=2 "
+                             f"exit_when_done:=true bag:={bag}", timeout=180)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert check_bag(bag) == []
     topics = {t for t, *_ in read_bag(bag)}

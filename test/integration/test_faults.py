@@ -1,7 +1,7 @@
 """Faults and bad input (issue 7): recorder killed or interrupted, a node restarted mid-stream,
 ill-formed session files and parameters.
 
-Process tests run the real console scripts through :mod:`euc_ros.launch` on a simulated 25 s ride.
+Process tests run the real console scripts through :mod:`euc_ros.ros.launcher` on a simulated 25 s ride.
 A process this file SIGKILLs uses ``FASTDDS_BUILTIN_TRANSPORTS=UDPv4`` so that it leaves no
 shared-memory segment behind in ``/dev/shm`` (Fast DDS does not remove a killed participant's).
 """
@@ -24,7 +24,7 @@ import yaml
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.io.bags import check_bag, read_bag, recover_bag
 from euc_ros.core.session import default_session, load_session, save_session
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 from euc_ros.testing import wait_for
 
 BIN = Path(sys.executable).parent

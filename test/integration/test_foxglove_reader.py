@@ -64,8 +64,8 @@ def recorded_bag(tmp_path_factory, ros_domain_module):
     out = tmp_path_factory.mktemp("fox")
     write_ride(simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=11, duration_s=6.0)), out / "ride")
     bag = out / "bag"
-    r = subprocess.run([sys.executable, "-m", "euc_ros.cli.main", "launch", str(REPO / "launch" / "pipeline.yaml"),
-                        f"session:={out / 'ride' / 'session.yaml'}", "source:=csv",
+    r = subprocess.run([sys.executable, "-m", "euc_ros.cli.main", "launch", "pipeline.launch.xml",
+                        f"session:={out / 'ride' / 'session.yaml'}", "h:=0.61", "source:=csv",
                         f"csv_path:={out / 'ride' / 'deceleration_01.csv'}", "exit_when_done:=true", f"bag:={bag}"],
                        capture_output=True, text=True, timeout=180)
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]

@@ -21,7 +21,7 @@ import pytest
 
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 REPO = Path(__file__).resolve().parents[2]
@@ -38,7 +38,7 @@ def test_custom_message_crosses_between_two_node_processes(ros_domain, short_rid
                  required=False),
         NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"),
                  parameters={"csv_path": str(csv), "exit_when_done": True, "rate_factor": 4.0,
-                             "start_delay": 2.0, "linger": 1.0}),
+                             "start_delay": 2.0, "linger": 1.0, "wait_subscribers": 1}),
     ]
     with Launcher(specs, stream=log) as launcher:
         assert launcher.wait(timeout=60), "ingest did not finish in 60 s:\n" + log.getvalue()
@@ -72,15 +72,20 @@ def _children(pid: int) -> list[psutil.Process]:
 
 def test_sigint_to_launcher_ends_every_child(ros_domain, short_ride, tmp_path):
     ride_dir, _ = short_ride
-    launch_file = tmp_path / "launch.yaml"
-    launch_file.write_text(f"""
-nodes:
-  - executable: recorder
-    params_file: {CONFIG / 'recorder.yaml'}
-    parameters: {{output: {tmp_path / 'bag'}}}
-  - executable: mocap_ingest
-    params_file: {CONFIG / 'mocap_ingest.yaml'}
-    parameters: {{csv_path: {ride_dir / 'deceleration_01.csv'}, loop: true, start_delay: 0.5}}
+    launch_file = tmp_path / "two.launch.xml"
+    launch_file.write_text(f"""<launch>
+  <node pkg="euc_ros" exec="recorder" output="screen" on_exit="shutdown">
+    <param from="{CONFIG / 'recorder.yaml'}"/>
+    <param name="output" value="{tmp_path / 'bag'}" type="str"/>
+  </node>
+  <node pkg="euc_ros" exec="mocap_ingest" output="screen" on_exit="shutdown">
+    <param from="{CONFIG / 'mocap_ingest.yaml'}"/>
+    <param name="csv_path" value="{ride_dir / 'deceleration_01.csv'}" type="str"/>
+    <param name="loop" value="true"/>
+    <param name="start_delay" value="0.5"/>
+    <param name="wait_subscribers" value="1"/>
+  </node>
+</launch>
 """)
     exe = Path(sys.executable).parent / "euc-ros"
     proc = subprocess.Popen([str(exe), "launch", str(launch_file)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
@@ -136,16 +141,17 @@ def test_missing_params_file(ros_domain, tmp_path):
     assert r.returncode == 2 and "nope.yaml" in r.stderr and "cannot read" in r.stderr
 
 
-def test_launch_file_errors_name_the_key(tmp_path):
+def test_launch_file_errors_name_the_line(tmp_path, capsys):
     from euc_ros.cli.main import main
 
-    f = tmp_path / "l.yaml"
-    f.write_text("nodes:\n  - executable: recorder\n    paramz: {}\n")
+    f = tmp_path / "l.launch.xml"
+    f.write_text('<launch>\n  <node pkg="euc_ros" exec="recorder" paramz="1"/>\n</launch>\n')
     assert main(["launch", str(f)]) == 2
+    assert f"{f}, line 2: <node exec=\"recorder\">: unsupported attribute 'paramz'" in capsys.readouterr().err
 
 
 def test_required_node_death_gives_nonzero(ros_domain, tmp_path):
     # mocap_ingest with source csv and no csv_path fails at start-up: the launch returns 1
     code_specs = [NodeSpec("mocap_ingest", parameters={"source": "csv"})]
-    from euc_ros.launch import run
+    from euc_ros.ros.launcher import run
     assert run(code_specs, duration=30, stream=io.StringIO()) == 1

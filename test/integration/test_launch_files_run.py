@@ -1,8 +1,8 @@
 """The packaged launch files run for real through `euc-ros launch` (issue 14, bullet 3).
 
-pipeline.yaml (CSV source, recorder on) records a ride; replay.yaml plays that bag's mocap frames
-back through rider_state and torque_estimator into a second bag; unicycle.yaml runs the closed loop.
-Separate processes over DDS, real bags.
+pipeline.launch.xml (CSV source, recorder on) records a ride; replay.launch.xml plays that bag's mocap
+frames back through rider_state and torque_estimator into a second bag; unicycle.launch.xml runs the
+closed loop. Separate processes over DDS, real bags.
 """
 from __future__ import annotations
 
@@ -68,8 +68,8 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
     csv = ride_dir / "deceleration_01.csv"
     session = ride_dir / "session.yaml"
     first = tmp_path / "first"
-    r = euc_ros("launch", LAUNCH / "pipeline.yaml", f"session:={session}", "source:=csv", f"csv_path:={csv}",
-                "exit_when_done:=true", f"bag:={first}")
+    r = euc_ros("launch", LAUNCH / "pipeline.launch.xml", f"session:={session}", "h:=0.61", "source:=csv",
+                f"csv_path:={csv}", "exit_when_done:=true", f"bag:={first}")
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert check_bag(first) == []
     _metadata_check()(first / "metadata.yaml")      # the recorder node's bag is laid out as rosbag2's
@@ -97,8 +97,8 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
     assert counts["/euc/torque"] >= frames - 288 - 4, counts
 
     second = tmp_path / "second"
-    r = euc_ros("launch", LAUNCH / "replay.yaml", f"in_bag:={first}", f"session:={session}",
-                f"bag:={second}")
+    r = euc_ros("launch", "replay.launch.xml", f"in_bag:={first}", f"session:={session}", "h:=0.61",
+                f"bag:={second}")     # a bare name: the package's launch directory
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert check_bag(second) == []
     again = topic_counts(second)
@@ -118,7 +118,7 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
 
 def test_unicycle_launch_file_records_the_closed_loop(ros_domain, tmp_path):
     bag = tmp_path / "loop"
-    r = euc_ros("launch", LAUNCH / "unicycle.yaml", "maneuver:=turn", "duration:=2.0", f"bag:={bag}")
+    r = euc_ros("launch", "euc_ros", "unicycle.launch.xml", "maneuver:=turn", "duration:=2", f"bag:={bag}")
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert check_bag(bag) == []
     counts = topic_counts(bag)

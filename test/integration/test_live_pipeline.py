@@ -33,7 +33,7 @@ from euc_ros.core.model.torque import torques, torques_2dof
 from euc_ros.core.online.estimators import RiderStateEstimator
 from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import reconstruct_states
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 REPO = Path(__file__).resolve().parents[2]

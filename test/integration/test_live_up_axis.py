@@ -22,7 +22,7 @@ from euc_ros.core.session import load_session, save_session
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 REPO = Path(__file__).resolve().parents[2]
-LAUNCH = REPO / "launch" / "pipeline.yaml"
+LAUNCH = REPO / "launch" / "pipeline.launch.xml"
 EUC_ROS = str(Path(sys.executable).parent / "euc-ros")
 H_TOLERANCE_M = 0.005
 
@@ -46,8 +46,9 @@ def z_up_ride(tmp_path_factory):
 
 
 def _launch(session: Path, csv: Path, *extra: str, timeout: float = 120) -> subprocess.CompletedProcess:
+    # rate_factor:=3 and start_delay:=2 are ints on the command line for double parameters
     return subprocess.run([EUC_ROS, "launch", str(LAUNCH), f"session:={session}", "source:=csv", f"csv_path:={csv}",
-                           "exit_when_done:=true", "rate_factor:=3.0", "start_delay:=2.0", *extra],
+                           "exit_when_done:=true", "rate_factor:=3", "start_delay:=2", "h:=0.61", *extra],
                           capture_output=True, text=True, timeout=timeout)
 
 

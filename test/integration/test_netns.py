@@ -24,7 +24,7 @@ import pytest
 
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 from euc_ros.testing import wait_for
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]

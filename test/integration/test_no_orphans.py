@@ -18,7 +18,7 @@ import psutil
 import pytest
 
 from euc_ros.core.io.bags import check_bag, read_bag
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 REPO = Path(__file__).resolve().parents[2]
@@ -79,15 +79,20 @@ def _assert_no_orphans_and_bag_reads(kids: list[psutil.Process], bag: Path) -> N
 def test_launch_leaves_no_orphans(ros_domain, short_ride, tmp_path, how):
     ride_dir, _ = short_ride
     bag = tmp_path / "bag"
-    launch_file = tmp_path / "launch.yaml"
-    launch_file.write_text(f"""
-nodes:
-  - executable: recorder
-    params_file: {CONFIG / 'recorder.yaml'}
-    parameters: {{output: {bag}}}
-  - executable: mocap_ingest
-    params_file: {CONFIG / 'mocap_ingest.yaml'}
-    parameters: {{csv_path: {ride_dir / 'deceleration_01.csv'}, loop: true, start_delay: 0.5}}
+    launch_file = tmp_path / "two.launch.xml"
+    launch_file.write_text(f"""<launch>
+  <node pkg="euc_ros" exec="recorder" output="screen" on_exit="shutdown">
+    <param from="{CONFIG / 'recorder.yaml'}"/>
+    <param name="output" value="{bag}" type="str"/>
+  </node>
+  <node pkg="euc_ros" exec="mocap_ingest" output="screen" on_exit="shutdown">
+    <param from="{CONFIG / 'mocap_ingest.yaml'}"/>
+    <param name="csv_path" value="{ride_dir / 'deceleration_01.csv'}" type="str"/>
+    <param name="loop" value="true"/>
+    <param name="start_delay" value="0.5"/>
+    <param name="wait_subscribers" value="1"/>
+  </node>
+</launch>
 """)
     proc = subprocess.Popen([EUC_ROS, "launch", str(launch_file)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             start_new_session=True)
@@ -108,7 +113,7 @@ def test_record_leaves_no_orphans(ros_domain, short_ride, tmp_path, how):
     bag = tmp_path / "bag"
     ingest = NodeSpec("mocap_ingest", params_file=str(CONFIG / "mocap_ingest.yaml"),
                       parameters={"csv_path": str(ride_dir / "deceleration_01.csv"), "loop": True,
-                                  "start_delay": 0.5})
+                                  "start_delay": 0.5, "wait_subscribers": 1})
     with Launcher([ingest], stream=io.StringIO()):
         proc = subprocess.Popen([EUC_ROS, "record", str(bag), "mocap/frame"], stdout=subprocess.PIPE,
                                 stderr=subprocess.STDOUT, start_new_session=True)

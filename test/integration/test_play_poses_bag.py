@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from euc_ros.core.io.bags import check_bag, read_mocap_bag
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration]
 CONFIG = Path(__file__).resolve().parents[2] / "config"

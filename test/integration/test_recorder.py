@@ -16,7 +16,7 @@ import yaml
 
 from euc_ros.bench.recording import blast_topics
 from euc_ros.core.io.bags import check_bag, read_bag
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 
 def _blast(part: str, result, frame_rate: float = 300.0, duration_s: float = 1.5) -> NodeSpec:

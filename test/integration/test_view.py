@@ -37,7 +37,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from euc_ros.launch import Launcher, NodeSpec
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]

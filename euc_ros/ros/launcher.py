@@ -1,6 +1,6 @@
-"""Launch nodes as separate OS processes (there is no ``ros2 launch`` on PyPI).
+"""Launch nodes as separate OS processes (the process side of ``euc-ros launch``).
 
-Each node runs its console script with ``--ros-args`` (params file, overrides, remaps, name and
+Each node runs its console script with ``--ros-args`` (params files, overrides, remaps, name and
 namespace). Output lines are prefixed with the node name and streamed. SIGINT, SIGTERM and SIGHUP
 (a closed terminal, a lost SSH session) to the launcher stop every node; shutdown escalates SIGINT ->
 SIGTERM -> SIGKILL in reverse start order. When a ``required`` node exits, everything is shut down
@@ -12,18 +12,21 @@ they end as on SIGTERM (a recorder closes its bag with its metadata). The signal
 *thread* that started the child ends: start launchers from a thread that outlives them (the main
 thread does).
 
+Parameter overrides of the package's own nodes are converted to the type the node declares
+(:func:`typed_parameters`): ``rate_factor: 2`` reaches a node that declares a double as ``2.0``, which
+rclpy would otherwise refuse. Launch files are read by :mod:`euc_ros.ros.launch_file`.
+
 Examples
 --------
->>> spec = NodeSpec("recorder", name="rec", parameters={"output": "/tmp/bag"})
+>>> spec = NodeSpec("my_tool", name="rec", parameters={"output": "/tmp/bag"})
 >>> spec.command()
-['recorder', '--ros-args', '-r', '__node:=rec', '-p', "output:='/tmp/bag'"]
+['my_tool', '--ros-args', '-r', '__node:=rec', '-p', "output:='/tmp/bag'"]
 """
 from __future__ import annotations
 
 import ctypes
 import ctypes.util
 import os
-import re
 import shutil
 import signal
 import subprocess
@@ -35,7 +38,6 @@ from pathlib import Path
 from typing import IO, Any, Iterable, Mapping, Sequence
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.yamlfile import load_yaml
 
 #: Grace periods of the shutdown escalation [s].
 SIGINT_GRACE_S = 5.0
@@ -71,10 +73,10 @@ def _package_lib_dirs() -> list[Path]:
     """Where ``ros2 run euc_ros X`` would look: ``<prefix>/lib/euc_ros`` of the install this module comes
     from (a colcon install space: ``<prefix>/lib/python3.X/site-packages/euc_ros``), then of every
     ``AMENT_PREFIX_PATH`` entry that indexes the package."""
-    here = Path(__file__).resolve().parent
+    package = Path(__file__).resolve().parents[1]          # .../euc_ros
     dirs = []
-    if here.parent.name in ("site-packages", "dist-packages"):
-        dirs.append(here.parents[3] / "lib" / "euc_ros")
+    if package.parent.name in ("site-packages", "dist-packages"):
+        dirs.append(package.parents[3] / "lib" / "euc_ros")
     for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
         if (Path(prefix) / "share" / "ament_index" / "resource_index" / "packages" / "euc_ros").exists():
             dirs.append(Path(prefix) / "lib" / "euc_ros")
@@ -97,6 +99,129 @@ def resolve_executable(executable: str) -> str:
     return found
 
 
+def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, Any] | None:
+    """The declared defaults (by parameter name) of a node executable of this package.
+
+    They are read from the package's ``config/<node>.yaml``, which lists every parameter of the node's
+    ParamSpec table with its default (``python -m euc_ros.nodes.registry`` writes them; a unit test holds
+    them to the tables). Importing the node modules instead would load rclpy into the launcher, and
+    importing :mod:`euc_ros.nodes` would set its BLAS thread variables for every launched program.
+
+    Parameters
+    ----------
+    executable : str
+        Console script name or path; its file name is the node name (``config/<name>.yaml``).
+        ``pipeline_container`` declares the parameters of the nodes it composes: those of ``--nodes a,b``
+        in ``args``, else its default composition.
+    args : sequence of str
+        The program arguments before ``--ros-args``.
+
+    Returns
+    -------
+    dict or None
+        None for a program that is not one of the package's nodes (no defaults file of that name).
+    """
+    name = Path(executable).name
+    nodes = [name]
+    if name == "pipeline_container":
+        nodes = list(CONTAINER_DEFAULT_NODES)
+        args = list(args)
+        for i, arg in enumerate(args):
+            if arg == "--nodes" and i + 1 < len(args):
+                nodes = args[i + 1].split(",")
+            elif arg.startswith("--nodes="):
+                nodes = arg.partition("=")[2].split(",")
+    out: dict[str, Any] = {}
+    for node in (n.strip() for n in nodes):
+        defaults = _config_defaults(node) if node.isidentifier() else None
+        if defaults is None:
+            return None
+        for key, value in defaults.items():
+            out.setdefault(key, value)
+    return out
+
+
+#: The nodes ``pipeline_container`` composes without ``--nodes`` (``euc_ros.nodes.container.DEFAULT_NODES``,
+#: which imports rclpy).
+CONTAINER_DEFAULT_NODES = ("mocap_ingest", "rider_state", "torque_estimator")
+
+
+def _config_defaults(node: str) -> dict[str, Any] | None:
+    """``ros__parameters`` of the package's ``config/<node>.yaml``; None when it cannot be read."""
+    import yaml
+
+    from euc_ros.ros.share import package_share
+
+    try:
+        path = package_share() / "config" / f"{node}.yaml"
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        params = data[node]["ros__parameters"]
+    except (ConfigError, OSError, yaml.YAMLError, KeyError, TypeError):
+        return None
+    return params if isinstance(params, dict) else None
+
+
+def _element_type(default: Any) -> type:
+    """The Python type of a declared default as rclpy types it (bool before int: a bool is an int)."""
+    for kind in (bool, int, float, str):
+        if isinstance(default, kind):
+            return kind
+    raise TypeError(default)
+
+
+def _coerce_scalar(value: Any, kind: type) -> Any:
+    if isinstance(value, bool) or kind is bool:
+        return value      # a string choice spelt as a bare y/n is mapped back by the node itself
+    if kind is float and isinstance(value, int):
+        return float(value)
+    if kind is int and isinstance(value, float) and value.is_integer():
+        return int(value)
+    if kind is str and isinstance(value, (int, float)):
+        return str(value)
+    return value
+
+
+def coerce_parameter(default: Any, value: Any) -> Any:
+    """Convert an override ``value`` to the type of the declared ``default``, where that is lossless.
+
+    An int for a double (``2`` -> ``2.0``), a whole float for an integer, a number for a string
+    (``1`` -> ``'1'``), element by element for arrays. Other values are returned unchanged: the node
+    refuses them with the parameter's name.
+
+    Examples
+    --------
+    >>> coerce_parameter(1.0, 2), coerce_parameter([""], [1, "a"]), coerce_parameter(0, 3.0)
+    (2.0, ['1', 'a'], 3)
+    """
+    if isinstance(default, (list, tuple)):
+        if not isinstance(value, (list, tuple)):
+            return value
+        kinds = {_element_type(d) for d in default}
+        if not default or kinds == {str}:
+            kind: type = str
+        elif kinds in ({bool}, {int}):
+            kind = kinds.pop()
+        else:
+            kind = float
+        return [_coerce_scalar(v, kind) for v in value]
+    try:
+        kind = _element_type(default)
+    except TypeError:
+        return value
+    return _coerce_scalar(value, kind)
+
+
+def typed_parameters(executable: str, parameters: Mapping[str, Any], args: Sequence[str] = ()) -> dict[str, Any]:
+    """``parameters`` with each value converted to the type its node declares (:func:`coerce_parameter`).
+
+    Overrides of programs other than the package's nodes, and of undeclared names, are passed unchanged.
+    """
+    declared = declared_parameters(executable, args) if parameters else None
+    if not declared:
+        return dict(parameters)
+    return {k: coerce_parameter(declared[k], v) if k in declared else v for k, v in parameters.items()}
+
+
 @dataclass
 class NodeSpec:
     """One process to launch.
@@ -112,7 +237,8 @@ class NodeSpec:
     params_files : sequence of str
         Further ``--params-file`` YAMLs, after ``params_file`` (a container: one per node).
     parameters : mapping
-        ``-p name:=value`` overrides (applied after the params file).
+        ``-p name:=value`` overrides (applied after the params files); for the package's nodes each value
+        is converted to the declared type first (:func:`typed_parameters`).
     remaps : mapping
         ``-r from:=to`` topic remaps.
     namespace : str, optional
@@ -157,7 +283,7 @@ class NodeSpec:
             cmd += ["-r", f"{src}:={dst}"]
         for path in ([self.params_file] if self.params_file else []) + list(self.params_files):
             cmd += ["--params-file", str(path)]
-        for key, value in self.parameters.items():
+        for key, value in typed_parameters(self.executable, self.parameters, self.args).items():
             cmd += ["-p", f"{key}:={_format_value(value)}"]
         return cmd
 
@@ -185,9 +311,10 @@ class Launcher:
     # -- lifecycle -------------------------------------------------------------------------------
     def start(self) -> "Launcher":
         """Start every process in order."""
-        for spec in self.specs:
-            cmd = spec.command()
-            cmd[0] = resolve_executable(cmd[0])
+        commands = [spec.command() for spec in self.specs]
+        for cmd in commands:
+            cmd[0] = resolve_executable(cmd[0])          # all found before any starts
+        for spec, cmd in zip(self.specs, commands):
             env = dict(os.environ)
             env.update({k: str(v) for k, v in spec.env.items()})
             env.setdefault("PYTHONUNBUFFERED", "1")
@@ -318,153 +445,3 @@ def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[
         for s, h in old.items():
             signal.signal(s, h)
     return launcher.return_code()
-
-
-_SPEC_KEYS = {"executable", "name", "params_file", "params_files", "parameters", "remaps", "namespace", "required", "env", "args",
-              "ros_args", "if", "unless"}
-_ARG = re.compile(r"\$\(arg ([A-Za-z_][A-Za-z0-9_]*)\)")
-
-
-@dataclass
-class LaunchArgument:
-    """A launch argument (``ros2 launch`` DeclareLaunchArgument): ``name:=value`` on the command line."""
-
-    name: str
-    default: str | None = None
-    description: str = ""
-    choices: tuple[str, ...] = ()
-
-
-def launch_arguments(path: str | Path) -> list[LaunchArgument]:
-    """The ``arguments:`` a launch YAML declares, in file order."""
-    p = Path(path)
-    data = load_yaml(p, "launch file")
-    raw = data.get("arguments") or {} if isinstance(data, dict) else {}
-    if not isinstance(raw, dict):
-        raise ConfigError("expected a mapping of argument names", path=p, key="arguments")
-    out = []
-    for name, decl in raw.items():
-        decl = decl or {}
-        if not isinstance(decl, dict) or set(decl) - {"default", "description", "choices"}:
-            raise ConfigError("expected {default, description, choices}", path=p, key=f"arguments.{name}")
-        default = decl.get("default")
-        out.append(LaunchArgument(str(name), None if default is None else _arg_text(default),
-                                  str(decl.get("description", "")), tuple(str(c) for c in decl.get("choices") or ())))
-    return out
-
-
-def _arg_text(value: Any) -> str:
-    """A YAML default back to the text a command line would give (``true``, ``1.0``, ``['a']``)."""
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    return value if isinstance(value, str) else repr(value)
-
-
-def parse_launch_arguments(items: Sequence[str]) -> dict[str, str]:
-    """``['source:=csv', 'bag:=out']`` -> ``{'source': 'csv', 'bag': 'out'}`` (ros2 launch syntax)."""
-    out = {}
-    for item in items:
-        name, sep, value = item.partition(":=")
-        if not sep or not name:
-            raise ConfigError(f"launch arguments are written name:=value, got {item!r}", key=item)
-        out[name] = value
-    return out
-
-
-def _substitute(value: Any, args: Mapping[str, str], p: Path, key: str, *, typed: bool) -> Any:
-    """Replace ``$(arg NAME)``; a value that is only a substitution is read as YAML when ``typed`` (as
-    launch_ros reads parameter values: ``1.0`` a double, ``['a', 'b']`` a list)."""
-    if isinstance(value, dict):
-        return {k: _substitute(v, args, p, f"{key}.{k}", typed=typed) for k, v in value.items()}
-    if isinstance(value, list):
-        return [_substitute(v, args, p, f"{key}[{i}]", typed=typed) for i, v in enumerate(value)]
-    if not isinstance(value, str) or "$(" not in value:
-        return value
-
-    def one(match: re.Match) -> str:
-        if match.group(1) not in args:
-            raise ConfigError(f"$(arg {match.group(1)}) is not a declared argument", path=p, key=key)
-        return args[match.group(1)]
-
-    whole = _ARG.fullmatch(value)
-    text = _ARG.sub(one, value)
-    if "$(" in text:
-        raise ConfigError(f"unknown substitution in {value!r} (only $(arg NAME) is supported)", path=p, key=key)
-    if whole and typed:
-        import yaml
-
-        try:
-            return yaml.safe_load(text) if text.strip() else ""
-        except yaml.YAMLError:
-            return text
-    return text
-
-
-def _truthy(text: str) -> bool:
-    return text.strip().lower() not in ("", "false", "0", "no", "off")
-
-
-def load_launch_file(path: str | Path, arguments: Mapping[str, str] | None = None) -> list[NodeSpec]:
-    """Read a launch YAML: ``arguments: {name: {default, description, choices}}`` and
-    ``nodes: [{executable, name, params_file, parameters, remaps, if, unless, ...}]``.
-
-    ``$(arg NAME)`` in any value is replaced by the argument (``arguments`` overrides the defaults);
-    a node with ``if: $(arg bag)`` starts only when that is non-empty and not false, ``unless`` the
-    opposite. Relative ``params_file`` paths are resolved against the launch file's directory.
-    """
-    p = Path(path)
-    data = load_yaml(p, "launch file")
-    if not isinstance(data, dict) or not isinstance(data.get("nodes"), list) or not data["nodes"]:
-        raise ConfigError("expected a non-empty list under 'nodes'", path=p, key="nodes")
-    declared = {a.name: a for a in launch_arguments(p)}
-    given = dict(arguments or {})
-    for name in given:
-        if name not in declared:
-            raise ConfigError(f"no launch argument {name!r} (declared: {', '.join(declared) or 'none'})",
-                              path=p, key=name)
-    values = {}
-    for name, decl in declared.items():
-        value = given.get(name, decl.default)
-        if value is None:
-            raise ConfigError(f"launch argument {name!r} is required ({decl.description}): add {name}:=VALUE",
-                              path=p, key=name)
-        if decl.choices and value not in decl.choices:
-            raise ConfigError(f"launch argument {name!r} must be one of {', '.join(decl.choices)}, got {value!r}",
-                              path=p, key=name)
-        values[name] = value
-    specs = []
-    for i, entry in enumerate(data["nodes"]):
-        if not isinstance(entry, dict):
-            raise ConfigError("expected a mapping", path=p, key=f"nodes[{i}]")
-        unknown = set(entry) - _SPEC_KEYS
-        if unknown:
-            raise ConfigError(f"unknown key (allowed: {', '.join(sorted(_SPEC_KEYS))})", path=p,
-                              key=f"nodes[{i}].{sorted(unknown)[0]}")
-        if "executable" not in entry:
-            raise ConfigError("missing required key", path=p, key=f"nodes[{i}].executable")
-        kw = {k: _substitute(v, values, p, f"nodes[{i}].{k}", typed=(k == "parameters")) for k, v in entry.items()}
-        if "if" in kw and not _truthy(str(kw.pop("if"))):
-            continue
-        if "unless" in kw and _truthy(str(kw.pop("unless"))):
-            continue
-        kw.pop("if", None), kw.pop("unless", None)
-        if kw.get("params_file"):
-            pf = Path(kw["params_file"])
-            kw["params_file"] = str(pf if pf.is_absolute() else (p.parent / pf))
-            if not Path(kw["params_file"]).exists():
-                raise ConfigError(f"params file {kw['params_file']} does not exist", path=p,
-                                  key=f"nodes[{i}].params_file")
-        files = kw.get("params_files") or []
-        if not isinstance(files, list):
-            raise ConfigError("expected a list of YAML files", path=p, key=f"nodes[{i}].params_files")
-        for j, f in enumerate(files):
-            pf = Path(str(f))
-            files[j] = str(pf if pf.is_absolute() else (p.parent / pf))
-            if not Path(files[j]).exists():
-                raise ConfigError(f"params file {files[j]} does not exist", path=p, key=f"nodes[{i}].params_files[{j}]")
-        if "params_files" in kw:
-            kw["params_files"] = tuple(files)
-        if "args" in kw:
-            kw["args"] = [str(a) for a in kw["args"]]
-        specs.append(NodeSpec(**kw))
-    return specs
