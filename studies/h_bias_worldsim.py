@@ -88,7 +88,7 @@ def raw_signals(session_path: Path, csvs: list[Path]) -> tuple[float, dict]:
         n = int(s.frame[-1] - s.frame[0]) + 1
         k = s.frame - s.frame[0]
 
-        def grid(v):
+        def grid(v, n=n, k=k):
             g = np.full(n, np.nan)
             g[k] = v
             return g

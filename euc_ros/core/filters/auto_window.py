@@ -91,7 +91,7 @@ def _stretches(y: np.ndarray, min_len: int):
     if not ok.any():
         return []
     edges = np.flatnonzero(np.diff(np.concatenate(([0], ok.astype(np.int8), [0]))))
-    return [y[a:b] for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_len]
+    return [y[a:b] for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
 
 
 def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[np.ndarray, np.ndarray, float]:

@@ -85,8 +85,8 @@ def band_noise(rng: np.random.Generator, period: float, f_lo: float, f_hi: float
     the magnitude of an order-``n_l`` Butterworth high-pass at ``f_lo`` in series with an order-``n_h``
     low-pass at ``f_hi``. The upper skirt is the steeper one: a disturbance torque's second
     derivative (what a pitch acceleration sees through a stiff loop) weights its power by ``f^4``,
-    which an order-2 skirt would leave flat above ``f_hi``. The grid stops at ``SKIRT_FACTOR * f_hi``. The realization is scaled to the requested
-    rms exactly.
+    which an order-2 skirt would leave flat above ``f_hi``. The grid stops at
+    ``SKIRT_FACTOR * f_hi``. The realization is scaled to the requested rms exactly.
     """
     if not (0.0 < f_lo < f_hi) or period <= 0.0:
         raise ValueError(f"need 0 < f_lo < f_hi and period > 0, got {f_lo}, {f_hi}, {period}")

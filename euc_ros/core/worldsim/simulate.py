@@ -17,8 +17,15 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.worldsim import body as B
 from euc_ros.core.worldsim import control as K
 from euc_ros.core.worldsim.dynamics import PlantParams, energy, solve, solve_one, torque_power
-from euc_ros.core.worldsim.excitation import (BAND_LIMITS_HZ, PROFILE_KINDS, BandNoise, SpeedProfile, band_noise, random_band,
-                                              random_speed_profile)
+from euc_ros.core.worldsim.excitation import (
+    BAND_LIMITS_HZ,
+    PROFILE_KINDS,
+    BandNoise,
+    SpeedProfile,
+    band_noise,
+    random_band,
+    random_speed_profile,
+)
 
 #: Integrator state: coordinates, rates, the two torques (lagged) and the work of the torques.
 STATE = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "M_d", "M_h", "work")

@@ -5,8 +5,15 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from euc_ros.core.worldsim.dynamics import (PlantParams, accelerations, energy, newton_euler_system, solve,
-                                            solve_one, torque_power)
+from euc_ros.core.worldsim.dynamics import (
+    PlantParams,
+    accelerations,
+    energy,
+    newton_euler_system,
+    solve,
+    solve_one,
+    torque_power,
+)
 from euc_ros.core.worldsim.simulate import ATOL_SCALE, draw_spec, integrate
 
 EPS = np.finfo(float).eps

@@ -4,8 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.worldsim.excitation import (PROFILE_KINDS, SKIRT_FACTOR, band_noise, random_band,
-                                              random_speed_profile)
+from euc_ros.core.worldsim.excitation import PROFILE_KINDS, SKIRT_FACTOR, band_noise, random_band, random_speed_profile
 
 
 def test_band_noise_rms_band_and_derivative():

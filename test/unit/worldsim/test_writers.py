@@ -60,7 +60,7 @@ def test_rates_drops_and_occlusions(tmp_path, rate):
     assert 0 < (~series.tracked).sum() <= 3 * 6
     assert np.all(np.isnan(series.position[~series.tracked]))
     header = paths["csv"].read_text(encoding="utf-8").splitlines()[0].split(",")
-    meta = dict(zip(header[::2], header[1::2]))
+    meta = dict(zip(header[::2], header[1::2], strict=False))
     assert meta["Format Version"] == "1.23" and meta["Rotation Type"] == "Quaternion"
     assert meta["Length Units"] == "Meters" and int(meta["Total Exported Frames"]) == series.frame.size
 
