@@ -218,8 +218,9 @@ def findings(results: dict) -> list[str]:
         cd = sum(bool(r["runs"][noise]["default"]["covered"]) for r in ws)
         ca = sum(bool(r["runs"][noise]["auto"]["covered"]) for r in ws)
         out.append(f"- **{noise}, generator ({len(ws)} rides):** default filter {d.mean():+.2f} +- "
-                   f"{d.std(ddof=1) / np.sqrt(d.size):.2f} mm (range {d.min():+.2f} to {d.max():+.2f}), interval covers "
-                   f"{cd}/{len(ws)}; auto window {a.mean():+.3f} +- {a.std(ddof=1) / np.sqrt(a.size):.3f} mm "
+                   f"{d.std(ddof=1) / np.sqrt(d.size):.2f} mm (range {d.min():+.2f} to {d.max():+.2f}), "
+                   f"interval covers {cd}/{len(ws)}; auto window {a.mean():+.3f} +- "
+                   f"{a.std(ddof=1) / np.sqrt(a.size):.3f} mm "
                    f"(largest |error| {np.abs(a).max():.3f} mm), interval covers {ca}/{len(ws)}.")
     if ps:
         d = errs(ps, lambda r: r["default"])
@@ -230,8 +231,8 @@ def findings(results: dict) -> list[str]:
     dist = np.array([r["distortion_default"]["gamma_ddot"] for r in ws])
     out.append(f"- The true EUC-pitch accelerations hold 90 % of their power below {bands[:, 0].min():.1f}-"
                f"{bands[:, 0].max():.1f} Hz and 99 % below {bands[:, 1].min():.1f}-{bands[:, 1].max():.1f} Hz; the "
-               f"default 1.2 s filter misses {100 * dist.min():.0f}-{100 * dist.max():.0f} % (RMS) of them on noise-free "
-               "data, and the identified h is low whenever it does.")
+               f"default 1.2 s filter misses {100 * dist.min():.0f}-{100 * dist.max():.0f} % (RMS) of them on "
+               "noise-free data, and the identified h is low on every ride.")
     clean_max = max([np.abs(errs(ws, lambda r: r["runs"]["clean"]["auto"])).max()]
                     + ([np.abs(errs(ps, lambda r: r["auto"])).max()] if ps else []))
     out.append(f"- With the window chosen from the data the noise-free bias is below {clean_max:.3f} mm on both "
