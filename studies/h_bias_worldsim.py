@@ -238,7 +238,8 @@ def findings(results: dict) -> list[str]:
     out.append(f"- With the window chosen from the data the noise-free bias is below {clean_max:.3f} mm on both "
                "simulators (target: < 1 mm). The interval `identify` computes around it is then a few micrometres "
                "wide and can miss the truth by micrometres: it has no floor for the precision of the data.")
-    out.append("- With the paper's noise the auto window reduces the bias but does not remove it, and no window of "
+    out.append("- With the paper's noise the auto window reduces the mean bias (not on every ride) but does not "
+               "remove it, and no window of "
                "the sweep does: short windows pass more noise into the accelerations (errors-in-variables "
                "attenuation, h low), long ones distort them (h low too). The auto intervals are wider (more noise "
                "passes the shorter filters) and cover more often, not always.")
