@@ -1,0 +1,342 @@
+"""A Savitzky-Golay window and order chosen from the recording itself, with the distortion it leaves.
+
+A fixed window suits one kind of motion: too long for a fast balance loop, it flattens the
+accelerations (the Savitzky-Golay second derivative of a window of ``T`` seconds and order ``p``
+follows a sinusoid only well below ~``(p + 2) / (2 T)`` Hz); too short for noisy poses, it
+amplifies the noise. Both errors bias the identified CoG height h. This module estimates, from the
+raw signals of a recording (pitch angles, wheel-centre coordinates), their spectra and the noise
+floor, predicts for every candidate window and order the two errors of each signal's second
+derivative (distortion and noise), and picks the candidate with the smallest total.
+
+The prediction needs no model of the ride: the signal's spectrum comes from the data (Welch, on the
+second differences, so that the slow large motions leak nothing into the high frequencies), the
+noise floor either from the stated pose noise or from the spectrum's flat high-frequency end, and
+the filter's response from its own coefficients.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError, InputError
+
+#: Candidate polynomial orders (for the value and the second derivative, order 2k and 2k+1 give the
+#: same centred coefficients, so odd orders add nothing).
+DEFAULT_ORDERS = (2, 4, 6, 8)
+#: Candidate windows [s]: a geometric grid from a few samples up to this length.
+MAX_WINDOW_S = 2.5
+#: Welch segment length [s] (frequency resolution 1 / this).
+SEGMENT_S = 4.0
+#: Share of the Nyquist band, at its top, from which the noise floor is read when it is not given.
+NOISE_BAND = (0.6, 0.95)
+#: A spectral bin holds motion while it exceeds the noise floor by this many standard deviations of
+#: the estimate (about ``floor / sqrt(n_avg)``).
+FLOOR_SIGMAS = 4.0
+
+
+def savgol_kernel(window: int, polyorder: int, deriv: int, dt: float) -> np.ndarray:
+    """Centred Savitzky-Golay weights: the ``deriv``-th derivative of the local fit at the window's centre.
+
+    Parameters
+    ----------
+    window : int
+        Odd window length [samples], ``> polyorder``.
+    polyorder : int
+    deriv : int
+        Derivative order (0, 1, 2).
+    dt : float
+        Sample spacing [s].
+
+    Returns
+    -------
+    ndarray (window,)
+        Weights ``w_j``, ``j = -c..c`` (``c = (window - 1) / 2``): the estimate at sample ``i`` is
+        ``sum_j w_j y_{i+j}`` [unit / s^deriv].
+
+    Notes
+    -----
+    Least squares of ``y_j ~ sum_m a_m u_j^m`` in the normalised time ``u_j = j / c`` on ``[-1, 1]``
+    (a Vandermonde matrix whose conditioning does not grow with the window, unlike one built in
+    sample units); with ``V = QR`` the coefficients are ``a = R^-1 Q^T y`` and the ``d``-th time
+    derivative at the centre is ``d! a_d / (c dt)^d``.
+    """
+    window, polyorder = int(window), int(polyorder)
+    if window % 2 != 1 or window <= polyorder:
+        raise ConfigError(f"window must be odd and > polyorder, got {window} and {polyorder}", key="window")
+    c = (window - 1) // 2
+    u = np.arange(-c, c + 1) / c
+    V = np.vander(u, polyorder + 1, increasing=True)
+    q, r = np.linalg.qr(V)
+    coef = np.linalg.solve(r, q.T)                      # (p + 1, window): a = coef @ y
+    return float(np.prod(np.arange(1, deriv + 1))) * coef[deriv] / (c * dt) ** deriv
+
+
+def savgol_response(window: int, polyorder: int, deriv: int, dt: float, freqs) -> np.ndarray:
+    """Frequency response of :func:`savgol_kernel` at ``freqs`` [Hz]: ``sum_j w_j exp(2 pi i f j dt)``.
+
+    The ideal ``deriv``-th derivative has the response ``(2 pi i f)^deriv``.
+    """
+    w = savgol_kernel(window, polyorder, deriv, dt)
+    c = (w.size - 1) // 2
+    j = np.arange(-c, c + 1)
+    ph = 2 * np.pi * np.asarray(freqs, dtype=float)[:, None] * j[None, :] * dt
+    return np.cos(ph) @ w + 1j * (np.sin(ph) @ w)
+
+
+def _stretches(y: np.ndarray, min_len: int):
+    """Finite runs of ``y`` of at least ``min_len`` samples."""
+    ok = np.isfinite(y)
+    if not ok.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], ok.astype(np.int8), [0]))))
+    return [y[a:b] for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
+
+
+def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[np.ndarray, np.ndarray, float]:
+    """One-sided power spectral density of a signal, estimated through its second differences.
+
+    Parameters
+    ----------
+    y : array_like (n,) or sequence of them
+        Signal samples (NaN marks gaps: each finite stretch is used on its own).
+    dt : float
+        Sample spacing [s].
+    segment_s : float
+        Welch segment length [s].
+
+    Returns
+    -------
+    freqs : ndarray (k,)
+        [Hz], from 0 to Nyquist.
+    psd : ndarray (k,)
+        [unit^2 / Hz]; NaN at 0 Hz.
+    n_avg : float
+        Number of (half-overlapping) segments averaged; a bin's relative standard deviation is about
+        ``1 / sqrt(n_avg)``.
+
+    Notes
+    -----
+    The second difference ``D y_i = y_{i+1} - 2 y_i + y_{i-1}`` has the response
+    ``-4 sin^2(pi f dt)``, nearly flat in power against the ``f^-4`` fall of a smooth motion's
+    spectrum; Welch's estimate (Hann windows, half overlap, linear detrending) of it is divided by
+    ``16 sin^4(pi f dt)``. Estimating the signal itself would let the side lobes of its huge
+    low-frequency power (a ride's travel, a slow lean) swamp the high frequencies that decide the
+    filter. Segments are averaged over all stretches, weighted by their counts.
+    """
+    from scipy.signal import welch
+
+    arrays = [np.asarray(y, dtype=float)] if np.ndim(y) == 1 and not isinstance(y, (list, tuple)) else \
+        [np.asarray(a, dtype=float) for a in y]
+    nper = max(16, int(round(segment_s / dt)))
+    total, weight, freqs = None, 0.0, None
+    for arr in arrays:
+        for seg in _stretches(arr, 8):
+            d2 = seg[2:] - 2 * seg[1:-1] + seg[:-2]
+            n = min(nper, d2.size)
+            f, p = welch(d2, fs=1.0 / dt, nperseg=n, detrend="linear")
+            if freqs is not None and f.size != freqs.size:
+                p = np.interp(freqs, f, p)
+                f = freqs
+            k = max(1.0, 2.0 * d2.size / n - 1.0)           # segments averaged (half overlap)
+            total = p * k if total is None else total + p * k
+            weight += k
+            freqs = f
+    if total is None:
+        raise InputError("no finite stretch of at least 8 samples to estimate a spectrum from", key="y")
+    psd = total / weight
+    with np.errstate(divide="ignore", invalid="ignore"):
+        out = psd / (16.0 * np.sin(np.pi * freqs * dt) ** 4)
+    out[0] = np.nan
+    return freqs, out, weight
+
+
+@dataclass(frozen=True)
+class WindowChoice:
+    """The chosen filter and what it leaves.
+
+    Attributes
+    ----------
+    window_s : float
+        Window [s] (``window / rate``; pass it as ``--window-s``).
+    window : int
+        Window [samples], odd.
+    polyorder : int
+    distortion : dict
+        Per signal: the predicted relative RMS error of the filtered value, first and second
+        derivative from the filter's response alone (``{"gamma": (d0, d1, d2), ...}``), each
+        relative to the RMS of that derivative of the signal.
+    noise : dict
+        Per signal: the predicted RMS of the noise in the second derivative, relative to the RMS
+        second derivative of the signal.
+    noise_std : dict
+        Per signal: the white-noise standard deviation used [signal unit].
+    acceleration_rms : dict
+        Per signal: the RMS of the signal's second derivative the spectrum implies [unit/s^2].
+    band_hz : dict
+        Per signal: frequencies below which 90 % and 99 % of the second derivative's power lie [Hz],
+        and the end of the band resolved above the noise floor.
+    probe : tuple
+        ``(window_s, polyorder)`` of a companion filter whose predicted distortion is about twice
+        the chosen one's (see :func:`choose_window`, Notes).
+    candidates : list of dict
+        Every candidate evaluated, with its total score.
+    """
+
+    window_s: float
+    window: int
+    polyorder: int
+    distortion: dict
+    noise: dict
+    noise_std: dict
+    acceleration_rms: dict
+    band_hz: dict
+    probe: tuple
+    candidates: list = field(repr=False, default_factory=list)
+
+    def to_json(self) -> dict:
+        """Plain-JSON form (candidates left out)."""
+        return {"window_s": self.window_s, "window": self.window, "polyorder": self.polyorder,
+                "distortion": {k: list(v) for k, v in self.distortion.items()}, "noise": dict(self.noise),
+                "noise_std": dict(self.noise_std), "acceleration_rms": dict(self.acceleration_rms),
+                "band_hz": {k: list(v) for k, v in self.band_hz.items()}, "probe": list(self.probe)}
+
+
+def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) -> list[tuple[int, int]]:
+    longest = max(int(round(max_window_s / dt)) | 1, 5)
+    out = []
+    for p in orders:
+        shortest = p + 3 if (p + 3) % 2 == 1 else p + 4
+        grid = np.unique(np.round(np.geomspace(shortest, max(longest, shortest), 48)).astype(int) | 1)
+        out += [(int(w), int(p)) for w in grid if w > p]
+    return out
+
+
+def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[str, float] | None = None, *,
+                  orders: Sequence[int] = DEFAULT_ORDERS, max_window_s: float = MAX_WINDOW_S,
+                  segment_s: float = SEGMENT_S) -> WindowChoice:
+    """Choose the Savitzky-Golay window and order from a recording's raw signals.
+
+    Parameters
+    ----------
+    dt : float
+        Sample spacing [s].
+    signals : mapping of str to array_like
+        Raw (unfiltered) signals sampled every ``dt``, e.g. ``{"gamma": ..., "phi": ..., "C_x": ...,
+        "C_y": ...}``; each an array (NaN at gaps) or a sequence of arrays (several recordings).
+    noise_std : mapping of str to float, optional
+        White-noise standard deviation of each signal [its unit], e.g. propagated from the stated
+        pose noise. Missing signals get an estimate from the top of their spectrum (see Notes).
+    orders : sequence of int
+        Candidate polynomial orders.
+    max_window_s : float
+        Longest candidate window [s].
+    segment_s : float
+        Welch segment length [s].
+
+    Returns
+    -------
+    WindowChoice
+
+    Notes
+    -----
+    For each signal ``s`` the displacement spectrum ``S_s(f)`` (:func:`displacement_spectrum`) is the
+    motion's spectrum plus a white noise floor ``N_s = 2 sigma_s^2 dt`` (one-sided). When
+    ``sigma_s`` is not given, ``N_s`` is the median of ``S_s`` over the top of the band
+    (:data:`NOISE_BAND` of Nyquist), where a smooth motion has no power left; that is an upper bound
+    when the motion reaches up there. The motion's band ends at ``f_c``, the first frequency where
+    ``S_s`` is within :data:`FLOOR_SIGMAS` standard deviations of the floor (what lies above is
+    buried in the noise and cannot be resolved by any filter); the motion's acceleration spectrum is
+    ``A_s(f) = (2 pi f)^4 (S_s(f) - N_s)`` below ``f_c``, its power ``P_s = int A_s df``. A candidate
+    ``(W, p)`` with second-derivative response ``H_2(f)`` then leaves
+
+    .. math::
+
+        B_s^2 = \\int |H_2(f) / (2\\pi i f)^2 - 1|^2 A_s(f)\\, df, \\qquad
+        V_s = \\sigma_s^2 \\sum_j w_{2,j}^2,
+
+    the distortion and the noise variance of the filtered acceleration. The choice minimizes the
+    summed relative mean-square error ``sum_s (B_s^2 + V_s) / P_s``: with noise-free poses this is
+    the shortest window that resolves the motion, with noisy poses the balance of both. The
+    distortion the choice leaves is returned per signal and derivative order; as it is a bias of
+    the filter, not noise, it does not average out. Since ``B`` grows steeply with the window, a
+    companion filter with about twice the predicted distortion (``probe``) gives a model-free
+    estimate of what the distortion does to any quantity ``h`` fitted from the filtered signals:
+    to first order ``h(W) - h_true ~ h(W_probe) - h(W)``.
+    """
+    if not (np.isfinite(dt) and dt > 0):
+        raise InputError(f"sample spacing must be > 0 s, got {dt!r}", key="dt")
+    if not signals:
+        raise InputError("no signals given", key="signals")
+    noise_std = dict(noise_std or {})
+    specs, floors, sig_used, n_avg = {}, {}, {}, {}
+    for name, y in signals.items():
+        f, S, n_avg[name] = displacement_spectrum(y, dt, segment_s)
+        top = (f >= NOISE_BAND[0] * f[-1]) & (f <= NOISE_BAND[1] * f[-1])
+        if name in noise_std and noise_std[name] is not None:
+            sigma = float(noise_std[name])
+            N = 2.0 * sigma**2 * dt
+        else:
+            N = float(np.nanmedian(S[top]))
+            sigma = float(np.sqrt(N / (2.0 * dt)))
+        specs[name] = (f, S)
+        floors[name] = N
+        sig_used[name] = sigma
+    names = list(signals)
+    f = specs[names[0]][0]
+    df = f[1] - f[0]
+    w2 = (2 * np.pi * f) ** 2
+    S_sig, cutoff = {}, {}
+    for n in names:
+        S = np.where(np.isfinite(specs[n][1]), specs[n][1], np.inf)
+        above = S > floors[n] * (1.0 + FLOOR_SIGMAS / np.sqrt(n_avg[n]))
+        # the motion's band: from 0 Hz up to the first bin (past the lowest ones) under the threshold
+        below = np.flatnonzero(~above & (f > 2.0 / segment_s))
+        cutoff[n] = float(f[below[0]]) if below.size else float(f[-1])
+        S_sig[n] = np.where((f < cutoff[n]) & (f > 0), np.maximum(specs[n][1] - floors[n], 0.0), 0.0)
+    A = {n: w2**2 * S_sig[n] for n in names}
+    P = {n: float(np.sum(A[n]) * df) for n in names}
+    if any(v <= 0 for v in P.values()):
+        empty = [n for n, v in P.items() if v <= 0]
+        raise InputError(f"no motion above the noise floor in {', '.join(empty)}", key="signals")
+    cands = []
+    for W, p in _candidate_windows(dt, orders, max_window_s):
+        H2 = savgol_response(W, p, 2, dt, f)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e2 = np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0)
+        k2 = savgol_kernel(W, p, 2, dt)
+        score, B, V = 0.0, {}, {}
+        for n in names:
+            B[n] = float(np.sum(e2 * A[n]) * df)
+            V[n] = sig_used[n] ** 2 * float(k2 @ k2)
+            score += (B[n] + V[n]) / P[n]
+        cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
+    best = min(cands, key=lambda c: (c["score"], c["window"]))
+    W, p = best["window"], best["polyorder"]
+    distortion, noise, acc_rms, band = {}, {}, {}, {}
+    for n in names:
+        rel = []
+        for d in (0, 1, 2):
+            H = savgol_response(W, p, d, dt, f)
+            ideal = (2j * np.pi * f) ** d
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e = np.where(f > 0, np.abs(H / ideal - 1.0) ** 2, 0.0)
+            weight = (2 * np.pi * f) ** (2 * d) * S_sig[n]
+            rel.append(float(np.sqrt(np.sum(e * weight) / np.sum(weight))) if np.sum(weight) > 0 else 0.0)
+        distortion[n] = tuple(rel)
+        noise[n] = float(np.sqrt(best["V"][n] / P[n]))
+        acc_rms[n] = float(np.sqrt(P[n]))
+        cum = np.cumsum(A[n]) / np.sum(A[n])
+        band[n] = (float(f[np.searchsorted(cum, 0.90)]), float(f[np.searchsorted(cum, 0.99)]), cutoff[n])
+    # companion filter: the same order, the window whose summed distortion is nearest twice the choice's
+    target = 2.0 * sum(best["B2"][n] / P[n] for n in names) ** 0.5
+    same = [c for c in cands if c["polyorder"] == p and c["window"] > W]
+    probe = (W * dt, p)
+    if same:
+        c = min(same, key=lambda c: abs(sum(c["B2"][n] / P[n] for n in names) ** 0.5 - target))
+        probe = (c["window"] * dt, p)
+    return WindowChoice(window_s=W * dt, window=W, polyorder=p, distortion=distortion, noise=noise,
+                        noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band, probe=probe,
+                        candidates=[{"window": c["window"], "polyorder": c["polyorder"], "score": c["score"]}
+                                    for c in cands])

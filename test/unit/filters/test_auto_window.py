@@ -1,0 +1,129 @@
+"""The Savitzky-Golay window chosen from a recording's spectra: kernels, spectra, predictions, choice."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from euc_ros.core.filters.auto_window import (
+    SEGMENT_S,
+    choose_window,
+    displacement_spectrum,
+    savgol_kernel,
+    savgol_response,
+)
+from euc_ros.core.filters.derivatives import savgol_coefficients
+
+EPS = np.finfo(float).eps
+
+
+@pytest.mark.parametrize(("window", "order", "dt"), [(13, 4, 1 / 120), (301, 8, 1 / 360), (121, 6, 1 / 100)])
+def test_kernels_are_the_projects_filter_and_exact_on_polynomials(window, order, dt):
+    c = (window - 1) // 2
+    theirs = savgol_coefficients(window, order, dt, [c])[:, 0]
+    t = (np.arange(window) - c) * dt
+    for d in (0, 1, 2):
+        mine = savgol_kernel(window, order, d, dt)
+        scale = np.abs(mine).sum()
+        assert np.allclose(mine, theirs[d], rtol=0, atol=1e3 * EPS * scale)
+        # exact on polynomials up to the order: t^k has the d-th derivative k!/(k-d)! t^(k-d), 0 at t = 0 unless k = d
+        for k in range(order + 1):
+            expected = float(np.prod(np.arange(1, d + 1))) if k == d else 0.0
+            assert mine @ t**k == pytest.approx(expected, abs=1e3 * EPS * scale * np.abs(t).max() ** k)
+
+
+def test_response_of_a_sinusoid_is_the_kernel_applied_to_it():
+    dt, W, p, f = 1 / 120, 41, 6, 3.3
+    t = np.arange(-(W // 2), W // 2 + 1) * dt
+    for d in (0, 1, 2):
+        k = savgol_kernel(W, p, d, dt)
+        H = savgol_response(W, p, d, dt, [f])[0]
+        # y = exp(2 pi i f t): the estimate at t = 0 is H
+        assert k @ np.exp(2j * np.pi * f * t) == pytest.approx(H, abs=1e3 * EPS * np.abs(k).sum())
+
+
+def test_noise_floor_of_white_noise():
+    rng = np.random.default_rng(0)
+    dt, sigma, n = 1 / 120, 2e-3, 120 * 240
+    t = np.arange(n) * dt
+    y = 0.1 * np.sin(2 * np.pi * 0.7 * t) + sigma * rng.standard_normal(n)
+    f, S, k = displacement_spectrum(y, dt)
+    top = f > 0.6 * f[-1]
+    # white noise of variance sigma^2 has the one-sided density 2 sigma^2 dt; the median over m bins
+    # (neighbours correlated by the Hann window: m / 2 independent) of an average of k segments
+    # scatters by ~1.25 sqrt(2 / (k m)) and sits ~1/(3k) below the mean
+    m = int(top.sum())
+    tol = 5 * 1.25 * np.sqrt(2 / (k * m)) + 1 / (3 * k)
+    assert abs(np.median(S[top]) / (2 * sigma**2 * dt) - 1) <= tol
+    est = choose_window(dt, {"y": y})
+    assert est.noise_std["y"] == pytest.approx(sigma, rel=tol / 2)      # sigma is the square root
+
+
+def _lines(freqs, amps, dt, n, rng):
+    t = np.arange(n) * dt
+    ph = rng.uniform(0, 2 * np.pi, len(freqs))
+    y = sum(a * np.sin(2 * np.pi * f * t + p) for f, a, p in zip(freqs, amps, ph, strict=True))
+    acc = sum(-a * (2 * np.pi * f) ** 2 * np.sin(2 * np.pi * f * t + p)
+              for f, a, p in zip(freqs, amps, ph, strict=True))
+    return y, acc
+
+
+def _line_distortion(freqs, amps, W, p, dt, shift):
+    """Relative acceleration distortion of a sum of lines, the lines moved by ``shift`` [Hz]."""
+    f = np.asarray(freqs) + shift
+    H = savgol_response(W, p, 2, dt, f)
+    e2 = np.abs(H / -(2 * np.pi * f) ** 2 - 1) ** 2
+    w = (np.asarray(amps) * (2 * np.pi * np.asarray(freqs)) ** 2) ** 2
+    return float(np.sqrt(np.sum(e2 * w) / np.sum(w)))
+
+
+def test_predicted_distortion_and_noise_match_the_filter():
+    rng = np.random.default_rng(1)
+    dt, n = 1 / 120, 120 * 120
+    freqs, amps = [0.4, 1.1, 2.3, 3.6], [0.05, 0.02, 0.004, 0.001]
+    y, acc = _lines(freqs, amps, dt, n, rng)
+    sigma = 1e-4
+    noisy = y + sigma * rng.standard_normal(n)
+    ch = choose_window(dt, {"y": noisy}, noise_std={"y": sigma})
+    W, p = ch.window, ch.polyorder
+    # a line's power spreads over the Hann main lobe, +-2 bins of 1/SEGMENT_S: the prediction lies
+    # between the distortions of the lines moved to either edge
+    lo = min(_line_distortion(freqs, amps, W, p, dt, s) for s in (-2 / SEGMENT_S, 0.0, 2 / SEGMENT_S))
+    hi = max(_line_distortion(freqs, amps, W, p, dt, s) for s in (-2 / SEGMENT_S, 0.0, 2 / SEGMENT_S))
+    assert lo * 0.9 <= ch.distortion["y"][2] <= hi * 1.1
+    # the noise prediction is sigma^2 sum(w^2), against the acceleration rms of the lines
+    k2 = savgol_kernel(W, p, 2, dt)
+    assert ch.noise["y"] * ch.acceleration_rms["y"] == pytest.approx(sigma * np.sqrt(k2 @ k2), rel=1e-12)
+    assert ch.acceleration_rms["y"] == pytest.approx(np.sqrt(np.mean(acc**2)), rel=0.15)
+    # and the filter really does what was predicted, on the interior samples
+    est = np.correlate(noisy, k2, mode="valid")
+    err = est - acc[W // 2: -(W // 2)]
+    predicted = np.hypot(ch.distortion["y"][2], ch.noise["y"]) * np.sqrt(np.mean(acc**2))
+    # tolerance: the noise's sample rms over n samples correlated across W (5 standard deviations of
+    # sqrt(W / 2n)) and the spread of the line distortion over the main lobe
+    tol = 5 * np.sqrt(W / (2 * n)) + (hi - lo) * np.sqrt(np.mean(acc**2)) / predicted
+    assert np.sqrt(np.mean(err**2)) == pytest.approx(predicted, rel=tol)
+
+
+def test_noise_free_fast_motion_gets_a_short_window_and_noisy_slow_motion_a_long_one():
+    rng = np.random.default_rng(2)
+    dt, n = 1 / 120, 120 * 60
+    fast, _ = _lines([1.5, 3.0, 4.5], [0.02, 0.005, 0.002], dt, n, rng)
+    slow, _ = _lines([0.2, 0.5], [0.1, 0.02], dt, n, rng)
+    a = choose_window(dt, {"g": fast}, noise_std={"g": 1e-9})
+    b = choose_window(dt, {"g": slow + 3e-3 * rng.standard_normal(n)})
+    assert a.window_s < 0.5 and a.distortion["g"][2] < 0.01
+    assert b.window_s > 1.0
+
+
+def test_choice_on_a_generated_ride_leaves_under_one_percent():
+    from euc_ros.core.worldsim import simulate_ride
+
+    ride = simulate_ride(21, 120.0, duration=10.0)
+    tr = ride.truth
+    sig = {"gamma": tr["gamma"], "phi": tr["phi"], "x": tr["x"]}
+    ch = choose_window(1 / 120, sig, noise_std={k: 1e-7 for k in sig})
+    for name, key in (("gamma", "gamma_ddot"), ("phi", "phi_ddot"), ("x", "x_ddot")):
+        k2 = savgol_kernel(ch.window, ch.polyorder, 2, 1 / 120)
+        est = np.correlate(np.asarray(tr[name]), k2, mode="valid")
+        ref = np.asarray(tr[key])[ch.window // 2: -(ch.window // 2)]
+        assert np.sqrt(np.mean((est - ref) ** 2) / np.mean(ref**2)) < 0.01
