@@ -20,8 +20,9 @@ neither needs the other). Each name is a module (``errors``) or a subpackage (``
 * ``identify``: the fit of the rider CoG height h and its interval (bootstrap, SIMEX, budget).
 * ``residual``: tracing M_d1 - M_d2 to a missing effect; ``online``: the frame-by-frame estimators and
   monitors behind the nodes.
-* ``ridesim``: the ride simulator (shares no code with the model, by design); ``unicycle``: the
-  autonomous unicycle of the steering paper.
+* ``ridesim``: the ride simulator (shares no code with the model, by design); ``worldsim``: a second,
+  independent ride generator (its own dynamics, controllers and writer) that the analyses are tested on;
+  ``unicycle``: the autonomous unicycle of the steering paper.
 """
 
 #: The core's layers from the bottom up; each entry a tuple of sibling modules or subpackages.
@@ -34,5 +35,5 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("states",),
     ("identify",),
     ("residual", "online"),
-    ("ridesim", "unicycle"),
+    ("ridesim", "unicycle", "worldsim"),
 )
