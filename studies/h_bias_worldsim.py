@@ -75,7 +75,7 @@ def raw_signals(session_path: Path, csvs: list[Path]) -> tuple[float, dict]:
     The same geometry identify applies before filtering (the project's reader and frame geometry), on
     each recording's frame grid (missing frames NaN). This is the call to wire into identify.
     """
-    from euc_ros.core.euc.kinematics import frame_geometry
+    from euc_ros.core.states.geometry import frame_geometry
     from euc_ros.core.io.motive_csv import read_motive_csv
     from euc_ros.core.session import load_session
 
@@ -284,7 +284,7 @@ AUTO_TEXT = [
     "The call to wire into `identify` (per rate; `raw_signals` in this script is the reference):",
     "",
     "```python",
-    "from euc_ros.core.euc.kinematics import frame_geometry",
+    "from euc_ros.core.states.geometry import frame_geometry",
     "from euc_ros.core.filters.auto_window import choose_window",
     "# for every recording (MocapSeries s, Z-up) on its frame grid (missing frames NaN):",
     "geo = frame_geometry(s.position, s.quat, s.tracked, session, s.bodies)",
