@@ -191,7 +191,7 @@ class Player:
     # -- helpers -------------------------------------------------------------------------------------------
     def _tick_clock(self, now: float, bag_ns: int) -> None:
         if self.clock_pub is not None and now >= self._next_clock:
-            from euc_ros.nodes.convert import ns_to_stamp
+            from euc_ros.ros.convert import ns_to_stamp
 
             self.clock_pub.publish(self._clock_cls(clock=ns_to_stamp(bag_ns)))
             self._next_clock = max(self._next_clock + self.clock_period, now - self.clock_period)

@@ -17,7 +17,7 @@ publishes to the middleware (other processes, the recorder and the monitor, stil
 message; ``get_subscription_count`` counts the in-process subscriber). In-process first, as rclcpp
 does: a frame's torque is on the wire before the frame and the state are. The chain then runs
 in one call: a frame's state and torque are out before the next frame is read. All nodes spin on
-one :class:`~euc_ros.nodes.executor.LeanExecutor`.
+one :class:`~euc_ros.ros.executor.LeanExecutor`.
 
 Usage (``--nodes`` before ``--ros-args``; one ``--params-file`` per node, as their sections are
 keyed by node name)::
@@ -35,9 +35,9 @@ from __future__ import annotations
 import argparse
 import sys
 
-from euc_ros.nodes.intra import LocalFanout
-from euc_ros.nodes.registry import NODES, node_class
-from euc_ros.nodes.runtime import run_nodes
+from euc_ros.ros.intra import LocalFanout
+from euc_ros.ros.registry import NODES, node_class
+from euc_ros.ros.runtime import run_nodes
 
 #: In-process links: (publisher node, publisher attribute, subscriber node, DDS subscription
 #: attribute, handler attribute taking one message as the subscription's callback would).

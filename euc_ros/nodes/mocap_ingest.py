@@ -50,11 +50,11 @@ from euc_ros.core.ingest import (
 )
 from euc_ros.core.session import load_session
 from euc_ros.core.up_axis_watch import UpAxisWatch
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.intra import LocalFanout
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.intra import LocalFanout
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 
 SPECS = (
     ParamSpec("source", "csv", "where poses come from", choices=("csv", "topics", "natnet")),

@@ -18,7 +18,7 @@ Each status is STALE when its stream has sent nothing for ``timeout_s``. WARN st
 
 Subscribes
     ``mocap/frame``, ``rider/state``, ``euc/torque`` (reliable; taken raw in batches every ~20 ms,
-    :class:`~euc_ros.nodes.drain.SubscriptionDrain`).
+    :class:`~euc_ros.ros.drain.SubscriptionDrain`).
 Publishes
     ``/diagnostics`` (diagnostic_msgs/DiagnosticArray).
 """
@@ -33,11 +33,11 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from euc_ros.core import monitoring as mon
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.drain import SubscriptionDrain
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.drain import SubscriptionDrain
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 
 SPECS = (
     ParamSpec("period", 1.0, "period of the diagnostics", "s", 0.02, 60.0),

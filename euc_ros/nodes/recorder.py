@@ -21,7 +21,7 @@ RMW is not Fast DDS. A publisher's own segment bounds how many of its messages c
 receiver (512 by default): above ~50k msgs/s from one process, give it :data:`FAST_PUBLISHER_PROFILE`.
 
 Before it starts, the console script removes the Fast DDS shared-memory files that no process maps
-(:mod:`euc_ros.nodes.shm_clean`): Fast DDS reuses a stale port file of the same number unresized, which
+(:mod:`euc_ros.ros.shm_clean`): Fast DDS reuses a stale port file of the same number unresized, which
 would give the recorder a 512-descriptor port whatever its profile asks.
 
 Subscribes
@@ -42,11 +42,11 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from euc_ros.core.io.bags import BagWriter
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.drain import SubscriptionDrain
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
-from euc_ros.nodes.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.drain import SubscriptionDrain
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
+from euc_ros.ros.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files
 
 SPECS = (
     ParamSpec("output", "", "bag directory to create (default: bags/euc_<UTC time>); must not exist"),

@@ -47,12 +47,12 @@ from euc_ros.core.filters.causal import LOW_LAG_S, STATE_ESTIMATORS
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.presence import BodyPresence
 from euc_ros.core.session import load_session
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.rate_gate import NodeRateGate
-from euc_ros.nodes.intra import LocalFanout
-from euc_ros.nodes.runtime import drain, main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.rate_gate import NodeRateGate
+from euc_ros.ros.intra import LocalFanout
+from euc_ros.ros.runtime import drain, main_for
 
 #: RiderState's fields after the header, in the message's order (what :meth:`RiderStateNode._values` writes).
 _STATE_MSG_FIELDS = ("has_rider", "x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",

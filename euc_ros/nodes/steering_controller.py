@@ -18,7 +18,7 @@ and ``wait_observers`` more subscribers (e.g. a recorder), so nothing is lost at
 
 A speed, pole or maneuver for which the design is impossible or ill-conditioned makes the node
 exit at start-up with one line naming the parameter and code 2 (through
-:func:`euc_ros.nodes.runtime.run_node`).
+:func:`euc_ros.ros.runtime.run_node`).
 
 Subscribes
     ``unicycle/state`` (euc_msgs/UnicycleState, LOCKSTEP_QOS).
@@ -41,10 +41,10 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.unicycle.dynamics import UnicycleParams
 from euc_ros.core.unicycle.simulate import STATUS_OK
 from euc_ros.core.unicycle.steering import MANEUVER_DURATION, MANEUVER_START, MANEUVERS, SteeringController
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 from euc_ros.nodes.unicycle_sim import msg_to_state
 
 _DEFAULTS = UnicycleParams()

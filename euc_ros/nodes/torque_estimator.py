@@ -34,11 +34,11 @@ from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.euc.estimators import TorqueEstimator, extended_model_from_config
 from euc_ros.core.euc.model import EucParams
 from euc_ros.core.session import load_session
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.rate_gate import NodeRateGate
-from euc_ros.nodes.runtime import drain, main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.rate_gate import NodeRateGate
+from euc_ros.ros.runtime import drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider and EUC parameters (required)"),
@@ -145,7 +145,7 @@ class TorqueEstimatorNode(Node):
         drain(self._state_sub, self._on_state)   # a backlog in one wake-up
 
     def _on_state(self, msg) -> None:
-        """One RiderState message, or a :class:`~euc_ros.nodes.convert.LocalState` handed over in-process."""
+        """One RiderState message, or a :class:`~euc_ros.ros.convert.LocalState` handed over in-process."""
         self._last_state_wall = time.monotonic()
         try:
             stamp = msg.stamp_ns if type(msg) is convert.LocalState else convert.stamp_to_ns(msg.header.stamp)

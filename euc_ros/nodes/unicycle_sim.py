@@ -52,10 +52,10 @@ from euc_ros.core.rotations import quat_from_yaw_tilt_pitch
 from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams
 from euc_ros.core.unicycle.linearize import straight_rolling_state
 from euc_ros.core.unicycle.simulate import STATUS_OK, UnicycleSimulator
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 
 _DEFAULTS = UnicycleParams()
 

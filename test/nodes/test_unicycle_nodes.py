@@ -31,7 +31,7 @@ from euc_ros.core.unicycle.dynamics import UnicycleParams  # noqa: E402
 from euc_ros.core.unicycle.linearize import straight_rolling_state  # noqa: E402
 from euc_ros.core.unicycle.simulate import UnicycleSimulator, simulate  # noqa: E402
 from euc_ros.core.unicycle.steering import SteeringController, lane_change_reference, steering_gains  # noqa: E402
-from euc_ros.nodes import interfaces as itf  # noqa: E402
+from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.nodes.steering_controller import SteeringControllerNode  # noqa: E402
 from euc_ros.nodes.unicycle_sim import UnicycleSim, msg_to_state, state_to_msg, wheel_pose  # noqa: E402
 

@@ -21,8 +21,8 @@ import yaml
 
 from euc_ros import launch as euc_launch
 from euc_ros.core.errors import ConfigError
-from euc_ros.nodes.params import validate_params_file
-from euc_ros.nodes.registry import NODES, node_class
+from euc_ros.ros.params import validate_params_file
+from euc_ros.ros.registry import NODES, node_class
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH = REPO / "launch"

@@ -14,8 +14,8 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from euc_ros.core.errors import EucError
-from euc_ros.nodes.executor import LeanExecutor, wait_for_context_shutdown
-from euc_ros.nodes.params import params_files_in, validate_params_file
+from euc_ros.ros.executor import LeanExecutor, wait_for_context_shutdown
+from euc_ros.ros.params import params_files_in, validate_params_file
 from euc_ros.sched import realtime_from_env
 
 #: How long an exception raised inside spin waits for a signal-triggered shutdown to complete [s].

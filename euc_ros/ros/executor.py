@@ -14,7 +14,7 @@ torques that is most of a pipeline node's CPU.
 - a ready subscription is taken until empty (at most :attr:`LeanExecutor.batch` messages) in one
   wake-up, oldest first, each message handed to its callback as rclpy would (raw bytes or a
   message; with :class:`~rclpy.subscription.MessageInfo` when the callback takes two arguments);
-- timers, services, guard conditions and waitables (e.g. :class:`~euc_ros.nodes.drain.SubscriptionDrain`
+- timers, services, guard conditions and waitables (e.g. :class:`~euc_ros.ros.drain.SubscriptionDrain`
   and QoS event handlers) run as rclpy runs them.
 
 Everything that needs rclpy's task machinery (service clients, coroutine callbacks, futures,
