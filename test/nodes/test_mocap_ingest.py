@@ -315,13 +315,13 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
                    ["E", "H", "TL", "Head", "CHR"])
         ing = rig.ingest
         addr = server.wait_for(0)                                     # CONNECT
-        assert addr == ing.client.command_address
+        assert addr == ing.source.client.command_address
         server.send(enc.enc_server_info(natnet=(*version, 0, 0), freq=enc.FREQ), addr)
-        rig.spin_until(lambda: ing.client.server_info is not None, what="SERVERINFO")
+        rig.spin_until(lambda: ing.source.client.server_info is not None, what="SERVERINFO")
         server.wait_for(4)                                            # REQUEST_MODELDEF
         suffix = dict(enc.SUFFIX, params=0, mid=1_000_000_000, transmit=1_000_000_000 + LATENCY_TICKS)
         server.stream(enc.enc_frame(version, suffix=suffix, frame_number=999), addr)   # before MODELDEF: no names
-        rig.spin_until(lambda: ing.no_names_dropped == 1, what="frame before MODELDEF")
+        rig.spin_until(lambda: ing.source.no_names_dropped == 1, what="frame before MODELDEF")
         server.send(_modeldef(enc, version, {1: "E", 2: "H", 7: "TL"}), addr)
         rig.spin_until(lambda: ing.bodies == ["E", "H", "TL"], what="MODELDEF names")
         rig.spin_until(lambda: ing.frame_pub.get_subscription_count() >= 1
@@ -369,9 +369,9 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
 
         # MODELDEF update: the models-changed flag makes the client ask; new names are used at once
         changed = dict(suffix, params=0x02)
-        requests = ing.client.stats["modeldef_requests"]
+        requests = ing.source.client.stats["modeldef_requests"]
         server.stream(enc.enc_frame(version, suffix=changed, frame_number=1007), addr)
-        rig.spin_until(lambda: ing.client.stats["modeldef_requests"] == requests + 1, what="REQUEST_MODELDEF")
+        rig.spin_until(lambda: ing.source.client.stats["modeldef_requests"] == requests + 1, what="REQUEST_MODELDEF")
         server.wait_for(4)
         server.send(_modeldef(enc, version, {1: "E", 2: "Head", 7: "TL", 9: "CHR"}), addr)
         rig.spin_until(lambda: ing.bodies == ["E", "Head", "TL", "CHR"], what="new MODELDEF")
@@ -393,7 +393,7 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
         assert vals["malformed_dropped"] == "2" and vals["duplicates_dropped"] == "1"
         assert vals["dropped_frames"] == "2" and vals["dropped_before_modeldef"] == "1"
         assert vals["natnet_version"] == f"{version[0]}.{version[1]}" and vals["input_errors"] == "0"
-        assert ing.client.stats["keepalives_sent"] >= 2 and server.count(10) >= 1     # unicast keep-alives
+        assert ing.source.client.stats["keepalives_sent"] >= 2 and server.count(10) >= 1     # unicast keep-alives
         assert ing.context.ok()                                                      # alive after bad input
     finally:
         server.close()
@@ -418,10 +418,10 @@ def test_natnet_source_multicast(rigs, natnet_kit):
         ing = rig.ingest
         addr = server.wait_for(0)
         server.send(enc.enc_server_info(natnet=(4, 1, 0, 0), freq=enc.FREQ, multicast=True, port=port), addr)
-        rig.spin_until(lambda: ing.client.server_info is not None, what="SERVERINFO")
+        rig.spin_until(lambda: ing.source.client.server_info is not None, what="SERVERINFO")
         server.wait_for(4)
         server.send(_modeldef(enc, (4, 1), {1: "E", 2: "H", 7: "TL"}), addr)
-        rig.spin_until(lambda: ing.names_by_id, what="MODELDEF")
+        rig.spin_until(lambda: ing.source.names_by_id, what="MODELDEF")
         rig.spin_until(lambda: ing.frame_pub.get_subscription_count() >= 1)
         rig.settle()
         for k in range(3):
@@ -430,7 +430,7 @@ def test_natnet_source_multicast(rigs, natnet_kit):
         f = rig.probe.frames[0]
         assert list(f.body_names) == ["H", "E"] and list(f.tracked) == [True, True]   # configured order
         assert [f.poses[1].position.x, f.poses[1].position.z] == pytest.approx([0.10, 0.65], abs=1e-7)
-        assert ing.client.stats["keepalives_sent"] == 0
+        assert ing.source.client.stats["keepalives_sent"] == 0
     finally:
         server.close()
 
