@@ -487,7 +487,7 @@ class ViewDecimator:
         self.view_rate_hz = float(view_rate_hz)
         known = source_rate_hz is not None and np.isfinite(source_rate_hz) and source_rate_hz > 0
         self.known_rate_hz = float(source_rate_hz) if known else None
-        self.factor: int | None = self._factor(self.known_rate_hz) if known else None
+        self.factor: int | None = self._factor(self.known_rate_hz) if known and self.view_rate_hz > 0 else None
         self._measured: float | None = None
         self._first: tuple[int, int] | None = None      # (frame number, stamp) the measurement starts at
         self._last_number: int | None = None
