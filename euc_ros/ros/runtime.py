@@ -14,7 +14,7 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from euc_ros.core.errors import EucError
-from euc_ros.ros import rclpy_compat
+from euc_ros.ros import rclpy_compat, startup
 from euc_ros.ros.executor import LeanExecutor, wait_for_context_shutdown
 from euc_ros.ros.params import params_files_in, validate_params_file
 from euc_ros.sched import realtime_from_env
@@ -56,6 +56,7 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
         return 2
     realtime_from_env(label)            # before rclpy.init: the middleware's threads inherit it
     rclpy.init(args=args)
+    startup.running()                   # rclpy's signal handlers from now on (a quiet exit until here)
     nodes: list[Node] = []
     executor = None
     code = 0
@@ -99,6 +100,7 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
+        startup.stopped()
     return code
 
 
