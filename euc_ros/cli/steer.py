@@ -132,14 +132,14 @@ def steer_result_from_bag(bag, dt: float):
     """
     from euc_ros.core.io.bags import read_bag
     from euc_ros.core.unicycle.simulate import SimulationResult
-    from euc_ros.nodes.unicycle_sim import STATE_FIELDS
+    from euc_ros.ros.convert import UNICYCLE_STATE_FIELDS
 
     states: dict[int, tuple] = {}
     refs: dict[int, list] = {}
     for topic, _, log_ns, msg in read_bag(bag, topics=["/unicycle/state", "/unicycle/command"]):
         if topic == "/unicycle/state":
             states.setdefault(int(msg.step), (log_ns, msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
-                                              [getattr(msg, f) for f in STATE_FIELDS], msg.u, msg.status))
+                                              [getattr(msg, f) for f in UNICYCLE_STATE_FIELDS], msg.u, msg.status))
         else:
             refs.setdefault(int(msg.step), list(msg.reference))
     if not states:

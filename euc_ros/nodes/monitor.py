@@ -15,12 +15,6 @@ Every ``period`` seconds it publishes one ``diagnostic_msgs/DiagnosticArray`` wi
 
 Each status is STALE when its stream has sent nothing for ``timeout_s``. WARN starts at
 ``warn_fraction`` of a limit, ERROR above it.
-
-Subscribes
-    ``mocap/frame``, ``rider/state``, ``euc/torque`` (reliable; taken raw in batches every ~20 ms,
-    :class:`~euc_ros.ros.drain.SubscriptionDrain`).
-Publishes
-    ``/diagnostics`` (diagnostic_msgs/DiagnosticArray).
 """
 from __future__ import annotations
 
@@ -65,6 +59,17 @@ STATUS_NAMES = ("monitor: mocap", "monitor: model consistency", "monitor: rider 
 
 class Monitor(Node):
     """Publish the health statuses of the pipeline (see the module docstring).
+
+    ===========  ==================  ================================  ===========================================
+    direction    topic               type                              what
+    ===========  ==================  ================================  ===========================================
+    Subscribes   ``mocap/frame``     euc_msgs/MocapFrame               reliable; taken raw in batches every
+    Subscribes   ``rider/state``     euc_msgs/RiderState               ~20 ms (a SubscriptionDrain), counted
+    Subscribes   ``euc/torque``      euc_msgs/TorqueEstimate           as the other two
+    Publishes    ``/diagnostics``    diagnostic_msgs/DiagnosticArray   the five statuses, every ``period``
+    ===========  ==================  ================================  ===========================================
+
+    Parameters: :data:`SPECS` (period, staleness, rates, limits; all but the windows settable while running).
 
     Parameters
     ----------
@@ -191,7 +196,6 @@ class Monitor(Node):
                                              "mocap" if name == "monitor: mocap" else "euc"))
         self.diag_pub.publish(arr)
         self.reports += 1
-
 
     def close(self) -> None:
         """Destroy the batch subscriptions (called by the runtime before the node is destroyed)."""

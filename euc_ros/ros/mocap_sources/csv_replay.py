@@ -17,10 +17,8 @@ from euc_msgs.msg import MocapFrame
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.ingest import Frame, ReplayClock, capture_start_ns
 from euc_ros.ros import interfaces as itf
+from euc_ros.ros.matching import MatchGate
 from euc_ros.ros.mocap_sources.base import MocapSource
-
-#: Wait after the wanted subscriptions matched before the replay starts (asymmetric DDS discovery) [s].
-SETTLE_S = 0.3
 
 
 class CsvReplay(MocapSource):
@@ -62,7 +60,8 @@ class CsvReplay(MocapSource):
         self.clock = ReplayClock(series.t, cfg["rate_factor"], 1.0 / series.rate_hz if known else 0.0,
                                  loop=cfg["loop"], file_start_ns=file_start_ns)
         self._created = time.monotonic()
-        self._matched_at: float | None = None
+        self.start_gate = MatchGate(lambda: [(itf.MOCAP_FRAME, node.frame_pub.get_subscription_count(),
+                                              cfg["wait_subscribers"])])
         self._done_at: float | None = None
         tick = min(0.5 / max(series.rate_hz * cfg["rate_factor"], 1.0), 0.005)
         node.create_timer(tick, self._tick)
@@ -74,15 +73,8 @@ class CsvReplay(MocapSource):
         if now < self._created + cfg["start_delay"]:
             return False
         want = cfg["wait_subscribers"]
-        if want <= 0:
-            return True
-        if self._matched_at is None:
-            if node.frame_pub.get_subscription_count() < want:
-                node.get_logger().info(f"waiting for {want} subscription(s) of {itf.MOCAP_FRAME}",
-                                       throttle_duration_sec=5.0)
-                return False
-            self._matched_at = now
-        return now >= self._matched_at + SETTLE_S
+        return want <= 0 or self.start_gate.ready(now, lambda _: node.get_logger().info(
+            f"waiting for {want} subscription(s) of {itf.MOCAP_FRAME}", throttle_duration_sec=5.0))
 
     def _tick(self) -> None:
         node, cfg, clock, s = self.node, self.config, self.clock, self.series
