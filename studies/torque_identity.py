@@ -1,15 +1,23 @@
-"""The live pipeline's torques from two source trees, compared message by message on one replayed bag.
+"""The live pipeline's torques from two source trees, compared message by message on one recording.
 
-Each tree replays the same bag through its own ``launch/replay.yaml`` (player -> rider_state ->
-torque_estimator, monitor, recorder: separate processes over DDS, on a ROS domain of their own) with
-``PYTHONPATH`` set to the tree, so the node console scripts of the shared environment run that
-tree's code. The recorded ``/euc/torque`` (and ``/rider/state``) messages are then compared as their
-CDR bytes: equal bytes are equal stamps, frame ids, strings and float64 values bit for bit.
+Each tree runs the same input through its own nodes (separate processes over DDS, on a ROS domain of
+their own) with ``PYTHONPATH`` set to the tree, so the node console scripts of the shared environment
+run that tree's code:
+
+* ``--bag``: the bag's ``/mocap/frame`` replayed through the tree's ``launch/replay.yaml`` (player ->
+  rider_state -> torque_estimator, monitor, recorder);
+* ``--csv``: a Motive CSV through the whole live pipeline (mocap_ingest with ``source: csv`` and
+  ``stamp_mode: file``, so the frames' stamps do not depend on the wall clock -> rider_state ->
+  torque_estimator, recorder).
+
+The recorded messages are compared as their CDR bytes: equal bytes are equal stamps, frame ids,
+strings and float64 values bit for bit.
 
 Usage::
 
     python studies/torque_identity.py --bag RIDE_BAG --session session.yaml --out DIR \\
         --tree before=/path/to/old/tree --tree after=. [--tree after_public=.:EUC_ROS_PUBLIC_EXECUTOR=1]
+    python studies/torque_identity.py --csv RIDE.csv --session session.yaml --out DIR --tree ... --tree ...
 
 The first tree is the reference. Exit code 0 when every tree's torques equal the reference's.
 """
@@ -23,6 +31,8 @@ import time
 from pathlib import Path
 
 TOPICS = ("/euc/torque", "/rider/state")
+#: Compared too when the CSV goes through mocap_ingest.
+CSV_TOPICS = ("/euc/torque", "/rider/state", "/mocap/frame", "/tf")
 TIMEOUT_S = 600
 
 
@@ -34,19 +44,44 @@ def parse_tree(text: str) -> tuple[str, Path, dict]:
     return label, Path(path).resolve(), env
 
 
-def replay(tree: Path, extra_env: dict, bag: Path, session: Path, out: Path, domain: int) -> float:
-    """Replay ``bag`` through the tree's replay launch, recording into ``out``; returns the wall time [s]."""
+def pipeline_yaml(tree: Path, csv: Path, session: Path, out: Path) -> Path:
+    """A launch YAML of the tree's live pipeline on a CSV (file stamps), recording into ``out``."""
+    import json
+
+    cfg = tree / "config"
+    nodes = [
+        {"executable": "recorder", "required": False, "params_file": str(cfg / "recorder.yaml"),
+         "parameters": {"output": str(out), "topics": list(CSV_TOPICS)}},
+        {"executable": "torque_estimator", "required": False, "params_file": str(cfg / "torque_estimator.yaml"),
+         "parameters": {"session_file": str(session)}},
+        {"executable": "rider_state", "required": False, "params_file": str(cfg / "rider_state.yaml"),
+         "parameters": {"session_file": str(session)}},
+        {"executable": "mocap_ingest", "params_file": str(cfg / "mocap_ingest.yaml"),
+         "parameters": {"source": "csv", "csv_path": str(csv), "session_file": str(session), "stamp_mode": "file",
+                        "wait_subscribers": 2, "start_delay": 2.0, "exit_when_done": True, "linger": 3.0}},
+    ]
+    path = out.parent / f"{out.name}.launch.yaml"
+    path.write_text(json.dumps({"nodes": nodes}, indent=1), encoding="utf-8")   # JSON is YAML
+    return path
+
+
+def run_tree(tree: Path, extra_env: dict, session: Path, out: Path, domain: int, *, bag: Path | None = None,
+             csv: Path | None = None) -> float:
+    """Run the bag (replay) or the CSV (live pipeline) through the tree, recording into ``out``; the wall time [s]."""
     exe = Path(sys.executable).parent / "euc-ros"
     env = dict(os.environ)
     env.pop("EUC_ROS_PUBLIC_EXECUTOR", None)          # only a tree's own setting applies
     env.update(PYTHONPATH=str(tree), ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **extra_env)
-    cmd = [str(exe), "launch", str(tree / "launch" / "replay.yaml"), f"in_bag:={bag}", f"session:={session}",
-           f"bag:={out}"]
+    if bag is not None:
+        cmd = [str(exe), "launch", str(tree / "launch" / "replay.yaml"), f"in_bag:={bag}", f"session:={session}",
+               f"bag:={out}"]
+    else:
+        cmd = [str(exe), "launch", str(pipeline_yaml(tree, csv, session, out))]
     t0 = time.monotonic()
     run = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True, timeout=TIMEOUT_S)
     (out.parent / f"{out.name}.log").write_text(run.stdout + run.stderr, encoding="utf-8")
     if run.returncode != 0:
-        raise RuntimeError(f"replay in {tree} failed ({run.returncode}); log {out.parent / (out.name + '.log')}")
+        raise RuntimeError(f"run in {tree} failed ({run.returncode}); log {out.parent / (out.name + '.log')}")
     return time.monotonic() - t0
 
 
@@ -68,12 +103,15 @@ def compare(ref: list[bytes], got: list[bytes]) -> dict:
 def main(argv: list[str] | None = None) -> int:
     """Replay the bag through every tree and compare their torques with the first tree's."""
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--bag", type=Path, required=True, help="bag with /mocap/frame")
+    source = p.add_mutually_exclusive_group(required=True)
+    source.add_argument("--bag", type=Path, help="bag with /mocap/frame, replayed into rider_state")
+    source.add_argument("--csv", type=Path, help="Motive CSV, through mocap_ingest (file stamps)")
     p.add_argument("--session", type=Path, required=True, help="session YAML of the bag")
     p.add_argument("--tree", action="append", required=True, type=parse_tree,
                    help="label=path[:VAR=value...]; the first is the reference")
     p.add_argument("--out", type=Path, required=True, help="folder for the recorded bags and logs")
     args = p.parse_args(argv)
+    topics = CSV_TOPICS if args.csv else TOPICS
     from domain_coordinator import domain_id
 
     args.out.mkdir(parents=True, exist_ok=True)
@@ -81,14 +119,15 @@ def main(argv: list[str] | None = None) -> int:
     with domain_id() as domain:
         for label, tree, extra in args.tree:
             out = args.out / label
-            wall = replay(tree, extra, args.bag.resolve(), args.session.resolve(), out, int(domain))
-            recorded[label] = {t: messages(out, t) for t in TOPICS}
-            print(f"{label}: {tree}{' ' + str(extra) if extra else ''}: replayed in {wall:.1f} s, "
+            wall = run_tree(tree, extra, args.session.resolve(), out, int(domain),
+                            bag=args.bag.resolve() if args.bag else None, csv=args.csv.resolve() if args.csv else None)
+            recorded[label] = {t: messages(out, t) for t in topics}
+            print(f"{label}: {tree}{' ' + str(extra) if extra else ''}: ran in {wall:.1f} s, "
                   + ", ".join(f"{t} {len(v)}" for t, v in recorded[label].items()), flush=True)
     (ref_label, *_), *others = args.tree
     ok = True
     for label, _, _ in others:
-        for topic in TOPICS:
+        for topic in topics:
             c = compare(recorded[ref_label][topic], recorded[label][topic])
             print(f"{label} vs {ref_label} {topic}: {c['bit_identical']}/{c['reference']} messages bit-identical"
                   f" ({c['messages']} recorded){'' if c['identical'] else ', first difference at ' + str(c['first_difference'])}")

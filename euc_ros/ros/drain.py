@@ -41,7 +41,7 @@ class SubscriptionDrain(Waitable):
     poll_s, max_poll_s : float, optional
         :attr:`POLL_S` and :attr:`MAX_POLL_S` of this drain.
     public : bool, optional
-        True: public subscriptions, one message per callback. Default: when
+        True: public subscriptions, one message per callback. Otherwise they are public when
         :func:`~euc_ros.ros.rclpy_compat.private_api_problem` finds a reason to.
     """
 
@@ -57,7 +57,7 @@ class SubscriptionDrain(Waitable):
         self._sink = sink
         self.POLL_S = self.POLL_S if poll_s is None else float(poll_s)
         self.MAX_POLL_S = self.MAX_POLL_S if max_poll_s is None else float(max_poll_s)
-        self.public = compat.private_api_problem() is not None if public is None else bool(public)
+        self.public = bool(public) or compat.private_api_problem() is not None
         self.subs: list[tuple[str, str, object, type]] = []    # (topic, type name, rcl handle, class)
         self._public_subs: list = []
         self._indices: list[int] = []

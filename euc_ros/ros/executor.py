@@ -75,7 +75,7 @@ class LeanExecutor(SingleThreadedExecutor):
     batch : int
         Most messages taken from one subscription per wake-up before the other entities run.
     public : bool, optional
-        True: run as rclpy's public SingleThreadedExecutor. Default: when
+        True: run as rclpy's public SingleThreadedExecutor. Otherwise it does when
         :func:`~euc_ros.ros.rclpy_compat.private_api_problem` finds a reason to.
 
     Attributes

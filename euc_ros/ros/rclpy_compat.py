@@ -37,6 +37,7 @@ import functools
 import importlib.metadata
 import os
 import re
+from contextlib import ExitStack
 
 from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
@@ -231,8 +232,6 @@ class KeptWaitSet:
                  "sub_by_ptr", "timer_by_ptr", "srv_by_ptr", "gc_by_ptr")
 
     def __init__(self, key, subs, timers, services, guards, waitables, context) -> None:
-        from contextlib import ExitStack
-
         self.key = key
         with ExitStack() as probe:
             def live(entities, of=lambda e: e.handle):

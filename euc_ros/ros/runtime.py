@@ -1,7 +1,11 @@
 """The Jazzy node lifecycle, written once: init, spin, clean shutdown on SIGINT/SIGTERM.
 
 In rclpy 7.1 (Jazzy) both SIGINT and SIGTERM end ``spin`` with ``ExternalShutdownException``;
-``rclpy.init`` returns None (no context manager, unlike rolling).
+``rclpy.init`` returns None (no context manager, unlike rolling). A node stopped by a signal exits
+with code 0, whether it was spinning or still starting (a node executable: :mod:`euc_ros.ros.startup`
+until ``rclpy.init`` has returned). The nodes spin on :class:`~euc_ros.ros.executor.LeanExecutor`,
+rclpy's public executor where :mod:`~euc_ros.ros.rclpy_compat` refuses rclpy's private API (said once
+on the console).
 """
 from __future__ import annotations
 
