@@ -4,11 +4,15 @@ Each tree runs the same input through its own nodes (separate processes over DDS
 their own) with ``PYTHONPATH`` set to the tree, so the node console scripts of the shared environment
 run that tree's code:
 
-* ``--bag``: the bag's ``/mocap/frame`` replayed through the tree's ``launch/replay.yaml`` (player ->
-  rider_state -> torque_estimator, monitor, recorder);
+* ``--bag``: the bag's ``/mocap/frame`` replayed (``euc-ros play``) into rider_state ->
+  torque_estimator, with a recorder (the nodes of ``launch/replay.yaml`` but the monitor);
 * ``--csv``: a Motive CSV through the whole live pipeline (mocap_ingest with ``source: csv`` and
   ``stamp_mode: file``, so the frames' stamps do not depend on the wall clock -> rider_state ->
   torque_estimator, recorder).
+
+The producer (player or mocap_ingest) starts once the other nodes are up, so that a slow start on a
+loaded host cannot cost the first frames (``launch/replay.yaml`` starts everything at once and waits
+for two of the three subscriptions of ``mocap/frame``).
 
 The recorded messages are compared as their CDR bytes: equal bytes are equal stamps, frame ids,
 strings and float64 values bit for bit.
@@ -25,12 +29,13 @@ from __future__ import annotations
 
 import argparse
 import os
+import signal
 import subprocess
 import sys
 import time
 from pathlib import Path
 
-TOPICS = ("/euc/torque", "/rider/state")
+TOPICS = ("/euc/torque", "/rider/state", "/mocap/frame")
 #: Compared too when the CSV goes through mocap_ingest.
 CSV_TOPICS = ("/euc/torque", "/rider/state", "/mocap/frame", "/tf")
 TIMEOUT_S = 600
@@ -44,44 +49,70 @@ def parse_tree(text: str) -> tuple[str, Path, dict]:
     return label, Path(path).resolve(), env
 
 
-def pipeline_yaml(tree: Path, csv: Path, session: Path, out: Path) -> Path:
-    """A launch YAML of the tree's live pipeline on a CSV (file stamps), recording into ``out``."""
+def consumers_yaml(tree: Path, session: Path, out: Path, topics) -> Path:
+    """A launch YAML of the tree's recorder, torque_estimator and rider_state, recording ``topics`` into ``out``."""
     import json
 
     cfg = tree / "config"
     nodes = [
         {"executable": "recorder", "required": False, "params_file": str(cfg / "recorder.yaml"),
-         "parameters": {"output": str(out), "topics": list(CSV_TOPICS)}},
+         "parameters": {"output": str(out), "topics": list(topics)}},
         {"executable": "torque_estimator", "required": False, "params_file": str(cfg / "torque_estimator.yaml"),
          "parameters": {"session_file": str(session)}},
         {"executable": "rider_state", "required": False, "params_file": str(cfg / "rider_state.yaml"),
          "parameters": {"session_file": str(session)}},
-        {"executable": "mocap_ingest", "params_file": str(cfg / "mocap_ingest.yaml"),
-         "parameters": {"source": "csv", "csv_path": str(csv), "session_file": str(session), "stamp_mode": "file",
-                        "wait_subscribers": 2, "start_delay": 2.0, "exit_when_done": True, "linger": 3.0}},
     ]
     path = out.parent / f"{out.name}.launch.yaml"
     path.write_text(json.dumps({"nodes": nodes}, indent=1), encoding="utf-8")   # JSON is YAML
     return path
 
 
+#: What each consumer logs once its subscriptions exist.
+READY = (("[rider_state]", "session "), ("[torque_estimator]", "model "), ("[recorder]", "recording to"))
+
+
 def run_tree(tree: Path, extra_env: dict, session: Path, out: Path, domain: int, *, bag: Path | None = None,
              csv: Path | None = None) -> float:
-    """Run the bag (replay) or the CSV (live pipeline) through the tree, recording into ``out``; the wall time [s]."""
-    exe = Path(sys.executable).parent / "euc-ros"
+    """Run the bag (player) or the CSV (mocap_ingest, file stamps) into the tree's nodes, recording into ``out``.
+
+    The consumers start first; the producer starts once each has logged that it is up and waits for the
+    recorder's and rider_state's subscriptions (then 2 s), so no frame is missed by a slow start.
+    Returns the wall time [s].
+    """
     env = dict(os.environ)
     env.pop("EUC_ROS_PUBLIC_EXECUTOR", None)          # only a tree's own setting applies
     env.update(PYTHONPATH=str(tree), ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **extra_env)
-    if bag is not None:
-        cmd = [str(exe), "launch", str(tree / "launch" / "replay.yaml"), f"in_bag:={bag}", f"session:={session}",
-               f"bag:={out}"]
-    else:
-        cmd = [str(exe), "launch", str(pipeline_yaml(tree, csv, session, out))]
+    bindir = Path(sys.executable).parent
+    log_path = out.parent / f"{out.name}.log"
     t0 = time.monotonic()
-    run = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True, timeout=TIMEOUT_S)
-    (out.parent / f"{out.name}.log").write_text(run.stdout + run.stderr, encoding="utf-8")
-    if run.returncode != 0:
-        raise RuntimeError(f"run in {tree} failed ({run.returncode}); log {out.parent / (out.name + '.log')}")
+    with open(log_path, "w", encoding="utf-8") as log:
+        launch = subprocess.Popen([str(bindir / "euc-ros"), "launch",
+                                   str(consumers_yaml(tree, session, out, CSV_TOPICS if csv else TOPICS))],
+                                  env=env, cwd=tree, stdout=log, stderr=subprocess.STDOUT, text=True)
+        try:
+            deadline = time.monotonic() + 120
+            while not all(any(n in line and w in line for line in log_path.read_text().splitlines()) for n, w in READY):
+                if launch.poll() is not None or time.monotonic() > deadline:
+                    raise RuntimeError(f"the nodes of {tree} did not start; log {log_path}")
+                time.sleep(0.2)
+            if bag is not None:
+                cmd = [str(bindir / "euc-ros"), "play", str(bag), "--topics", "mocap/frame", "--wait-subscribers", "2",
+                       "--delay", "2.0", "--linger", "3.0"]
+            else:
+                cfg = tree / "config"
+                cmd = [str(bindir / "mocap_ingest"), "--ros-args", "--params-file", str(cfg / "mocap_ingest.yaml"),
+                       "-p", "source:=csv", "-p", f"csv_path:={csv}", "-p", f"session_file:={session}",
+                       "-p", "stamp_mode:=file", "-p", "wait_subscribers:=2", "-p", "start_delay:=0.0",
+                       "-p", "exit_when_done:=true", "-p", "linger:=3.0"]
+            producer = subprocess.run(cmd, env=env, cwd=tree, capture_output=True, text=True, timeout=TIMEOUT_S)
+            log.write(producer.stdout + producer.stderr)
+            if producer.returncode != 0:
+                raise RuntimeError(f"{cmd[1]} in {tree} failed ({producer.returncode}); log {log_path}")
+        finally:
+            launch.send_signal(signal.SIGINT)
+            launch.wait(timeout=60)
+    if launch.returncode != 0:
+        raise RuntimeError(f"the nodes of {tree} exited with {launch.returncode}; log {log_path}")
     return time.monotonic() - t0
 
 
