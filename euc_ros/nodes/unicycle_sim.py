@@ -19,9 +19,6 @@ A step that leaves the model's domain stops the simulation: the state carrying t
 further steps are taken. After ``duration`` simulated seconds, or such a stop, the node waits until
 its reliable messages are acknowledged, lingers ``linger`` seconds (so a recorder takes the last
 messages) and, with ``exit_when_done``, exits: code 0 after the full duration, 1 after a domain stop.
-
-The pose published is :func:`~euc_ros.core.unicycle.simulate.wheel_pose`: the wheel centre G and
-the wheel body ``Rz(psi) Rx(theta) Ry(phi)``, REP-103 world frame.
 """
 from __future__ import annotations
 
@@ -32,7 +29,6 @@ from euc_msgs.msg import SteeringCommand, UnicycleState
 from geometry_msgs.msg import PoseStamped
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from tf2_msgs.msg import TFMessage
 
@@ -91,7 +87,8 @@ class UnicycleSim(Node):
     ===========  ======================  ===============================  =================================
     Subscribes   ``unicycle/command``    euc_msgs/SteeringCommand         LOCKSTEP_QOS
     Publishes    ``unicycle/state``      euc_msgs/UnicycleState           LOCKSTEP_QOS, every step
-    Publishes    ``unicycle/pose``       geometry_msgs/PoseStamped (G)    LOCKSTEP_QOS (``publish_pose``)
+    Publishes    ``unicycle/pose``       geometry_msgs/PoseStamped        LOCKSTEP_QOS (``publish_pose``): G
+                                                                      and the wheel body (``wheel_pose``)
     Publishes    ``/tf``                 frame_id -> child_frame_id       as the pose (``publish_tf``)
     Publishes    ``/clock``              rosgraph_msgs/Clock              realtime mode only
     ===========  ======================  ===============================  =================================
@@ -132,8 +129,7 @@ class UnicycleSim(Node):
         self.lockstep = cfg["mode"] == "lockstep"
         self.n_steps = max(1, int(round(cfg["duration"] / cfg["dt"]))) if cfg["duration"] > 0 else None
         self.done = self.sim.status != STATUS_OK
-        self.resent = 0
-        self.ignored = 0
+        self.resent = self.ignored = 0
         self._u = 0.0                       # input of the last step (published with the state)
         self._u_latest = 0.0                # realtime: latest command
         self._started = False
@@ -141,14 +137,11 @@ class UnicycleSim(Node):
         self._sent_at = 0.0
         self._done_at: float | None = None
         self._last_msg: UnicycleState | None = None
-
         self.state_pub = self.create_publisher(UnicycleState, itf.UNICYCLE_STATE, itf.LOCKSTEP_QOS)
         self.pose_pub = (self.create_publisher(PoseStamped, itf.UNICYCLE_POSE, itf.LOCKSTEP_QOS)
                          if cfg["publish_pose"] else None)
         self.tf_pub = self.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS) if cfg["publish_tf"] else None
-        self.clock_pub = (None if self.lockstep else
-                          self.create_publisher(Clock, itf.CLOCK, QoSProfile(depth=10,
-                                                                             reliability=ReliabilityPolicy.RELIABLE)))
+        self.clock_pub = None if self.lockstep else self.create_publisher(Clock, itf.CLOCK, itf.CLOCK_QOS)
         self.command_sub = self.create_subscription(SteeringCommand, itf.STEERING_COMMAND, self._on_command,
                                                     itf.LOCKSTEP_QOS)
         self.create_timer(CHECK_PERIOD_S, self._check)
