@@ -160,8 +160,9 @@ def main(argv: list[str] | None = None) -> int:
     for label, _, _ in others:
         for topic in topics:
             c = compare(recorded[ref_label][topic], recorded[label][topic])
+            differs = "" if c["identical"] else f", first difference at {c['first_difference']}"
             print(f"{label} vs {ref_label} {topic}: {c['bit_identical']}/{c['reference']} messages bit-identical"
-                  f" ({c['messages']} recorded){'' if c['identical'] else ', first difference at ' + str(c['first_difference'])}")
+                  f" ({c['messages']} recorded){differs}")
             ok &= c["identical"] or topic != "/euc/torque"
     print("torques bit-identical" if ok else "torques DIFFER")
     return 0 if ok else 1

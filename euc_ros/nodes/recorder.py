@@ -32,7 +32,7 @@ from euc_ros.core.io.bags import BagWriter
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.convert import bag_qos
 from euc_ros.ros.drain import SubscriptionDrain
-from euc_ros.ros.fastdds import RECORDER_PROFILE, transport_env, uses_fast_dds
+from euc_ros.ros.fastdds import transport_env, uses_fast_dds
 from euc_ros.ros.params import ParamSpec, declare_params
 from euc_ros.ros.runtime import main_for
 from euc_ros.ros.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files
@@ -151,8 +151,9 @@ _run = main_for(Recorder)
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the Recorder node (``--ros-args --params-file FILE`` to configure) with :data:`RECORDER_PROFILE`
-    unless the Fast DDS transports are chosen already (:func:`transport_env`)."""
+    """Run the Recorder node (``--ros-args --params-file FILE`` to configure) with
+    :data:`~euc_ros.ros.fastdds.RECORDER_PROFILE` unless the Fast DDS transports are chosen already
+    (:func:`~euc_ros.ros.fastdds.transport_env`)."""
     chosen = transport_env(os.environ)
     os.environ.update(chosen)          # before rclpy.init: Fast DDS reads it when the participant is created
     if chosen:

@@ -135,8 +135,8 @@ class SteeringControllerNode(Node):
         self._pending: UnicycleState | None = None
         self._ready = False
         self.pub = self.create_publisher(SteeringCommand, itf.STEERING_COMMAND, itf.LOCKSTEP_QOS)
-        self.start_gate = MatchGate(lambda: [(itf.STEERING_COMMAND + " subscriptions", self.pub.get_subscription_count(),
-                                              1 + cfg["wait_observers"])])
+        self.start_gate = MatchGate(lambda: [(itf.STEERING_COMMAND + " subscriptions",
+                                              self.pub.get_subscription_count(), 1 + cfg["wait_observers"])])
         self.create_subscription(UnicycleState, itf.UNICYCLE_STATE, self._on_state, itf.LOCKSTEP_QOS)
         self._start_timer = self.create_timer(CHECK_PERIOD_S, self._check_ready)
         g = self.controller.gains

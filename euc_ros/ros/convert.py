@@ -195,7 +195,8 @@ def flat_fields(msg_class) -> list[tuple[str, str]]:
 
 
 # -- the autonomous unicycle ------------------------------------------------------------------------------------------
-#: UnicycleState's state fields, in the order of the state of eq (37) (:data:`~euc_ros.core.unicycle.dynamics.STATE_NAMES`).
+#: UnicycleState's state fields, in the order of the state of eq (37)
+#: (:data:`~euc_ros.core.unicycle.dynamics.STATE_NAMES`).
 UNICYCLE_STATE_FIELDS = ("omega1", "omega2", "omega3", "theta", "sigma", "r", "psi", "phi", "x_g", "y_g")
 
 

@@ -114,7 +114,7 @@ def executor_problem(executor) -> str | None:
     return f"rclpy's Executor lacks {', '.join(missing)}" if missing else None
 
 
-# -- executor internals -------------------------------------------------------------------------------------------------
+# -- executor internals ------------------------------------------------------------------------------------------------
 def executor_guards(executor) -> list:
     """The executor's own guard conditions (its wake-up and its signal guard), those not destroyed yet."""
     return [g for g in (executor._guard, executor._sigint_gc) if g is not None]
@@ -151,7 +151,7 @@ def takes_message_info(subscription) -> bool:
     return subscription._callback_type is not Subscription.CallbackType.MessageOnly
 
 
-# -- entities -----------------------------------------------------------------------------------------------------------
+# -- entities ----------------------------------------------------------------------------------------------------------
 def take(subscription):
     """Take one message from an rclpy subscription: ``(message or bytes, info dict)`` or None.
 
@@ -211,7 +211,7 @@ def subscription_ready(wait_set, index: int) -> bool:
     return wait_set.is_ready("subscription", index)
 
 
-# -- a wait set kept across spins ---------------------------------------------------------------------------------------
+# -- a wait set kept across spins --------------------------------------------------------------------------------------
 class KeptWaitSet:
     """The entities of an executor's nodes and a wait set sized for them, kept across spins.
 

@@ -626,7 +626,7 @@ def test_view_rate_decimates_by_frame_number_with_jittered_stamps(rigs, rate, ev
         msg.rigidbodies = [body]
         pub.publish(msg)
         if k % 20 == 19:
-            rig.spin_until(lambda: len(rig.probe.frames) == k + 1, what=f"frame {k}")
+            rig.spin_until(lambda k=k: len(rig.probe.frames) == k + 1, what=f"frame {k}")
     rig.spin_until(lambda: len(rig.probe.frames) == n, what="every frame")
     want = n if every == 1 else None
     rig.spin_until(lambda: len(rig.probe.poses["E"]) == (want or len(rig.probe.poses["E"])) and

@@ -39,7 +39,7 @@ PRIVATE = ("_rclpy", "implementation_singleton", "_sigint_gc", "_tasks", "_is_sh
            "get_c_qos_profile")
 
 
-# -- the guard ----------------------------------------------------------------------------------------------------------
+# -- the guard ---------------------------------------------------------------------------------------------------------
 @pytest.fixture
 def fresh_guard():
     compat._installed_problem.cache_clear()
@@ -85,7 +85,7 @@ def test_an_executor_without_the_private_attributes_is_public(ros_context, monke
         ex.shutdown()
 
 
-# -- the public fallback runs a node ------------------------------------------------------------------------------------
+# -- the public fallback runs a node -----------------------------------------------------------------------------------
 def _spin_until(ex, cond, what):
     deadline = time.monotonic() + DEADLINE_S
     while time.monotonic() < deadline and not cond():
@@ -133,7 +133,7 @@ def test_the_public_fallback_delivers_every_message(ros_context, monkeypatch, ho
         node.destroy_node()
 
 
-# -- nowhere else -------------------------------------------------------------------------------------------------------
+# -- nowhere else ------------------------------------------------------------------------------------------------------
 def _code_lines(path: Path):
     """Lines of a module outside strings and comments (docstrings may name what the code avoids)."""
     import io

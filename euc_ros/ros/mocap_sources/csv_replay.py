@@ -55,7 +55,8 @@ class CsvReplay(MocapSource):
         if cfg["stamp_mode"] == "file":
             file_start_ns = capture_start_ns(series.meta.get("start_time"))
             if file_start_ns is None:
-                node.get_logger().warning(f"no readable Capture Start Time in {cfg['csv_path']}: file stamps start at 0")
+                node.get_logger().warning(f"no readable Capture Start Time in {cfg['csv_path']}: "
+                                          "file stamps start at 0")
                 file_start_ns = 0
         self.clock = ReplayClock(series.t, cfg["rate_factor"], 1.0 / series.rate_hz if known else 0.0,
                                  loop=cfg["loop"], file_start_ns=file_start_ns)

@@ -20,7 +20,7 @@ from euc_ros.core.ingest import ReplayClock, SilenceWatch, ViewDecimator, replay
 S0 = 1_700_000_000 * 10**9
 
 
-# -- ViewDecimator ------------------------------------------------------------------------------------------------------
+# -- ViewDecimator -----------------------------------------------------------------------------------------------------
 def jittered(rate_hz: float, n: int, seed: int = 5, rms_s: float = 0.002, first: int = 1000) -> tuple:
     """Frame numbers and receive-minus-latency stamps [ns] of ``n`` frames at ``rate_hz``."""
     rng = np.random.default_rng(seed)
@@ -91,7 +91,7 @@ def test_frames_without_numbers_are_decimated_by_stamp():
     assert dec.due(-1, int(stamps[0]))                      # stamps went back: shown
 
 
-# -- ReplayClock --------------------------------------------------------------------------------------------------------
+# -- ReplayClock -------------------------------------------------------------------------------------------------------
 RATE = 100.0
 T = np.arange(10, 70) / RATE                                # frames 10..69
 
@@ -144,7 +144,7 @@ def test_an_empty_recording_ends_at_once():
     assert clock.due(0.0) == ([], "end")
 
 
-# -- SilenceWatch -------------------------------------------------------------------------------------------------------
+# -- SilenceWatch ------------------------------------------------------------------------------------------------------
 def test_silence_warns_after_the_delay_repeats_and_reports_the_return():
     w = SilenceWatch(3.0, 10.0)
     assert w.check(1.0) is None                             # not started
