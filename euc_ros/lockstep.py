@@ -57,14 +57,14 @@ def steer_result_from_bag(bag, dt: float):
     InputError
         The bag holds no ``unicycle/state`` messages, or the steps are not contiguous from 0.
     """
-    from euc_ros.nodes.unicycle_sim import STATE_FIELDS  # the node module imports rclpy
+    from euc_ros.ros.convert import UNICYCLE_STATE_FIELDS  # the ROS layer imports rclpy
 
     states: dict[int, tuple] = {}
     refs: dict[int, list] = {}
     for topic, _, log_ns, msg in read_bag(bag, topics=["/unicycle/state", "/unicycle/command"]):
         if topic == "/unicycle/state":
             states.setdefault(int(msg.step), (log_ns, msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec,
-                                              [getattr(msg, f) for f in STATE_FIELDS], msg.u, msg.status))
+                                              [getattr(msg, f) for f in UNICYCLE_STATE_FIELDS], msg.u, msg.status))
         else:
             refs.setdefault(int(msg.step), list(msg.reference))
     if not states:

@@ -49,7 +49,7 @@ class Probe:
 
         from rclpy.node import Node
 
-        from euc_ros.nodes import interfaces as itf
+        from euc_ros.ros import interfaces as itf
 
         self.node = Node(name, context=context)
         self.records: dict[str, list[tuple[int, int, float]]] = {}
@@ -126,7 +126,7 @@ def main(argv: list[str] | None = None) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     from euc_ros.bench.relay import install_stop_handlers, spin_until_signal
-    from euc_ros.nodes.executor import LeanExecutor
+    from euc_ros.ros.executor import LeanExecutor
 
     parser = argparse.ArgumentParser(prog="python -m euc_ros.bench.probe", description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, type=Path, help="npz file written at shutdown")

@@ -5,8 +5,8 @@ mix published by :data:`PUBLISHERS` bare rclpy processes sharing the topics (:mo
 ``blast --part``): per frame one 14-body MocapFrame, 14 PoseStamped, one TFMessage of 14
 transforms, one RiderState and one TorqueEstimate (18 messages, 5.6 kB), on the pipeline's reliable
 QoS, as pre-serialized CDR. The recorder runs with its own Fast DDS profile (a 65536-message
-shared-memory port, :data:`euc_ros.nodes.recorder.RECORDER_PROFILE`); the publishers with
-:data:`~euc_ros.nodes.recorder.FAST_PUBLISHER_PROFILE` (a 64 MiB segment: a publisher's default 512
+shared-memory port, :data:`euc_ros.ros.fastdds.RECORDER_PROFILE`); the publishers with
+:data:`~euc_ros.ros.fastdds.FAST_PUBLISHER_PROFILE` (a 64 MiB segment: a publisher's default 512
 KiB lets only 512 of its messages wait for a receiver, 5 ms at 100k msgs/s). The frame rate climbs
 a ladder (each step a fresh recorder and bag), then bisects twice between the last lossless and the
 first lossy rate; a step is lossless when every topic's count in the closed bag equals what was
@@ -111,8 +111,8 @@ def _cpu_between(series: list, t0: float, t1: float) -> float | None:
 
 
 def fast_publisher_env() -> dict:
-    """Environment of the blast publishers: :data:`~euc_ros.nodes.recorder.FAST_PUBLISHER_PROFILE`."""
-    from euc_ros.nodes.recorder import FAST_PUBLISHER_PROFILE
+    """Environment of the blast publishers: :data:`~euc_ros.ros.fastdds.FAST_PUBLISHER_PROFILE`."""
+    from euc_ros.ros.fastdds import FAST_PUBLISHER_PROFILE
 
     return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(FAST_PUBLISHER_PROFILE)}
 

@@ -25,7 +25,7 @@
     ``k`` and waits for the SteeringCommand of step ``k`` (resending after 0.5 s), ``--steps`` times;
     the controller answers each state. The sim prints ``{"steps": n, "stepping_s": s}``.
 
-All use the pipeline's QoS profiles (:mod:`euc_ros.nodes.interfaces`). Message content is fixed;
+All use the pipeline's QoS profiles (:mod:`euc_ros.ros.interfaces`). Message content is fixed;
 only stamps, steps and counters change, so what is measured is the middleware and rclpy alone.
 """
 from __future__ import annotations
@@ -103,7 +103,7 @@ def _source(node, args) -> None:
     from euc_msgs.msg import MocapFrame
     from rclpy.serialization import serialize_message
 
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     pub = node.create_publisher(MocapFrame, itf.MOCAP_FRAME, itf.RELIABLE_QOS)
     msg = mocap_frame(args.bodies)
@@ -146,7 +146,7 @@ def _source(node, args) -> None:
 def _hop(node, args) -> None:
     from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
 
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     if args.kind == "state":
         in_type, in_topic, out_type, out_topic, out = MocapFrame, itf.MOCAP_FRAME, RiderState, itf.RIDER_STATE, \
@@ -196,7 +196,7 @@ def blast_mix(n_bodies: int) -> list[tuple]:
     from geometry_msgs.msg import PoseStamped, TransformStamped
     from tf2_msgs.msg import TFMessage
 
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     frame = mocap_frame(n_bodies)
     names = list(frame.body_names)
@@ -221,7 +221,7 @@ def blast_mix(n_bodies: int) -> list[tuple]:
 
 
 def _blast(node, args) -> dict:
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     mix = blast_mix(args.bodies)
     part, parts = (int(x) for x in args.part.split("/"))
@@ -278,7 +278,7 @@ def _lockstep_sim(node, args) -> dict:
     import rclpy
     from euc_msgs.msg import SteeringCommand, UnicycleState
 
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     pub = node.create_publisher(UnicycleState, itf.UNICYCLE_STATE, itf.LOCKSTEP_QOS)
     state = UnicycleState()
@@ -322,7 +322,7 @@ def _lockstep_sim(node, args) -> dict:
 def _lockstep_ctrl(node, args) -> None:
     from euc_msgs.msg import SteeringCommand, UnicycleState
 
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     pub = node.create_publisher(SteeringCommand, itf.STEERING_COMMAND, itf.LOCKSTEP_QOS)
     cmd = SteeringCommand()

@@ -62,7 +62,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
         p.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
-def _tasks(args) -> list[cmp.Task]:
+def tasks_from_args(args) -> list[cmp.Task]:
     if args.mode == "sessions":
         folders = []
         for root in map(Path, args.root):
@@ -110,7 +110,7 @@ def main(args: argparse.Namespace) -> int:
     """Run the campaign; 0 when every task succeeded, 1 when some failed (they are in the table)."""
     out = Path(args.out)
     check_outputs([Output("--out", out, "dir")], getattr(args, "root", []))
-    tasks = _tasks(args)
+    tasks = tasks_from_args(args)
     bar = None
     if not args.no_progress:
         from tqdm import tqdm

@@ -135,7 +135,7 @@ class BagSource:
         """``(stamp_ns, topic, cdr)`` of the frames assembled from the bag's per-body poses, from the start on."""
         from euc_ros.core.mocap.ingest import Frame
         from euc_ros.core.io.bags import read_mocap_bag
-        from euc_ros.nodes.convert import frame_to_raw
+        from euc_ros.ros.convert import frame_to_raw
 
         STAMP_FILE_TIME = 1   # euc_msgs/MocapFrame: capture start time plus frame / rate
         s = read_mocap_bag(self.path)
@@ -228,7 +228,7 @@ class Player:
     # -- helpers -------------------------------------------------------------------------------------------
     def _tick_clock(self, now: float, bag_ns: int) -> None:
         if self.clock_pub is not None and now >= self._next_clock:
-            from euc_ros.nodes.convert import ns_to_stamp
+            from euc_ros.ros.convert import ns_to_stamp
 
             self.clock_pub.publish(self._clock_cls(clock=ns_to_stamp(bag_ns)))
             self._next_clock = max(self._next_clock + self.clock_period, now - self.clock_period)

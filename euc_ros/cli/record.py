@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import argparse
 
-from euc_ros.nodes import interfaces as itf
+from euc_ros.ros import interfaces as itf
 from euc_ros.ros.launcher import NodeSpec, run
 
 HELP = "record topics into a rosbag2 bag with MCAP storage (Ctrl-C to stop; the bag is closed cleanly)"

@@ -133,7 +133,7 @@ def main(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from euc_ros.nodes.executor import LeanExecutor
+    from euc_ros.ros.executor import LeanExecutor
     from euc_ros.ros.foxglove_bridge import DISCOVERY_PERIOD_S, FoxgloveBridge, is_local_address
 
     local = is_local_address(args.address)

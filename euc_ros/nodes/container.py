@@ -12,12 +12,13 @@ mocap_ingest.frame_pub    mocap/frame     rider_state           the core Frame (
 rider_state.state_pub     rider/state     torque_estimator      the RiderState message
 ========================  ==============  ====================  ==========================
 
-A linked subscriber's DDS subscription is destroyed and the publisher calls its handler, then
+The links are :data:`euc_ros.ros.intra.LINKS` (made by :func:`euc_ros.ros.intra.link`). A linked
+subscriber's DDS subscription is destroyed and the publisher calls its handler, then
 publishes to the middleware (other processes, the recorder and the monitor, still receive every
 message; ``get_subscription_count`` counts the in-process subscriber). In-process first, as rclcpp
 does: a frame's torque is on the wire before the frame and the state are. The chain then runs
 in one call: a frame's state and torque are out before the next frame is read. All nodes spin on
-one :class:`~euc_ros.nodes.executor.LeanExecutor`.
+one :class:`~euc_ros.ros.executor.LeanExecutor`.
 
 Usage (``--nodes`` before ``--ros-args``; one ``--params-file`` per node, as their sections are
 keyed by node name)::
@@ -35,49 +36,12 @@ from __future__ import annotations
 import argparse
 import sys
 
-from euc_ros.nodes.intra import LocalFanout
-from euc_ros.nodes.registry import NODES, node_class
-from euc_ros.nodes.runtime import run_nodes
-
-#: In-process links: (publisher node, publisher attribute, subscriber node, DDS subscription
-#: attribute, handler attribute taking one message as the subscription's callback would).
-LINKS = (
-    ("mocap_ingest", "frame_pub", "rider_state", "_frame_sub", "_on_frame_local"),
-    ("rider_state", "state_pub", "torque_estimator", "_state_sub", "_on_state"),
-)
+from euc_ros.ros.intra import link
+from euc_ros.ros.registry import NODES, node_class
+from euc_ros.ros.runtime import run_nodes
 
 #: The composition a high-rate live set-up wants (the monitor and recorder stay separate processes).
 DEFAULT_NODES = ("mocap_ingest", "rider_state", "torque_estimator")
-
-
-def link(nodes) -> list[str]:
-    """Make the :data:`LINKS` whose both ends are among ``nodes`` (by node name) in-process.
-
-    Returns one line per link made (``mocap_ingest -> rider_state on /mocap/frame``). A link is made
-    only when the publisher's topic and the subscription's resolve to the same name (remaps and
-    namespaces respected).
-    """
-    by_name = {}
-    for node in nodes:
-        by_name.setdefault(getattr(type(node), "NAME", node.get_name()), node)
-    made = []
-    for pub_name, pub_attr, sub_name, sub_attr, handler_attr in LINKS:
-        pub_node, sub_node = by_name.get(pub_name), by_name.get(sub_name)
-        if pub_node is None or sub_node is None:
-            continue
-        pub, sub = getattr(pub_node, pub_attr), getattr(sub_node, sub_attr, None)
-        if sub is None:
-            continue
-        if pub.topic_name != sub.topic_name:
-            continue
-        if not isinstance(pub, LocalFanout):
-            pub = LocalFanout(pub)
-            setattr(pub_node, pub_attr, pub)
-        pub.handlers.append(getattr(sub_node, handler_attr))
-        sub_node.destroy_subscription(sub)
-        setattr(sub_node, sub_attr, None)
-        made.append(f"{pub_node.get_name()} -> {sub_node.get_name()} on {pub.topic_name}")
-    return made
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -15,12 +15,6 @@ Every ``period`` seconds it publishes one ``diagnostic_msgs/DiagnosticArray`` wi
 
 Each status is STALE when its stream has sent nothing for ``timeout_s``. WARN starts at
 ``warn_fraction`` of a limit, ERROR above it.
-
-Subscribes
-    ``mocap/frame``, ``rider/state``, ``euc/torque`` (reliable; taken raw in batches every ~20 ms,
-    :class:`~euc_ros.nodes.drain.SubscriptionDrain`).
-Publishes
-    ``/diagnostics`` (diagnostic_msgs/DiagnosticArray).
 """
 from __future__ import annotations
 
@@ -33,11 +27,11 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from euc_ros.core.online import monitoring as mon
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.drain import SubscriptionDrain
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.drain import SubscriptionDrain
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 
 SPECS = (
     ParamSpec("period", 1.0, "period of the diagnostics", "s", 0.02, 60.0),
@@ -65,6 +59,17 @@ STATUS_NAMES = ("monitor: mocap", "monitor: model consistency", "monitor: rider 
 
 class Monitor(Node):
     """Publish the health statuses of the pipeline (see the module docstring).
+
+    ===========  ==================  ================================  ===========================================
+    direction    topic               type                              what
+    ===========  ==================  ================================  ===========================================
+    Subscribes   ``mocap/frame``     euc_msgs/MocapFrame               reliable; taken raw in batches every
+    Subscribes   ``rider/state``     euc_msgs/RiderState               ~20 ms (a SubscriptionDrain), counted
+    Subscribes   ``euc/torque``      euc_msgs/TorqueEstimate           as the other two
+    Publishes    ``/diagnostics``    diagnostic_msgs/DiagnosticArray   the five statuses, every ``period``
+    ===========  ==================  ================================  ===========================================
+
+    Parameters: :data:`SPECS` (period, staleness, rates, limits; all but the windows settable while running).
 
     Parameters
     ----------
@@ -191,7 +196,6 @@ class Monitor(Node):
                                              "mocap" if name == "monitor: mocap" else "euc"))
         self.diag_pub.publish(arr)
         self.reports += 1
-
 
     def close(self) -> None:
         """Destroy the batch subscriptions (called by the runtime before the node is destroyed)."""

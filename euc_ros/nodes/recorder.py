@@ -12,24 +12,11 @@ task, callback) costs tens of microseconds; per message it was the recorder's li
 shared by every message that arrived meanwhile. On shutdown what the subscriptions still hold is
 taken and written before the bag closes.
 
-Transport: a shared-memory message that finds the recorder's Fast DDS port full is dropped, and the
-default port queues 512 (5 ms at 100k msgs/s). The console script therefore runs the recorder with
-:data:`RECORDER_PROFILE` (a 65536-descriptor port; see the file) unless the Fast DDS transports were
-chosen already (``FASTRTPS_DEFAULT_PROFILES_FILE``, ``FASTDDS_DEFAULT_PROFILES_FILE``,
-``FASTDDS_BUILTIN_TRANSPORTS``, a ``DEFAULT_FASTRTPS_PROFILES.xml`` in the working directory) or the
-RMW is not Fast DDS. A publisher's own segment bounds how many of its messages can wait for any
-receiver (512 by default): above ~50k msgs/s from one process, give it :data:`FAST_PUBLISHER_PROFILE`.
-
-Before it starts, the console script removes the Fast DDS shared-memory files that no process maps
-(:mod:`euc_ros.nodes.shm_clean`): Fast DDS reuses a stale port file of the same number unresized, which
-would give the recorder a 512-descriptor port whatever its profile asks.
-
-Subscribes
-    the configured ``topics`` (default: the pipeline's), or every topic with ``all_topics``.
-Publishes
-    nothing.
-Parameters
-    see :data:`SPECS` (``output``, ``topics``, ``all_topics``, ``chunk_size``, ``discovery_period``).
+Transport: the console script runs the recorder with a deep Fast DDS shared-memory port
+(:data:`euc_ros.ros.fastdds.RECORDER_PROFILE`) unless the transports were chosen already, and first
+removes the Fast DDS shared-memory files that no process maps (:mod:`euc_ros.ros.shm_clean`): Fast
+DDS reuses a stale port file of the same number unresized, which would give the recorder a
+512-descriptor port whatever its profile asks.
 """
 from __future__ import annotations
 
@@ -43,11 +30,13 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 
 from euc_ros.core.io.bags import BagWriter
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.drain import SubscriptionDrain
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
-from euc_ros.nodes.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.convert import bag_qos
+from euc_ros.ros.drain import SubscriptionDrain
+from euc_ros.ros.fastdds import transport_env, uses_fast_dds
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
+from euc_ros.ros.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files
 
 SPECS = (
     ParamSpec("output", "", "bag directory to create (default: bags/euc_<UTC time>); must not exist"),
@@ -62,54 +51,37 @@ SPECS = (
 
 _SKIP = {"/rosout", "/parameter_events"}
 
-_DATA = Path(__file__).resolve().parent.parent / "data"
-#: Fast DDS participant profile the ``recorder`` console script runs with (a deep shared-memory port).
-RECORDER_PROFILE = _DATA / "fastdds_recorder.xml"
-#: Fast DDS participant profile for a process publishing faster than ~50k msgs/s (a 64 MiB segment).
-FAST_PUBLISHER_PROFILE = _DATA / "fastdds_fast_publisher.xml"
-#: Environment variables by which Fast DDS 2.14 transports are chosen already: the recorder keeps them.
-TRANSPORT_CHOICES = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE", "FASTDDS_BUILTIN_TRANSPORTS")
-
-
-def uses_fast_dds(env) -> bool:
-    """Whether ``env`` selects Fast DDS (``RMW_IMPLEMENTATION`` unset is Jazzy's default, Fast DDS)."""
-    return (env.get("RMW_IMPLEMENTATION", "") or "rmw_fastrtps_cpp").startswith("rmw_fastrtps")
-
-
-def transport_env(env, cwd=".", profile: Path = RECORDER_PROFILE) -> dict:
-    """The variables to add to ``env`` so that Fast DDS uses ``profile``: ``{}`` when the transports are
-    chosen already (see :data:`TRANSPORT_CHOICES`; Fast DDS also reads ``DEFAULT_FASTRTPS_PROFILES.xml``
-    from the working directory) or the RMW is not Fast DDS."""
-    if not uses_fast_dds(env) or any(env.get(k) for k in TRANSPORT_CHOICES) \
-            or (Path(cwd) / "DEFAULT_FASTRTPS_PROFILES.xml").exists():
-        return {}
-    if not profile.is_file():
-        raise FileNotFoundError(f"Fast DDS profile {profile} is missing (euc_ros/data is part of the package)")
-    return {"FASTRTPS_DEFAULT_PROFILES_FILE": str(profile)}
-
-
-def bag_qos(profile) -> "Qos":
-    """A publisher's offered QoS (rclpy) as rosbag2 stores it in ``offered_qos_profiles`` (rosbags' Qos:
-    the same policy numbers as rmw; durations as sec/nsec, infinite = rmw's 9223372036 s 854775807 ns)."""
-    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
-
-    def duration(d) -> QosTime:
-        ns = int(d.nanoseconds)
-        return QosTime(ns // 1_000_000_000, ns % 1_000_000_000)
-
-    return Qos(QosHistory(int(profile.history)), int(profile.depth), QosReliability(int(profile.reliability)),
-               QosDurability(int(profile.durability)), duration(profile.deadline), duration(profile.lifespan),
-               QosLiveliness(int(profile.liveliness)), duration(profile.liveliness_lease_duration),
-               bool(profile.avoid_ros_namespace_conventions))
-
-
 def _msg_class(type_name: str):
     pkg, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
 
 class Recorder(Node):
-    """Record topics into a rosbag2 MCAP bag."""
+    """Record topics into a rosbag2 MCAP bag.
+
+    ===========  ===============================  =====================================================
+    direction    topic                            what
+    ===========  ===============================  =====================================================
+    Subscribes   ``topics``, or every topic       raw, subscribed as they appear in the graph; reliable
+                 (``all_topics``)                 unless a publisher is best effort
+    Publishes    nothing
+    ===========  ===============================  =====================================================
+
+    Parameters: :data:`SPECS` (``output``, ``topics``, ``all_topics``, ``chunk_size``, ``discovery_period``,
+    ``queue_depth``).
+
+    Parameters
+    ----------
+    **kwargs
+        Passed to :class:`rclpy.node.Node`.
+
+    Attributes
+    ----------
+    path : Path
+        The bag directory.
+    counts : dict of str to int
+        Messages written per topic.
+    """
 
     NAME = "recorder"
     SPECS = SPECS
@@ -186,8 +158,9 @@ _run = main_for(Recorder)
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the Recorder node (``--ros-args --params-file FILE`` to configure) with :data:`RECORDER_PROFILE`
-    unless the Fast DDS transports are chosen already (:func:`transport_env`)."""
+    """Run the Recorder node (``--ros-args --params-file FILE`` to configure) with
+    :data:`~euc_ros.ros.fastdds.RECORDER_PROFILE` unless the Fast DDS transports are chosen already
+    (:func:`~euc_ros.ros.fastdds.transport_env`)."""
     chosen = transport_env(os.environ)
     os.environ.update(chosen)          # before rclpy.init: Fast DDS reads it when the participant is created
     if chosen:

@@ -6,7 +6,7 @@ phi (about the hinge A by default, or eq (3)). Two fixed-lag Savitzky-Golay filt
 of the offline filter of ``euc-ros identify``) give the derivatives: each state is published
 ``filter_lag = (window - 1) / 2`` frames after its frame (0.45 s at the default 0.9 s window and
 120 Hz), stamped with the capture time of *its own* frame. With ``estimator: kalman`` a steady-state
-Kalman fixed-lag smoother replaces them (:mod:`euc_ros.core.filters.causal`, issue 15): states
+Kalman fixed-lag smoother replaces them (:mod:`euc_ros.core.filters.causal`): states
 ``lag_s`` late (0.1 s by default), noisier (docs/low_lag.md). The logic lives in
 :class:`~euc_ros.core.online.estimators.RiderStateEstimator`; this module only wires ROS.
 
@@ -20,14 +20,6 @@ Bad input never stops the node:
   back by more than ``restart_jump`` restarts the filters
   (:class:`~euc_ros.core.online.estimators.FrameSequencer`); frames without a number (``-1``, topic
   sources) are numbered from their stamps.
-
-Subscribes
-    ``mocap/frame`` (euc_msgs/MocapFrame, reliable).
-Publishes
-    ``rider/state`` (euc_msgs/RiderState, reliable), ``/diagnostics`` (frames, states, frames without
-    the EUC, states without the rider, restarts, drops, filter lag; the CoG method, its lag
-    ``cog_lag_s`` (0) and, for ``cog_method: skeleton``, the rider body-frames excluded from G as
-    swapped or flipped: ``cog_excluded_body_frames``, ``cog_excluded_bodies``).
 """
 from __future__ import annotations
 
@@ -47,17 +39,13 @@ from euc_ros.core.online.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.states.skeleton import COG_METHODS
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.intra import LocalFanout
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.rate_gate import NodeRateGate
-from euc_ros.nodes.runtime import drain, main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.intra import LocalFanout
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.rate_gate import NodeRateGate
+from euc_ros.ros.runtime import drain, main_for
 
-#: RiderState's fields after the header, in the message's order (what :meth:`RiderStateNode._values` writes).
-_STATE_MSG_FIELDS = ("has_rider", "x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",
-                     "phi_ddot", "phi_eq3", "phi_hinge", "phi_definition", "psi", "theta", "c.x", "c.y", "c.z",
-                     "g.x", "g.y", "g.z", "filter_lag")
 
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider segments and EUC geometry (required)"),
@@ -99,6 +87,20 @@ SPECS = (
 class RiderStateNode(Node):
     """Reconstruct the planar model's state from mocap frames (see the module docstring).
 
+    ===========  ==================  ================================  ==========================================
+    direction    topic               type                              what
+    ===========  ==================  ================================  ==========================================
+    Subscribes   ``mocap/frame``     euc_msgs/MocapFrame               reliable; raw, read with numpy
+    Publishes    ``rider/state``     euc_msgs/RiderState               reliable; stamped with its frame's capture
+    Publishes    ``/diagnostics``    diagnostic_msgs/DiagnosticArray   frames, states, no EUC, no rider, restarts,
+                                                                       drops, filter lag, rates, the CoG method,
+                                                                       its lag ``cog_lag_s`` and the body-frames
+                                                                       excluded from G (``cog_method: skeleton``)
+    ===========  ==================  ================================  ==========================================
+
+    Parameters: :data:`SPECS` (session, phi definition, estimator and its window or lag, gaps, CoG
+    method, frame rate).
+
     Parameters
     ----------
     **kwargs
@@ -132,10 +134,7 @@ class RiderStateNode(Node):
         self.presence = BodyPresence([self.session.euc.body] + [n for n, f in zip(names, fractions) if f > 0])
         self._origin_ns: int | None = None
         self._last_frame_wall: float | None = None
-        fields = convert.flat_fields(RiderState)
-        if tuple(n for n, _ in fields) != _STATE_MSG_FIELDS:     # the interface changed: update _values
-            raise RuntimeError(f"RiderState fields {[n for n, _ in fields]} differ from {_STATE_MSG_FIELDS}")
-        self._encoder = FlatEncoder(fields)
+        self._encoder = FlatEncoder(convert.checked_flat_fields(RiderState, convert.RIDER_STATE_FIELDS))
         self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS,
                                                event_callbacks=itf.pub_events())
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
@@ -211,22 +210,13 @@ class RiderStateNode(Node):
         for s in samples:
             # serialized directly (cdr_flat): a message object costs twice as much to publish, plus its build
             stamp_ns = self._origin_ns + int(round(s.t * 1e9))
-            raw = self._encoder.encode(stamp_ns, frame_id, self._values(s))
+            raw = self._encoder.encode(stamp_ns, frame_id, convert.rider_state_values(s))
             if local:
                 self.state_pub.publish(raw, local=convert.LocalState(stamp_ns, frame_id, s))
             else:
                 self.state_pub.publish(raw)
             self.counts["states"] += 1
             self.counts["no_rider"] += not s.has_rider
-
-    @staticmethod
-    def _values(s) -> tuple:
-        """A sample's field values in the order of :data:`_STATE_MSG_FIELDS` (RiderState after its header)."""
-        C, G = s.C, s.G
-        return (bool(s.has_rider), float(s.x), float(s.x_dot), float(s.x_ddot), float(s.gamma), float(s.gamma_dot),
-                float(s.gamma_ddot), float(s.phi), float(s.phi_dot), float(s.phi_ddot), float(s.phi_eq3),
-                float(s.phi_hinge), s.phi_definition, float(s.psi), float(s.theta), float(C[0]), float(C[1]),
-                float(C[2]), float(G[0]), float(G[1]), float(G[2]), float(s.filter_lag_s))
 
     def _publish_diagnostics(self) -> None:
         c = self.counts

@@ -18,16 +18,7 @@ and ``wait_observers`` more subscribers (e.g. a recorder), so nothing is lost at
 
 A speed, pole or maneuver for which the design is impossible or ill-conditioned makes the node
 exit at start-up with one line naming the parameter and code 2 (through
-:func:`euc_ros.nodes.runtime.run_node`).
-
-Subscribes
-    ``unicycle/state`` (euc_msgs/UnicycleState, LOCKSTEP_QOS).
-Publishes
-    ``unicycle/command`` (euc_msgs/SteeringCommand, LOCKSTEP_QOS): ``u`` [N], ``step``,
-    ``maneuver`` and ``reference`` = ``y_des(t)`` in the maneuver's output order
-    (``omega1, theta, sigma, r, psi(, y_G)``).
-Parameters
-    see :data:`SPECS`.
+:func:`euc_ros.ros.runtime.run_node`).
 """
 from __future__ import annotations
 
@@ -41,11 +32,11 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.unicycle.dynamics import UnicycleParams
 from euc_ros.core.unicycle.simulate import STATUS_OK
 from euc_ros.core.unicycle.steering import MANEUVER_DURATION, MANEUVER_START, MANEUVERS, SteeringController
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
-from euc_ros.nodes.unicycle_sim import msg_to_state
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.matching import MatchGate
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 
 _DEFAULTS = UnicycleParams()
 
@@ -67,8 +58,6 @@ SPECS = (
     ParamSpec("gravity", _DEFAULTS.g, "gravitational acceleration g used for the design", "m/s^2", 0.0, 1000.0),
 )
 
-#: Wait after the wanted subscriptions matched before the first answer (DDS discovery is asymmetric) [s].
-SETTLE_S = 0.3
 #: Period of the start-up check [s].
 CHECK_PERIOD_S = 0.02
 
@@ -103,6 +92,18 @@ def build_controller(cfg: dict, node_name: str = "steering_controller") -> Steer
 class SteeringControllerNode(Node):
     """Answer every unicycle state with the steering force of the selected maneuver.
 
+    ===========  =====================  ===========================  ==============================================
+    direction    topic                  type                         what
+    ===========  =====================  ===========================  ==============================================
+    Subscribes   ``unicycle/state``     euc_msgs/UnicycleState       LOCKSTEP_QOS
+    Publishes    ``unicycle/command``   euc_msgs/SteeringCommand     LOCKSTEP_QOS: ``u`` [N], ``step``, ``maneuver``,
+                                                                     ``reference`` = ``y_des(t)`` in the maneuver's
+                                                                     output order (``omega1, theta, sigma, r,
+                                                                     psi(, y_G)``)
+    ===========  =====================  ===========================  ==============================================
+
+    Parameters: :data:`SPECS` (maneuver, design speed and pole, references, the model's Table I).
+
     Parameters
     ----------
     **kwargs
@@ -133,8 +134,9 @@ class SteeringControllerNode(Node):
         self._last: SteeringCommand | None = None
         self._pending: UnicycleState | None = None
         self._ready = False
-        self._matched_at: float | None = None
         self.pub = self.create_publisher(SteeringCommand, itf.STEERING_COMMAND, itf.LOCKSTEP_QOS)
+        self.start_gate = MatchGate(lambda: [(itf.STEERING_COMMAND + " subscriptions",
+                                              self.pub.get_subscription_count(), 1 + cfg["wait_observers"])])
         self.create_subscription(UnicycleState, itf.UNICYCLE_STATE, self._on_state, itf.LOCKSTEP_QOS)
         self._start_timer = self.create_timer(CHECK_PERIOD_S, self._check_ready)
         g = self.controller.gains
@@ -143,13 +145,8 @@ class SteeringControllerNode(Node):
             + ", ".join(f"{n} {k:.2f}" for n, k in zip(g.names, g.K)))
 
     def _check_ready(self) -> None:
-        """Answer nothing until the simulator and ``wait_observers`` observers matched (then SETTLE_S)."""
-        now = time.monotonic()
-        if self._matched_at is None:
-            if self.pub.get_subscription_count() < 1 + self.config["wait_observers"]:
-                return
-            self._matched_at = now
-        if now < self._matched_at + SETTLE_S:
+        """Answer nothing until the simulator and ``wait_observers`` observers matched (then the settle time)."""
+        if not self.start_gate.ready(time.monotonic()):
             return
         self._ready = True
         self._start_timer.cancel()
@@ -173,7 +170,7 @@ class SteeringControllerNode(Node):
             self.ignored += 1
             return
         t = convert.stamp_to_ns(msg.header.stamp) / 1e9
-        u, y_des = self.controller.command(t, msg_to_state(msg))
+        u, y_des = self.controller.command(t, convert.msg_to_unicycle_state(msg))
         out = SteeringCommand()
         out.header.stamp = msg.header.stamp
         out.header.frame_id = msg.header.frame_id

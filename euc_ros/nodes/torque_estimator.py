@@ -12,12 +12,6 @@ A NaN never reaches a published torque: a state that is not usable (no rider, a 
 torque that would not be finite) is not published and only counted in the diagnostics. States
 missing from the stream age the sliding windows by the time they cover; a jump back in time (a
 restarted upstream) or a gap longer than the RMSE window resets them, so nothing stale is published.
-
-Subscribes
-    ``rider/state`` (euc_msgs/RiderState, reliable).
-Publishes
-    ``euc/torque`` (euc_msgs/TorqueEstimate, reliable, header copied from the state),
-    ``/diagnostics`` (states, published, not usable, resets, model, RMSE, online h).
 """
 from __future__ import annotations
 
@@ -34,11 +28,11 @@ from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.online.estimators import TorqueEstimator, extended_model_from_config
 from euc_ros.core.session import load_session
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.rate_gate import NodeRateGate
-from euc_ros.nodes.runtime import drain, main_for
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.rate_gate import NodeRateGate
+from euc_ros.ros.runtime import drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (spec section 4): rider and EUC parameters (required)"),
@@ -61,14 +55,23 @@ SPECS = (
     ParamSpec("diagnostics_period", 1.0, "period of the diagnostics", "s", 0.05, 60.0),
 )
 
-#: TorqueEstimate's fields after the header, in the message's order (what :meth:`_process` writes).
-_TORQUE_MSG_FIELDS = ("valid", "m_d1", "m_d2", "m_d1_2dof", "m_d2_2dof", "h", "residual", "rmse_window", "window",
-                      "h_online", "h_online_std", "model", "h_online_status")
 _STATE_FIELDS = ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi", "theta")
 
 
 class TorqueEstimatorNode(Node):
     """Driving torque of both models, sliding RMSE and online h from rider states (module docstring).
+
+    ===========  ==================  ================================  ===========================================
+    direction    topic               type                              what
+    ===========  ==================  ================================  ===========================================
+    Subscribes   ``rider/state``     euc_msgs/RiderState               reliable
+    Subscribes   ``/diagnostics``    diagnostic_msgs/DiagnosticArray   the bodies rider_state misses
+    Publishes    ``euc/torque``      euc_msgs/TorqueEstimate           reliable; header copied from the state
+    Publishes    ``/diagnostics``    diagnostic_msgs/DiagnosticArray   states, published, not usable, resets,
+                                                                       model, RMSE, online h, rates
+    ===========  ==================  ================================  ===========================================
+
+    Parameters: :data:`SPECS` (session, ``h`` (settable while running), windows, effects, rate).
 
     Parameters
     ----------
@@ -108,10 +111,7 @@ class TorqueEstimatorNode(Node):
         self._origin_ns: int | None = None
         self._last_state_wall: float | None = None
         self._published_at_last_diag = 0
-        fields = convert.flat_fields(TorqueEstimate)
-        if tuple(n for n, _ in fields) != _TORQUE_MSG_FIELDS:   # the interface changed: update _process
-            raise RuntimeError(f"TorqueEstimate fields {[n for n, _ in fields]} differ from {_TORQUE_MSG_FIELDS}")
-        self._encoder = FlatEncoder(fields)
+        self._encoder = FlatEncoder(convert.checked_flat_fields(TorqueEstimate, convert.TORQUE_FIELDS))
         self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS,
                                                 event_callbacks=itf.pub_events())
         self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
@@ -145,7 +145,7 @@ class TorqueEstimatorNode(Node):
         drain(self._state_sub, self._on_state)   # a backlog in one wake-up
 
     def _on_state(self, msg) -> None:
-        """One RiderState message, or a :class:`~euc_ros.nodes.convert.LocalState` handed over in-process."""
+        """One RiderState message, or a :class:`~euc_ros.ros.convert.LocalState` handed over in-process."""
         self._last_state_wall = time.monotonic()
         try:
             stamp = msg.stamp_ns if type(msg) is convert.LocalState else convert.stamp_to_ns(msg.header.stamp)
@@ -173,10 +173,7 @@ class TorqueEstimatorNode(Node):
         if out is None:
             return
         # serialized directly (cdr_flat), header copied from the state: a message object costs twice as much
-        self.torque_pub.publish(self._encoder.encode(stamp, frame_id, (
-            True, float(out.M_d1), float(out.M_d2), float(out.M_d1_2dof), float(out.M_d2_2dof), float(out.h_m),
-            float(out.residual_nm), float(out.rmse_window_nm), float(out.window_s), float(out.h_online_m),
-            float(out.h_online_std_m), out.model, out.h_online_status)))
+        self.torque_pub.publish(self._encoder.encode(stamp, frame_id, convert.torque_values(out)))
         self.published += 1
         self.last = out
 

@@ -19,43 +19,28 @@ A step that leaves the model's domain stops the simulation: the state carrying t
 further steps are taken. After ``duration`` simulated seconds, or such a stop, the node waits until
 its reliable messages are acknowledged, lingers ``linger`` seconds (so a recorder takes the last
 messages) and, with ``exit_when_done``, exits: code 0 after the full duration, 1 after a domain stop.
-
-Publishes
-    ``unicycle/state`` (euc_msgs/UnicycleState, LOCKSTEP_QOS), ``unicycle/pose``
-    (geometry_msgs/PoseStamped of the wheel centre G, LOCKSTEP_QOS), ``/tf`` (``frame_id`` ->
-    ``child_frame_id``, same pose), ``/clock`` (realtime mode only).
-Subscribes
-    ``unicycle/command`` (euc_msgs/SteeringCommand, LOCKSTEP_QOS).
-Parameters
-    see :data:`SPECS`.
-
-Pose. Position ``(x_G, y_G, R cos(theta))``: the wheel centre G (eq (37)); orientation the wheel
-body, ``Rz(psi) Rx(theta) Ry(phi)`` (yaw, tilt about the forward axis, rolling angle about the
-axle; :func:`euc_ros.core.rotations.quat_from_yaw_tilt_pitch`), REP-103 world frame.
 """
 from __future__ import annotations
 
 import math
 import time
 
-import numpy as np
 from euc_msgs.msg import SteeringCommand, UnicycleState
 from geometry_msgs.msg import PoseStamped
 from rclpy.duration import Duration
 from rclpy.node import Node
-from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from tf2_msgs.msg import TFMessage
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.rotations import quat_from_yaw_tilt_pitch
-from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams
+from euc_ros.core.unicycle.dynamics import UnicycleParams
 from euc_ros.core.unicycle.linearize import straight_rolling_state
-from euc_ros.core.unicycle.simulate import STATUS_OK, UnicycleSimulator
-from euc_ros.nodes import convert
-from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.params import ParamSpec, declare_params
-from euc_ros.nodes.runtime import main_for
+from euc_ros.core.unicycle.simulate import STATUS_OK, UnicycleSimulator, wheel_pose
+from euc_ros.ros import convert
+from euc_ros.ros import interfaces as itf
+from euc_ros.ros.matching import MatchGate
+from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.runtime import main_for
 
 _DEFAULTS = UnicycleParams()
 
@@ -88,50 +73,27 @@ SPECS = (
     ParamSpec("child_frame_id", "unicycle", "TF frame of the wheel body"),
 )
 
-#: Wait after the wanted subscriptions matched before step 0 (DDS discovery is asymmetric) [s].
-SETTLE_S = 0.3
 #: Period of the start-up, resend and end checks [s].
 CHECK_PERIOD_S = 0.05
 #: Longest wait for the acknowledgement of the last messages [s].
 ACK_TIMEOUT_S = 2.0
 
 
-def state_to_msg(x, u: float, step: int, stamp_ns: int, status: str, frame_id: str = "world") -> UnicycleState:
-    """State ``x`` (10,) of eq (37) -> ``euc_msgs/UnicycleState`` (fields in :data:`STATE_NAMES` order)."""
-    msg = UnicycleState()
-    msg.header.stamp = convert.ns_to_stamp(stamp_ns)
-    msg.header.frame_id = frame_id
-    (msg.omega1, msg.omega2, msg.omega3, msg.theta, msg.sigma, msg.r, msg.psi, msg.phi, msg.x_g,
-     msg.y_g) = (float(v) for v in x)
-    msg.u = float(u)
-    msg.step = int(step)
-    msg.status = status
-    return msg
-
-
-#: Message fields of the state, in :data:`STATE_NAMES` order.
-STATE_FIELDS = ("omega1", "omega2", "omega3", "theta", "sigma", "r", "psi", "phi", "x_g", "y_g")
-assert tuple(n.lower() for n in STATE_NAMES) == STATE_FIELDS
-
-
-def msg_to_state(msg) -> np.ndarray:
-    """``UnicycleState`` (rclpy or rosbags message) -> state (10,) of eq (37)."""
-    return np.array([getattr(msg, f) for f in STATE_FIELDS], dtype=float)
-
-
-def wheel_pose(x, params: UnicycleParams) -> tuple[np.ndarray, np.ndarray]:
-    """Position of the wheel centre ``(x_G, y_G, R cos(theta))`` [m] and body quaternion (x, y, z, w).
-
-    The body frame is F2 (eq (73)) turned by the rolling angle ``phi`` about the axle:
-    ``Rz(psi) Rx(theta) Ry(phi)``.
-    """
-    x = np.asarray(x, dtype=float)
-    pos = np.array([x[8], x[9], params.R * math.cos(x[3])])
-    return pos, quat_from_yaw_tilt_pitch(x[6], x[3], x[7])
-
-
 class UnicycleSim(Node):
     """Simulate the autonomous unicycle, in lockstep with the controller or in real time.
+
+    ===========  ======================  ===============================  =================================
+    direction    topic                   type                             QoS / when
+    ===========  ======================  ===============================  =================================
+    Subscribes   ``unicycle/command``    euc_msgs/SteeringCommand         LOCKSTEP_QOS
+    Publishes    ``unicycle/state``      euc_msgs/UnicycleState           LOCKSTEP_QOS, every step
+    Publishes    ``unicycle/pose``       geometry_msgs/PoseStamped        LOCKSTEP_QOS (``publish_pose``): G
+                                                                      and the wheel body (``wheel_pose``)
+    Publishes    ``/tf``                 frame_id -> child_frame_id       as the pose (``publish_tf``)
+    Publishes    ``/clock``              rosgraph_msgs/Clock              realtime mode only
+    ===========  ======================  ===============================  =================================
+
+    Parameters: :data:`SPECS` (mode, step, duration, initial state, the model's Table I, start-up and end).
 
     Parameters
     ----------
@@ -146,10 +108,8 @@ class UnicycleSim(Node):
         Steps until the end (``round(duration / dt)``; None with ``duration`` 0).
     done : bool
         True once the simulation has ended (duration reached or domain left).
-    resent : int
-        States published again because no answer came (lockstep).
-    ignored : int
-        Commands ignored (wrong step in lockstep, or non-finite).
+    resent, ignored : int
+        States published again because no answer came (lockstep); commands ignored (wrong step, non-finite).
     """
 
     NAME = "unicycle_sim"
@@ -169,23 +129,19 @@ class UnicycleSim(Node):
         self.lockstep = cfg["mode"] == "lockstep"
         self.n_steps = max(1, int(round(cfg["duration"] / cfg["dt"]))) if cfg["duration"] > 0 else None
         self.done = self.sim.status != STATUS_OK
-        self.resent = 0
-        self.ignored = 0
+        self.resent = self.ignored = 0
         self._u = 0.0                       # input of the last step (published with the state)
         self._u_latest = 0.0                # realtime: latest command
         self._started = False
-        self._matched_at: float | None = None
+        self.start_gate = MatchGate(self._wanted_matches)
         self._sent_at = 0.0
         self._done_at: float | None = None
         self._last_msg: UnicycleState | None = None
-
         self.state_pub = self.create_publisher(UnicycleState, itf.UNICYCLE_STATE, itf.LOCKSTEP_QOS)
         self.pose_pub = (self.create_publisher(PoseStamped, itf.UNICYCLE_POSE, itf.LOCKSTEP_QOS)
                          if cfg["publish_pose"] else None)
         self.tf_pub = self.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS) if cfg["publish_tf"] else None
-        self.clock_pub = (None if self.lockstep else
-                          self.create_publisher(Clock, itf.CLOCK, QoSProfile(depth=10,
-                                                                             reliability=ReliabilityPolicy.RELIABLE)))
+        self.clock_pub = None if self.lockstep else self.create_publisher(Clock, itf.CLOCK, itf.CLOCK_QOS)
         self.command_sub = self.create_subscription(SteeringCommand, itf.STEERING_COMMAND, self._on_command,
                                                     itf.LOCKSTEP_QOS)
         self.create_timer(CHECK_PERIOD_S, self._check)
@@ -197,12 +153,8 @@ class UnicycleSim(Node):
             f"{cfg['speed']:g} m/s, tilt {cfg['initial_tilt']:g} rad")
 
     # -- start-up --------------------------------------------------------------------------------
-    def _missing_matches(self) -> list[str]:
-        """What is still missing before step 0: the controller (lockstep) and ``wait_observers`` observers.
-
-        Counts are DDS matches of our own endpoints, not graph entries: a subscriber listed in the
-        graph may not be matched yet. (The controller waits the same way for ``unicycle/command``.)
-        """
+    def _wanted_matches(self) -> list[tuple[str, int, int]]:
+        """Before step 0: the controller (lockstep) and ``wait_observers`` observers, as DDS matches."""
         obs = self.config["wait_observers"]
         want = [(itf.UNICYCLE_STATE + " subscriptions", self.state_pub.get_subscription_count(),
                  obs + (1 if self.lockstep else 0))]
@@ -210,23 +162,18 @@ class UnicycleSim(Node):
             want.append((itf.STEERING_COMMAND + " publishers", self.command_sub.get_publisher_count(), 1))
         if self.pose_pub is not None:
             want.append((itf.UNICYCLE_POSE + " subscriptions", self.pose_pub.get_subscription_count(), obs))
-        return [f"{what} {have}/{need}" for what, have, need in want if have < need]
+        return want
 
-    def _ready_to_start(self, now: float) -> bool:
-        if self._matched_at is None:
-            missing = self._missing_matches()
-            if missing:
-                self.get_logger().info("waiting for matches: " + ", ".join(missing), throttle_duration_sec=5.0)
-                return False
-            self._matched_at = now
-        return now >= self._matched_at + SETTLE_S
+    def _waiting(self, missing: list[str]) -> None:
+        self.get_logger().info("waiting for matches: " + ", ".join(missing), throttle_duration_sec=5.0)
 
     # -- stepping --------------------------------------------------------------------------------
     def _publish_state(self) -> None:
         sim = self.sim
         stamp_ns = int(round(sim.t * 1e9))
         x = sim.x
-        self._last_msg = state_to_msg(x, self._u, sim.steps, stamp_ns, sim.status, self.config["frame_id"])
+        self._last_msg = convert.unicycle_state_to_msg(x, self._u, sim.steps, stamp_ns, sim.status,
+                                                       self.config["frame_id"])
         self.state_pub.publish(self._last_msg)
         self._sent_at = time.monotonic()
         if self.pose_pub is not None or self.tf_pub is not None:
@@ -276,7 +223,7 @@ class UnicycleSim(Node):
     def _check(self) -> None:
         now = time.monotonic()
         if not self._started:
-            if self._ready_to_start(now):
+            if self.start_gate.ready(now, self._waiting):
                 self._started = True
                 self._publish_state()
                 if self.done:       # the initial state is already outside the domain

@@ -32,7 +32,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.nodes import interfaces as itf
+from euc_ros.ros import interfaces as itf
 
 #: Message encoding of every channel: ROS 2 serialized messages, forwarded as rclpy takes them.
 MESSAGE_ENCODING = "cdr"

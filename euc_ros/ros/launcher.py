@@ -103,7 +103,7 @@ def declared_parameters(executable: str, args: Sequence[str] = ()) -> dict[str, 
     """The declared defaults (by parameter name) of a node executable of this package.
 
     They are read from the package's ``config/<node>.yaml``, which lists every parameter of the node's
-    ParamSpec table with its default (``python -m euc_ros.nodes.registry`` writes them; a unit test holds
+    ParamSpec table with its default (``python -m euc_ros.ros.registry`` writes them; a unit test holds
     them to the tables). Importing the node modules instead would load rclpy into the launcher, and
     importing :mod:`euc_ros.nodes` would set its BLAS thread variables for every launched program.
 

@@ -28,7 +28,7 @@ from pathlib import Path
 import pytest
 
 from euc_ros.core.io.bags import check_bag, read_bag
-from euc_ros.nodes.registry import NODES
+from euc_ros.ros.registry import NODES
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]

@@ -138,7 +138,7 @@ class Listener:
         from rclpy.executors import SingleThreadedExecutor
         from rclpy.node import Node
 
-        from euc_ros.nodes import interfaces as itf
+        from euc_ros.ros import interfaces as itf
 
         self.node = Node("fault_listener", context=context)
         self.states: list[tuple[int, int]] = []

@@ -109,7 +109,7 @@ def test_live_rigid_bodies_into_a_mocap_ingest_process(ros_context, tmp_path):
     from mocap4r2_msgs.msg import RigidBodies, RigidBody
     from rclpy.executors import SingleThreadedExecutor
 
-    from euc_ros.nodes import interfaces as itf
+    from euc_ros.ros import interfaces as itf
 
     proc = subprocess.Popen([str(Path(sys.executable).parent / "mocap_ingest"), "--ros-args",
                              "-p", "source:=topics", "-p", "topic_type:=rigid_bodies", "-p", "world_up:=z",

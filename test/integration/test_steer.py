@@ -136,7 +136,7 @@ def test_bag_reader_dedupes_resent_states_and_rejects_lost_steps(tmp_path):
     from euc_ros.core.errors import InputError
     from euc_ros.core.io.bags import BagWriter
     from euc_ros.lockstep import steer_result_from_bag
-    from euc_ros.nodes.unicycle_sim import state_to_msg
+    from euc_ros.ros.convert import unicycle_state_to_msg as state_to_msg
 
     def write(path, steps):
         with BagWriter(path) as w:

@@ -4,7 +4,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from euc_ros.nodes.registry import NODES, node_class
+from euc_ros.ros.registry import NODES, node_class
 
 CONFIG = Path(__file__).resolve().parents[2] / "config"
 
@@ -16,7 +16,7 @@ def test_config_matches_specs(name):
     except ModuleNotFoundError as exc:
         pytest.skip(f"node {name} not built yet ({exc.name})")
     path = CONFIG / f"{name}.yaml"
-    assert path.exists(), f"{path} missing: run python -m euc_ros.nodes.registry"
+    assert path.exists(), f"{path} missing: run python -m euc_ros.ros.registry"
     data = yaml.safe_load(path.read_text())
     keys = set(data[cls.NAME]["ros__parameters"])
     assert keys == {s.name for s in cls.SPECS}

@@ -1,4 +1,4 @@
-"""LeanExecutor (euc_ros.nodes.executor) on a private rclpy context, against rclpy's own behaviour.
+"""LeanExecutor (euc_ros.ros.executor) on a private rclpy context, against rclpy's own behaviour.
 
 Covers: typed, raw and (message, MessageInfo) subscriptions receiving every message of a burst in
 publish order, in few spins, and never more than ``batch`` messages per subscription in one spin;
@@ -36,8 +36,8 @@ from rclpy.task import Future  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 from std_srvs.srv import SetBool  # noqa: E402
 
-from euc_ros.nodes.drain import SubscriptionDrain  # noqa: E402
-from euc_ros.nodes.executor import LeanExecutor  # noqa: E402
+from euc_ros.ros.drain import SubscriptionDrain  # noqa: E402
+from euc_ros.ros.executor import LeanExecutor  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -1,4 +1,4 @@
-"""LocalFanout (euc_ros.nodes.intra) with a real rclpy publisher and subscriber: in-process handlers run
+"""LocalFanout (euc_ros.ros.intra) with a real rclpy publisher and subscriber: in-process handlers run
 first (with the richer local form when given), then the middleware gets the message, also when a
 handler fails; the subscription count includes the in-process subscribers."""
 from __future__ import annotations
@@ -13,7 +13,7 @@ import rclpy  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from std_msgs.msg import String  # noqa: E402
 
-from euc_ros.nodes.intra import LocalFanout  # noqa: E402
+from euc_ros.ros.intra import LocalFanout  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

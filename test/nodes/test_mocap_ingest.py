@@ -30,7 +30,7 @@ from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from euc_ros.core.errors import ConfigError  # noqa: E402
 from euc_ros.core.mocap.series import MocapSeries  # noqa: E402
-from euc_ros.nodes import interfaces as itf  # noqa: E402
+from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.nodes.mocap_ingest import MocapIngest  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -315,13 +315,13 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
                    ["E", "H", "TL", "Head", "CHR"])
         ing = rig.ingest
         addr = server.wait_for(0)                                     # CONNECT
-        assert addr == ing.client.command_address
+        assert addr == ing.source.client.command_address
         server.send(enc.enc_server_info(natnet=(*version, 0, 0), freq=enc.FREQ), addr)
-        rig.spin_until(lambda: ing.client.server_info is not None, what="SERVERINFO")
+        rig.spin_until(lambda: ing.source.client.server_info is not None, what="SERVERINFO")
         server.wait_for(4)                                            # REQUEST_MODELDEF
         suffix = dict(enc.SUFFIX, params=0, mid=1_000_000_000, transmit=1_000_000_000 + LATENCY_TICKS)
         server.stream(enc.enc_frame(version, suffix=suffix, frame_number=999), addr)   # before MODELDEF: no names
-        rig.spin_until(lambda: ing.no_names_dropped == 1, what="frame before MODELDEF")
+        rig.spin_until(lambda: ing.source.no_names_dropped == 1, what="frame before MODELDEF")
         server.send(_modeldef(enc, version, {1: "E", 2: "H", 7: "TL"}), addr)
         rig.spin_until(lambda: ing.bodies == ["E", "H", "TL"], what="MODELDEF names")
         rig.spin_until(lambda: ing.frame_pub.get_subscription_count() >= 1
@@ -369,9 +369,9 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
 
         # MODELDEF update: the models-changed flag makes the client ask; new names are used at once
         changed = dict(suffix, params=0x02)
-        requests = ing.client.stats["modeldef_requests"]
+        requests = ing.source.client.stats["modeldef_requests"]
         server.stream(enc.enc_frame(version, suffix=changed, frame_number=1007), addr)
-        rig.spin_until(lambda: ing.client.stats["modeldef_requests"] == requests + 1, what="REQUEST_MODELDEF")
+        rig.spin_until(lambda: ing.source.client.stats["modeldef_requests"] == requests + 1, what="REQUEST_MODELDEF")
         server.wait_for(4)
         server.send(_modeldef(enc, version, {1: "E", 2: "Head", 7: "TL", 9: "CHR"}), addr)
         rig.spin_until(lambda: ing.bodies == ["E", "Head", "TL", "CHR"], what="new MODELDEF")
@@ -393,7 +393,7 @@ def test_natnet_source_unicast(rigs, natnet_kit, version):
         assert vals["malformed_dropped"] == "2" and vals["duplicates_dropped"] == "1"
         assert vals["dropped_frames"] == "2" and vals["dropped_before_modeldef"] == "1"
         assert vals["natnet_version"] == f"{version[0]}.{version[1]}" and vals["input_errors"] == "0"
-        assert ing.client.stats["keepalives_sent"] >= 2 and server.count(10) >= 1     # unicast keep-alives
+        assert ing.source.client.stats["keepalives_sent"] >= 2 and server.count(10) >= 1     # unicast keep-alives
         assert ing.context.ok()                                                      # alive after bad input
     finally:
         server.close()
@@ -418,10 +418,10 @@ def test_natnet_source_multicast(rigs, natnet_kit):
         ing = rig.ingest
         addr = server.wait_for(0)
         server.send(enc.enc_server_info(natnet=(4, 1, 0, 0), freq=enc.FREQ, multicast=True, port=port), addr)
-        rig.spin_until(lambda: ing.client.server_info is not None, what="SERVERINFO")
+        rig.spin_until(lambda: ing.source.client.server_info is not None, what="SERVERINFO")
         server.wait_for(4)
         server.send(_modeldef(enc, (4, 1), {1: "E", 2: "H", 7: "TL"}), addr)
-        rig.spin_until(lambda: ing.names_by_id, what="MODELDEF")
+        rig.spin_until(lambda: ing.source.names_by_id, what="MODELDEF")
         rig.spin_until(lambda: ing.frame_pub.get_subscription_count() >= 1)
         rig.settle()
         for k in range(3):
@@ -430,7 +430,7 @@ def test_natnet_source_multicast(rigs, natnet_kit):
         f = rig.probe.frames[0]
         assert list(f.body_names) == ["H", "E"] and list(f.tracked) == [True, True]   # configured order
         assert [f.poses[1].position.x, f.poses[1].position.z] == pytest.approx([0.10, 0.65], abs=1e-7)
-        assert ing.client.stats["keepalives_sent"] == 0
+        assert ing.source.client.stats["keepalives_sent"] == 0
     finally:
         server.close()
 
@@ -510,3 +510,134 @@ def test_csv_replay_loop_keeps_replay_stamps_increasing(rigs, small_csv):
     stamps = np.array([stamp_ns(f.header.stamp) for f in rig.probe.frames[:125]])
     np.testing.assert_array_equal(np.diff(stamps), np.full(124, 10 * MS))   # one period across the seam too
 
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# the console when a NatNet server sends nothing
+# ---------------------------------------------------------------------------------------------------------------------
+class LogRecorder:
+    """Stands in for the node's logger: keeps (level, text) of every call."""
+
+    def __init__(self, real):
+        self.real, self.lines = real, []
+
+    def info(self, text, **kw):
+        self.lines.append(("INFO", text))
+
+    def warning(self, text, **kw):
+        self.lines.append(("WARN", text))
+
+    def error(self, text, **kw):
+        self.lines.append(("ERROR", text))
+
+    def of(self, level, needle):
+        return [t for lv, t in self.lines if lv == level and needle in t]
+
+
+def test_natnet_silence_is_said_on_the_console(rigs, natnet_kit, monkeypatch):
+    from euc_ros.ros.mocap_sources import natnet as natnet_source
+
+    monkeypatch.setattr(natnet_source, "NO_DATA_WARN_S", 0.5)
+    monkeypatch.setattr(natnet_source, "NO_DATA_REPEAT_S", 0.8)
+    monkeypatch.setattr(natnet_source, "SILENCE_CHECK_S", 0.05)
+    ct, enc = natnet_kit
+    server = ct.FakeMotive(version=(4, 1))
+    try:
+        rig = rigs({"source": "natnet", "server_ip": "127.0.0.1", "local_ip": "127.0.0.1", "multicast": False,
+                    "command_port": server.port, "keepalive_period": 0.1}, ["E", "H"])
+        ing = rig.ingest
+        log = LogRecorder(ing.get_logger())
+        monkeypatch.setattr(ing, "get_logger", lambda: log)
+        # 1. Motive does not answer: a WARN naming the server, ports, transmission type and what to check; repeated
+        rig.spin_until(lambda: len(log.of("WARN", "no answer")) >= 2, timeout_s=5, what="two warnings")
+        text = log.of("WARN", "no answer")[0]
+        for needle in (f"127.0.0.1:{server.port}", "unicast", "Streaming", "firewall", f"UDP ports {server.port}",
+                       "local_ip"):
+            assert needle in text, (needle, text)
+        assert not log.of("INFO", "frames arriving")
+        # 2. it answers and streams: an INFO
+        addr = server.wait_for(0)
+        server.send(enc.enc_server_info(natnet=(4, 1, 0, 0), freq=enc.FREQ), addr)
+        rig.spin_until(lambda: ing.source.client.server_info is not None, what="SERVERINFO")
+        server.wait_for(4)
+        server.send(_modeldef(enc, (4, 1), {1: "E", 2: "H"}), addr)
+        rig.spin_until(lambda: ing.bodies == ["E", "H"], what="MODELDEF")
+        for k in range(3):
+            server.stream(enc.enc_frame((4, 1), frame_number=k), addr)
+        rig.spin_until(lambda: log.of("INFO", "frames arriving"), what="the INFO")
+        assert "frames arriving from 127.0.0.1 (unicast) after" in log.of("INFO", "frames arriving")[0]
+        # 3. it stops streaming: it answered, so the warning says no frames
+        rig.spin_until(lambda: log.of("WARN", "answers but no frames"), timeout_s=5, what="the no-frames warning")
+        assert "Transmission Type Unicast" in log.of("WARN", "answers but no frames")[0]
+    finally:
+        server.close()
+
+
+@pytest.mark.parametrize("answered, frames_before_answer, multicast, needle", [
+    (False, 0, True, "no answer from Motive at 10.0.0.5:1510"),
+    (False, 12, True, "frames arrive (multicast group 239.255.42.99 port 1511 on interface 10.0.0.2) but Motive "
+                      "does not answer at 10.0.0.5:1510"),
+    (True, 0, True, "Transmission Type Multicast"),
+    (True, 0, False, "unicast from 10.0.0.5 (keep-alives sent)"),
+])
+def test_natnet_silence_messages(answered, frames_before_answer, multicast, needle):
+    from types import SimpleNamespace
+
+    from euc_ros.ros.mocap_sources.natnet import NatNetSource
+
+    cfg = {"server_ip": "10.0.0.5", "command_port": 1510, "data_port": 1511, "multicast": multicast,
+           "multicast_group": "239.255.42.99", "local_ip": "10.0.0.2"}
+    source = NatNetSource(None, cfg)
+    source.client = SimpleNamespace(server_info=SimpleNamespace(app_name="Motive") if answered else None,
+                                    stats={"dropped_no_version": frames_before_answer})
+    text = source.no_data_message(4.2)
+    assert needle in text and "for 4 s" in text and "firewall letting UDP ports 1510 and 1511 in" in text, text
+
+
+# ---------------------------------------------------------------------------------------------------------------------
+# poses for viewing: by frame number, whatever the stamps' jitter
+# ---------------------------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("rate, every", [(120.0, 1), (360.0, 3)])
+def test_view_rate_decimates_by_frame_number_with_jittered_stamps(rigs, rate, every):
+    """RigidBodies with frame numbers and receive-minus-latency-like stamps (2 ms rms jitter): at 120 Hz every
+    frame has its pose and TF; at 360 Hz every 3rd once the rate is measured (1 s of stamps, all shown)."""
+    pytest.importorskip("mocap4r2_msgs")
+    from mocap4r2_msgs.msg import RigidBodies, RigidBody
+
+    n = int(rate * 2)
+    rig = rigs({"source": "topics", "topic_type": "rigid_bodies", "bodies": ["E"], "input_reliability": "reliable",
+                "check_up_axis": False}, ["E"])
+    src = rclpy.create_node("m4r2", context=rig.ctx)
+    rig.ex.add_node(src)
+    pub = src.create_publisher(RigidBodies, "/rigid_bodies", itf.mocap_input_qos("reliable"))
+    ing = rig.ingest
+    rig.spin_until(lambda: pub.get_subscription_count() == 1 and ing.frame_pub.get_subscription_count() >= 1
+                   and ing.tf_pub.get_subscription_count() >= 1, what="matching")
+    rig.spin_until(lambda: ing.pose_pubs and all(p.get_subscription_count() >= 1 for p in ing.pose_pubs.values()),
+                   what="pose publisher matching")
+    rig.settle()
+    rng = np.random.default_rng(11)
+    stamps = S0 + np.round((np.arange(n) / rate + rng.normal(0.0, 0.002, n)) * 1e9).astype(np.int64)
+    for k in range(n):
+        msg = RigidBodies(frame_number=1000 + k)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(stamps[k]), 10**9)
+        body = RigidBody(rigid_body_name="E")
+        body.pose.position.x, body.pose.orientation.w = 0.001 * k, 1.0
+        msg.rigidbodies = [body]
+        pub.publish(msg)
+        if k % 20 == 19:
+            rig.spin_until(lambda k=k: len(rig.probe.frames) == k + 1, what=f"frame {k}")
+    rig.spin_until(lambda: len(rig.probe.frames) == n, what="every frame")
+    want = n if every == 1 else None
+    rig.spin_until(lambda: len(rig.probe.poses["E"]) == (want or len(rig.probe.poses["E"])) and
+                   len(rig.probe.tf) == len(rig.probe.poses["E"]), what="poses and TF")
+    rig.settle(0.3)                                 # the last poses (none is expected after them)
+    numbers = [1000 + int(round(m.pose.position.x * 1000)) for m in rig.probe.poses["E"]]
+    assert [1000 + int(round(t.transforms[0].transform.translation.x * 1000)) for t in rig.probe.tf] == numbers
+    if every == 1:
+        assert numbers == list(range(1000, 1000 + n))
+    else:
+        measured = [1000 + k for k in range(n) if (int(stamps[k]) - int(stamps[0])) * 1e-9 < 1.0]
+        assert numbers[:len(measured)] == measured
+        assert set(np.diff(numbers[len(measured):])) == {every}
+    src.destroy_node()

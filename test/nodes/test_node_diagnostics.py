@@ -10,7 +10,7 @@ import pytest
 
 pytest.importorskip("rclpy")
 
-from euc_ros.nodes.convert import WARN  # noqa: E402
+from euc_ros.ros.convert import WARN  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

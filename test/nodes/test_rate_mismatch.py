@@ -17,7 +17,7 @@ import pytest
 pytest.importorskip("rclpy")
 
 from euc_ros.core.session import save_session  # noqa: E402
-from euc_ros.nodes.convert import ERROR  # noqa: E402
+from euc_ros.ros.convert import ERROR  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

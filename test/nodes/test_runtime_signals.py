@@ -1,4 +1,4 @@
-"""A node process ended by SIGINT or SIGTERM exits cleanly, every time (euc_ros.nodes.runtime, executor).
+"""A node process ended by SIGINT or SIGTERM exits cleanly, every time (euc_ros.ros.runtime, executor).
 
 rclpy (Jazzy) handles a signal on a thread of its own that triggers every executor's signal guard
 condition and then shuts the contexts down; the main thread, woken by Python's KeyboardInterrupt,
@@ -26,7 +26,7 @@ pytestmark = pytest.mark.ros
 CHILD = textwrap.dedent("""
     import os, signal, sys
     from rclpy.node import Node
-    from euc_ros.nodes import runtime
+    from euc_ros.ros import runtime
 
     class SelfSignalling(Node):
         def __init__(self):
@@ -49,7 +49,7 @@ def test_sigint_while_spinning_exits_cleanly_every_time():
 IDLE_CHILD = textwrap.dedent("""
     import os, random, signal, sys, threading, time
     from rclpy.node import Node
-    from euc_ros.nodes import runtime
+    from euc_ros.ros import runtime
 
     class Idle(Node):
         def __init__(self):

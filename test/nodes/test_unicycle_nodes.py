@@ -31,9 +31,12 @@ from euc_ros.core.unicycle.dynamics import UnicycleParams  # noqa: E402
 from euc_ros.core.unicycle.linearize import straight_rolling_state  # noqa: E402
 from euc_ros.core.unicycle.simulate import UnicycleSimulator, simulate  # noqa: E402
 from euc_ros.core.unicycle.steering import SteeringController, lane_change_reference, steering_gains  # noqa: E402
-from euc_ros.nodes import interfaces as itf  # noqa: E402
+from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.nodes.steering_controller import SteeringControllerNode  # noqa: E402
-from euc_ros.nodes.unicycle_sim import UnicycleSim, msg_to_state, state_to_msg, wheel_pose  # noqa: E402
+from euc_ros.core.unicycle.simulate import wheel_pose  # noqa: E402
+from euc_ros.nodes.unicycle_sim import UnicycleSim  # noqa: E402
+from euc_ros.ros.convert import msg_to_unicycle_state as msg_to_state  # noqa: E402
+from euc_ros.ros.convert import unicycle_state_to_msg as state_to_msg  # noqa: E402
 
 
 def _overrides(**kw):
@@ -268,3 +271,12 @@ def test_controller_bad_design_names_the_parameter(ros_context, override, key):
     with pytest.raises(ConfigError) as exc:
         SteeringControllerNode(context=ros_context, parameter_overrides=_overrides(**override))
     assert exc.value.key == key
+
+
+def test_state_fields_follow_the_state_of_eq_37():
+    from euc_ros.core.unicycle.dynamics import STATE_NAMES
+    from euc_ros.ros.convert import UNICYCLE_STATE_FIELDS
+
+    assert tuple(n.lower() for n in STATE_NAMES) == UNICYCLE_STATE_FIELDS
+    x = np.arange(10.0) + 0.5
+    assert np.array_equal(msg_to_state(state_to_msg(x, 1.5, 3, 10**9, "ok")), x)

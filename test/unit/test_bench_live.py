@@ -17,7 +17,7 @@ def test_the_probe_reads_stamp_and_frame_number_from_raw_frames_of_either_serial
     from rclpy.serialization import serialize_message
 
     from euc_ros.bench.probe import Probe
-    from euc_ros.nodes import convert
+    from euc_ros.ros import convert
 
     probe = Probe.__new__(Probe)          # the callback alone: no node needed
     probe.records = {"mocap/frame": []}

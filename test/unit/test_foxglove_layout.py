@@ -1,7 +1,7 @@
 """The Foxglove/Lichtblick layout (issue 14, bullet 6), checked against the pipeline's interfaces.
 
 Every panel of the mosaic has a configuration; every topic the layout names is one the pipeline
-publishes (euc_ros.nodes.interfaces); every message path ``/topic.field[.sub]`` names a field of that
+publishes (euc_ros.ros.interfaces); every message path ``/topic.field[.sub]`` names a field of that
 topic's message definition (parsed from msg_defs/msg and the standard types' .msg files).
 """
 from __future__ import annotations
@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from euc_ros.nodes import interfaces as itf
+from euc_ros.ros import interfaces as itf
 
 REPO = Path(__file__).resolve().parents[1].parent
 LAYOUT = REPO / "config" / "foxglove" / "euc_pipeline.json"

@@ -20,8 +20,8 @@ import pytest
 import yaml
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.nodes.params import validate_params_file
-from euc_ros.nodes.registry import NODES, node_class
+from euc_ros.ros.params import validate_params_file
+from euc_ros.ros.registry import NODES, node_class
 from euc_ros.ros import launch_file as lf
 from euc_ros.ros.launcher import NodeSpec, typed_parameters
 
@@ -241,7 +241,7 @@ def test_declared_types_come_from_the_config_files_the_tables_write():
     for name in NODES:
         specs = node_class(name).SPECS
         declared = declared_parameters(name)
-        assert set(declared) == {s.name for s in specs}, f"config/{name}.yaml: run python -m euc_ros.nodes.registry"
+        assert set(declared) == {s.name for s in specs}, f"config/{name}.yaml: run python -m euc_ros.ros.registry"
         for spec in specs:
             value = declared[spec.name]
             assert type(value) is type(spec.default), (name, spec.name, value, spec.default)

@@ -30,7 +30,7 @@ def test_setup_py_install_puts_the_nodes_where_ros2_run_looks(tmp_path):
                         "--single-version-externally-managed", "--record", str(tmp_path / "record.txt")],
                        cwd=src, capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stdout + r.stderr
-    from euc_ros.nodes.registry import NODES
+    from euc_ros.ros.registry import NODES
 
     lib = prefix / "lib" / "euc_ros"
     assert sorted(p.name for p in lib.iterdir() if p.name in NODES) == sorted(NODES)

@@ -14,7 +14,7 @@ import xml.etree.ElementTree as ET
 
 import pytest
 
-from euc_ros.nodes.recorder import FAST_PUBLISHER_PROFILE, RECORDER_PROFILE, TRANSPORT_CHOICES, transport_env
+from euc_ros.ros.fastdds import FAST_PUBLISHER_PROFILE, RECORDER_PROFILE, TRANSPORT_CHOICES, transport_env
 
 NS = {"d": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
 #: Messages that arrive while a receive thread waits 100 ms for a core at issue 15's target rate.

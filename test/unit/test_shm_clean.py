@@ -1,4 +1,4 @@
-"""Stale Fast DDS shared-memory files (euc_ros.nodes.shm_clean), on real files and the real /proc.
+"""Stale Fast DDS shared-memory files (euc_ros.ros.shm_clean), on real files and the real /proc.
 
 The files live in a temporary directory standing in for /dev/shm (the functions take it as ``shm``);
 a child process maps one of them with mmap, as a Fast DDS participant maps its port, and /proc shows it.
@@ -10,7 +10,7 @@ import subprocess
 import sys
 import time
 
-from euc_ros.nodes.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files, stale_fastdds_files
+from euc_ros.ros.shm_clean import SHM_CLEAN_ENV, remove_stale_fastdds_files, stale_fastdds_files
 
 OLD = time.time() - 3600.0
 

@@ -15,7 +15,7 @@ the end of the 4-byte encapsulation header ``00 01 00 00``)::
 
 The field list is a message definition's ``(name, type)`` pairs, with nested float64-only structs
 (``geometry_msgs/Point``) already expanded into their fields (the node layer reads both from the
-generated class, :func:`euc_ros.nodes.convert.flat_fields`). Tested byte for byte against rclpy's
+generated class, :func:`euc_ros.ros.convert.flat_fields`). Tested byte for byte against rclpy's
 serializer (``test/unit/io/test_cdr_flat.py``).
 """
 from __future__ import annotations

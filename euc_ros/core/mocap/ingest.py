@@ -6,7 +6,10 @@
 * :class:`TrackingStats` counts per-body tracking, dropped frames (gaps in the frame number, or in the
   stamps when there is no frame number), duplicate, out-of-order and restarted frame numbers, for
   the diagnostics of the ``mocap_ingest`` node.
-* :func:`replay_schedule` gives the wall-clock offsets of a replay at a rate factor.
+* :func:`replay_schedule` gives the wall-clock offsets of a replay at a rate factor;
+  :class:`ReplayClock` the frames a replay has due at a wall-clock time, with their stamps.
+* :class:`ViewDecimator` picks the frames whose poses are shown at about a viewing rate.
+* :class:`SilenceWatch` says when a stream has been silent long enough to warn, and when it is back.
 * :func:`capture_start_ns` / :func:`format_capture_start` convert Motive's ``Capture Start Time``
   text to nanoseconds since the epoch and back (offline stamps are ``start + frame / rate``).
 
@@ -368,6 +371,220 @@ def replay_schedule(t: np.ndarray, rate_factor: float) -> np.ndarray:
     t = np.asarray(t, dtype=float)
     return (t - t[0]) / rate_factor if t.size else t
 
+
+
+class ReplayClock:
+    """The frames of a recording a replay has due at a wall-clock time, and their stamps.
+
+    Frame ``k`` is due ``replay_schedule(t, rate_factor)[k]`` seconds after the start; a looping replay
+    starts again one frame period after the last frame. Stamps are either replay stamps (the stamp
+    of the start plus the recorded time since the first frame, the loops' spans added, so they keep
+    increasing) or file stamps (the capture start plus the recorded time).
+
+    Parameters
+    ----------
+    t : (n,) array
+        Recorded frame times [s].
+    rate_factor : float
+        Replay speed relative to real time.
+    period_s : float
+        One frame period [s] (0 when unknown): the seam between two loops.
+    loop : bool
+        Start again at the end.
+    file_start_ns : int, optional
+        Capture start [ns] for file stamps; None for replay stamps.
+    """
+
+    def __init__(self, t, rate_factor: float, period_s: float, *, loop: bool = False,
+                 file_start_ns: int | None = None) -> None:
+        self.t = np.asarray(t, dtype=float)
+        self.n_frames = int(self.t.size)
+        self.rate_factor = float(rate_factor)
+        self.schedule = replay_schedule(self.t, rate_factor)
+        #: recorded time one loop covers [s]
+        self.loop_span_s = (float(self.t[-1] - self.t[0]) if self.n_frames else 0.0) + period_s
+        self.loop = bool(loop)
+        self.file_start_ns = file_start_ns
+        self.start_s: float | None = None
+        self.start_stamp_ns = 0
+        self.loop_index = 0
+        self.next = 0
+        self.done = False
+
+    @property
+    def started(self) -> bool:
+        """Whether :meth:`start` was called."""
+        return self.start_s is not None
+
+    def start(self, now_s: float, stamp_ns: int) -> None:
+        """Start the replay at wall-clock time ``now_s`` [s]; replay stamps start at ``stamp_ns``."""
+        self.start_s = float(now_s)
+        self.start_stamp_ns = int(stamp_ns)
+
+    def due(self, now_s: float) -> tuple[list[tuple[int, int]], str | None]:
+        """The frames due by ``now_s`` and not handed out yet, and what happened after them.
+
+        Returns
+        -------
+        frames : list of (int, int)
+            ``(index into t, stamp [ns])``, in order.
+        event : str or None
+            ``"loop"`` when the replay started again after these frames (frame numbers restart),
+            ``"end"`` when it ended, else None.
+        """
+        if self.start_s is None or self.done:
+            return [], None
+        t, n = self.t, self.n_frames
+        t0 = float(t[0]) if n else 0.0
+        elapsed = now_s - self.start_s - self.loop_index * self.loop_span_s / self.rate_factor
+        out = []
+        while self.next < n and self.schedule[self.next] <= elapsed:
+            k = self.next
+            if self.file_start_ns is not None:
+                stamp = self.file_start_ns + int(round(float(t[k]) * 1e9))
+            else:
+                stamp = self.start_stamp_ns + int(round((float(t[k]) - t0 + self.loop_index * self.loop_span_s) * 1e9))
+            out.append((k, stamp))
+            self.next += 1
+        if self.next < n:
+            return out, None
+        if self.loop and n:
+            self.next = 0
+            self.loop_index += 1
+            return out, "loop"
+        self.done = True
+        return out, "end"
+
+
+class ViewDecimator:
+    """Which frames' poses are shown when viewers need at most about ``view_rate_hz``.
+
+    A source at a multiple of the view rate is decimated by a whole factor: at a source rate ``r``
+    every ``ceil(0.75 r / view_rate_hz)``-th frame is shown (every frame up to the view rate, every
+    3rd at 360 Hz for 120 Hz). The factor applies to **frame numbers** when the frames have them and
+    the source rate is known (``source_rate_hz``) or measured from the numbered frames (over
+    :attr:`MEASURE_S` of stamps, which averages their jitter out; every frame is shown meanwhile).
+    Frames without numbers (-1) are decimated by stamp: a frame is shown when 3/4 of the view period
+    has passed since the last one shown. Stamps that jitter (receive time minus latency) would fail
+    the frame-number rule's promise on the stamp rule.
+
+    Parameters
+    ----------
+    view_rate_hz : float
+        Viewing rate [Hz]; 0 shows every frame.
+    source_rate_hz : float, optional
+        Frame rate of the source, when known [Hz].
+    """
+
+    #: Stamp span over which the frame rate of numbered frames is measured [s].
+    MEASURE_S = 1.0
+    #: Frames of the measurement, at least.
+    MEASURE_FRAMES = 10
+    #: A factor within this of a whole number is that number (a measured 480.2 Hz at 120 Hz: 3, not 4).
+    FACTOR_TOLERANCE = 0.01
+
+    def __init__(self, view_rate_hz: float, source_rate_hz: float | None = None) -> None:
+        self.view_rate_hz = float(view_rate_hz)
+        known = source_rate_hz is not None and np.isfinite(source_rate_hz) and source_rate_hz > 0
+        self.known_rate_hz = float(source_rate_hz) if known else None
+        self.factor: int | None = self._factor(self.known_rate_hz) if known and self.view_rate_hz > 0 else None
+        self._measured: float | None = None
+        self._first: tuple[int, int] | None = None      # (frame number, stamp) the measurement starts at
+        self._last_number: int | None = None
+        self._last_stamp_ns: int | None = None
+
+    def _factor(self, rate_hz: float) -> int:
+        return max(1, int(np.ceil(0.75 * rate_hz / self.view_rate_hz - self.FACTOR_TOLERANCE)))
+
+    @property
+    def source_rate_hz(self) -> float | None:
+        """The source rate the frame-number rule uses (known or measured), None before it is."""
+        return self.known_rate_hz if self.known_rate_hz is not None else self._measured
+
+    def due(self, frame_number: int, stamp_ns: int) -> bool:
+        """Whether this frame's poses are shown."""
+        if self.view_rate_hz <= 0:
+            return True
+        if frame_number < 0:
+            return self._due_by_stamp(int(stamp_ns))
+        number = int(frame_number)
+        last = self._last_number
+        if last is not None and number < last:           # numbering restarted: start again
+            self._first, last = None, None
+            if self.known_rate_hz is None:
+                self.factor, self._measured = None, None
+        if self.factor is None:
+            self._measure(number, int(stamp_ns))
+        if last is None or self.factor is None or number - last >= self.factor:
+            self._last_number = number
+            return True
+        return False
+
+    def _measure(self, number: int, stamp_ns: int) -> None:
+        if self._first is None:
+            self._first = (number, stamp_ns)
+            return
+        n0, s0 = self._first
+        span_s = (stamp_ns - s0) * 1e-9
+        if span_s >= self.MEASURE_S and number - n0 >= self.MEASURE_FRAMES:
+            self._measured = (number - n0) / span_s
+            self.factor = self._factor(self._measured)
+
+    def _due_by_stamp(self, stamp_ns: int) -> bool:
+        last = self._last_stamp_ns
+        if last is None or stamp_ns < last or stamp_ns - last >= 0.75e9 / self.view_rate_hz:
+            self._last_stamp_ns = stamp_ns
+            return True
+        return False
+
+
+class SilenceWatch:
+    """When a stream has been silent long enough to say so, and when it is back.
+
+    Parameters
+    ----------
+    warn_after_s : float
+        Silence (since the start, or since the last data) before the first warning [s].
+    repeat_s : float
+        Period of the warnings while the silence lasts [s].
+    """
+
+    def __init__(self, warn_after_s: float = 3.0, repeat_s: float = 10.0) -> None:
+        self.warn_after_s = float(warn_after_s)
+        self.repeat_s = float(repeat_s)
+        self.started_s: float | None = None
+        self.last_data_s: float | None = None
+        self.warned_s: float | None = None
+        self.ever = False
+
+    def start(self, now_s: float) -> None:
+        """Start watching at ``now_s`` [s]."""
+        self.started_s = float(now_s)
+
+    def data(self, now_s: float) -> float | None:
+        """Data arrived at ``now_s``; returns how long the stream was silent when this is news
+        (the first data, or the first after a warned silence) [s], else None."""
+        since = self.last_data_s if self.last_data_s is not None else self.started_s
+        news = not self.ever or self.warned_s is not None
+        self.last_data_s = float(now_s)
+        self.ever = True
+        self.warned_s = None
+        if not news:
+            return None
+        return 0.0 if since is None else max(0.0, float(now_s) - since)
+
+    def check(self, now_s: float) -> float | None:
+        """How long the stream has been silent when a warning is due at ``now_s`` [s], else None."""
+        since = self.last_data_s if self.last_data_s is not None else self.started_s
+        if since is None:
+            return None
+        silent = float(now_s) - since
+        if silent < self.warn_after_s:
+            return None
+        if self.warned_s is not None and now_s - self.warned_s < self.repeat_s:
+            return None
+        self.warned_s = float(now_s)
+        return silent
 
 # ------------------------------------------------------------------------------------------ start time
 #: Afternoon markers Motive writes after the time, by locale (compared without case and dots).

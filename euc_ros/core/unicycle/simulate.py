@@ -22,12 +22,13 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.rotations import quat_from_yaw_tilt_pitch
 from euc_ros.core.unicycle.dynamics import STATE_NAMES, UnicycleParams, scalar_rhs
 
 __all__ = [
     "STATUS_OK", "STATUS_TILT", "STATUS_GROUND", "STATUS_NON_FINITE", "DEFAULT_DT", "DEFAULT_SUBSTEPS",
     "DEFAULT_MAX_TILT", "domain_status", "rk4_step", "UnicycleSimulator", "SimulationResult", "simulate",
-    "ManeuverMetrics", "maneuver_metrics", "reference_path",
+    "ManeuverMetrics", "maneuver_metrics", "reference_path", "wheel_pose",
 ]
 
 STATUS_OK = "ok"
@@ -55,6 +56,18 @@ def domain_status(x, params: UnicycleParams, max_tilt: float = DEFAULT_MAX_TILT)
     if params.R * math.cos(th) + r * math.sin(th) <= 0:
         return STATUS_GROUND
     return STATUS_OK
+
+
+def wheel_pose(x, params: UnicycleParams) -> tuple[np.ndarray, np.ndarray]:
+    """Position of the wheel centre ``(x_G, y_G, R cos(theta))`` [m] and body quaternion (x, y, z, w).
+
+    The body frame is F2 (eq (73)) turned by the rolling angle ``phi`` about the axle:
+    ``Rz(psi) Rx(theta) Ry(phi)`` (yaw, tilt about the forward axis, rolling angle about the axle;
+    :func:`euc_ros.core.rotations.quat_from_yaw_tilt_pitch`), REP-103 world frame.
+    """
+    x = np.asarray(x, dtype=float)
+    pos = np.array([x[8], x[9], params.R * math.cos(x[3])])
+    return pos, quat_from_yaw_tilt_pitch(x[6], x[3], x[7])
 
 
 def rk4_step(params: UnicycleParams, x: list[float], u: float, h: float) -> list[float]:

@@ -165,7 +165,7 @@ def test_syntax_errors_and_empty_files_unchanged(tmp_path):
 @pytest.mark.ros
 def test_duplicate_key_in_a_node_params_file(tmp_path):
     pytest.importorskip("rclpy")
-    from euc_ros.nodes.params import ParamSpec, validate_params_file
+    from euc_ros.ros.params import ParamSpec, validate_params_file
 
     path = tmp_path / "params.yaml"
     path.write_text("rider_state:\n  ros__parameters:\n    window_s: 0.9\n    window_s: 0.5\n")

@@ -12,7 +12,7 @@ rclpy_serialization = pytest.importorskip("rclpy.serialization")
 euc_msgs = pytest.importorskip("euc_msgs.msg")
 
 from euc_ros.core.io.cdr_flat import FlatEncoder  # noqa: E402
-from euc_ros.nodes.convert import flat_fields, ns_to_stamp  # noqa: E402
+from euc_ros.ros.convert import flat_fields, ns_to_stamp  # noqa: E402
 
 
 def _build(cls, stamp_ns, frame_id, fields, values):

@@ -9,7 +9,7 @@ euc_msgs = pytest.importorskip("euc_msgs.msg", reason="the euc_msgs interfaces a
 
 from euc_ros.core.io import cdr_frame  # noqa: E402
 from euc_ros.core.mocap.ingest import Frame  # noqa: E402
-from euc_ros.nodes import convert  # noqa: E402
+from euc_ros.ros import convert  # noqa: E402
 
 MocapFrame = euc_msgs.MocapFrame
 

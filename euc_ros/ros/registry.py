@@ -24,7 +24,7 @@ def write_default_configs(config_dir: str = "config", names=None) -> list[str]:
     """(Re)write ``config/<node>.yaml`` from the nodes' ParamSpec tables; returns the paths."""
     from pathlib import Path
 
-    from euc_ros.nodes.params import render_params_yaml
+    from euc_ros.ros.params import render_params_yaml
 
     out = []
     for name in names or NODES:

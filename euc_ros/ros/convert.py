@@ -192,3 +192,78 @@ def flat_fields(msg_class) -> list[tuple[str, str]]:
         raise ValueError(f"{msg_class.__name__} has no header")
     walk(msg_class, "", fields)
     return fields
+
+
+# -- the autonomous unicycle ------------------------------------------------------------------------------------------
+#: UnicycleState's state fields, in the order of the state of eq (37)
+#: (:data:`~euc_ros.core.unicycle.dynamics.STATE_NAMES`).
+UNICYCLE_STATE_FIELDS = ("omega1", "omega2", "omega3", "theta", "sigma", "r", "psi", "phi", "x_g", "y_g")
+
+
+def unicycle_state_to_msg(x, u: float, step: int, stamp_ns: int, status: str, frame_id: str = "world"):
+    """State ``x`` (10,) of eq (37) -> ``euc_msgs/UnicycleState`` (fields in :data:`UNICYCLE_STATE_FIELDS` order)."""
+    from euc_msgs.msg import UnicycleState
+
+    msg = UnicycleState()
+    msg.header.stamp = ns_to_stamp(stamp_ns)
+    msg.header.frame_id = frame_id
+    (msg.omega1, msg.omega2, msg.omega3, msg.theta, msg.sigma, msg.r, msg.psi, msg.phi, msg.x_g,
+     msg.y_g) = (float(v) for v in x)
+    msg.u = float(u)
+    msg.step = int(step)
+    msg.status = status
+    return msg
+
+
+def msg_to_unicycle_state(msg) -> np.ndarray:
+    """``UnicycleState`` (rclpy or rosbags message) -> state (10,) of eq (37)."""
+    return np.array([getattr(msg, f) for f in UNICYCLE_STATE_FIELDS], dtype=float)
+
+
+# -- flat estimates, serialized without message objects (core/io/cdr_flat) ------------------------------------------
+#: RiderState's fields after the header, in the message's order (what :func:`rider_state_values` gives).
+RIDER_STATE_FIELDS = ("has_rider", "x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",
+                      "phi_ddot", "phi_eq3", "phi_hinge", "phi_definition", "psi", "theta", "c.x", "c.y", "c.z",
+                      "g.x", "g.y", "g.z", "filter_lag")
+#: TorqueEstimate's fields after the header, in the message's order (what :func:`torque_values` gives).
+TORQUE_FIELDS = ("valid", "m_d1", "m_d2", "m_d1_2dof", "m_d2_2dof", "h", "residual", "rmse_window", "window",
+                 "h_online", "h_online_std", "model", "h_online_status")
+
+
+def checked_flat_fields(msg_class, expected: tuple) -> list[tuple[str, str]]:
+    """:func:`flat_fields` of ``msg_class``, which must be ``expected`` (the values functions write that order)."""
+    fields = flat_fields(msg_class)
+    if tuple(n for n, _ in fields) != expected:      # the interface changed: update the values function
+        raise RuntimeError(f"{msg_class.__name__} fields {[n for n, _ in fields]} differ from {expected}")
+    return fields
+
+
+def rider_state_values(s) -> tuple:
+    """A rider-state sample's field values in the order of :data:`RIDER_STATE_FIELDS` (RiderState after its header)."""
+    C, G = s.C, s.G
+    return (bool(s.has_rider), float(s.x), float(s.x_dot), float(s.x_ddot), float(s.gamma), float(s.gamma_dot),
+            float(s.gamma_ddot), float(s.phi), float(s.phi_dot), float(s.phi_ddot), float(s.phi_eq3),
+            float(s.phi_hinge), s.phi_definition, float(s.psi), float(s.theta), float(C[0]), float(C[1]),
+            float(C[2]), float(G[0]), float(G[1]), float(G[2]), float(s.filter_lag_s))
+
+
+def torque_values(out) -> tuple:
+    """A torque sample's field values in the order of :data:`TORQUE_FIELDS` (TorqueEstimate after its header)."""
+    return (True, float(out.M_d1), float(out.M_d2), float(out.M_d1_2dof), float(out.M_d2_2dof), float(out.h_m),
+            float(out.residual_nm), float(out.rmse_window_nm), float(out.window_s), float(out.h_online_m),
+            float(out.h_online_std_m), out.model, out.h_online_status)
+
+
+def bag_qos(profile) -> "Qos":
+    """A publisher's offered QoS (rclpy) as rosbag2 stores it in ``offered_qos_profiles`` (rosbags' Qos:
+    the same policy numbers as rmw; durations as sec/nsec, infinite = rmw's 9223372036 s 854775807 ns)."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    def duration(d) -> QosTime:
+        ns = int(d.nanoseconds)
+        return QosTime(ns // 1_000_000_000, ns % 1_000_000_000)
+
+    return Qos(QosHistory(int(profile.history)), int(profile.depth), QosReliability(int(profile.reliability)),
+               QosDurability(int(profile.durability)), duration(profile.deadline), duration(profile.lifespan),
+               QosLiveliness(int(profile.liveliness)), duration(profile.liveliness_lease_duration),
+               bool(profile.avoid_ros_namespace_conventions))

@@ -1,7 +1,11 @@
 """The Jazzy node lifecycle, written once: init, spin, clean shutdown on SIGINT/SIGTERM.
 
 In rclpy 7.1 (Jazzy) both SIGINT and SIGTERM end ``spin`` with ``ExternalShutdownException``;
-``rclpy.init`` returns None (no context manager, unlike rolling).
+``rclpy.init`` returns None (no context manager, unlike rolling). A node stopped by a signal exits
+with code 0, whether it was spinning or still starting (a node executable: :mod:`euc_ros.ros.startup`
+until ``rclpy.init`` has returned). The nodes spin on :class:`~euc_ros.ros.executor.LeanExecutor`,
+rclpy's public executor where :mod:`~euc_ros.ros.rclpy_compat` refuses rclpy's private API (said once
+on the console).
 """
 from __future__ import annotations
 
@@ -14,12 +18,15 @@ from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
 from euc_ros.core.errors import EucError
-from euc_ros.nodes.executor import LeanExecutor, wait_for_context_shutdown
-from euc_ros.nodes.params import params_files_in, validate_params_file
+from euc_ros.ros import rclpy_compat, startup
+from euc_ros.ros.executor import LeanExecutor, wait_for_context_shutdown
+from euc_ros.ros.params import params_files_in, validate_params_file
 from euc_ros.sched import realtime_from_env
 
 #: How long an exception raised inside spin waits for a signal-triggered shutdown to complete [s].
 SHUTDOWN_RACE_S = 0.5
+#: Whether :func:`drain` takes messages itself (rclpy's private API allowed in this process).
+_TAKE_DIRECTLY = rclpy_compat.private_api_problem() is None
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
@@ -53,6 +60,7 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
         return 2
     realtime_from_env(label)            # before rclpy.init: the middleware's threads inherit it
     rclpy.init(args=args)
+    startup.running()                   # rclpy's signal handlers from now on (a quiet exit until here)
     nodes: list[Node] = []
     executor = None
     code = 0
@@ -64,6 +72,9 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
         executor = LeanExecutor()
         for node in nodes:
             executor.add_node(node)
+        if executor.public and nodes:
+            nodes[0].get_logger().warning(f"rclpy's public executor ({executor.public_reason}): each message costs "
+                                          "~0.45 ms more")
         # the set-up's objects (modules, nodes, sessions, a replayed recording's arrays) leave the cyclic
         # collector's scans: a collection while spinning looks only at what the stream made since
         gc.collect()
@@ -93,6 +104,7 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
                 close()
             node.destroy_node()
         rclpy.try_shutdown()
+        startup.stopped()
     return code
 
 
@@ -111,11 +123,15 @@ def drain(subscription, handler: Callable, limit: int = 256) -> int:
     executor wake-up instead of one spin per message, whose fixed cost (the Python executor rebuilds
     its wait set every spin) would otherwise keep the node behind. Order is kept: the messages come
     from the same queue, oldest first. ``limit`` bounds the time spent away from timers and services.
+    Taking needs rclpy's private API: where :mod:`~euc_ros.ros.rclpy_compat` refuses it, nothing is
+    taken here (the executor delivers each message).
     """
+    if not _TAKE_DIRECTLY:
+        return 0
     n = 0
+    take = rclpy_compat.take
     while n < limit:
-        with subscription.handle:
-            info = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+        info = take(subscription)
         if info is None:
             break
         handler(info[0])

@@ -5,17 +5,23 @@ machine), which at 360 Hz frames, states and torques is most of a node's CPU. A 
 need each message the moment it arrives (the recorder writes them, the monitor counts them) takes
 them through :class:`SubscriptionDrain` instead: one wake-up takes everything queued on every
 topic, then it polls every ``POLL_S`` while messages keep coming.
+
+The rcl subscriptions and the wait-set calls are rclpy's implementation level, reached only through
+:mod:`euc_ros.ros.rclpy_compat`; where its guard refuses, each topic gets a public raw subscription
+whose callback hands its one message to the sink (same messages, one executor cycle each).
 """
 from __future__ import annotations
 
 import time
 from contextlib import ExitStack
 
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
+from rclpy.event_handler import SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.type_support import check_for_type_support
 from rclpy.waitable import NumberOfEntities, Waitable
+
+from euc_ros.ros import rclpy_compat as compat
 
 
 class SubscriptionDrain(Waitable):
@@ -25,6 +31,18 @@ class SubscriptionDrain(Waitable):
     take its messages one by one); the executor waits on all of them through this waitable and, on
     a wake, :meth:`take_data` takes every message of every subscription until rcl has none left.
     :meth:`execute` hands them to ``sink([(topic, type name, datas), ...])``.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        Owner of the subscriptions (add the drain to it with ``node.add_waitable``).
+    sink : callable
+        ``sink([(topic, type name, [cdr bytes, ...]), ...])``.
+    poll_s, max_poll_s : float, optional
+        :attr:`POLL_S` and :attr:`MAX_POLL_S` of this drain.
+    public : bool, optional
+        True: public subscriptions, one message per callback. Otherwise they are public when
+        :func:`~euc_ros.ros.rclpy_compat.private_api_problem` finds a reason to.
     """
 
     #: Poll period while messages flow [s]: they wait in the DDS queues (the subscription's depth).
@@ -32,41 +50,56 @@ class SubscriptionDrain(Waitable):
     #: Longest polling stretch before the executor runs its other entities again [s].
     MAX_POLL_S = 0.05
 
-    def __init__(self, node: Node, sink, *, poll_s: float | None = None, max_poll_s: float | None = None) -> None:
+    def __init__(self, node: Node, sink, *, poll_s: float | None = None, max_poll_s: float | None = None,
+                 public: bool | None = None) -> None:
         super().__init__(node.default_callback_group)
         self._node = node
         self._sink = sink
         self.POLL_S = self.POLL_S if poll_s is None else float(poll_s)
         self.MAX_POLL_S = self.MAX_POLL_S if max_poll_s is None else float(max_poll_s)
+        self.public = bool(public) or compat.private_api_problem() is not None
         self.subs: list[tuple[str, str, object, type]] = []    # (topic, type name, rcl handle, class)
+        self._public_subs: list = []
         self._indices: list[int] = []
         self._stack: ExitStack | None = None
 
     def subscribe(self, topic: str, type_name: str, cls: type, qos: QoSProfile) -> None:
         """Subscribe ``topic`` (raw) and wait on it from the next executor cycle on."""
         check_for_type_support(cls)
-        with self._node.handle:
-            handle = _rclpy.Subscription(self._node.handle, cls, topic, qos.get_c_qos_profile())
+        if self.public:
+            def one(data, topic=topic, type_name=type_name):
+                self._sink([(topic, type_name, [data])])
+            self._public_subs.append(self._node.create_subscription(
+                cls, topic, one, qos, raw=True,
+                event_callbacks=SubscriptionEventCallbacks(use_default_callbacks=False)))
+            return
+        handle = compat.rcl_subscription(self._node, cls, topic, qos)
         self.subs.append((topic, type_name, handle, cls))
-        self._node._wake_executor()                 # the executor's wait set must grow
+        compat.wake_executor(self._node)            # the executor's wait set must grow
 
     def take_all(self) -> list[tuple[str, str, list[bytes]]]:
-        """Take every message each subscription holds: ``[(topic, type name, [cdr bytes...]), ...]``."""
+        """Take every message each subscription holds: ``[(topic, type name, [cdr bytes...]), ...]``.
+
+        Public subscriptions hand their messages over as they come: nothing is left to take.
+        """
         out = []
+        take = compat.take_raw
         for topic, type_name, handle, cls in self.subs:
             datas = []
-            take = handle.take_message
-            while (got := take(cls, True)) is not None:
-                datas.append(got[0])
+            while (data := take(handle, cls)) is not None:
+                datas.append(data)
             if datas:
                 out.append((topic, type_name, datas))
         return out
 
     def destroy(self) -> None:
-        """Destroy the rcl subscriptions (after the last :meth:`take_all`)."""
+        """Destroy the subscriptions (after the last :meth:`take_all`)."""
         for _, _, handle, _ in self.subs:
-            handle.destroy_when_not_in_use()
+            compat.destroy_handle(handle)
         self.subs = []
+        for sub in self._public_subs:
+            self._node.destroy_subscription(sub)
+        self._public_subs = []
 
     # -- Waitable API (rclpy 7.1) ----------------------------------------------------------------------------------
     def __enter__(self):
@@ -84,10 +117,10 @@ class SubscriptionDrain(Waitable):
         return NumberOfEntities(len(self.subs))
 
     def add_to_wait_set(self, wait_set) -> None:
-        self._indices = [wait_set.add_subscription(handle) for _, _, handle, _ in self.subs]
+        self._indices = [compat.add_to_wait_set(wait_set, handle) for _, _, handle, _ in self.subs]
 
     def is_ready(self, wait_set) -> bool:
-        return any(wait_set.is_ready("subscription", i) for i in self._indices)
+        return any(compat.subscription_ready(wait_set, i) for i in self._indices)
 
     def take_data(self):
         return self.take_all()

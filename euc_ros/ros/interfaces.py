@@ -49,6 +49,8 @@ LOCKSTEP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=64, reliability
                           durability=DurabilityPolicy.TRANSIENT_LOCAL)
 #: Diagnostics: reliable, shallow.
 DIAGNOSTICS_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10, reliability=ReliabilityPolicy.RELIABLE)
+#: Simulated time (/clock): reliable, so a use_sim_time node never sees time skip a step.
+CLOCK_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
 
 def sanitize(name: str) -> str:
