@@ -122,7 +122,8 @@ def evaluate(cleans, session, case: Case, seed: int, methods=COG_METHODS, *, wit
 
 def residual_verdict(cleans, session, case: Case, seed: int, method: str) -> dict:
     """Run the residual analysis (as ``euc-ros residual`` does) on an artefact-only ride."""
-    from euc_ros.core.residual.analysis import analyze, make_noise_floor
+    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.noise import make_noise_floor
 
     series, _ = recorded(cleans, case, seed)
     s_an = analysis_session(session, case, seed)

@@ -166,12 +166,12 @@ def _extended_inputs(states, params, effects: dict) -> list[tuple[dict, dict]]:
     The samples are the recording's valid ones (those of the paper's models) with a finite yaw and
     tilt; the yaw rate is the Savitzky-Golay derivative of the (unwrapped) yaw with the states' own
     window. With ``mocap_time_offset``, which needs the time-shift hook of the residual analysis, the
-    inputs are those of :func:`euc_ros.core.residual.analysis.prepare` (its sample set).
+    inputs are those of :func:`euc_ros.core.residual.data.prepare` (its sample set).
     """
     from euc_ros.core.filters.derivatives import savgol_derivatives
 
     if "mocap_time_offset" in effects:
-        from euc_ros.core.residual.analysis import prepare
+        from euc_ros.core.residual.data import prepare
 
         out = []
         for rec in prepare(states, params):

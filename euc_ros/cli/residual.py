@@ -26,7 +26,8 @@ HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
     from euc_ros.core.model.effects import LIBRARY
-    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
+    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN
+    from euc_ros.core.residual.data import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
@@ -72,7 +73,8 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.cli.outputs import Output, check_outputs
     from euc_ros.core.model.effects import make_candidates
     from euc_ros.core.model.terms import EucParams
-    from euc_ros.core.residual.analysis import analyze, make_noise_floor
+    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.noise import make_noise_floor
     from euc_ros.core.session import load_session
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
@@ -239,7 +241,8 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png, floor.png (the
     floor measured from the contact path) and h_range.png (h of every model the data cannot tell apart)."""
     from euc_ros.cli.plots import pyplot, save_figure
-    from euc_ros.core.residual.analysis import Model, prepare
+    from euc_ros.core.residual.selection import Model
+    from euc_ros.core.residual.data import prepare
     from euc_ros.core.residual.floor import contact_heights
 
     plt = pyplot()

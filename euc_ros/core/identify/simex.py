@@ -29,7 +29,7 @@ SIMEX_SEED = 1
 class SimexShare:
     """The first replicate of :func:`eiv_bias` (pair 1, ``+z``), made once for two uses.
 
-    The residual's noise floor (:func:`euc_ros.core.residual.analysis.make_noise_floor`) is one
+    The residual's noise floor (:func:`euc_ros.core.residual.noise.make_noise_floor`) is one
     re-noised reconstruction of the recordings, which is what a SIMEX replicate is. Made by
     :func:`first_replicate`, its h is kept here (with the noise estimate and what it was made with),
     and :func:`eiv_bias` given the same object and the same settings takes that h instead of

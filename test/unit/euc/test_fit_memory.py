@@ -66,7 +66,7 @@ def test_pooled_h_of_states_is_identify_h_and_drops_the_states(ride):
 
 def test_time_shift_hook_is_the_eager_whole_recording_one(ride, monkeypatch):
     from euc_ros.core.filters.derivatives import savgol_coefficients
-    from euc_ros.core.residual import analysis as A
+    from euc_ros.core.residual import data as A
 
     _, params, states = ride
     st = states[0]

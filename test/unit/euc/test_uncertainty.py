@@ -154,7 +154,9 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     """The residual's noise floor reconstructs SIMEX's first replicate once (SimexShare); eiv_bias given the
     share returns exactly what it returns when it reconstructs that replicate itself, and the share holds
     the h of that replicate's states (not, e.g., of the recording as given)."""
-    from euc_ros.core.residual.analysis import Model, fit_base_h, make_noise_floor, prepare
+    from euc_ros.core.residual.selection import Model, fit_base_h
+    from euc_ros.core.residual.noise import make_noise_floor
+    from euc_ros.core.residual.data import prepare
 
     ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=3))
     params, states, fit = _identify(ride)

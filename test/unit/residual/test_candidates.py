@@ -11,7 +11,8 @@ import pytest
 
 from euc_ros.core.model.effects import LIBRARY, ModelContext, make_candidates, theta_from_report
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.analysis import Model, Recording, detectability
+from euc_ros.core.residual.selection import Model, detectability
+from euc_ros.core.residual.data import Recording
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
