@@ -2,7 +2,7 @@
 
 Usage: .venv/bin/python studies/paper_table.py
 """
-from euc_ros.core.identify.fit import identify_h
+from euc_ros.core.identify.fit import fit_h
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
@@ -16,7 +16,7 @@ print("|---|---|---|---|---|")
 for maneuver, runs, effects, params in ROWS:
     res = simulate_ride(RideConfig(maneuver=maneuver, runs=runs, seed=1, effects=make_effects(effects, params)))
     states = [reconstruct_states(r.mocap, res.session) for r in res.runs]
-    out = identify_h(states, EucParams.from_session(res.session)).to_json()
+    out = fit_h(states, EucParams.from_session(res.session)).to_json()
     pooled = {m: out["models"][m] for m in ("3dof", "2dof")}
     print(f"| {maneuver}{' + ' + '+'.join(effects) if effects else ''} | {runs} | "
           + " | ".join(f"{pooled[m]['h_m']:.3f}, {pooled[m]['rmse_nm']:.2f}" for m in ("3dof", "2dof"))

@@ -5,7 +5,7 @@ rate), so sampling it at 60, 100, ..., 1000 Hz gives the same ride captured by d
 For every rate this measures
 
 * offline: ``reconstruct_states`` (Savitzky-Golay, same window in seconds) and the pooled 3-DoF h of
-  ``identify_h``;
+  ``fit_h``;
 * live: the nodes' cores frame by frame (:class:`~euc_ros.core.online.estimators.RiderStateEstimator`
   -> :class:`~euc_ros.core.online.estimators.TorqueEstimator`), the final online h;
 * the driving torques M_d1, M_d2 at the true h, interpolated onto the reference rate's capture
@@ -39,14 +39,14 @@ def simulate_at(rate_hz: float, *, runs: int = 3, seed: int = 5, noise: bool = T
 
 def offline(ride, h_true: float):
     """Offline states per run, the pooled 3-DoF h and the torques at ``h_true``."""
-    from euc_ros.core.identify.fit import identify_h
+    from euc_ros.core.identify.fit import fit_h
     from euc_ros.core.model.terms import EucParams
     from euc_ros.core.model.torque import torques
     from euc_ros.core.states.kinematics import reconstruct_states
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)
     states = [reconstruct_states(r.mocap, ride.session) for r in ride.runs]
-    h = identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m
+    h = fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m
     series = []
     for st in states:
         m1, m2 = torques(st.gamma, st.phi, st.gamma_dot, st.phi_dot, st.x_ddot, st.gamma_ddot, st.phi_ddot, params)

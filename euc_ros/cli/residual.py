@@ -26,8 +26,7 @@ HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
     from euc_ros.core.model.effects import LIBRARY
-    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN
-    from euc_ros.core.residual.data import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
+    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
@@ -91,6 +90,7 @@ def main(args: argparse.Namespace) -> int:
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     series = [st.meta.get("series") for st in states]
     # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
+    from euc_ros.core.identify.cog_height import identify_h
     from euc_ros.core.identify.simex import SimexShare
 
     simex = SimexShare()
@@ -101,12 +101,8 @@ def main(args: argparse.Namespace) -> int:
                      discover=not args.no_discovery, noise_floor_of=noise_of, progress=say)
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
-    from euc_ros.cli.identify import uncertainty
-    from euc_ros.core.identify.budget import DEFAULT_TOLERANCES
-    from euc_ros.core.identify.fit import identify_h
-
-    base = uncertainty(states, session, params, identify_h(states, params, models=("3dof",)), args,
-                       DEFAULT_TOLERANCES, with_budget=False, simex_share=simex)
+    base = identify_h(states, session, params, models=("3dof",), with_budget=False, window_s=args.window_s,
+                      polyorder=args.polyorder, cog_method=args.cog_method, simex_share=simex).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     data["uncertainty"] = base["uncertainty"]
@@ -242,8 +238,8 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     floor measured from the contact path) and h_range.png (h of every model the data cannot tell apart)."""
     from euc_ros.cli.plots import pyplot, save_figure
     from euc_ros.core.residual.selection import Model
-    from euc_ros.core.residual.data import prepare
-    from euc_ros.core.residual.floor import contact_heights
+    from euc_ros.core.states.contexts import prepare
+    from euc_ros.core.states.floor import contact_heights
 
     plt = pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -137,7 +137,7 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     def h_of(draws, sign):
         states = _replicate_states(series_list, noise, draws, sign, session, window_s=window_s, polyorder=polyorder,
                                    phi_definition=phi_definition, cog_method=cog_method)
-        # identify_h's pooled 3-DoF h, the states dropped once reduced to their coefficients
+        # fit_h's pooled 3-DoF h, the states dropped once reduced to their coefficients
         return pooled_h_of_states(states, params)
 
     hs = []

@@ -223,7 +223,7 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
         ``sliding_rms_max_m``, ``sliding_bias_m`` and its standard error ``sliding_bias_err_m``
         (0 and 0 below :data:`MIN_SLIDING_M`; NaN without a finite h).
     """
-    from euc_ros.core.identify.fit import identify_h
+    from euc_ros.core.identify.fit import fit_h
     from euc_ros.core.states.kinematics import reconstruct_states
     from euc_ros.core.states.skeleton import SkeletonModel
 
@@ -243,7 +243,7 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
             skel = SkeletonModel.estimate(noisy, session) if cog_method == "skeleton" else None
             states = [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
                                          polyorder=polyorder, cog_method=cog_method, skeleton=skel) for s in noisy]
-            hs[level].append(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
+            hs[level].append(fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
             del noisy, skel, states           # before the next replicate's are made
     h2, h3 = float(np.nanmean(hs[1])), float(np.nanmean(hs[2]))
     h0 = 3.0 * h - 3.0 * h2 + h3

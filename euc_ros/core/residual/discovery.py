@@ -38,9 +38,9 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.model.effects import Candidate, ParamInfo, jacobian_G
-from euc_ros.core.residual.data import Recording
 from euc_ros.core.residual.selection import H_BOUNDS, HeldOut, Model, fit_model, held_out
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
+from euc_ros.core.states.contexts import Recording
 
 #: Most terms a discovered model may have.
 MAX_TERMS = 4

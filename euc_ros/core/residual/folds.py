@@ -10,8 +10,7 @@ from typing import Sequence
 import numpy as np
 from scipy import signal
 
-from euc_ros.core.residual.data import Recording
-
+from euc_ros.core.states.contexts import Recording
 
 #: Fewest folds of the held-out evaluation (segments per run = ceil(this / runs), at least 2).
 MIN_FOLDS = 6

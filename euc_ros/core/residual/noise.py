@@ -27,9 +27,9 @@ import numpy as np
 from euc_ros.core.identify.simex import SIMEX_SEED, first_replicate
 from euc_ros.core.mocap.noise import renoised
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.data import ANALYSIS_RATE_HZ, prepare
-from euc_ros.core.residual.floor import floor_from_states
 from euc_ros.core.residual.selection import Model
+from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, prepare
+from euc_ros.core.states.floor import floor_from_states
 from euc_ros.core.states.kinematics import RiderStates, reconstruct_states
 
 

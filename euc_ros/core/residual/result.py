@@ -8,8 +8,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from euc_ros.core.residual.floor import FloorFit
 from euc_ros.core.residual.selection import HeldOut, Model
+from euc_ros.core.states.floor import FloorFit
 
 
 @dataclass

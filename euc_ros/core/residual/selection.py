@@ -18,10 +18,9 @@ from scipy import optimize
 from euc_ros.core.model.effects import Candidate
 from euc_ros.core.model.terms import EucParams, consistency_weights
 from euc_ros.core.model.torque import torque_difference
-from euc_ros.core.residual.data import Recording, hinge_path
 from euc_ros.core.residual.folds import folds_of
+from euc_ros.core.states.contexts import Recording, hinge_path
 from euc_ros.core.states.kinematics import RiderStates
-
 
 #: Relative tolerance of the least-squares fits: a cost change of 1e-6 moves a parameter by ~1e-3 of its
 #: standard error, far below what the selection can resolve (scipy's default 1e-8 took ~40 evaluations).

@@ -1,6 +1,8 @@
-"""The residual analysis' input: reconstructed recordings turned into model contexts of their valid
-samples (decimated to the analysis rate, :func:`decimation_step`), with the hooks some candidates need:
-the rider CoG shifted in time (``phi_shift``), the floor's slope under the wheel, the path travelled.
+"""Reconstructed recordings as the model's evaluation contexts: the valid samples of each run as a
+:class:`~euc_ros.core.model.effects.ModelContext` (decimated to an analysis rate, :func:`decimation_step`),
+with the hooks some effects need: the rider CoG shifted in time (``phi_shift``), the floor's slope under
+the wheel, the path travelled. The residual analysis and the identification with an extended model
+evaluate their models on these.
 """
 from __future__ import annotations
 
@@ -13,19 +15,9 @@ import numpy as np
 from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
 from euc_ros.core.model.effects import ModelContext
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.floor import FloorFit, slope_along_path
+from euc_ros.core.states.floor import FloorFit, slope_along_path
 from euc_ros.core.states.geometry import to_moving_frame
-from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates
-
-
-#: Savitzky-Golay settings of the residual analysis: the project defaults (measured: with a 0.9 s
-#: quartic the attenuation of the accelerations inflated inertia-type parameters, rider mass by
-#: +25-30 %; 1.2 s / order 6 keeps the noise floor with less bias, rider mass within 15 %).
-RESIDUAL_WINDOW_S = DEFAULT_WINDOW_S
-
-
-RESIDUAL_POLYORDER = DEFAULT_SG_POLYORDER
-
+from euc_ros.core.states.kinematics import RiderStates
 
 #: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
 DEFAULT_BLOCK_S = 1.0

@@ -18,7 +18,8 @@ What the fit can say, and what it cannot:
   (:func:`rolling_radius_from_floor`). A radius is never inferred from a floor the fit cannot explain.
 
 :func:`floor_from_states` fits the contact path of reconstructed runs; a radius measured so enters the
-residual analysis' model as :class:`MeasuredWheelRadius` (its parameter given, not fitted).
+residual analysis' model with its parameter given, not fitted
+(:class:`~euc_ros.core.residual.analysis.MeasuredWheelRadius`).
 """
 from __future__ import annotations
 
@@ -29,7 +30,6 @@ from typing import Sequence
 import numpy as np
 from scipy import ndimage
 
-from euc_ros.core.model.effects import Candidate
 from euc_ros.core.states.kinematics import RiderStates
 
 #: Length of path over which the smooth deviation from the plane is the running median [m].
@@ -259,7 +259,7 @@ RADIUS_TOL_M = 0.005
 
 
 def floor_from_states(states: Sequence[RiderStates], radius: float):
-    """The floor fit (:func:`euc_ros.core.residual.floor.fit_floor`) of the contact path of every run."""
+    """The floor fit (:func:`euc_ros.core.states.floor.fit_floor`) of the contact path of every run."""
     if not states:
         return None
     C = np.concatenate([st.C for st in states])
@@ -269,17 +269,3 @@ def floor_from_states(states: Sequence[RiderStates], radius: float):
     return fit_floor(C, theta, valid, radius, seg)
 
 
-class MeasuredWheelRadius(Candidate):
-    """wheel_radius_error with its parameter measured (wheel-centre height), not fitted."""
-
-    name = "wheel_radius_error"
-    params = ()
-
-    def __init__(self, delta: float):
-        self.delta = float(delta)
-
-    def modify(self, ctx, theta):
-        ctx.overrides["R"] = ctx.params.R + self.delta
-
-    def report(self, theta):
-        return {"delta_r_m": self.delta}
