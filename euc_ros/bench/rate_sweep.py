@@ -21,6 +21,10 @@ from typing import Sequence
 
 import numpy as np
 
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
+from euc_ros.core.session import default_session
+
 #: The rates of the README table [Hz].
 RATES_HZ = (60, 100, 120, 180, 240, 360, 500, 1000)
 
@@ -29,7 +33,6 @@ def simulate_at(rate_hz: float, *, runs: int = 3, seed: int = 5, noise: bool = T
     """The simulator's ride with ``seed`` captured at ``rate_hz`` (session ``rate_hz`` set to it)."""
     from euc_ros.core.ridesim.mocap_synth import MocapNoise
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
-    from euc_ros.core.session import default_session
 
     session = dataclasses.replace(default_session("y"), rate_hz=float(rate_hz))
     cfg = RideConfig(maneuver=maneuver, runs=runs, seed=seed, session=session,
@@ -40,8 +43,6 @@ def simulate_at(rate_hz: float, *, runs: int = 3, seed: int = 5, noise: bool = T
 def offline(ride, h_true: float):
     """Offline states per run, the pooled 3-DoF h and the torques at ``h_true``."""
     from euc_ros.core.identify.fit import fit_h
-    from euc_ros.core.model.terms import EucParams
-    from euc_ros.core.model.torque import torques
     from euc_ros.core.states.kinematics import reconstruct_states
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)
@@ -57,7 +58,6 @@ def offline(ride, h_true: float):
 
 def live(ride, h_true: float):
     """The live cores frame by frame; returns the final online h and the torques per run."""
-    from euc_ros.core.model.terms import EucParams
     from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)

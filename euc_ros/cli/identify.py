@@ -28,11 +28,13 @@ import numpy as np
 from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
                                  usage_table)
 from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.cli.plots import plot_ride_states, plot_rmse_curves
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.identify.budget import parse_tolerances
 from euc_ros.core.identify.cog_height import HIdentification, identify_h
 from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
 from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
 from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.states.skeleton import COG_METHODS
@@ -258,9 +260,6 @@ def main(args: argparse.Namespace) -> int:
 
 def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     """Write ``<recording>_states.png`` per recording and ``rmse_curves.png`` into ``out_dir``."""
-    from euc_ros.cli.plots import plot_ride_states, plot_rmse_curves
-    from euc_ros.core.model.torque import torques
-
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for rec, st in zip(result.per_recording, states):

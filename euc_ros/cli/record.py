@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 
 from euc_ros import launch
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.nodes import interfaces as itf
 
 HELP = "record topics into a rosbag2 bag with MCAP storage (Ctrl-C to stop; the bag is closed cleanly)"
@@ -21,8 +22,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the recorder until Ctrl-C or ``--duration``."""
-    from euc_ros.cli.outputs import Output, check_outputs
-
     check_outputs([Output("output", args.output, "dir")])
     params = {"output": args.output, "all_topics": args.all, "chunk_size": args.chunk_size}
     if args.topics:

@@ -10,6 +10,10 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.core.errors import InputError
+from euc_ros.core.io.bags import recover_bag
+
 HELP = "rebuild a readable bag from a truncated or metadata-less one (recorder killed)"
 
 
@@ -21,10 +25,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Recover; 0 when messages were recovered (InputError: exit 2 via the dispatcher)."""
-    from euc_ros.cli.outputs import Output, check_outputs
-    from euc_ros.core.errors import InputError
-    from euc_ros.core.io.bags import recover_bag
-
     src = Path(args.bag)
     if not src.exists():
         raise InputError("no such file or directory", path=src)

@@ -13,19 +13,26 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
+                                 usage_table)
+from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.cli.plots import pyplot, save_figure
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.model.effects import LIBRARY, make_candidates
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.session import load_session
 
 HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the error before and after"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
-    from euc_ros.core.model.effects import LIBRARY
     from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
@@ -67,14 +74,8 @@ def _atomic_write(path: Path, text: str) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
     from euc_ros.cli.identify import format_usage
-    from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
-                                     usage_table)
-    from euc_ros.cli.outputs import Output, check_outputs
-    from euc_ros.core.model.effects import make_candidates
-    from euc_ros.core.model.terms import EucParams
     from euc_ros.core.residual.analysis import analyze
     from euc_ros.core.residual.noise import make_noise_floor
-    from euc_ros.core.session import load_session
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
                    Output("--report", args.report)], [args.session, *args.recordings])
@@ -176,8 +177,6 @@ def format_summary(data: dict) -> str:
 
 def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     """A Markdown report of the analysis (figures linked relative to the report)."""
-    import os
-
     out = ["# Residual analysis: M_d1 - M_d2", "",
            f"Recordings: {', '.join(data.get('recordings', []))}  ",
            f"Held-out evaluation: {data['held_out']['kind']} ({data['held_out']['folds']} folds); "
@@ -236,7 +235,6 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
 def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png, floor.png (the
     floor measured from the contact path) and h_range.png (h of every model the data cannot tell apart)."""
-    from euc_ros.cli.plots import pyplot, save_figure
     from euc_ros.core.residual.selection import Model
     from euc_ros.core.states.contexts import prepare
     from euc_ros.core.states.floor import contact_heights

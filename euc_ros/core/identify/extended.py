@@ -8,12 +8,12 @@ sum of squares over h into a :class:`~euc_ros.core.identify.fit.ModelFit` as the
 from __future__ import annotations
 
 import numpy as np
+from scipy.optimize import minimize_scalar
 
 from euc_ros.core.filters.derivatives import savgol_derivatives
 from euc_ros.core.identify.fit import SHARPNESS_STEP_M, ModelFit
 from euc_ros.core.model.extended import ExtendedModel
 from euc_ros.core.states.contexts import prepare
-
 
 #: The extended model's input arrays, by name (:meth:`~euc_ros.core.model.extended.ExtendedModel.torques`).
 EXTENDED_KEYS = ("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
@@ -26,8 +26,6 @@ def fit_from_sse(sse_of, h_grid: np.ndarray, n: int, model: str):
     Same steps as the paper models' fits: grid minimum, bounded refinement between its neighbours,
     formal std from the curvature (``sigma^2 = 2 s^2 / SSE''``), sharpness at +-0.1 m.
     """
-    from scipy.optimize import minimize_scalar      # scipy.optimize: about 0.6 s to import, this path only
-
     sse = np.array([sse_of(float(h)) for h in h_grid])
     if n == 0 or not np.any(np.isfinite(sse)):
         return ModelFit(model, np.nan, np.nan, n, np.full(h_grid.size, np.nan), False, np.nan, np.nan)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from euc_ros.core.mocap.rate import check_rate
+
 
 def check_recording(series, session, path: str | Path | None = None) -> list[str]:
     """Check a recording against its session.
@@ -28,7 +30,6 @@ def check_recording(series, session, path: str | Path | None = None) -> list[str
         Warnings (the analysis goes on); errors raise.
     """
     from euc_ros.core.mocap.conventions import check_conventions
-    from euc_ros.core.mocap.rate import check_rate
 
     warnings: list[str] = []
     warnings += check_rate(series, session, path)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import combinations
 from typing import Sequence
 
 import numpy as np
@@ -205,8 +206,6 @@ def best_subsets(r0: np.ndarray, B: np.ndarray, max_terms: int = MAX_TERMS) -> l
     normalised Gram matrix ``G = Bn^T Bn`` and ``b = Bn^T r0``: a set S removes ``b_S^T G_S^-1 b_S`` of the
     squared residual; near-collinear sets (``det G_S`` below :data:`MIN_GRAM_DET`) are skipped.
     """
-    from itertools import combinations
-
     norms = np.linalg.norm(B, axis=0)
     usable = np.flatnonzero(norms > 1e-12 * (norms.max() if norms.size else 1.0))
     if usable.size == 0:

@@ -16,7 +16,7 @@ import numpy as np
 from scipy import optimize
 
 from euc_ros.core.model.effects import Candidate
-from euc_ros.core.model.terms import EucParams, consistency_weights
+from euc_ros.core.model.terms import EucParams, bias_terms, consistency_weights, gravity_forces, mass_matrix
 from euc_ros.core.model.torque import torque_difference
 from euc_ros.core.residual.folds import folds_of
 from euc_ros.core.states.contexts import Recording, hinge_path
@@ -230,8 +230,6 @@ def detectability(candidate: Candidate, recs: Sequence[Recording], h: float) -> 
 
 def _equivalent_force(model: Model, rec: Recording, x: np.ndarray) -> np.ndarray:
     """Generalized force a model adds, in the base model's terms: f_base - f_model (n, 3)."""
-    from euc_ros.core.model.terms import bias_terms, gravity_forces, mass_matrix
-
     h, thetas = model.split(x)
     ctx = rec.ctx.copy()
     ctx.params = ctx.params.with_h(h)
