@@ -36,6 +36,7 @@ import numpy as np
 import yaml
 
 from euc_ros.core.errors import InputError
+from euc_ros.core.io.cdr import ENCAPSULATION_LE, HEAD, pad, split_stamp
 from euc_ros.core.io.mcap_fast import McapFile
 from euc_ros.core.io.msgdefs import make_typestore
 from euc_ros.core.mocap.ingest import frame_from_named_poses
@@ -982,11 +983,6 @@ def inspect_bag(path) -> dict:
 # Mocap series <-> bag
 # =====================================================================================================================
 
-def _split_stamp(stamp_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """builtin_interfaces/Time from int64 ns: (sec int32, nanosec uint32), floor division."""
-    stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
-    return np.floor_divide(stamp_ns, 10**9), np.mod(stamp_ns, 10**9)
-
 
 def posestamped_cdr(stamp_ns, position, quat, frame_id: str = "world") -> list[bytes]:
     """Serialize PoseStamped messages to little-endian CDR, vectorized.
@@ -1014,18 +1010,18 @@ def posestamped_cdr(stamp_ns, position, quat, frame_id: str = "world") -> list[b
     n = stamp_ns.shape[0]
     fid = frame_id.encode("utf-8") + b"\0"
     body_start = 12 + len(fid)                     # relative to the encapsulation end
-    pose_rel = (body_start + 7) // 8 * 8
-    length = 4 + pose_rel + 56
+    pose_rel = pad(body_start, 8)
+    length = HEAD + pose_rel + 56
     buf = np.zeros((n, length), dtype=np.uint8)
-    buf[:, 1] = 1                                  # CDR_LE
-    sec, nsec = _split_stamp(stamp_ns)
+    buf[:, :HEAD] = np.frombuffer(ENCAPSULATION_LE, np.uint8)
+    sec, nsec = split_stamp(stamp_ns)
     buf[:, 4:8] = sec.astype("<i4")[:, None].view(np.uint8)
     buf[:, 8:12] = nsec.astype("<u4")[:, None].view(np.uint8)
     buf[:, 12:16] = np.frombuffer(np.uint32(len(fid)).astype("<u4").tobytes(), np.uint8)
     buf[:, 16:16 + len(fid)] = np.frombuffer(fid, np.uint8)
     values = np.concatenate([np.asarray(position, float).reshape(n, 3), np.asarray(quat, float).reshape(n, 4)],
                             axis=1).astype("<f8")
-    buf[:, 4 + pose_rel:] = values.view(np.uint8).reshape(n, 56)
+    buf[:, HEAD + pose_rel:] = values.view(np.uint8).reshape(n, 56)
     return [row.tobytes() for row in buf]
 
 
@@ -1134,7 +1130,7 @@ def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", f
             Frame, Header, Time = T[MOCAP_FRAME], T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
             Pose, Point, Quaternion = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/Point"], \
                 T["geometry_msgs/msg/Quaternion"]
-            sec, nsec = _split_stamp(stamps)
+            sec, nsec = split_stamp(stamps)
             pos = np.where(tracked[..., None], series.position, np.nan)
             quat = np.where(tracked[..., None], series.quat, np.nan)
             err = np.asarray(series.mean_marker_error, float)
