@@ -332,7 +332,7 @@ class WheelBodyFriction(Candidate):
 
 
 class FloorGeometry(Candidate):
-    """The floor measured from the contact path, in a lab whose vertical is gravity's (issue 12).
+    """The floor measured from the contact path, in a lab whose vertical is gravity's.
 
     A floor tilted in the mocap frame (a ramp or a bump in a level-calibrated lab) is known without
     dynamics: the wheel centre C moves along it with slope ``a(t)`` along travel (measured) and vertical

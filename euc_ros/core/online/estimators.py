@@ -89,7 +89,7 @@ class RiderStateEstimator:
         Longest run of missing frames bridged (bridged frames give no output).
     estimator : {"savgol", "kalman", "split"}
         Derivative filter (:func:`~euc_ros.core.filters.causal.streaming_filter`): the Savitzky-Golay
-        filter (default) or the low-lag Kalman fixed-lag smoother (issue 15); or ``split``
+        filter (default) or the low-lag Kalman fixed-lag smoother; or ``split``
         (:mod:`~euc_ros.core.states.split_lag`: pivot positions and orientation-borne pieces smoothed
         separately, then composed; half the M_d1 and a quarter of the M_d2 error of ``kalman`` at
         0.1 s, but a 3 s start-up, ``phi_definition`` hinge and ``cog_method`` segments only, a
