@@ -9,8 +9,8 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from euc_msgs.msg import MocapFrame
 from geometry_msgs.msg import Pose, PoseStamped, TransformStamped
 
-from euc_ros.core.io import cdr_frame
 from euc_ros.core.mocap.ingest import Frame
+from euc_ros.core.io import cdr_frame
 
 NAN = float("nan")
 

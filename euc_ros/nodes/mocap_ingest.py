@@ -14,7 +14,7 @@ Sources (parameter ``source``):
 
 Bad input never stops the node: duplicate and out-of-order stamps or frame numbers, malformed
 NatNet packets and invalid poses are dropped (or published untracked) and counted in the
-diagnostics. The logic lives in :mod:`euc_ros.core.mocap.ingest`; this module only wires ROS.
+diagnostics. The logic lives in :mod:`euc_ros.core.ingest`; this module only wires ROS.
 
 Publishes
     ``mocap/frame`` (euc_msgs/MocapFrame, reliable, every frame), ``mocap/<body>/pose``
@@ -38,8 +38,16 @@ from tf2_msgs.msg import TFMessage
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.io import cdr_frame
-from euc_ros.core.mocap.ingest import (Frame, PoseSynchronizer, TrackingStats, capture_start_ns, frame_from_named_poses,
-                                       frame_from_natnet, natnet_capture_stamp, replay_schedule)
+from euc_ros.core.mocap.ingest import (
+    Frame,
+    PoseSynchronizer,
+    TrackingStats,
+    capture_start_ns,
+    frame_from_named_poses,
+    frame_from_natnet,
+    natnet_capture_stamp,
+    replay_schedule,
+)
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
 from euc_ros.nodes.intra import LocalFanout

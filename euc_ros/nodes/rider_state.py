@@ -8,7 +8,7 @@ of the offline filter of ``euc-ros identify``) give the derivatives: each state 
 120 Hz), stamped with the capture time of *its own* frame. With ``estimator: kalman`` a steady-state
 Kalman fixed-lag smoother replaces them (:mod:`euc_ros.core.filters.causal`, issue 15): states
 ``lag_s`` late (0.1 s by default), noisier (docs/low_lag.md). The logic lives in
-:class:`~euc_ros.core.online.estimators.RiderStateEstimator`; this module only wires ROS.
+:class:`~euc_ros.core.euc.estimators.RiderStateEstimator`; this module only wires ROS.
 
 Bad input never stops the node:
 
@@ -18,7 +18,7 @@ Bad input never stops the node:
   filters (no state across it);
 * repeated and out-of-order frames are dropped; a frame numbering that restarts or a stamp that jumps
   back by more than ``restart_jump`` restarts the filters
-  (:class:`~euc_ros.core.online.estimators.FrameSequencer`); frames without a number (``-1``, topic
+  (:class:`~euc_ros.core.euc.estimators.FrameSequencer`); frames without a number (``-1``, topic
   sources) are numbered from their stamps.
 
 Subscribes
@@ -39,19 +39,19 @@ from euc_msgs.msg import MocapFrame, RiderState
 from rclpy.node import Node
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.io.cdr_flat import FlatEncoder
+from euc_ros.core.online.estimators import FrameSequencer, RiderStateEstimator
+from euc_ros.core.states.skeleton import COG_METHODS
+from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.filters.causal import LOW_LAG_S, STATE_ESTIMATORS
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
-from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.mocap.presence import BodyPresence
-from euc_ros.core.online.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.session import load_session
-from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
-from euc_ros.core.states.skeleton import COG_METHODS
 from euc_ros.nodes import convert
 from euc_ros.nodes import interfaces as itf
-from euc_ros.nodes.intra import LocalFanout
 from euc_ros.nodes.params import ParamSpec, declare_params
 from euc_ros.nodes.rate_gate import NodeRateGate
+from euc_ros.nodes.intra import LocalFanout
 from euc_ros.nodes.runtime import drain, main_for
 
 #: RiderState's fields after the header, in the message's order (what :meth:`RiderStateNode._values` writes).
