@@ -2,11 +2,16 @@
 
 Usage: .venv/bin/python studies/paper_table.py
 """
-from euc_ros.core.identify.fit import fit_h
-from euc_ros.core.model.terms import EucParams
-from euc_ros.core.ridesim.effects import make_effects
-from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
-from euc_ros.core.states.kinematics import reconstruct_states
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))   # the repository: euc_ros and studies
+
+from euc_ros.core.identify.fit import fit_h  # noqa: E402
+from euc_ros.core.model.terms import EucParams  # noqa: E402
+from euc_ros.core.ridesim.effects import make_effects  # noqa: E402
+from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride  # noqa: E402
+from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
 
 ROWS = [("deceleration", 10, [], {}), ("acceleration", 10, [], {}), ("constant_speed", 10, [], {}),
         ("figure_eight", 2, ["tilt_gravity"], {"gain": 1.0})]
