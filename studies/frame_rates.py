@@ -1,4 +1,5 @@
-"""Rate sweep: the same ride captured at several frame rates, analysed offline and live.
+"""The rate sweep's harness (run by studies/rate_sweep.py): one ride captured at several frame rates, analysed
+offline and live.
 
 The ride simulator integrates one continuous truth per run (its plan does not depend on the capture
 rate), so sampling it at 60, 100, ..., 1000 Hz gives the same ride captured by different cameras.
