@@ -1,7 +1,8 @@
 """The paper's findings reproduced on the ride simulator's recordings (issue 4).
 
 The simulator (euc_ros.core.ridesim) shares no model code with euc_ros.core.model or
-euc_ros.core.states: it integrates its own derivation of the truth and synthesizes noisy OptiTrack data (0.2 mm, 0.5 deg rms per frame).
+euc_ros.core.states: it integrates its own derivation of the truth and synthesizes noisy OptiTrack
+data (0.2 mm, 0.5 deg rms per frame).
 """
 from __future__ import annotations
 
