@@ -218,5 +218,6 @@ def run_steer(maneuver: str, speed: float, out_dir, *, target: float | None = No
         "pole": ctrl.gains.pole, "dt_s": float(dt), "steps": int(len(result.x) - 1), "sim_time_s": met.t_end,
         "wall_time_s": wall, "stepping_wall_time_s": stepping_s, "real_time_factor": met.t_end / stepping_s,
         "final_x_g_m": float(result.x[-1, 8]), "final_y_g_m": float(result.x[-1, 9]),
-        "in_process_difference_m": diff, "exit_codes": dict(codes), "bag": str(bag), "png": None if png is None else str(png),
+        "in_process_difference_m": diff, "exit_codes": dict(codes), "bag": str(bag),
+        "png": None if png is None else str(png),
     }

@@ -193,7 +193,7 @@ def _trial_row(family: str | None, seed: int, out: dict) -> dict:
 def null_calibration_trial(seed: int, alphas=(0.01, 0.05, 0.1, 0.2)) -> list[dict]:
     """One no-effect ride of :data:`POWER_MANEUVERS`, simulated once and analysed (whole analysis: candidates,
     discovery, noise floor) at every level of ``alphas``: one :func:`power_trial`-like row per level."""
-    from euc_ros.core.residual.analysis import make_noise_floor
+    from euc_ros.core.residual.noise import make_noise_floor
 
     states, session, series = simulate_states({}, seed, keep_series=True)
     params = EucParams.from_session(session)
@@ -210,7 +210,7 @@ def power_trial(family: str | None, seed: int, magnitude: dict | None = None, *,
     the absent library effects named without the truth among their ties, ``cut`` 1 - after/before of the
     analysis' result.
     """
-    from euc_ros.core.residual.analysis import make_noise_floor
+    from euc_ros.core.residual.noise import make_noise_floor
 
     effects = {} if family is None else {family: dict(magnitude or POWER_MAGNITUDES[family])}
     states, session, series = simulate_states(effects, seed, keep_series=noise_floor)

@@ -5,7 +5,7 @@ afterwards by the independent generator (:mod:`euc_ros.core.ridesim.artefacts`),
 serves every amplitude. Each case reconstructs the states with both CoG methods
 (:func:`~euc_ros.core.states.kinematics.reconstruct_states`, ``cog_method``; the skeleton model estimated
 once from all runs of the ride, as ``euc-ros identify --cog-method skeleton`` does) and identifies h
-as the identify command does (:func:`~euc_ros.core.identify.fit.identify_h`, pooled 3-DoF).
+as the identify command does (:func:`~euc_ros.core.identify.fit.fit_h`, pooled 3-DoF).
 
 The orientation slides with the pivot: ``ROT_DEG_PER_MM`` degrees per millimetre of pivot sliding
 (3 mm -> 0.6 deg, 15 mm -> 3 deg: a marker cluster of ~0.3 m whose markers slide differentially).
@@ -18,7 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from euc_ros.core.identify.fit import identify_h
+from euc_ros.core.identify.cog_height import uncertainty_of_h
+from euc_ros.core.identify.fit import fit_h
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts, perturb_session
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
@@ -108,7 +109,7 @@ def evaluate(cleans, session, case: Case, seed: int, methods=COG_METHODS, *, wit
     rows = []
     for method in methods:
         states = reconstruct(series, s_an, method)
-        fit = identify_h(states, params, models=("3dof",)).pooled["3dof"]
+        fit = fit_h(states, params, models=("3dof",)).pooled["3dof"]
         row = {"case": case.label, "slide_mm": 1e3 * case.slide_m, "offsets": case.offsets, "swaps": case.swaps,
                "flips": case.flips, "seed": seed, "method": method, "h_m": fit.h_m,
                "h_err_mm": 1e3 * (fit.h_m - DEFAULT_H_M), "rmse_nm": fit.rmse_nm,
@@ -122,7 +123,8 @@ def evaluate(cleans, session, case: Case, seed: int, methods=COG_METHODS, *, wit
 
 def residual_verdict(cleans, session, case: Case, seed: int, method: str) -> dict:
     """Run the residual analysis (as ``euc-ros residual`` does) on an artefact-only ride."""
-    from euc_ros.core.residual.analysis import analyze, make_noise_floor
+    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.noise import make_noise_floor
 
     series, _ = recorded(cleans, case, seed)
     s_an = analysis_session(session, case, seed)
@@ -143,15 +145,11 @@ def names_library_effect(effect: str) -> bool:
 def h_interval(states, series, session, params, fit, method: str) -> dict:
     """Identify's 95 % interval of h, computed as ``euc-ros identify`` reports it (block bootstrap, white-noise
     and sliding SIMEX biases)."""
-    from types import SimpleNamespace
-
-    from euc_ros.cli.identify import uncertainty
-
     for st, s in zip(states, series):
         st.meta["series"] = s
-    args = SimpleNamespace(window_s=DEFAULT_WINDOW_S, polyorder=DEFAULT_SG_POLYORDER, phi_definition="hinge",
-                           cog_method=method, h_min=0.1, h_max=1.2)
-    unc = uncertainty(states, session, params, SimpleNamespace(pooled={"3dof": fit}), args, {}, with_budget=False)
+    unc = uncertainty_of_h(states, session, params, fit, window_s=DEFAULT_WINDOW_S, polyorder=DEFAULT_SG_POLYORDER,
+                           phi_definition="hinge", cog_method=method, h_bounds=(0.1, 1.2), tolerances={},
+                           with_budget=False)
     lo, hi = unc["h_ci95_m"]
     u = unc["uncertainty"]
     inside = lo is not None and hi is not None and lo <= DEFAULT_H_M <= hi

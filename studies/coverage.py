@@ -25,7 +25,7 @@ CASES = (
 
 def run_case(maneuver: str, runs: int, duration_s, seed: int, h_true: float = 0.61) -> dict:
     """One ride identified with its interval; returns h, interval, identifiable, reason, covered."""
-    from euc_ros.core.identify.fit import coefficients_for, identify_h
+    from euc_ros.core.identify.fit import coefficients_for, fit_h
     from euc_ros.core.identify.interval import interval, turning_rms
     from euc_ros.core.identify.simex import eiv_bias
     from euc_ros.core.model.terms import EucParams
@@ -36,7 +36,7 @@ def run_case(maneuver: str, runs: int, duration_s, seed: int, h_true: float = 0.
     params = EucParams.from_session(ride.session)
     series = [r.mocap for r in ride.runs]
     states = [reconstruct_states(s, ride.session) for s in series]
-    fit = identify_h(states, params, models=("3dof",)).pooled["3dof"]
+    fit = fit_h(states, params, models=("3dof",)).pooled["3dof"]
     bias, err = eiv_bias(series, ride.session, params, fit.h_m, window_s=states[0].window * states[0].dt,
                            polyorder=states[0].polyorder, with_error=True) if np.isfinite(fit.h_m) else (np.nan, np.nan)
     iv = interval(coefficients_for(states, params, "3dof", None), fit, window=states[0].window, dt=states[0].dt,

@@ -20,7 +20,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from euc_ros.core.identify.fit import identify_h  # noqa: E402
+from euc_ros.core.identify.fit import fit_h  # noqa: E402
 from euc_ros.core.io.bags import read_mocap_bag, write_mocap_bag  # noqa: E402
 from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride  # noqa: E402
@@ -61,7 +61,7 @@ def main() -> int:
             used = sum(int(st.valid.sum()) for st in states)
             bridged = sum(st.meta["bridged_frames"] for st in states)
             frames = sum(st.n for st in states)
-            h = identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m
+            h = fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m
             base = used if base is None else base
             print(f"| {kind if rate else 'none'} | {100 * rate:.0f} % | {used} of {base} | {bridged} of {frames} "
                   f"| {h:.4f} |", flush=True)

@@ -75,9 +75,9 @@ def raw_signals(session_path: Path, csvs: list[Path]) -> tuple[float, dict]:
     The same geometry identify applies before filtering (the project's reader and frame geometry), on
     each recording's frame grid (missing frames NaN). This is the call to wire into identify.
     """
-    from euc_ros.core.states.geometry import frame_geometry
     from euc_ros.core.io.motive_csv import read_motive_csv
     from euc_ros.core.session import load_session
+    from euc_ros.core.states.geometry import frame_geometry
 
     session = load_session(session_path)
     out = {"gamma": [], "phi": [], "C_x": [], "C_y": []}

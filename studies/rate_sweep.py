@@ -16,7 +16,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from euc_ros.bench.rate_sweep import RATES_HZ, sweep  # noqa: E402
+from studies.frame_rates import RATES_HZ, sweep  # noqa: E402
 
 
 def main() -> int:

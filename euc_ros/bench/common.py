@@ -34,6 +34,7 @@ from typing import Any, Callable
 import numpy as np
 
 from euc_ros.core.errors import EucError
+from euc_ros.ros.launcher import Launcher
 
 #: Default cache of generated recordings (reused between runs).
 DEFAULT_CACHE = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "euc_ros" / "bench"
@@ -406,8 +407,6 @@ def run_launched(specs, timeout_s: float, log):
 
 def run_launched_sampled(specs, timeout_s: float, log, period_s: float = 0.2):
     """:func:`run_launched` returning the :class:`PeakRssSampler` itself (peak RSS and CPU series)."""
-    from euc_ros.ros.launcher import Launcher
-
     launcher = Launcher(specs, stream=log)
     with PeakRssSampler(period_s) as rss:
         with launcher:

@@ -14,9 +14,13 @@ figure compares the reader's increase with the loader's; the target is at most 1
 """
 from __future__ import annotations
 
+import os
 import time
 
-from euc_ros.bench.common import BenchContext, figure, peak_rss_increase, pinned_to_one_core
+import numpy as np
+
+from euc_ros.bench.common import BenchContext, BenchError, figure, peak_rss_increase, pinned_to_one_core
+from euc_ros.bench.data import ride_recording
 
 #: Recording lengths [s]: full and --quick.
 DURATION_S = {False: 600.0, True: 60.0}
@@ -46,8 +50,6 @@ def measure_ours(path: str) -> dict:
 
 def measure_numpy(path: str) -> dict:
     """``numpy.loadtxt`` of the data rows on one core: ``{"wall_s", "frames", "columns", "rss"}``."""
-    import numpy as np
-
     skip = header_lines(path)
     with pinned_to_one_core(), peak_rss_increase() as rss:
         t0 = time.perf_counter()
@@ -72,9 +74,6 @@ def memory_figure(ours: dict, floor: dict) -> dict:
 
 def run(ctx: BenchContext) -> dict:
     """Benchmark 3 (see the module docstring)."""
-    from euc_ros.bench.common import BenchError
-    from euc_ros.bench.data import ride_recording
-
     duration = DURATION_S[ctx.quick]
     rec = ride_recording(ctx.cache_dir, duration, log=ctx.log)
     t_start = time.monotonic()
@@ -84,7 +83,6 @@ def run(ctx: BenchContext) -> dict:
     if ours["frames"] != floor["frames"]:
         raise BenchError(f"read_motive_csv read {ours['frames']} frames, numpy.loadtxt {floor['frames']}")
     rate, floor_rate = ours["frames"] / ours["wall_s"], floor["frames"] / floor["wall_s"]
-    import os
 
     size_mb = os.path.getsize(path) / 1e6
     figures = [figure("read_motive_csv", rate, "frames/s", floor=floor_rate, lower_is_better=False,

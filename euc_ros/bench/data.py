@@ -11,6 +11,8 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+from euc_ros.core.io.bags import write_mocap_bag
+
 #: Bump when the generated content changes so stale caches are not reused.
 CACHE_VERSION = 1
 #: Seed of every benchmark recording.
@@ -53,7 +55,6 @@ def ride_recording(cache_dir: Path, duration_s: float, *, bag: bool = False, man
         if not (bag_dir / "metadata.yaml").exists():
             if log:
                 log(f"  converting {csv.name} to a bag (once)")
-            from euc_ros.core.io.bags import write_mocap_bag
             from euc_ros.core.io.motive_csv import read_motive_csv
 
             shutil.rmtree(bag_dir, ignore_errors=True)   # metadata.yaml is written last: complete when present

@@ -39,6 +39,10 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.bench.common import figure
+from euc_ros.core.errors import InputError
+from euc_ros.core.io.natnet import NatNetError, parse_packet
+
 #: NatNet versions fuzzed (4.2 exercises the skip-by-byte-count path).
 VERSIONS = ((3, 0), (3, 1), (4, 0), (4, 1), (4, 2))
 #: Values written at aligned offsets by the ``interesting`` mutator.
@@ -294,8 +298,6 @@ def rejection_class(message: str) -> str:
 
 def check_natnet(data: bytes, version) -> tuple[str, str | None]:
     """Parse one packet; ``(outcome, class)`` with outcome accepted / rejected / unclear."""
-    from euc_ros.core.io.natnet import NatNetError, parse_packet
-
     try:
         parse_packet(data, version)
     except NatNetError as exc:
@@ -330,7 +332,6 @@ def implausibility(s) -> str | None:
 
 def check_csv(data: bytes, path: Path, world_up: str = "y") -> tuple[str, str | None]:
     """Write ``data`` to ``path`` and read it; ``(outcome, class)``; outcome also ``invalid`` (implausible result)."""
-    from euc_ros.core.errors import InputError
     from euc_ros.core.io.motive_csv import read_motive_csv
 
     path.write_bytes(data)
@@ -459,8 +460,6 @@ BUDGET_S = {False: {"natnet": 120.0, "csv": 180.0}, True: {"natnet": 10.0, "csv"
 
 def run(ctx) -> dict:
     """The fuzz job of ``euc-ros bench``: NatNet and CSV, each in its own interpreter."""
-    from euc_ros.bench.common import figure
-
     t_start = time.monotonic()
     figures, rss, details = [], {}, {}
     for kind in ("natnet", "csv"):

@@ -58,7 +58,9 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.bench.common import BenchContext, BenchError, figure, pinned_to_one_core, resolve_target
+from euc_ros.bench.common import BenchContext, BenchError, figure, peak_rss_increase, pinned_to_one_core, resolve_target
+from euc_ros.bench.data import ride_recording
+from euc_ros.core.io.recordings import load_recording
 
 #: Recording lengths [min]: full and --quick.
 LENGTHS_MIN = {False: (1, 10, 60), True: (1, 3)}
@@ -172,8 +174,6 @@ def _release_freed_memory() -> None:
 @contextlib.contextmanager
 def _baseline_and_peak():
     """Baseline RSS now (after releasing freed memory), the high-water mark reset; fills the dict on exit."""
-    from euc_ros.bench.common import peak_rss_increase
-
     _release_freed_memory()
     with peak_rss_increase() as rss:
         yield rss
@@ -181,8 +181,6 @@ def _baseline_and_peak():
 
 def measure_load(path: str, world_up: str = "y", warmup_path: str | None = None) -> dict:
     """Read a recording alone on one core; wall time, arrays' size, baseline and peak RSS."""
-    from euc_ros.core.io.recordings import load_recording
-
     with pinned_to_one_core() as cpu:
         if warmup_path:
             load_recording(warmup_path, world_up)
@@ -311,8 +309,6 @@ def _figures(summary: dict) -> list[dict]:
 
 def run(ctx: BenchContext) -> dict:
     """The growth benchmark (see the module docstring)."""
-    from euc_ros.bench.data import ride_recording
-
     base_s = BASE_S[ctx.quick]
     minutes = LENGTHS_MIN[ctx.quick]
     base = ride_recording(ctx.cache_dir, base_s, log=ctx.log)

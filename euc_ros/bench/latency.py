@@ -40,6 +40,10 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.bench.common import BenchContext, BenchError, figure, percentiles_ms, run_launched_sampled
+from euc_ros.bench.data import ride_recording
+from euc_ros.bench.probe import load
+from euc_ros.ros.launcher import NodeSpec
+from euc_ros.sched import REALTIME_ENV
 
 #: Seconds at the start of a stream excluded from the percentiles (discovery, caches).
 WARMUP_S = 1.0
@@ -137,14 +141,10 @@ def analyze(data: dict, n_sent: int, rate_hz: float, warmup_s: float = WARMUP_S)
 
 def rt_env(realtime: int | None) -> dict:
     """Environment of a latency-critical process: SCHED_FIFO ``realtime`` (:mod:`euc_ros.sched`) or nothing."""
-    from euc_ros.sched import REALTIME_ENV
-
     return {} if realtime is None else {REALTIME_ENV: str(int(realtime))}
 
 
 def probe_spec(out: Path, realtime: int | None = None):
-    from euc_ros.ros.launcher import NodeSpec
-
     return NodeSpec(sys.executable, name="probe", args=["-m", "euc_ros.bench.probe", "--out", str(out)],
                     ros_args=False, required=False, env=rt_env(realtime))
 
@@ -163,9 +163,7 @@ def run_chain(specs, probe_out: Path, timeout_s: float, log: io.StringIO):
 
 def measure_pipeline(csv: Path, session: Path, out_dir: Path, timeout_s: float) -> dict:
     """Run the real pipeline on ``csv`` with the probe; returns :func:`analyze` plus ``peak_rss_mb``."""
-    from euc_ros.bench.probe import load
     from euc_ros.core.io.motive_csv import read_motive_csv
-    from euc_ros.ros.launcher import NodeSpec
 
     probe_out = out_dir / "pipeline_probe.npz"
     series = read_motive_csv(csv)
@@ -189,9 +187,6 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
     """Run the bare relay chain with the probe; returns :func:`analyze` plus ``peak_rss_mb``.
 
     ``realtime``: SCHED_FIFO priority of every process of the chain (as the pipeline's critical ones)."""
-    from euc_ros.bench.probe import load
-    from euc_ros.ros.launcher import NodeSpec
-
     probe_out = out_dir / "floor_probe.npz"
     relay = ["-m", "euc_ros.bench.relay"]
     env = rt_env(realtime)
@@ -214,8 +209,6 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
 
 def run(ctx: BenchContext) -> dict:
     """Benchmark 1 (see the module docstring)."""
-    from euc_ros.bench.data import ride_recording
-
     duration = DURATION_S[ctx.quick]
     rec = ride_recording(ctx.cache_dir, duration, log=ctx.log)
     out = ctx.tmp_dir / "latency"

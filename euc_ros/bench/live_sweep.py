@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import dataclasses
 import io
+import os
 import shutil
 import sys
 import time
@@ -29,6 +30,11 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.bench.common import BenchContext, cpu_fraction, figure
+from euc_ros.bench.latency import analyze, measure_floor, probe_spec, rt_env, run_chain
+from euc_ros.bench.probe import load
+from euc_ros.bench.recording import bag_counts
+from euc_ros.core.session import default_session, save_session
+from euc_ros.ros.launcher import NodeSpec
 
 #: Frame rates [Hz] and body counts of the sweep: full and --quick.
 RATES_HZ = {False: (120, 240, 360, 500), True: (120, 360)}
@@ -69,7 +75,6 @@ def live_recording(cache_dir: Path, rate_hz: float, n_bodies: int, duration_s: f
             log(f"  generating a {duration_s:g} s ride at {rate_hz:g} Hz with {n_bodies} bodies into {root} (once)")
         from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
         from euc_ros.core.ridesim.writers import write_motive_csv
-        from euc_ros.core.session import default_session, save_session
 
         tmp = root.with_name(root.name + ".partial")
         shutil.rmtree(tmp, ignore_errors=True)
@@ -102,11 +107,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     SCHED_FIFO priority of the estimation chain and the probe (the monitor and recorder stay at normal
     priority), and of every process of the floor.
     """
-    from euc_ros.bench.latency import analyze, measure_floor, probe_spec, rt_env, run_chain
-    from euc_ros.bench.probe import load
-    from euc_ros.bench.recording import bag_counts
     from euc_ros.core.io.motive_csv import read_motive_csv
-    from euc_ros.ros.launcher import NodeSpec
 
     series = read_motive_csv(rec["csv"])
     n_frames, rate, n_bodies = series.n_frames, float(series.rate_hz), len(series.bodies)
@@ -186,8 +187,6 @@ def run(ctx: BenchContext) -> dict:
 
 
 def _cores() -> int:
-    import os
-
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 0)
 
 

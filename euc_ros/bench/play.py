@@ -20,6 +20,7 @@ played, in order, with its recorded stamp and the computed schedule: ``test/inte
 """
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import time
@@ -28,6 +29,8 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure
+from euc_ros.core.io.bags import BagWriter, posestamped_cdr
+from euc_ros.sched import set_realtime
 
 #: Messages per played bag: full and --quick.
 N_MESSAGES = {False: 1000, True: 200}
@@ -42,8 +45,6 @@ T0_NS = 1_714_644_900 * 10**9
 
 def write_bag(path: Path, n: int, seed: int = 8) -> np.ndarray:
     """The played bag: ``n`` PoseStamped on ``/a`` spaced 3-20 ms; returns their stamps [ns]."""
-    from euc_ros.core.io.bags import BagWriter, posestamped_cdr
-
     rng = np.random.default_rng(seed)
     stamps = T0_NS + np.cumsum(np.concatenate([[0], rng.uniform(0.003, 0.020, n - 1)]) * 1e9).astype(np.int64)
     cdr = posestamped_cdr(stamps, np.arange(n)[:, None] * [1.0, 0, 0], np.tile([0, 0, 0, 1.0], (n, 1)))
@@ -73,8 +74,6 @@ def measure_floor(stamps_ns: list[int], rate: float, realtime: bool = True) -> d
     With ``realtime`` the loop asks for SCHED_FIFO as ``euc-ros play --realtime`` does (same priority).
     Returns the summary of the wake-up errors (:func:`summary_ms`) and ``priority``.
     """
-    from euc_ros.sched import set_realtime
-
     priority = set_realtime(10, "playing") if realtime else "normal priority"
     stamps = np.asarray(stamps_ns, dtype=np.int64)
     offsets = (stamps - stamps[0]) * 1e-9 / rate
@@ -175,8 +174,6 @@ def run(ctx: BenchContext) -> dict:
 #: The receiving node (``python -m euc_ros.bench.play receive TOPIC N OUT``): SCHED_FIFO when allowed, set
 #: before rclpy starts its threads so the DDS threads inherit it; writes ``perf_counter,stamp_ns`` per message.
 def _receive(topic: str, n: int, out: str, timeout_s: float = 60.0) -> int:
-    import os
-
     try:
         os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
         rt = "realtime"

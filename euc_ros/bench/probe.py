@@ -12,11 +12,16 @@ as ``__``), the arrays ``T__arrival_ns``, ``T__stamp_ns`` and ``T__extra``, then
 from __future__ import annotations
 
 import argparse
+import importlib
+import struct
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
+
+from euc_ros.bench.relay import install_stop_handlers, spin_until_signal
+from euc_ros.sched import realtime_from_env
 
 #: topic -> (module, message class, extra field)
 TOPIC_TYPES = {
@@ -45,8 +50,6 @@ class Probe:
     """
 
     def __init__(self, topics=DEFAULT_TOPICS, *, context=None, name: str = "bench_probe") -> None:
-        import importlib
-
         from rclpy.node import Node
 
         from euc_ros.ros import interfaces as itf
@@ -65,8 +68,6 @@ class Probe:
                                           raw=True)
 
     def _callback(self, topic: str, msg_type, extra: str):
-        import struct
-
         from rclpy.serialization import deserialize_message
 
         rec = self.records[topic]
@@ -125,14 +126,12 @@ def main(argv: list[str] | None = None) -> int:
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
-    from euc_ros.bench.relay import install_stop_handlers, spin_until_signal
     from euc_ros.ros.executor import LeanExecutor
 
     parser = argparse.ArgumentParser(prog="python -m euc_ros.bench.probe", description=__doc__.splitlines()[0])
     parser.add_argument("--out", required=True, type=Path, help="npz file written at shutdown")
     parser.add_argument("--topics", default=",".join(DEFAULT_TOPICS), help="comma-separated topics")
     args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
-    from euc_ros.sched import realtime_from_env
     realtime_from_env("probe")
     rclpy.init(args=["probe", *ros_args], signal_handler_options=SignalHandlerOptions.NO)
     stop = install_stop_handlers()

@@ -33,7 +33,14 @@ import sys
 import time
 from pathlib import Path
 
-from euc_ros.bench.common import BenchContext, BenchError, figure, run_launched
+import numpy as np
+import yaml
+
+from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure
+from euc_ros.bench.relay import BODY_NAMES, mocap_frame, rider_state, torque_estimate
+from euc_ros.core.io.bags import read_bag
+from euc_ros.core.io.msgdefs import make_typestore
+from euc_ros.ros.launcher import Launcher, NodeSpec
 
 #: Frame-rate ladders [frames/s] (x18 messages): full and --quick.
 LADDER = {False: (480, 1920, 3840, 5760, 7680, 9600), True: (480, 5760)}
@@ -58,16 +65,12 @@ DRAIN_S = 0.5
 
 def blast_topics(n_bodies: int = 14) -> list[str]:
     """Topics of the blast mix (absolute names as the bag stores them)."""
-    from euc_ros.bench.relay import BODY_NAMES
-
     return ["/mocap/frame", *[f"/mocap/{b}/pose" for b in BODY_NAMES[:n_bodies]], "/tf", "/rider/state",
             "/euc/torque"]
 
 
 def bag_counts(bag: Path) -> dict[str, int]:
     """Messages per topic of a closed bag, from its metadata.yaml."""
-    import yaml
-
     meta = yaml.safe_load((bag / "metadata.yaml").read_text(encoding="utf-8"))["rosbag2_bagfile_information"]
     return {t["topic_metadata"]["name"]: int(t["message_count"]) for t in meta["topics_with_message_count"]}
 
@@ -76,11 +79,6 @@ def lost_frames(bag: Path, parts: list[list[str]]) -> dict:
     """Where a lossy step lost: per topic, the missing frames as ``[first, last, count]`` runs of frame
     indices (frame stamps of the publisher's other topics give the frames it sent) and the time of the
     first missing frame after its publisher's first [ms]. ``parts``: the topics of each publisher."""
-    import numpy as np
-
-    from euc_ros.core.io.bags import read_bag
-    from euc_ros.core.io.msgdefs import make_typestore
-
     store = make_typestore()
     stamps: dict[str, list[int]] = {}
     for topic, msgtype, _, raw in read_bag(bag, raw=True):
@@ -102,8 +100,6 @@ def lost_frames(bag: Path, parts: list[list[str]]) -> dict:
 
 def _cpu_between(series: list, t0: float, t1: float) -> float | None:
     """CPU seconds a sampled process used between wall times ``t0`` and ``t1`` (interpolated samples)."""
-    import numpy as np
-
     if len(series) < 2 or series[0][0] > t0 or series[-1][0] < t1:
         return None
     t, cpu = np.array(series, dtype=float).T
@@ -127,9 +123,6 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
     sent, recorded, lost, the achieved rate, the recorder's CPU while the mix was published (seconds,
     cores, microseconds per message), the publishers' CPU per message and the peak RSS of every process.
     """
-    from euc_ros.bench.common import PeakRssSampler
-    from euc_ros.ros.launcher import Launcher, NodeSpec
-
     if publisher_env is None:
         publisher_env = fast_publisher_env()
 
@@ -190,9 +183,6 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
 def measure_publisher_alone(n_frames: int, out_dir: Path, timeout_s: float = 60.0) -> dict:
     """One blast process with no subscriber publishing ``n_frames`` frames of the mix as fast as it goes:
     its CPU per message [us] and rate."""
-    from euc_ros.bench.common import PeakRssSampler
-    from euc_ros.ros.launcher import Launcher, NodeSpec
-
     result = out_dir / "blast_alone.json"
     spec = NodeSpec(sys.executable, name="blast", ros_args=False, env=fast_publisher_env(), required=False,
                     args=["-m", "euc_ros.bench.relay", "blast", "--frame-rate", "1000000", "--duration",
@@ -213,13 +203,9 @@ def measure_publisher_alone(n_frames: int, out_dir: Path, timeout_s: float = 60.
 
 def measure_rosbags(n_frames: int, out: str) -> dict:
     """Floor: the blast mix written with rosbags' Writer directly; ``{"messages", "wall_s", "msgs_per_s"}``."""
+    from geometry_msgs.msg import PoseStamped, TransformStamped
     from rclpy.serialization import serialize_message
     from rosbags.rosbag2 import StoragePlugin, Writer
-
-    from euc_ros.bench.relay import mocap_frame, rider_state, torque_estimate
-    from euc_ros.core.io.msgdefs import make_typestore
-
-    from geometry_msgs.msg import PoseStamped, TransformStamped
     from tf2_msgs.msg import TFMessage
 
     frame = mocap_frame(14)

@@ -32,9 +32,12 @@ from __future__ import annotations
 
 import argparse
 import json
+import signal
 import struct
 import sys
 import time
+
+from euc_ros.sched import realtime_from_env
 
 #: Rigid bodies of the benchmark frames: the EUC and the 13 rider segments (14 bodies).
 BODY_NAMES = ("E", "H", "CHR", "CHL", "UAR", "UAL", "LAR", "LAL", "HR", "HL", "TR", "TL", "LR", "LL")
@@ -364,8 +367,6 @@ def install_stop_handlers() -> "callable":
     rclpy's own handlers shut the context down from the signal, which can race a callback that is
     publishing; a flag checked between ``spin_once`` calls cannot.
     """
-    import signal
-
     flag = {"stop": False}
 
     def handler(signum, frame):
@@ -401,7 +402,6 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--dt", type=float, default=0.01, help="lockstep-sim: simulated step [s]")
     parser.add_argument("--result", default=None, help="also write the JSON result to this file")
     args, ros_args = parser.parse_known_args(sys.argv[1:] if argv is None else argv)
-    from euc_ros.sched import realtime_from_env
 
     realtime_from_env("relay")
     rclpy.init(args=["relay", *ros_args], signal_handler_options=SignalHandlerOptions.NO)

@@ -21,7 +21,9 @@ import contextlib
 import io
 import time
 
-from euc_ros.bench.common import BenchContext, environ, figure, pinned_to_one_core, resolve_target
+from euc_ros.bench.common import BenchContext, BenchError, environ, figure, pinned_to_one_core, resolve_target
+from euc_ros.bench.data import ride_recording
+from euc_ros.core.io.recordings import load_recording
 
 #: Recording lengths [s]: full and --quick.
 DURATION_S = {False: 600.0, True: 60.0}
@@ -35,8 +37,6 @@ TARGET_RESIDUAL = 100.0
 
 def measure_load(path: str, warmup_path: str | None = None) -> dict:
     """Load a recording on one core (after an untimed load of ``warmup_path``); ``{"wall_s", "recording_s", ...}``."""
-    from euc_ros.core.io.recordings import load_recording
-
     with pinned_to_one_core() as cpu:
         if warmup_path:
             load_recording(warmup_path)
@@ -83,8 +83,6 @@ def run(ctx: BenchContext) -> dict:
 
 
 def _run(ctx: BenchContext) -> dict:
-    from euc_ros.bench.data import ride_recording
-
     duration = DURATION_S[ctx.quick]
     rec = ride_recording(ctx.cache_dir, duration, bag=True, log=ctx.log)
     warm = ride_recording(ctx.cache_dir, WARMUP_S, bag=True, log=ctx.log)
@@ -108,8 +106,6 @@ def _run(ctx: BenchContext) -> dict:
             r = ctx.isolated("euc_ros.bench.throughput:measure_command", argv=argv, warmup_argv=warm_argv,
                              entry=ctx.command, timeout_s=1800.0)
             if r["exit_code"] != 0:
-                from euc_ros.bench.common import BenchError
-
                 raise BenchError(f"euc-ros {' '.join(argv)} exited {r['exit_code']}: {r['output_tail']}")
             rate = rec_s / r["wall_s"]
             target = met = None

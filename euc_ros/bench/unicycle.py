@@ -17,10 +17,18 @@ from __future__ import annotations
 
 import io
 import json
+import os
 import sys
 import time
+from pathlib import Path
 
 from euc_ros.bench.common import BenchContext, BenchError, PeakRssSampler, figure, pinned_to_one_core, run_launched
+from euc_ros.core.unicycle.dynamics import UnicycleParams
+from euc_ros.core.unicycle.linearize import straight_rolling_state
+from euc_ros.core.unicycle.simulate import DEFAULT_SUBSTEPS, rk4_step, simulate
+from euc_ros.core.unicycle.steering import SteeringController
+from euc_ros.lockstep import run_steer
+from euc_ros.ros.launcher import NodeSpec
 
 #: Simulated time [s] in process and over topics: full and --quick.
 IN_PROCESS_S = {False: 600.0, True: 100.0}
@@ -30,11 +38,6 @@ DT = 0.01
 
 def measure_in_process(t_end: float) -> dict:
     """Closed-loop lane change in process on one core: ``{"wall_s", "sim_s", "rtf", "status"}``."""
-    from euc_ros.core.unicycle.dynamics import UnicycleParams
-    from euc_ros.core.unicycle.linearize import straight_rolling_state
-    from euc_ros.core.unicycle.simulate import simulate
-    from euc_ros.core.unicycle.steering import SteeringController
-
     p = UnicycleParams()
     ctrl = SteeringController(p, "lane_change", 1.0, -8.0)
     x0 = straight_rolling_state(p, 1.0)
@@ -48,10 +51,6 @@ def measure_in_process(t_end: float) -> dict:
 
 def measure_physics_floor(t_end: float) -> dict:
     """The RK4 substeps alone on one core: ``{"wall_s", "sim_s", "rtf"}``."""
-    from euc_ros.core.unicycle.dynamics import UnicycleParams
-    from euc_ros.core.unicycle.linearize import straight_rolling_state
-    from euc_ros.core.unicycle.simulate import DEFAULT_SUBSTEPS, rk4_step
-
     p = UnicycleParams()
     x = [float(v) for v in straight_rolling_state(p, 1.0)]
     n = int(round(t_end / DT))
@@ -66,10 +65,6 @@ def measure_physics_floor(t_end: float) -> dict:
 
 def measure_lockstep_floor(steps: int, out_dir, timeout_s: float = 120.0) -> dict:
     """Bare rclpy lockstep ping-pong of ``steps`` steps: ``{"steps_per_s", "rtf", "peak_rss_mb"}``."""
-    from pathlib import Path
-
-    from euc_ros.ros.launcher import NodeSpec
-
     result = Path(out_dir) / "lockstep_floor.json"
     relay = ["-m", "euc_ros.bench.relay"]
     specs = [NodeSpec(sys.executable, name="lockstep_ctrl", args=[*relay, "lockstep-ctrl"], ros_args=False,
@@ -88,10 +83,6 @@ def measure_lockstep_floor(steps: int, out_dir, timeout_s: float = 120.0) -> dic
 
 def run(ctx: BenchContext) -> dict:
     """Benchmark 5 (see the module docstring)."""
-    import os
-
-    from euc_ros.lockstep import run_steer
-
     t_start = time.monotonic()
     t_in = IN_PROCESS_S[ctx.quick]
     ctx.log(f"  in process: {t_in:g} s simulated")

@@ -17,6 +17,7 @@ Exit codes: 0 every benchmark ran (targets missed are reported, not errors); 1 a
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import shutil
@@ -25,6 +26,10 @@ import tempfile
 import time
 from pathlib import Path
 
+from euc_ros.bench import BENCHMARKS
+from euc_ros.bench.common import DEFAULT_CACHE, BenchContext, environ, machine_info
+from euc_ros.bench.report import to_markdown
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.errors import ConfigError
 
 HELP = "benchmarks against their floors (latency, throughput, parse, recorder, simulation, replay, fuzz)"
@@ -32,9 +37,6 @@ HELP = "benchmarks against their floors (latency, throughput, parse, recorder, s
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros bench``."""
-    from euc_ros.bench import BENCHMARKS
-    from euc_ros.bench.common import DEFAULT_CACHE
-
     parser.add_argument("--quick", action="store_true", help="short variants (the whole run under 2 minutes)")
     parser.add_argument("--json", metavar="OUT", required=True, type=Path, help="write the results as JSON to OUT")
     parser.add_argument("--markdown", metavar="OUT.md", type=Path, default=None,
@@ -54,11 +56,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=None, realtime: int | None = None
                    ) -> dict:
     """Run the named benchmarks; returns the result dict written as JSON (``benchmarks``, ``machine``...)."""
-    import importlib
-
     from domain_coordinator import domain_id
-
-    from euc_ros.bench.common import BenchContext, environ, machine_info
 
     ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir), realtime=realtime,
                        command="euc_ros.cli.main:main")
@@ -88,12 +86,8 @@ def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=No
 
 def main(args: argparse.Namespace) -> int:
     """Run the benchmarks, write JSON and Markdown, print the table."""
-    from euc_ros.bench import BENCHMARKS
-    from euc_ros.bench.report import to_markdown
-
     names = [n for n in BENCHMARKS if args.only is None or n in args.only]
     md_path = args.markdown or args.json.with_suffix(".md")
-    from euc_ros.cli.outputs import Output, check_outputs
 
     check_outputs([Output("--json", args.json), Output("--markdown", md_path)])
     for p in (args.json, md_path):

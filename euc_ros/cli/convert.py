@@ -28,7 +28,10 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.errors import InputError
+from euc_ros.core.io.bags import read_mocap_bag, write_mocap_bag
+from euc_ros.core.mocap.ingest import capture_start_ns, format_capture_start
 
 HELP = "convert a Motive CSV export to a bag (PoseStamped per body, optional MocapFrame) and back"
 
@@ -91,9 +94,7 @@ def _kind(path: Path) -> str:
 
 def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
     """Convert a Motive CSV into a new bag at ``out`` (atomically); return messages per topic."""
-    from euc_ros.core.io.bags import write_mocap_bag
     from euc_ros.core.io.motive_csv import read_motive_csv, require_rigid_bodies
-    from euc_ros.core.mocap.ingest import capture_start_ns
 
     stages = _Stages(args, ["read CSV", "write bag"])
     series = read_motive_csv(src, world_up=args.world_up, bodies=args.bodies)
@@ -129,9 +130,7 @@ def csv_to_bag(src: Path, out: Path, args: argparse.Namespace) -> dict:
 
 def bag_to_csv(src: Path, out: Path, args: argparse.Namespace) -> dict:
     """Convert a bag into a new Motive CSV at ``out`` (atomically); return a summary."""
-    from euc_ros.core.io.bags import read_mocap_bag
     from euc_ros.core.io.motive_csv import write_motive_csv
-    from euc_ros.core.mocap.ingest import format_capture_start
 
     stages = _Stages(args, ["read bag", "write CSV"])
     series = read_mocap_bag(src, prefix=args.prefix.rstrip("/"), frame_topic=args.frame_topic, bodies=args.bodies)
@@ -165,7 +164,6 @@ def main(args: argparse.Namespace) -> int:
         raise InputError("no such file or directory", path=src)
     if out.exists():
         raise InputError("output exists already, not overwriting", path=out)
-    from euc_ros.cli.outputs import Output, check_outputs
 
     check_outputs([Output("output", out, "file" if out.suffix.lower() == ".csv" else "dir")], [src])
     if _kind(src) == "csv":

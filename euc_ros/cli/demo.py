@@ -15,8 +15,17 @@ from __future__ import annotations
 import argparse
 import io
 import json
+import shutil
 import time
 from pathlib import Path
+
+import numpy as np
+
+from euc_ros.cli.main import main as cli_main
+from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.core.io.bags import check_bag, read_bag
+from euc_ros.core.model.effects import LIBRARY
+from euc_ros.ros.launcher import NodeSpec, run
 
 HELP = "run the main job end to end: simulate, stream live, record, identify, trace the residual, steer"
 
@@ -41,8 +50,6 @@ def _step(n: int, text: str) -> None:
 
 
 def _cli(argv: list[str]) -> int:
-    from euc_ros.cli.main import main as cli_main
-
     print("$ euc-ros " + " ".join(argv), flush=True)
     code = cli_main(argv)
     if code != 0:
@@ -52,13 +59,9 @@ def _cli(argv: list[str]) -> int:
 
 def _live(out: Path, csv: Path, session: Path, h: float, rate_factor: float, extra: dict | None = None) -> Path:
     """Run the live pipeline on one CSV; returns the bag path."""
-    from euc_ros.ros.launcher import NodeSpec, run
-
     config = Path(__file__).resolve().parents[2] / "config"
     bag = out
     if bag.exists():
-        import shutil
-
         shutil.rmtree(bag)
     te_params = {"session_file": str(session), "h": float(h)}
     te_params.update(extra or {})
@@ -86,10 +89,6 @@ def _live(out: Path, csv: Path, session: Path, h: float, rate_factor: float, ext
 
 
 def _bag_summary(bag: Path) -> dict:
-    import numpy as np
-
-    from euc_ros.core.io.bags import check_bag, read_bag
-
     problems = check_bag(bag)
     counts: dict[str, int] = {}
     res, rmse = [], []
@@ -109,8 +108,6 @@ def _bag_summary(bag: Path) -> dict:
 
 def main(args: argparse.Namespace) -> int:
     """Run the demo; prints where every output is."""
-    from euc_ros.cli.outputs import Output, check_outputs
-
     check_outputs([Output("--out", args.out, "dir")])
     out = Path(args.out).resolve()
     out.mkdir(parents=True, exist_ok=True)
@@ -181,9 +178,5 @@ def main(args: argparse.Namespace) -> int:
 
 
 def _belongs(effect: str, param: str) -> bool:
-    import numpy as np
-
-    from euc_ros.core.model.effects import LIBRARY
-
     cand = LIBRARY[effect]()
     return param in cand.report(np.array([q.start for q in cand.params]))

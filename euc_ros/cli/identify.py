@@ -2,14 +2,15 @@
 
 For every recording (Motive CSV, bag directory or .mcap file) the states of the planar model are
 reconstructed from the rigid bodies (:func:`euc_ros.core.states.kinematics.reconstruct_states`), then
-the RMSE of ``M_d1 - M_d2`` is evaluated over a grid of h for the 3-DoF model (eqs (9)-(10)) and the
-reduced 2-DoF model (eq (13)), per recording and pooled (Fig. 8), and the optimum is refined.
+:func:`euc_ros.core.identify.cog_height.identify_h` evaluates the RMSE of ``M_d1 - M_d2`` over a grid of
+h for the 3-DoF model (eqs (9)-(10)) and the reduced 2-DoF model (eq (13)), per recording and pooled
+(Fig. 8), refines the optimum, and gives the interval of h. This module parses, calls and formats.
 
 Output: a table on stdout; with ``--json OUT`` the analysis output of the recording-format spec
 (section 5) plus both models' curves; with ``--plots DIR`` PNG figures: ``<recording>_states.png``
 (Figs 6-7 layout at the recording's optimal h) and ``rmse_curves.png`` (Fig. 8).
 
-Extended model (issue 5, step 5). ``--effect NAME`` (repeatable) with ``--param EFFECT.NAME=VALUE``
+Extended model. ``--effect NAME`` (repeatable) with ``--param EFFECT.NAME=VALUE``
 (repeatable), or ``--from-residual residual.json`` (its ``effect`` and ``effect_parameters``), adds
 the effects the residual analysis selected to the 3-DoF model
 (:class:`~euc_ros.core.model.extended.ExtendedModel`, parameters fixed at the given values). h is
@@ -24,17 +25,31 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.cli.plots import add_figure_arguments, configure_from_args
+from euc_ros.cli.loading import (
+    cog_faults,
+    collect_warnings,
+    format_cog_faults,
+    load_states,
+    print_warnings,
+    usage_table,
+)
+from euc_ros.cli.outputs import Output, check_outputs, write_output
+from euc_ros.cli.plots import add_figure_arguments, configure_from_args, plot_ride_states, plot_rmse_curves
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.identify.budget import parse_tolerances
+from euc_ros.core.identify.cog_height import HIdentification, identify_h
+from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
+from euc_ros.core.session import load_session
+from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+from euc_ros.core.states.skeleton import COG_METHODS
 
 HELP = "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``euc-ros identify``."""
-    from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
-    from euc_ros.core.states.skeleton import COG_METHODS
-
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
                         help="Motive CSV export, rosbag2 directory or .mcap file")
@@ -100,8 +115,6 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
     ConfigError
         An unknown effect, a malformed ``--param`` or a parameter of an effect that is not added.
     """
-    from euc_ros.core.model.extended import parse_effect_assignments
-
     effects: dict[str, dict[str, float]] = {}
     path = getattr(args, "from_residual", None)
     if path:
@@ -133,180 +146,16 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
     return effects
 
 
-def _fit_from_sse(sse_of, h_grid: np.ndarray, n: int, model: str):
-    """A :class:`~euc_ros.core.identify.fit.ModelFit` from a sum-of-squares function ``sse_of(h)``.
-
-    Same steps as the paper models' fits: grid minimum, bounded refinement between its neighbours,
-    formal std from the curvature (``sigma^2 = 2 s^2 / SSE''``), sharpness at +-0.1 m.
-    """
-    from scipy.optimize import minimize_scalar
-
-    from euc_ros.core.identify.fit import SHARPNESS_STEP_M, ModelFit
-
-    sse = np.array([sse_of(float(h)) for h in h_grid])
-    if n == 0 or not np.any(np.isfinite(sse)):
-        return ModelFit(model, np.nan, np.nan, n, np.full(h_grid.size, np.nan), False, np.nan, np.nan)
-    i = int(np.nanargmin(sse))
-    lo, hi = h_grid[max(i - 1, 0)], h_grid[min(i + 1, h_grid.size - 1)]
-    h_opt, sse_opt = float(h_grid[i]), float(sse[i])
-    if hi > lo:
-        res = minimize_scalar(sse_of, bounds=(lo, hi), method="bounded", options={"xatol": 1e-7})
-        if res.fun <= sse_opt:
-            h_opt, sse_opt = float(res.x), float(res.fun)
-    d = 1e-3
-    curv = (sse_of(h_opt - d) + sse_of(h_opt + d) - 2 * sse_opt) / d**2
-    h_std = float(np.sqrt(2 * sse_opt / max(n - 1, 1) / curv)) if curv > 0 else np.nan
-    rmse_opt = float(np.sqrt(sse_opt / n))
-    side = np.sqrt(np.array([sse_of(h_opt - SHARPNESS_STEP_M), sse_of(h_opt + SHARPNESS_STEP_M)]) / n)
-    sharp = float(np.mean(side) / rmse_opt - 1.0) if rmse_opt > 0 else np.inf
-    return ModelFit(model, h_opt, rmse_opt, n, np.sqrt(sse / n), i in (0, h_grid.size - 1), h_std, sharp)
-
-
-def _extended_inputs(states, params, effects: dict) -> list[tuple[dict, dict]]:
-    """Per recording: the extended model's input arrays over its samples, and its ``extras``.
-
-    The samples are the recording's valid ones (those of the paper's models) with a finite yaw and
-    tilt; the yaw rate is the Savitzky-Golay derivative of the (unwrapped) yaw with the states' own
-    window. With ``mocap_time_offset``, which needs the time-shift hook of the residual analysis, the
-    inputs are those of :func:`euc_ros.core.residual.analysis.prepare` (its sample set).
-    """
-    from euc_ros.core.filters.derivatives import savgol_derivatives
-
-    if "mocap_time_offset" in effects:
-        from euc_ros.core.residual.analysis import prepare
-
-        out = []
-        for rec in prepare(states, params):
-            c = rec.ctx
-            out.append(({k: getattr(c, k) for k in _EXTENDED_KEYS}, c.extras))
-        return out
-    out = []
-    for st in states:
-        window = st.window if st.window and st.window % 2 == 1 else 9
-        dpsi = savgol_derivatives(st.dt if np.isfinite(st.dt) else st.t, st.psi, window=window,
-                                  polyorder=st.polyorder, frame=st.frame)
-        mask = np.asarray(st.valid, bool) & np.isfinite(st.psi) & np.isfinite(st.theta) & np.isfinite(dpsi.y_dot)
-        arrays = {k: np.asarray(getattr(st, k), float)[mask] for k in _EXTENDED_KEYS if k not in ("t", "psi_dot")}
-        arrays["t"] = st.t[mask] - (st.t[0] if st.n else 0.0)
-        arrays["psi_dot"] = dpsi.y_dot[mask]
-        out.append((arrays, {}))
-    return out
-
-
-_EXTENDED_KEYS = ("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
-                  "psi_dot", "theta")
-
-
-def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
-    """Identify h for the 3-DoF model extended with ``effects``, per recording and pooled.
-
-    The residual of a sample is ``M_d1 - M_d2`` of
-    :class:`~euc_ros.core.model.extended.ExtendedModel` with the effects' parameters fixed (see
-    :func:`_extended_inputs` for the samples). The sum of squares is evaluated at every h of the grid
-    (vectorized over samples), then refined as for the paper's models.
-
-    Returns
-    -------
-    name : str
-        ``"3dof+<effect>..."``.
-    per_recording : list of ModelFit
-    pooled : ModelFit
-    """
-    from euc_ros.core.model.extended import ExtendedModel
-
-    model = ExtendedModel(params, effects)
-    inputs = _extended_inputs(states, params, effects)
-
-    def residual(k: int, h: float) -> np.ndarray:
-        arrays, extras = inputs[k]
-        m1, m2 = model.torques(**arrays, h=h, extras=extras)
-        return np.asarray(m1 - m2, float)
-
-    mid = float(np.median(h_grid))
-    masks = [np.isfinite(residual(k, mid)) for k in range(len(inputs))]
-    cache: dict[tuple[int, float], float] = {}
-
-    def sse_rec(k: int, h: float) -> float:
-        if (k, h) not in cache:
-            e = residual(k, h)[masks[k]]
-            cache[(k, h)] = float(np.dot(e, e))
-        return cache[(k, h)]
-
-    per = [_fit_from_sse(lambda h, k=k: sse_rec(k, h), h_grid, int(masks[k].sum()), model.name)
-           for k in range(len(inputs))]
-    pooled = _fit_from_sse(lambda h: sum(sse_rec(k, h) for k in range(len(inputs))), h_grid,
-                           int(sum(m.sum() for m in masks)), model.name)
-    return model.name, per, pooled
-
-
 def _fmt(v: float, digits: int) -> str:
     return "nan" if not np.isfinite(v) else f"{v:.{digits}f}"
 
 
-def uncertainty(states, session, params, result, args, tolerances, *, with_budget: bool = True,
-                simex_share=None) -> dict:
-    """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
-
-    ``args`` needs ``window_s``, ``polyorder``, and optionally ``phi_definition``, ``cog_method``, ``h_min``,
-    ``h_max``, ``sliding_bias`` (default True: the soft-tissue sliding's SIMEX bias joins the interval).
-    ``simex_share``: a :class:`~euc_ros.core.identify.simex.SimexShare` holding SIMEX's first replicate
-    (made by the residual's noise floor).
-    """
-    from euc_ros.core.identify.budget import budget
-    from euc_ros.core.identify.fit import coefficients_for
-    from euc_ros.core.identify.interval import interval, json_float, turning_rms
-    from euc_ros.core.identify.simex import eiv_bias
-
-    fit = result.pooled["3dof"]
-    phi_definition = getattr(args, "phi_definition", "hinge")
-    cog_method = getattr(args, "cog_method", "segments")
-    h_bounds = (getattr(args, "h_min", 0.1), getattr(args, "h_max", 1.2))
-    series = [st.meta.get("series") for st in states]
-    out = {}
-    bias = err = float("nan")
-    if np.isfinite(fit.h_m) and all(s is not None for s in series):
-        bias, err = eiv_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                               phi_definition=phi_definition, with_error=True, cog_method=cog_method,
-                               share=simex_share)
-    # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
-    # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
-    slide = None
-    if np.isfinite(fit.h_m) and all(s is not None for s in series) and getattr(args, "sliding_bias", True):
-        from euc_ros.core.identify.sliding import sliding_bias
-
-        try:
-            slide = sliding_bias(series, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                                 phi_definition=phi_definition, cog_method=cog_method)
-        except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
-            slide = None
-    total, total_err = bias, err
-    if slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0:
-        total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
-        total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
-    coefs = coefficients_for(states, params, "3dof", None)
-    iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
-                    h_bounds=h_bounds, turning_ms2=turning_rms(states))
-    del coefs                         # per-sample coefficients: not kept through the budget
-    out.update(iv.to_json())
-    if slide is not None:
-        out["uncertainty"]["eiv_bias_m"] = json_float(bias)
-        out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
-    lo, hi = iv.bootstrap_ci95_m
-    out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
-    if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
-        b = budget(series, states, session, params, fit.h_m, window_s=args.window_s, polyorder=args.polyorder,
-                     phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
-        out["h_range_m"] = b["h_range_m"]
-        out["uncertainty_budget"] = b
-    out["_h_m"] = fit.h_m
-    return out
-
-
-def format_uncertainty(unc: dict) -> str:
+def format_uncertainty(ident: HIdentification) -> str:
     """The verdict on h: interval and sharpness, or why h is not identifiable, and the budget."""
+    unc = ident.uncertainty
     u = unc["uncertainty"]
     lo, hi = unc["h_ci95_m"]
-    h = unc["_h_m"]
+    h = ident.h
     ci = "[-, -]" if lo is None or hi is None else f"[{lo:.3f}, {hi:.3f}]"
     bias = u.get("eiv_bias_m")
     how = (f"block bootstrap over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
@@ -372,26 +221,15 @@ def format_table(result, identifiable: bool | None = None) -> str:
 
 def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
-    from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
-                                     usage_table)
-    from euc_ros.cli.outputs import Output, check_outputs, write_output
-    from euc_ros.core.identify.fit import identify_h
-    from euc_ros.core.model.terms import EucParams
-    from euc_ros.core.session import load_session
-
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
     configure_from_args(args)
-    from euc_ros.core.identify.budget import parse_tolerances
-
     tolerances = parse_tolerances(args.tolerance)
     grid = h_grid_from_args(args)
     effects = effects_from_args(args)
     session = load_session(args.session)
     params = EucParams.from_session(session)
     if effects:
-        from euc_ros.core.model.extended import ExtendedModel
-
         ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
     states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
                          phi_definition=args.phi_definition, progress=not args.no_progress, desc="identify",
@@ -401,47 +239,34 @@ def main(args: argparse.Namespace) -> int:
                 "window_samples": states[0].window, "polyorder": args.polyorder,
                 "h_grid": {"min_m": float(grid[0]), "max_m": float(grid[-1]), "step_m": args.h_step},
                 "gravity_m_per_s2": float(params.g)}
-    result = identify_h(states, params, grid, settings=settings)
-    head = args.model or "3dof"
-    if effects:
-        name, per, pooled = extended_fits(states, params, effects, grid)
-        for rec, fit in zip(result.per_recording, per):
-            rec.fits[name] = fit
-        result.pooled[name] = pooled
-        result.settings["effects"] = {k: dict(v) for k, v in effects.items()}
-        result.settings["extended_model"] = name
-        head = args.model or name
+    ident = identify_h(states, session, params, h_grid=grid, h_bounds=(args.h_min, args.h_max), effects=effects,
+                       model=args.model, settings=settings, uncertainty=not args.no_uncertainty,
+                       sliding=args.sliding_bias, tolerances=tolerances, window_s=args.window_s,
+                       polyorder=args.polyorder, phi_definition=args.phi_definition, cog_method=args.cog_method)
     warnings = collect_warnings(states)
-    unc = None if args.no_uncertainty else uncertainty(states, session, params, result, args, tolerances)
-    print(format_table(result, identifiable=None if unc is None else unc["identifiable"]))
-    if unc is not None:
-        print(format_uncertainty(unc))
+    print(format_table(ident.fits, identifiable=ident.identifiable))
+    if ident.uncertainty is not None:
+        print(format_uncertainty(ident))
     print(format_usage(usage_table(states)))
     faults = cog_faults(states)
     print(format_cog_faults(faults))
     print_warnings(warnings)
     if args.json:
-        data = result.to_json(head)
+        data = ident.to_dict()
         usage = {u["recording"]: u for u in usage_table(states)}
         for rec in data.get("per_recording", []):
             rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
-        if unc is not None:
-            data["h_std_formal_m"] = data.get("h_std_m")
-            data.update({k: v for k, v in unc.items() if not k.startswith("_")})
         data["cog"] = faults
         data["warnings"] = warnings
         write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     if args.plots:
-        write_plots(result, states, params, Path(args.plots), interval=None if unc is None else unc.get("h_ci95_m"))
+        finite = ident.uncertainty is not None and all(np.isfinite(ident.interval))
+        write_plots(ident.fits, states, params, Path(args.plots), interval=ident.interval if finite else None)
     return 0
 
 
 def write_plots(result, states, params, out_dir: Path, *, interval=None) -> list[Path]:
-    """Write ``<recording>_states`` per recording and ``rmse_curves`` (with h's 95 % ``interval`` when given)
-    into ``out_dir``, in the configured formats."""
-    from euc_ros.cli.plots import plot_ride_states, plot_rmse_curves
-    from euc_ros.core.model.torque import torques
-
+    """Write ``<recording>_states.png`` per recording and ``rmse_curves.png`` into ``out_dir``."""
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for rec, st in zip(result.per_recording, states):

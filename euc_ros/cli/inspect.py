@@ -20,7 +20,9 @@ import tempfile
 from pathlib import Path
 from typing import Any
 
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.errors import InputError
+from euc_ros.core.session import load_session
 
 HELP = "show what a Motive CSV or a bag holds (and check bags structurally)"
 
@@ -218,8 +220,6 @@ def write_json(summary: dict, out: str | Path) -> Path:
 
 def main(args: argparse.Namespace) -> int:
     """Run ``euc-ros inspect``; returns the exit code (InputError propagates to the dispatcher: 2)."""
-    from euc_ros.cli.outputs import Output, check_outputs
-
     path = Path(args.file)
     if not path.exists():
         raise InputError("no such file or directory", path=path)
@@ -233,7 +233,6 @@ def main(args: argparse.Namespace) -> int:
     else:
         session = None
         if args.session is not None:
-            from euc_ros.core.session import load_session
             session = load_session(args.session)
         if args.world_up is not None:
             world_up, source = args.world_up, "--world-up"

@@ -7,6 +7,8 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.core.errors import InputError
+from euc_ros.core.io.recordings import load_recording, recording_kind
+from euc_ros.core.mocap.checks import check_recording
 
 
 def load_states(session, paths, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
@@ -20,8 +22,6 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
     """
     from tqdm import tqdm
 
-    from euc_ros.core.io.recordings import load_recording, recording_kind
-    from euc_ros.core.mocap.checks import check_recording
     from euc_ros.core.states.kinematics import reconstruct_states
 
     for path in paths:

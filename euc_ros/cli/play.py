@@ -26,7 +26,11 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.errors import InputError
+from euc_ros.core.io.bags import readable_bag
+from euc_ros.core.io.msgdefs import make_typestore
+from euc_ros.sched import set_realtime as _set
 
 HELP = "replay a bag onto live topics (recorded timing x rate, optional /clock, offset, filter, loop)"
 
@@ -89,9 +93,6 @@ class BagSource:
     def __init__(self, bag: Path, topics: list[str] | None, start_offset: float) -> None:
         from rosbags.highlevel import AnyReader
 
-        from euc_ros.core.io.bags import readable_bag
-        from euc_ros.core.io.msgdefs import make_typestore
-
         if start_offset < 0:
             raise InputError(f"--start-offset must be >= 0, got {start_offset}", key="--start-offset")
         self.frame_topic: str | None = None
@@ -133,8 +134,8 @@ class BagSource:
 
     def _frames(self):
         """``(stamp_ns, topic, cdr)`` of the frames assembled from the bag's per-body poses, from the start on."""
-        from euc_ros.core.mocap.ingest import Frame
         from euc_ros.core.io.bags import read_mocap_bag
+        from euc_ros.core.mocap.ingest import Frame
         from euc_ros.ros.convert import frame_to_raw
 
         STAMP_FILE_TIME = 1   # euc_msgs/MocapFrame: capture start time plus frame / rate
@@ -171,8 +172,6 @@ class BagSource:
 
 def set_realtime(priority: int) -> str:
     """Switch this process to SCHED_FIFO at ``priority``; return what happened (never raises)."""
-    from euc_ros.sched import set_realtime as _set
-
     return _set(priority, "playing")
 
 
@@ -332,7 +331,6 @@ def main(args: argparse.Namespace) -> int:
         raise InputError(f"--linger must be >= 0 s, got {args.linger}", key="--linger")
     if args.clock is not None and not args.clock > 0:
         raise InputError(f"--clock must be > 0 Hz, got {args.clock}", key="--clock")
-    from euc_ros.cli.outputs import Output, check_outputs
 
     check_outputs([Output("--timing-log", args.timing_log)], [args.bag])
     source = BagSource(Path(args.bag), args.topics, args.start_offset)

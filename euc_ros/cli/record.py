@@ -3,6 +3,7 @@ from __future__ import annotations
 
 import argparse
 
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.launcher import NodeSpec, run
 
@@ -21,8 +22,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the recorder until Ctrl-C or ``--duration``."""
-    from euc_ros.cli.outputs import Output, check_outputs
-
     check_outputs([Output("output", args.output, "dir")])
     params = {"output": args.output, "all_topics": args.all, "chunk_size": args.chunk_size}
     if args.topics:

@@ -11,6 +11,11 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.core.errors import InputError
+from euc_ros.core.io.bags import recover_bag
+from euc_ros.core.io.open_files import processes_with_open
+
 HELP = "rebuild a readable bag from a truncated or metadata-less one (recorder killed)"
 
 
@@ -22,11 +27,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Recover; 0 when messages were recovered (InputError: exit 2 via the dispatcher)."""
-    from euc_ros.cli.outputs import Output, check_outputs
-    from euc_ros.core.errors import InputError
-    from euc_ros.core.io.bags import recover_bag
-    from euc_ros.core.io.open_files import processes_with_open
-
     src = Path(args.bag)
     if not src.exists():
         raise InputError("no such file or directory", path=src)

@@ -13,20 +13,32 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 from pathlib import Path
 
 import numpy as np
 
-from euc_ros.cli.plots import add_figure_arguments, configure_from_args
+from euc_ros.cli.loading import (
+    cog_faults,
+    collect_warnings,
+    format_cog_faults,
+    load_states,
+    print_warnings,
+    usage_table,
+)
+from euc_ros.cli.outputs import Output, check_outputs, write_output
+from euc_ros.cli.plots import add_figure_arguments, configure_from_args, pyplot, save_figure
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.model.effects import LIBRARY, make_candidates
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.session import load_session
 
 HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the error before and after"
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
-    from euc_ros.core.model.effects import LIBRARY
     from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
@@ -62,13 +74,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def main(args: argparse.Namespace) -> int:
     """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
     from euc_ros.cli.identify import format_usage
-    from euc_ros.cli.loading import (cog_faults, collect_warnings, format_cog_faults, load_states, print_warnings,
-                                     usage_table)
-    from euc_ros.cli.outputs import Output, check_outputs, write_output
-    from euc_ros.core.model.effects import make_candidates
-    from euc_ros.core.model.terms import EucParams
-    from euc_ros.core.residual.analysis import analyze, make_noise_floor
-    from euc_ros.core.session import load_session
+    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.noise import make_noise_floor
 
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
                    Output("--report", args.report)], [args.session, *args.recordings])
@@ -85,6 +92,7 @@ def main(args: argparse.Namespace) -> int:
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
     series = [st.meta.get("series") for st in states]
     # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
+    from euc_ros.core.identify.cog_height import identify_h
     from euc_ros.core.identify.simex import SimexShare
 
     simex = SimexShare()
@@ -95,12 +103,8 @@ def main(args: argparse.Namespace) -> int:
                      discover=not args.no_discovery, noise_floor_of=noise_of, progress=say)
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
-    from euc_ros.cli.identify import uncertainty
-    from euc_ros.core.identify.budget import DEFAULT_TOLERANCES
-    from euc_ros.core.identify.fit import identify_h
-
-    base = uncertainty(states, session, params, identify_h(states, params, models=("3dof",)), args,
-                       DEFAULT_TOLERANCES, with_budget=False, simex_share=simex)
+    base = identify_h(states, session, params, models=("3dof",), with_budget=False, window_s=args.window_s,
+                      polyorder=args.polyorder, cog_method=args.cog_method, simex_share=simex).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     data["uncertainty"] = base["uncertainty"]
@@ -197,8 +201,6 @@ def paper_paragraph(data: dict) -> str:
 
 def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     """A Markdown report of the analysis (figures linked relative to the report)."""
-    import os
-
     out = ["# Residual analysis: M_d1 - M_d2", "",
            f"Recordings: {', '.join(data.get('recordings', []))}  ",
            f"Held-out evaluation: {data['held_out']['kind']} ({data['held_out']['folds']} folds); "
@@ -258,9 +260,9 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
 def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png, floor.png (the
     floor measured from the contact path) and h_range.png (h of every model the data cannot tell apart)."""
-    from euc_ros.cli.plots import pyplot, save_figure
-    from euc_ros.core.residual.analysis import Model, prepare
-    from euc_ros.core.residual.floor import contact_heights
+    from euc_ros.core.residual.selection import Model
+    from euc_ros.core.states.contexts import prepare
+    from euc_ros.core.states.floor import contact_heights
 
     plt = pyplot()
     out_dir.mkdir(parents=True, exist_ok=True)

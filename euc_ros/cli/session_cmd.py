@@ -5,10 +5,10 @@ import argparse
 import sys
 from pathlib import Path
 
-from euc_ros.core.model.anthropometry import BODIES, REFERENCE
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.session import parse_session
+from euc_ros.core.model.anthropometry import BODIES, REFERENCE
 from euc_ros.core.model.session_template import EUC_HOWTO, NameMap, RiderMeasures, render_session
+from euc_ros.core.session import parse_session
 from euc_ros.core.yamlfile import parse_yaml
 
 HELP = "write a session file (rider segments from body mass, height and sex; the EUC's measured values)"

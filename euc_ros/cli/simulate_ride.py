@@ -17,6 +17,10 @@ import math
 import sys
 import time
 
+from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.session import load_session
+
 HELP = "generate synthetic OptiTrack recordings of a ridden EUC with known truth"
 
 
@@ -78,13 +82,8 @@ def _progress_bar(args):
 
 def main(args: argparse.Namespace) -> int:
     """Run the simulation and write the files; returns 0."""
-    from euc_ros.core.errors import ConfigError
     from euc_ros.core.ridesim import MocapNoise, RideConfig, make_effects, parse_param_assignments, simulate_ride
-    from euc_ros.core.ridesim.writers import write_ride
-    from euc_ros.core.session import load_session
-
-    from euc_ros.cli.outputs import Output, check_outputs
-    from euc_ros.core.ridesim.writers import prepare_ride_dir
+    from euc_ros.core.ridesim.writers import prepare_ride_dir, write_ride
 
     t0 = time.perf_counter()
     check_outputs([Output("--out", args.out, "dir")], [args.session])

@@ -27,6 +27,7 @@ import math
 import sys
 from pathlib import Path
 
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.cli.unicycle import add_model_args, params_from_args, plot_run
 from euc_ros.core.errors import ConfigError
 from euc_ros.lockstep import DEFAULT_TIMEOUT_S, SteerFailed, run_steer
@@ -57,8 +58,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Run the maneuver over topics, print the report; 0 ok, 1 domain stop or failure."""
-    from euc_ros.cli.outputs import Output, check_outputs
-
     check_outputs([Output("--out", args.out, "dir"), Output("--json", args.json)])
     target = args.target
     if target is not None and args.maneuver == "turn":

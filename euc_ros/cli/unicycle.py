@@ -20,8 +20,16 @@ from pathlib import Path
 
 import numpy as np
 
+from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.cli.plots import save_figure
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.unicycle import linearize as lz
+from euc_ros.core.unicycle import steady as st
+from euc_ros.core.unicycle import steering as sg
+from euc_ros.core.unicycle.dynamics import UnicycleParams
+from euc_ros.core.unicycle.linearize import straight_rolling_state
+from euc_ros.core.unicycle.simulate import maneuver_metrics, reference_path, simulate
+from euc_ros.core.unicycle.steering import SteeringController, steering_gains
 
 HELP = "autonomous unicycle: steering gains, steady states, stability maps, maneuver simulation"
 
@@ -33,8 +41,6 @@ MAP_YAW_RATE = 15.0
 
 
 def add_model_args(p: argparse.ArgumentParser) -> None:
-    from euc_ros.core.unicycle.dynamics import UnicycleParams
-
     d = UnicycleParams()
     g = p.add_argument_group("model (Table I defaults)")
     g.add_argument("--wheel-mass", type=float, default=d.m, metavar="KG", help=f"wheel mass m (default {d.m})")
@@ -45,8 +51,6 @@ def add_model_args(p: argparse.ArgumentParser) -> None:
 
 
 def params_from_args(args: argparse.Namespace):
-    from euc_ros.core.unicycle.dynamics import UnicycleParams
-
     return UnicycleParams(m=args.wheel_mass, m0=args.point_mass, R=args.radius, g=args.gravity)
 
 
@@ -89,8 +93,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def main(args: argparse.Namespace) -> int:
     """Dispatch to the subcommand."""
-    from euc_ros.cli.outputs import Output, check_outputs
-
     check_outputs([Output("--json", getattr(args, "json", None)), Output("--out", getattr(args, "out", None), "dir")])
     return {"gains": _gains, "steady-states": _steady_states, "stability": _stability,
             "simulate": _simulate}[args.unicycle_command](args)
@@ -108,8 +110,6 @@ def _write_json(path: Path | None, data: dict) -> None:
 
 # ---------------------------------------------------------------------------------------------
 def _gains(args: argparse.Namespace) -> int:
-    from euc_ros.core.unicycle.steering import steering_gains
-
     g = steering_gains(params_from_args(args), args.maneuver, args.speed, args.pole)
     data = g.as_dict()
     print(f"{g.maneuver} at {g.speed:g} m/s, every non-zero closed-loop root at {g.pole:g} 1/s")
@@ -124,10 +124,6 @@ def _gains(args: argparse.Namespace) -> int:
 
 def steady_state_summary(params, speeds=(1.0, 5.0)) -> dict:
     """Critical values (eqs (23), (27), (31), (44), (54)) and controllability ranks (eqs (56), (63))."""
-    from euc_ros.core.unicycle import linearize as lz
-    from euc_ros.core.unicycle import steady as st
-    from euc_ros.core.unicycle import steering as sg
-
     out = {
         "wheel_critical_pitch_rate": st.wheel_critical_pitch_rate(params),
         "wheel_critical_speed": st.wheel_critical_speed(params),
@@ -209,9 +205,6 @@ def stability_figures(params, out_dir: Path, grid: int = 160) -> list[Path]:
       :data:`FIG6_MASSES`.
     """
     from matplotlib.colors import ListedColormap
-
-    from euc_ros.core.unicycle import steady as st
-    from euc_ros.core.unicycle.dynamics import UnicycleParams
 
     if grid < 8:
         raise ConfigError(f"needs at least 8 points per axis, got {grid}", key="grid")
@@ -313,8 +306,6 @@ def _stability(args: argparse.Namespace) -> int:
 # ---------------------------------------------------------------------------------------------
 def plot_run(result, controller, path: Path) -> None:
     """Plot tilt, mass position, yaw, input and the path of a run (like one column of Fig. 8)."""
-    from euc_ros.core.unicycle.simulate import reference_path
-
     plt = _pyplot()
     t, x = result.t, result.x
     fig, ax = plt.subplots(5, 1, figsize=(8, 12))
@@ -339,10 +330,6 @@ def plot_run(result, controller, path: Path) -> None:
 
 
 def _simulate(args: argparse.Namespace) -> int:
-    from euc_ros.core.unicycle.linearize import straight_rolling_state
-    from euc_ros.core.unicycle.simulate import maneuver_metrics, simulate
-    from euc_ros.core.unicycle.steering import SteeringController
-
     params = params_from_args(args)
     target = args.target
     if target is not None and args.maneuver == "turn":

@@ -16,8 +16,10 @@ neither needs the other). Each name is a module (``errors``) or a subpackage (``
   presence, live frames, the pose-noise model); ``filters``: Savitzky-Golay and low-lag derivatives.
 * ``io``: files and wire formats (Motive CSV, rosbag2/MCAP, NatNet, CDR); ``model``: the EUC's
   3-DoF equations, the torques and the library of effects that extend them.
-* ``states``: from poses to the model's states (geometry, skeleton fit, reconstruction, low-lag states).
-* ``identify``: the fit of the rider CoG height h and its interval (bootstrap, SIMEX, budget).
+* ``states``: from poses to the model's states (geometry, skeleton fit, reconstruction, low-lag states),
+  the floor under the wheel, and the model's evaluation contexts of reconstructed runs.
+* ``identify``: the rider CoG height h with its interval (fit, extended model, bootstrap, SIMEX, budget;
+  :func:`~euc_ros.core.identify.cog_height.identify_h`).
 * ``residual``: tracing M_d1 - M_d2 to a missing effect; ``online``: the frame-by-frame estimators and
   monitors behind the nodes.
 * ``ridesim``: the ride simulator (shares no code with the model, by design); ``worldsim``: a second,

@@ -22,8 +22,8 @@ from rclpy.node import Node
 from tf2_msgs.msg import TFMessage
 
 from euc_ros.core.errors import EucError
-from euc_ros.core.mocap.ingest import Frame, TrackingStats, ViewDecimator
 from euc_ros.core.io import cdr_frame
+from euc_ros.core.mocap.ingest import Frame, TrackingStats, ViewDecimator
 from euc_ros.core.mocap.up_axis_watch import UpAxisWatch
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf

@@ -1,7 +1,7 @@
 """Node ``monitor``: the pipeline's health for a rider-assist or lab operator, on ``/diagnostics``.
 
 Every ``period`` seconds it publishes one ``diagnostic_msgs/DiagnosticArray`` with five statuses
-(rules and levels in :mod:`euc_ros.core.online.monitoring`):
+(rules and levels in :mod:`euc_ros.core.monitoring`):
 
 * ``monitor: mocap``: arrival rate against ``expected_rate_hz``, dropped frames (gaps in the frame
   numbering) and bodies untracked over the last ``rate_window_s``;

@@ -1,4 +1,4 @@
-"""A node's input held until its frame rate is measured (:class:`euc_ros.core.mocap.rate.RateGate` on ROS).
+"""A node's input held until its frame rate is measured (:class:`euc_ros.core.rate.RateGate` on ROS).
 
 The node builds its filters with the configured rate; once the first frames have measured the real
 one, a rate more than 1 % off rebuilds them with the measured rate and logs an ERROR (the node's
@@ -29,7 +29,7 @@ class NodeRateGate:
     idle_s : float
         Release held items after this long without new input [s].
     **meter_options
-        ``min_span_s``, ``min_frames`` of :class:`euc_ros.core.mocap.rate.RateMeter`.
+        ``min_span_s``, ``min_frames`` of :class:`euc_ros.core.rate.RateMeter`.
     """
 
     def __init__(self, node, nominal_hz: float, rebuild: Callable[[float], None], process: Callable,
@@ -43,7 +43,7 @@ class NodeRateGate:
 
     @property
     def meter(self):
-        """The :class:`~euc_ros.core.mocap.rate.RateMeter`."""
+        """The :class:`~euc_ros.core.rate.RateMeter`."""
         return self.gate.meter
 
     @property

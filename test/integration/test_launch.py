@@ -8,7 +8,6 @@ rate (within 0.5e-9 s, plus the ulp of the start: 2e-9 s).
 from __future__ import annotations
 
 import io
-import os
 import signal
 import subprocess
 import sys

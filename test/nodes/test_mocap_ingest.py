@@ -30,8 +30,8 @@ from tf2_msgs.msg import TFMessage  # noqa: E402
 
 from euc_ros.core.errors import ConfigError  # noqa: E402
 from euc_ros.core.mocap.series import MocapSeries  # noqa: E402
-from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.nodes.mocap_ingest import MocapIngest  # noqa: E402
+from euc_ros.ros import interfaces as itf  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

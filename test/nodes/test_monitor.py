@@ -19,9 +19,9 @@ from euc_msgs.msg import RiderState, TorqueEstimate  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.core.online.monitoring import ERROR, OK, STALE, WARN  # noqa: E402
-from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.nodes.monitor import STATUS_NAMES, Monitor  # noqa: E402
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode  # noqa: E402
+from euc_ros.ros import interfaces as itf  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -30,9 +30,9 @@ from euc_ros.core.mocap.ingest import Frame  # noqa: E402
 from euc_ros.core.online.estimators import RiderStateEstimator  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402
 from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
+from euc_ros.nodes.rider_state import RiderStateNode  # noqa: E402
 from euc_ros.ros import convert  # noqa: E402
 from euc_ros.ros import interfaces as itf  # noqa: E402
-from euc_ros.nodes.rider_state import RiderStateNode  # noqa: E402
 from euc_ros.testing import savgol_roundoff  # noqa: E402
 
 pytestmark = pytest.mark.ros

@@ -29,12 +29,15 @@ from euc_ros.core.errors import ConfigError  # noqa: E402
 from euc_ros.core.rotations import rotate  # noqa: E402
 from euc_ros.core.unicycle.dynamics import UnicycleParams  # noqa: E402
 from euc_ros.core.unicycle.linearize import straight_rolling_state  # noqa: E402
-from euc_ros.core.unicycle.simulate import UnicycleSimulator, simulate  # noqa: E402
+from euc_ros.core.unicycle.simulate import (  # noqa: E402
+    UnicycleSimulator,
+    simulate,
+    wheel_pose,  # noqa: E402
+)
 from euc_ros.core.unicycle.steering import SteeringController, lane_change_reference, steering_gains  # noqa: E402
-from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.nodes.steering_controller import SteeringControllerNode  # noqa: E402
-from euc_ros.core.unicycle.simulate import wheel_pose  # noqa: E402
 from euc_ros.nodes.unicycle_sim import UnicycleSim  # noqa: E402
+from euc_ros.ros import interfaces as itf  # noqa: E402
 from euc_ros.ros.convert import msg_to_unicycle_state as msg_to_state  # noqa: E402
 from euc_ros.ros.convert import unicycle_state_to_msg as state_to_msg  # noqa: E402
 

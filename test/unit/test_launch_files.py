@@ -20,10 +20,10 @@ import pytest
 import yaml
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.ros.params import validate_params_file
-from euc_ros.ros.registry import NODES, node_class
 from euc_ros.ros import launch_file as lf
 from euc_ros.ros.launcher import NodeSpec, typed_parameters
+from euc_ros.ros.params import validate_params_file
+from euc_ros.ros.registry import NODES, node_class
 
 REPO = Path(__file__).resolve().parents[2]
 LAUNCH = REPO / "launch"
@@ -413,9 +413,10 @@ def test_help_documents_the_subset():
 def test_launch_xml_runs_for_real_where_launch_ros_imports(path, tmp_path):
     pytest.importorskip("launch_ros", reason="launch_ros is not on PyPI; the checks above stand in")
     pytest.importorskip("launch_xml")
-    from launch import LaunchDescription, LaunchService
     from launch.actions import IncludeLaunchDescription
     from launch.launch_description_sources import AnyLaunchDescriptionSource
+
+    from launch import LaunchDescription, LaunchService
 
     description = AnyLaunchDescriptionSource(str(path)).get_launch_description(None)
     assert isinstance(description, LaunchDescription)

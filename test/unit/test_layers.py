@@ -64,7 +64,8 @@ def test_every_core_module_has_a_layer():
     listed = {name for names in LAYERS for name in names}
     assert len(listed) == sum(len(names) for names in LAYERS), "a name is listed twice in LAYERS"
     present = {p.relative_to(CORE).parts[0].removesuffix(".py") for p in CORE.rglob("*.py")} - {"__init__"}
-    assert present == listed, f"not in LAYERS: {sorted(present - listed)}; listed but absent: {sorted(listed - present)}"
+    assert present == listed, (f"not in LAYERS: {sorted(present - listed)}; "
+                               f"listed but absent: {sorted(listed - present)}")
 
 
 @pytest.mark.parametrize("path", sorted(CORE.rglob("*.py")), ids=lambda p: str(p.relative_to(CORE)))

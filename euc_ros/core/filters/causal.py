@@ -51,10 +51,17 @@ from dataclasses import dataclass
 from math import factorial
 
 import numpy as np
+from numpy.polynomial import legendre
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.filters.derivatives import (DEFAULT_MAX_GAP, Derivatives, StreamingSavgol, filter_stretches,
-                                              grid_positions)
+from euc_ros.core.filters.derivatives import (
+    DEFAULT_MAX_GAP,
+    Derivatives,
+    StreamingSavgol,
+    filter_stretches,
+    grid_positions,
+    window_samples,
+)
 
 #: Default model order (number of states per coordinate): 4 is a constant-jerk model.
 DEFAULT_ORDER = 4
@@ -186,8 +193,6 @@ def kalman_weights(dt: float, lag: int, *, order: int = DEFAULT_ORDER, smoothing
 
 def _keep_polynomials(w: np.ndarray, lag: int, degree: int, dt: float) -> np.ndarray:
     """Smallest change of the weights (3, W) that makes polynomials up to ``degree`` exact."""
-    from numpy.polynomial import legendre
-
     W = w.shape[1]
     c = (W - 1) / 2.0
     V = legendre.legvander((np.arange(W) - c) / c, degree)
@@ -405,8 +410,6 @@ def streaming_filter(estimator: str, dt: float, *, window_s: float, polyorder: i
     >>> round(streaming_filter("kalman", 1 / 120, window_s=1.2, polyorder=6).lag_s, 3)
     0.1
     """
-    from euc_ros.core.filters.derivatives import window_samples
-
     if estimator == "split":
         raise ConfigError("the split estimator filters pieces of the poses, not one coordinate: use "
                           "RiderStateEstimator(estimator='split')", key="estimator")

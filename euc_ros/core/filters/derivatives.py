@@ -45,6 +45,7 @@ from dataclasses import dataclass
 from typing import Iterator, NamedTuple
 
 import numpy as np
+from numpy.polynomial import legendre
 
 from euc_ros.core.errors import ConfigError, InputError
 
@@ -138,7 +139,6 @@ def savgol_coefficients(window: int, polyorder: int, dt: float, positions,
     >>> abs(float(h[2, 0].sum())) < 1e-9   # a constant has no acceleration, at any rate
     True
     """
-    from numpy.polynomial import legendre
     from scipy.linalg import qr, solve_triangular
 
     window = int(window)

@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.identify.fit import identify_h
+from euc_ros.core.identify.fit import fit_h
 from euc_ros.core.identify.interval import json_float
 from euc_ros.core.states.kinematics import reconstruct_states
 
@@ -89,7 +89,7 @@ def budget(series_list, states, session, params, h: float, *, window_s: float, p
     tolerances = tolerances or dict(DEFAULT_TOLERANCES)
 
     def h_of(st, p):
-        return identify_h(st, p, models=("3dof",)).pooled["3dof"].h_m
+        return fit_h(st, p, models=("3dof",)).pooled["3dof"].h_m
 
     out = {}
     total = 0.0

@@ -367,7 +367,7 @@ class IdentifyResult:
         return out
 
 
-def identify_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models: Sequence[str] = MODELS,
+def fit_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models: Sequence[str] = MODELS,
                extra_Q=None, settings: dict | None = None) -> IdentifyResult:
     """Identify the CoG height h per recording and pooled, for each model (Section 4).
 
@@ -394,7 +394,7 @@ def identify_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models:
     if h_grid.size < 3 or np.any(np.diff(h_grid) <= 0) or not np.all(np.isfinite(h_grid)):
         raise ConfigError("the h grid needs at least 3 increasing finite values", key="h_grid")
     if callable(extra_Q):
-        raise ConfigError("identify_h takes extra_Q as arrays; use rmse_curve for an h-dependent force",
+        raise ConfigError("fit_h takes extra_Q as arrays; use rmse_curve for an h-dependent force",
                           key="extra_Q")
     per_rec = [RecordingFit(st.name, int(np.count_nonzero(st.valid)), {}) for st in states_list]
     pooled: dict[str, ModelFit] = {}
@@ -409,8 +409,8 @@ def identify_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models:
 
 def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = "3dof",
                sses: Sequence[np.ndarray] | None = None) -> ModelFit:
-    """The pooled fit of :func:`identify_h` from the recordings' residual coefficients (and their SSE
-    curves over ``h_grid``, computed here when not given): what ``identify_h(...).pooled[model]`` is."""
+    """The pooled fit of :func:`fit_h` from the recordings' residual coefficients (and their SSE
+    curves over ``h_grid``, computed here when not given): what ``fit_h(...).pooled[model]`` is."""
     h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
     if sses is None:
         sses = [sse_grid(c, h_grid) for c in coefs]
@@ -420,7 +420,7 @@ def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = 
 
 
 def pooled_h_of_states(states: list, params: EucParams) -> float:
-    """``identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, emptying the list ``states``:
+    """``fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, emptying the list ``states``:
     each recording's states are dropped as soon as they are reduced to their residual coefficients
     (48 bytes a valid sample, where the states are ~170 a frame), so the fit runs without them."""
     coefs = []

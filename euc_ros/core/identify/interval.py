@@ -4,21 +4,22 @@ Three sources of error, three tools (:func:`interval` combines the first two):
 
 * **Random error, correlated.** The Savitzky-Golay filter correlates neighbouring samples over its
   window, so the formal curvature-based ``h_std_m`` (independent samples) is far too small (a
-  25-minute ride gave +-0.4 mm). :func:`~euc_ros.core.identify.bootstrap.block_bootstrap` resamples whole blocks of consecutive
-  samples (a moving-block bootstrap with non-overlapping blocks); the block length comes from the
-  residual's measured autocorrelation (twice its first zero crossing, at least one filter window).
-  Each block's SSE(h) is computed once on a fine grid, so a replicate is a weighted sum: 1000
-  replicates cost one matrix product.
+  25-minute ride gave +-0.4 mm). :func:`~euc_ros.core.identify.bootstrap.block_bootstrap` resamples
+  whole blocks of consecutive samples (a moving-block bootstrap with non-overlapping blocks); the
+  block length comes from the residual's measured autocorrelation (twice its first zero crossing, at
+  least one filter window). Each block's SSE(h) is computed once on a fine grid, so a replicate is a
+  weighted sum: 1000 replicates cost one matrix product.
 * **Errors in variables.** Pose noise reaches the accelerations the regressors are built from, which
   biases h (low: a noisy CoG looks lower), independently of the recording's length. The bias is
   proportional to the noise variance, so simulation-extrapolation (SIMEX) measures it on the data:
   the noise of every body is estimated from the recording itself (third differences of positions
   and of rotation increments), the same amount is added again, and the change of h is the bias of
-  the data as recorded (:func:`~euc_ros.core.identify.simex.eiv_bias`). The interval is widened to contain the bias-corrected h.
+  the data as recorded (:func:`~euc_ros.core.identify.simex.eiv_bias`). The interval is widened to
+  contain the bias-corrected h.
 * **Nominal values no residual can check.** Masses, inertias, l0, h0 and the segment CoM offsets
   enter the model as given; h moves with them while the residual stays at its floor.
-  :func:`~euc_ros.core.identify.budget.budget` measures dh/dp for each (re-identifying with the value perturbed) and the h range
-  that stated tolerances imply.
+  :func:`~euc_ros.core.identify.budget.budget` measures dh/dp for each (re-identifying with the value
+  perturbed) and the h range that stated tolerances imply.
 
 h is **not identifiable** (``identifiable: false`` with a reason) when the recording is too short,
 the RMSE curve too flat (too little excitation), or the interval reaches the edge of the search

@@ -29,7 +29,7 @@ SIMEX_SEED = 1
 class SimexShare:
     """The first replicate of :func:`eiv_bias` (pair 1, ``+z``), made once for two uses.
 
-    The residual's noise floor (:func:`euc_ros.core.residual.analysis.make_noise_floor`) is one
+    The residual's noise floor (:func:`euc_ros.core.residual.noise.make_noise_floor`) is one
     re-noised reconstruction of the recordings, which is what a SIMEX replicate is. Made by
     :func:`first_replicate`, its h is kept here (with the noise estimate and what it was made with),
     and :func:`eiv_bias` given the same object and the same settings takes that h instead of
@@ -137,7 +137,7 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     def h_of(draws, sign):
         states = _replicate_states(series_list, noise, draws, sign, session, window_s=window_s, polyorder=polyorder,
                                    phi_definition=phi_definition, cog_method=cog_method)
-        # identify_h's pooled 3-DoF h, the states dropped once reduced to their coefficients
+        # fit_h's pooled 3-DoF h, the states dropped once reduced to their coefficients
         return pooled_h_of_states(states, params)
 
     hs = []

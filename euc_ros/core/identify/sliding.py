@@ -29,6 +29,12 @@ import dataclasses
 import numpy as np
 from scipy.optimize import nnls
 
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.identify.fit import fit_h
+from euc_ros.core.rotations import quat_rotate, rotation_matrices
+from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig, SkeletonModel
+
 #: Below this RMS sliding [m] the bias is not computed (0): white noise and round-off.
 MIN_SLIDING_M = 5e-4
 
@@ -50,9 +56,6 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
         ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
         power normalised to sum 1) for :func:`sliding_bias`.
     """
-    from euc_ros.core.errors import ConfigError
-    from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig
-
     if skeleton is not None:
         names, euc_body = list(skeleton.bodies), skeleton.euc_body
         links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
@@ -154,8 +157,6 @@ def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 <
     Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
     the caller). Computed block by block with the quaternions (no rotation matrices).
     """
-    from euc_ros.core.rotations import quat_rotate
-
     n = series.n_frames
     d = np.empty((n, 3))
     if a not in series.bodies or b not in series.bodies:
@@ -193,8 +194,6 @@ def _surrogate(rng: np.random.Generator, n: int, rate_hz: float, spectrum) -> np
 
 def add_sliding(series, sliding: dict, rng: np.random.Generator):
     """A copy of ``series`` with independent surrogate sliding added to every rider body's pivot."""
-    from euc_ros.core.rotations import rotation_matrices
-
     pos = series.position.copy()
     n = series.n_frames
     for nm, rms in zip(sliding["bodies"], sliding["rms_m"]):
@@ -223,10 +222,6 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
         ``sliding_rms_max_m``, ``sliding_bias_m`` and its standard error ``sliding_bias_err_m``
         (0 and 0 below :data:`MIN_SLIDING_M`; NaN without a finite h).
     """
-    from euc_ros.core.identify.fit import identify_h
-    from euc_ros.core.states.kinematics import reconstruct_states
-    from euc_ros.core.states.skeleton import SkeletonModel
-
     sliding = sliding or estimate_sliding(series_list, session)
     out = {"sliding_rms_max_m": sliding["rms_max_m"], "sliding_bias_m": 0.0, "sliding_bias_err_m": 0.0}
     if not np.isfinite(h):
@@ -243,7 +238,7 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
             skel = SkeletonModel.estimate(noisy, session) if cog_method == "skeleton" else None
             states = [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
                                          polyorder=polyorder, cog_method=cog_method, skeleton=skel) for s in noisy]
-            hs[level].append(identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
+            hs[level].append(fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
             del noisy, skel, states           # before the next replicate's are made
     h2, h3 = float(np.nanmean(hs[1])), float(np.nanmean(hs[2]))
     h0 = 3.0 * h - 3.0 * h2 + h3

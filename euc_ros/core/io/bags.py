@@ -26,14 +26,20 @@ import os
 import re
 import struct
 import sys
+import tempfile
 from collections import defaultdict
 from collections.abc import Iterator
+from itertools import chain
 from pathlib import Path
 
 import numpy as np
+import yaml
 
 from euc_ros.core.errors import InputError
+from euc_ros.core.io.cdr import ENCAPSULATION_LE, HEAD, pad, split_stamp
+from euc_ros.core.io.mcap_fast import McapFile
 from euc_ros.core.io.msgdefs import make_typestore
+from euc_ros.core.mocap.ingest import frame_from_named_poses
 from euc_ros.core.mocap.series import MocapSeries
 
 log = logging.getLogger(__name__)
@@ -325,8 +331,6 @@ def _close_chunk(storage) -> None:
     channel, and keeps the ChunkIndex record for the summary, as the MCAP specification lays them
     out; rosbags packs every integer through its own BytesIO write (~1 us per message).
     """
-    from itertools import chain
-
     chunk = storage.chunk
     body = chunk.bio.getbuffer()
     size = len(body)
@@ -358,8 +362,6 @@ ROS_DISTRO = "jazzy"
 
 def _set_ros_distro(meta: Path) -> None:
     """rosbags writes ``ros_distro: rosbags``; rosbag2 writes the distribution: say ``jazzy`` (atomically)."""
-    import os
-
     try:
         text = meta.read_text(encoding="utf-8")
     except OSError:
@@ -391,8 +393,6 @@ def _require_readable_bag(path) -> Path:
     metadata.yaml that is not valid YAML or lacks ``rosbag2_bagfile_information``, a listed MCAP file
     that is missing or truncated (no end magic: the writer was killed).
     """
-    import yaml
-
     bag = _bag_dir(path)
     meta = bag / "metadata.yaml"
     if not meta.is_file():
@@ -451,8 +451,6 @@ class readable_bag:
         self._tmp = None
 
     def __enter__(self) -> Path:
-        import tempfile
-
         p = self.path
         if p.suffix.lower() == ".mcap" and p.is_file() and not _listed_in_metadata(p):
             if not _has_end_magic(p):
@@ -471,8 +469,6 @@ class readable_bag:
 
 def _read_standalone_mcap(file: Path, **kw) -> MocapSeries:
     """Read an .mcap file without a bag directory: rebuilt into a temporary bag, then read."""
-    import tempfile
-
     if not _has_end_magic(file):
         raise InputError(f"truncated MCAP (no footer): `euc-ros recover {file}` rebuilds a bag from its complete "
                          "chunks", path=file)
@@ -602,8 +598,6 @@ def _check_qos(q: dict, where: str, problems: list[str]) -> None:
 
 def _check_metadata(bag: Path, problems: list[str]) -> dict | None:
     """Validate metadata.yaml; return the information block (or None when unusable)."""
-    import yaml
-
     meta_file = bag / "metadata.yaml"
     if not meta_file.is_file():
         problems.append("metadata.yaml missing: the bag was not closed (recorder killed?); "
@@ -945,8 +939,6 @@ def inspect_bag(path) -> dict:
         ``duration_s``, ``problems`` (list of str; empty when the bag is sound). For a bag without
         metadata.yaml the figures come from what the MCAP scan could read.
     """
-    import yaml
-
     bag = _bag_dir(path)
     if not bag.is_dir():
         raise InputError("no such bag directory", path=bag)
@@ -991,11 +983,6 @@ def inspect_bag(path) -> dict:
 # Mocap series <-> bag
 # =====================================================================================================================
 
-def _split_stamp(stamp_ns: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """builtin_interfaces/Time from int64 ns: (sec int32, nanosec uint32), floor division."""
-    stamp_ns = np.asarray(stamp_ns, dtype=np.int64)
-    return np.floor_divide(stamp_ns, 10**9), np.mod(stamp_ns, 10**9)
-
 
 def posestamped_cdr(stamp_ns, position, quat, frame_id: str = "world") -> list[bytes]:
     """Serialize PoseStamped messages to little-endian CDR, vectorized.
@@ -1023,18 +1010,18 @@ def posestamped_cdr(stamp_ns, position, quat, frame_id: str = "world") -> list[b
     n = stamp_ns.shape[0]
     fid = frame_id.encode("utf-8") + b"\0"
     body_start = 12 + len(fid)                     # relative to the encapsulation end
-    pose_rel = (body_start + 7) // 8 * 8
-    length = 4 + pose_rel + 56
+    pose_rel = pad(body_start, 8)
+    length = HEAD + pose_rel + 56
     buf = np.zeros((n, length), dtype=np.uint8)
-    buf[:, 1] = 1                                  # CDR_LE
-    sec, nsec = _split_stamp(stamp_ns)
+    buf[:, :HEAD] = np.frombuffer(ENCAPSULATION_LE, np.uint8)
+    sec, nsec = split_stamp(stamp_ns)
     buf[:, 4:8] = sec.astype("<i4")[:, None].view(np.uint8)
     buf[:, 8:12] = nsec.astype("<u4")[:, None].view(np.uint8)
     buf[:, 12:16] = np.frombuffer(np.uint32(len(fid)).astype("<u4").tobytes(), np.uint8)
     buf[:, 16:16 + len(fid)] = np.frombuffer(fid, np.uint8)
     values = np.concatenate([np.asarray(position, float).reshape(n, 3), np.asarray(quat, float).reshape(n, 4)],
                             axis=1).astype("<f8")
-    buf[:, 4 + pose_rel:] = values.view(np.uint8).reshape(n, 56)
+    buf[:, HEAD + pose_rel:] = values.view(np.uint8).reshape(n, 56)
     return [row.tobytes() for row in buf]
 
 
@@ -1143,7 +1130,7 @@ def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", f
             Frame, Header, Time = T[MOCAP_FRAME], T["std_msgs/msg/Header"], T["builtin_interfaces/msg/Time"]
             Pose, Point, Quaternion = T["geometry_msgs/msg/Pose"], T["geometry_msgs/msg/Point"], \
                 T["geometry_msgs/msg/Quaternion"]
-            sec, nsec = _split_stamp(stamps)
+            sec, nsec = split_stamp(stamps)
             pos = np.where(tracked[..., None], series.position, np.nan)
             quat = np.where(tracked[..., None], series.quat, np.nan)
             err = np.asarray(series.mean_marker_error, float)
@@ -1168,8 +1155,6 @@ def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", f
 
 def _bag_info(bag: Path) -> dict:
     """metadata.yaml's ``rosbag2_bagfile_information`` mapping ({} when unreadable)."""
-    import yaml
-
     try:
         info = yaml.load((bag / "metadata.yaml").read_text(encoding="utf-8"),
                          Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))["rosbag2_bagfile_information"]
@@ -1332,8 +1317,6 @@ def _series_from_rigid_bodies(reader, conn, bag: Path) -> MocapSeries:
 
     Bodies are taken in order of first appearance; a body missing from a message, or with a pose that
     is not finite with a unit quaternion, is a gap (NaN, untracked)."""
-    from euc_ros.core.mocap.ingest import frame_from_named_poses
-
     msgs = [reader.deserialize(data, conn.msgtype) for _, _, data in reader.messages(connections=[conn])]
     if not msgs:
         raise InputError(f"topic {conn.topic} holds no messages", path=bag)
@@ -1427,8 +1410,6 @@ def _mocapframe_layout(msg: bytes) -> dict | None:
     the byte after that header. ``const`` lists the bytes that fix the layout (length and count
     fields, body names): equal in every message, they make all messages share these offsets.
     """
-    import struct
-
     base = 4
     if len(msg) < base + 12 or msg[0] != 0 or msg[1] != 1:
         return None
@@ -1552,8 +1533,6 @@ def _read_mocap_fast(bag: Path, info: dict, prefix: str, frame_topic: str | None
     Handles one uncompressed, indexed MCAP file whose MocapFrame messages share one CDR layout (or
     PoseStamped topics). Topics are taken in metadata.yaml order, as rosbags lists its connections.
     """
-    from euc_ros.core.io.mcap_fast import McapFile
-
     try:
         files = info.get("relative_file_paths") or []
         topics = info.get("topics_with_message_count") or []

@@ -5,8 +5,8 @@ Publishing a message object through rclpy converts every field from Python to C 
 for a RiderState that costs about twice a publication of the same message as bytes (measured on this
 machine class with a subscriber in another process), and the object's construction (one checked
 ``setattr`` per field) comes on top. The layout of these messages is simple, so :class:`FlatEncoder`
-writes it directly (OMG CDR version 1, little endian, as rmw_fastrtps writes it; alignment counted from
-the end of the 4-byte encapsulation header ``00 01 00 00``)::
+writes it directly with the shared primitives of :mod:`.cdr` (OMG CDR version 1, little endian, as
+rmw_fastrtps writes it; alignment counted from the end of the 4-byte encapsulation header ``00 01 00 00``)::
 
     std_msgs/Header   int32 sec, uint32 nanosec, string frame_id
     bool              1 byte
@@ -16,14 +16,15 @@ the end of the 4-byte encapsulation header ``00 01 00 00``)::
 The field list is a message definition's ``(name, type)`` pairs, with nested float64-only structs
 (``geometry_msgs/Point``) already expanded into their fields (the node layer reads both from the
 generated class, :func:`euc_ros.ros.convert.flat_fields`). Tested byte for byte against rclpy's
-serializer (``test/unit/io/test_cdr_flat.py``).
+serializer (``test/unit/io/test_cdr_flat.py``) and rosbags' (``test/unit/io/test_cdr_rosbags.py``).
 """
 from __future__ import annotations
 
 import struct
 from typing import Sequence
 
-_ENCAPSULATION_LE = b"\x00\x01\x00\x00"
+from euc_ros.core.io.cdr import ENCAPSULATION_LE, header_bytes, write_string
+
 _KINDS = ("bool", "float64", "string")
 
 
@@ -64,9 +65,7 @@ class FlatEncoder:
         order of the fields (floats are written as float64, NaN kept; booleans as 0/1)."""
         if len(values) != self.n_fields:
             raise ValueError(f"expected {self.n_fields} values ({', '.join(self.names)}), got {len(values)}")
-        sec, nsec = divmod(max(int(stamp_ns), 0), 1_000_000_000)
-        out = bytearray(struct.pack("<iI", sec, nsec))
-        _string(out, frame_id)
+        out = header_bytes(stamp_ns, frame_id)
         for kind, first, count, packer in self._ops:
             if kind == "float64":
                 out += b"\x00" * ((-len(out)) % 8)
@@ -74,11 +73,5 @@ class FlatEncoder:
             elif kind == "bool":
                 out.append(1 if values[first] else 0)
             else:
-                _string(out, values[first])
-        return _ENCAPSULATION_LE + bytes(out)
-
-
-def _string(out: bytearray, text: str) -> None:
-    raw = str(text).encode("utf-8") + b"\x00"
-    out += b"\x00" * ((-len(out)) % 4)
-    out += struct.pack("<I", len(raw)) + raw
+                write_string(out, values[first])
+        return ENCAPSULATION_LE + bytes(out)

@@ -20,7 +20,8 @@ of the 4-byte encapsulation header ``00 01 00 00``)::
 :func:`decode` reads little-endian CDR of exactly this layout and raises :class:`CdrError` on
 anything else (big endian, truncated, inconsistent counts), so a caller can fall back to the
 generic deserializer. Both directions are tested against rclpy's serializer
-(``test/unit/io/test_cdr_frame.py``).
+(``test/unit/io/test_cdr_frame.py``) and rosbags' (``test/unit/io/test_cdr_rosbags.py``); the primitives
+(encapsulation, alignment, strings, header) are those of :mod:`.cdr`.
 """
 from __future__ import annotations
 
@@ -29,23 +30,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-_ENCAPSULATION_LE = b"\x00\x01\x00\x00"
-_HEAD = 4
+from euc_ros.core.io.cdr import ENCAPSULATION_LE, HEAD, header_bytes, pad, write_string
 
 
 class CdrError(ValueError):
     """The bytes are not a little-endian CDR MocapFrame this module can read."""
 
-
-def _pad(offset: int, align: int) -> int:
-    """``offset`` (counted after the encapsulation header) rounded up to ``align``."""
-    return offset + (-offset) % align
-
-
-def _string(out: bytearray, text: str) -> None:
-    raw = text.encode("utf-8") + b"\x00"
-    out += b"\x00" * ((-len(out)) % 4)
-    out += struct.pack("<I", len(raw)) + raw
 
 
 @dataclass(frozen=True)
@@ -81,7 +71,7 @@ class FrameEncoder:
         key = (frame_id, tuple(bodies))
         if key != self._key:
             body = bytearray(8)                          # stamp, written per frame
-            _string(body, frame_id)
+            write_string(body, frame_id)
             stamp_source_at = len(body)
             body += b"\x00"
             body += b"\x00" * ((-len(body)) % 8)
@@ -89,7 +79,7 @@ class FrameEncoder:
             body += b"\x00" * 8
             body += struct.pack("<I", len(bodies))
             for name in bodies:
-                _string(body, name)
+                write_string(body, name)
             body += b"\x00" * ((-len(body)) % 4)
             body += struct.pack("<I", len(bodies))
             body += b"\x00" * ((-len(body)) % 8)
@@ -139,7 +129,7 @@ class FrameEncoder:
         buf[t.poses_at:t.poses_at + 56 * n] = poses.tobytes()
         buf[t.tracked_at:t.tracked_at + n] = np.asarray(tracked, dtype=bool).reshape(n).astype(np.uint8).tobytes()
         buf[t.error_at:t.error_at + 4 * n] = np.asarray(mean_marker_error, dtype="<f4").reshape(n).tobytes()
-        return _ENCAPSULATION_LE + bytes(buf)
+        return ENCAPSULATION_LE + bytes(buf)
 
 
 @dataclass
@@ -163,14 +153,14 @@ class _Reader:
         self.pos = 0          # counted after the encapsulation header
 
     def need(self, n: int) -> int:
-        at = _HEAD + self.pos
+        at = HEAD + self.pos
         if n < 0 or at + n > len(self.raw):
             raise CdrError(f"truncated MocapFrame: {n} bytes wanted at byte {at} of {len(self.raw)}")
         self.pos += n
         return at
 
     def align(self, a: int) -> None:
-        self.pos = _pad(self.pos, a)
+        self.pos = pad(self.pos, a)
 
     def u32(self) -> int:
         self.align(4)
@@ -198,7 +188,7 @@ _NAMES_CACHE: dict[bytes, list[str]] = {}
 def decode(raw: bytes) -> DecodedFrame:
     """Read the CDR bytes of a MocapFrame (see the module docstring); raises :class:`CdrError`."""
     raw = bytes(raw)
-    if raw[:2] != _ENCAPSULATION_LE[:2]:
+    if raw[:2] != ENCAPSULATION_LE[:2]:
         raise CdrError(f"not little-endian CDR (encapsulation {raw[:4].hex()})")
     r = _Reader(raw)
     sec, nsec = struct.unpack_from("<iI", raw, r.need(8))
@@ -206,15 +196,15 @@ def decode(raw: bytes) -> DecodedFrame:
     stamp_source = raw[r.need(1)]
     r.align(8)
     frame_number = struct.unpack_from("<q", raw, r.need(8))[0]
-    names_start = _HEAD + r.pos
+    names_start = HEAD + r.pos
     n_names = r.count(5)
     for _ in range(n_names):
         r.string()
-    key = raw[names_start:_HEAD + r.pos]
+    key = raw[names_start:HEAD + r.pos]
     bodies = _NAMES_CACHE.get(key)
     if bodies is None:
         rr = _Reader(raw)
-        rr.pos = names_start - _HEAD
+        rr.pos = names_start - HEAD
         bodies = [rr.string() for _ in range(rr.count(5))]
         if len(_NAMES_CACHE) > 64:
             _NAMES_CACHE.clear()
@@ -230,21 +220,13 @@ def decode(raw: bytes) -> DecodedFrame:
                         poses[:, :3].astype(float), poses[:, 3:].astype(float), tracked, err)
 
 
-def _header_bytes(stamp_ns: int, frame_id: str) -> bytearray:
-    """std_msgs/Header at the start of a message body (offset 0 after the encapsulation header)."""
-    sec, nsec = divmod(max(int(stamp_ns), 0), 1_000_000_000)
-    out = bytearray(struct.pack("<iI", sec, nsec))
-    _string(out, frame_id)
-    return out
-
-
 def pose_stamped(stamp_ns: int, frame_id: str, position, quat) -> bytes:
     """CDR bytes of one ``geometry_msgs/PoseStamped`` (position (3,), quaternion (4,) x, y, z, w)."""
-    body = _header_bytes(stamp_ns, frame_id)
+    body = header_bytes(stamp_ns, frame_id)
     body += b"\x00" * ((-len(body)) % 8)
     body += np.concatenate([np.asarray(position, dtype="<f8").reshape(3),
                             np.asarray(quat, dtype="<f8").reshape(4)]).tobytes()
-    return _ENCAPSULATION_LE + bytes(body)
+    return ENCAPSULATION_LE + bytes(body)
 
 
 def tf_message(stamp_ns: int, parent: str, children, position, quat) -> bytes:
@@ -257,8 +239,8 @@ def tf_message(stamp_ns: int, parent: str, children, position, quat) -> bytes:
     for i, child in enumerate(children):
         body += b"\x00" * ((-len(body)) % 4)
         body += struct.pack("<iI", sec, nsec)
-        _string(body, parent)
-        _string(body, child)
+        write_string(body, parent)
+        write_string(body, child)
         body += b"\x00" * ((-len(body)) % 8)
         body += position[i].tobytes() + quat[i].tobytes()
-    return _ENCAPSULATION_LE + bytes(body)
+    return ENCAPSULATION_LE + bytes(body)

@@ -12,6 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from euc_ros.core.errors import InputError
+from euc_ros.core.io.bags import read_mocap_bag
 from euc_ros.core.mocap.series import MocapSeries
 
 
@@ -61,8 +62,6 @@ def load_recording(path: str | Path, world_up: str = "y", *, bodies: list[str] |
         series = read_motive_csv(path, world_up=world_up, bodies=bodies)
         require_rigid_bodies(series, path)
     else:
-        from euc_ros.core.io.bags import read_mocap_bag
-
         series = read_mocap_bag(path, bodies=bodies)
     series.meta.setdefault("path", str(path))
     if not series.name:

@@ -17,6 +17,7 @@ reading a recording block after block with margins draws every block once.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Callable
 
 import numpy as np
@@ -80,8 +81,6 @@ class PerturbedSeries:
 
     def materialize(self) -> MocapSeries:
         """The whole perturbed recording as a :class:`~euc_ros.core.mocap.series.MocapSeries`."""
-        from dataclasses import replace
-
         pos, quat = self._perturb(0, self._base.n_frames)
         return replace(materialize(self._base), position=pos, quat=quat)
 

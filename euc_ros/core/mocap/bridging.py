@@ -21,6 +21,7 @@ number is reported.
 from __future__ import annotations
 
 from collections import deque
+from dataclasses import replace
 from typing import Sequence
 
 import numpy as np
@@ -73,8 +74,6 @@ def bridge_series(series, max_gap: int):
     MocapSeries, ndarray of bool (b, n)
         A copy with the bridged samples filled and tracked, and the mask of those samples.
     """
-    from dataclasses import replace
-
     pos = np.array(series.position, dtype=float, copy=True)
     quat = np.array(series.quat, dtype=float, copy=True)
     tracked = np.array(series.tracked, dtype=bool, copy=True)

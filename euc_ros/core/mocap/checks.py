@@ -9,6 +9,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from euc_ros.core.mocap.length_scale import check_length_scale
+from euc_ros.core.mocap.rate import check_rate
+
 
 def check_recording(series, session, path: str | Path | None = None) -> list[str]:
     """Check a recording against its session.
@@ -28,8 +31,6 @@ def check_recording(series, session, path: str | Path | None = None) -> list[str
         Warnings (the analysis goes on); errors raise.
     """
     from euc_ros.core.mocap.conventions import check_conventions
-    from euc_ros.core.mocap.length_scale import check_length_scale
-    from euc_ros.core.mocap.rate import check_rate
 
     warnings: list[str] = []
     warnings += check_length_scale(series, session, path)   # first: a unit slip misleads every other check

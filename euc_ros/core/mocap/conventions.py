@@ -31,6 +31,7 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import (
     rotate,
     y_up_to_z_up_position,
@@ -93,7 +94,6 @@ def _thinned(series):
     n = series.n_frames
     if n <= MAX_FRAMES:
         return series
-    from euc_ros.core.mocap.series import MocapSeries
 
     idx = np.unique(np.linspace(0, n - 1, MAX_FRAMES).round().astype(np.int64))
     return MocapSeries(series.t[idx], series.frame[idx], list(series.bodies), series.position[:, idx],

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import calendar
 import re
+import time as _time
 from collections import deque
 from dataclasses import dataclass, field
 
@@ -643,8 +644,6 @@ def format_capture_start(ns: int) -> str:
     Rounded to the millisecond, 12-hour clock with an English marker, as Motive writes it in an
     English locale; :func:`capture_start_ns` reads it back to the millisecond.
     """
-    import time as _time
-
     ns = (int(ns) + 500_000) // 1_000_000 * 1_000_000
     seconds, rest = divmod(ns, 1_000_000_000)
     st = _time.gmtime(seconds)

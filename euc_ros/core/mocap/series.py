@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from euc_ros.core.errors import InputError
+from euc_ros.core.mocap.rate import measured_rate_hz
 
 
 @dataclass
@@ -61,8 +62,6 @@ class MocapSeries:
         carry round-off; the exact nominal value keeps window lengths in samples reproducible), and
         with fewer than two frames.
         """
-        from euc_ros.core.mocap.rate import measured_rate_hz
-
         rate = measured_rate_hz(self.t, self.frame) if self.n_frames > 1 else float("nan")
         stated = float(self.meta["rate_hz"]) if "rate_hz" in self.meta else float("nan")
         if np.isfinite(stated) and stated > 0 and (not np.isfinite(rate) or abs(rate / stated - 1.0) <= 1e-3):

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from euc_ros.core.errors import ConfigError
 from euc_ros.core.model.terms import EucParams
 
 #: Air density of aero_drag [kg/m^3].
@@ -331,7 +332,7 @@ class WheelBodyFriction(Candidate):
 
 
 class FloorGeometry(Candidate):
-    """The floor measured from the contact path, in a lab whose vertical is gravity's (issue 12).
+    """The floor measured from the contact path, in a lab whose vertical is gravity's.
 
     A floor tilted in the mocap frame (a ramp or a bump in a level-calibrated lab) is known without
     dynamics: the wheel centre C moves along it with slope ``a(t)`` along travel (measured) and vertical
@@ -408,8 +409,6 @@ LIBRARY: dict[str, type[Candidate]] = {c.name: c for c in (
 
 def make_candidates(names=None) -> list[Candidate]:
     """Instantiate library candidates (all by default) in library order."""
-    from euc_ros.core.errors import ConfigError
-
     names = list(LIBRARY) if names is None else list(names)
     unknown = [n for n in names if n not in LIBRARY]
     if unknown:
@@ -419,8 +418,6 @@ def make_candidates(names=None) -> list[Candidate]:
 
 def theta_from_report(candidate: Candidate, values: dict[str, float]) -> np.ndarray:
     """Inverse of :meth:`Candidate.report`: parameters from reported values (for configured models)."""
-    from euc_ros.core.errors import ConfigError
-
     if isinstance(candidate, FloorGeometry):
         return np.zeros(0)
     if isinstance(candidate, TimeVaryingH):

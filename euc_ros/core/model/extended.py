@@ -21,6 +21,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.model.effects import FloorGeometry, ModelContext, make_candidates, theta_from_report
 from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
 
 #: Effects that need the recording's geometry (future samples) and are offline only.
 OFFLINE_ONLY = {"mocap_time_offset"}
@@ -106,7 +107,6 @@ class ExtendedModel:
             dQ = c.force(ctx, th)
             if dQ is not None:
                 ctx.add_force(dQ)
-        from euc_ros.core.model.torque import torques
 
         return torques(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot, ctx.phi_ddot,
                        ctx.p(), extra_Q=ctx.extra_Q)

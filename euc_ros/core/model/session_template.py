@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
-from euc_ros.core.model.anthropometry import BODIES, REFERENCE, rider_segments, standing_rider
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.model.anthropometry import BODIES, REFERENCE, rider_segments, standing_rider
 from euc_ros.core.session import Euc
 
 

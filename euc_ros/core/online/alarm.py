@@ -1,4 +1,4 @@
-"""Threshold of the live residual monitor from a calibration ride (issue 15).
+"""Threshold of the live residual monitor from a calibration ride.
 
 The monitor flags the model as inconsistent when the sliding RMSE of ``M_d1 - M_d2`` over ``n``
 samples exceeds a threshold (:func:`~euc_ros.core.online.monitoring.consistency_health`). How low the

@@ -20,7 +20,7 @@ A node only converts messages and calls these (functional core, imperative shell
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
@@ -28,6 +28,7 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.causal import STATE_ESTIMATORS, streaming_filter
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
 from euc_ros.core.mocap.bridging import PoseBridge
+from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques, torques_2dof, torques_one
 from euc_ros.core.online.window import OnlineHEstimator, SlidingRmse
@@ -35,9 +36,6 @@ from euc_ros.core.states.geometry import frame_geometry
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.states.skeleton import COG_METHODS, OnlineSkeleton
 from euc_ros.core.states.split_lag import SPLIT_LAG_S, StreamingSplit, split_pieces
-
-if TYPE_CHECKING:
-    from euc_ros.core.model.extended import ExtendedModel
 
 
 @dataclass(frozen=True)
@@ -91,7 +89,7 @@ class RiderStateEstimator:
         Longest run of missing frames bridged (bridged frames give no output).
     estimator : {"savgol", "kalman", "split"}
         Derivative filter (:func:`~euc_ros.core.filters.causal.streaming_filter`): the Savitzky-Golay
-        filter (default) or the low-lag Kalman fixed-lag smoother (issue 15); or ``split``
+        filter (default) or the low-lag Kalman fixed-lag smoother; or ``split``
         (:mod:`~euc_ros.core.states.split_lag`: pivot positions and orientation-borne pieces smoothed
         separately, then composed; half the M_d1 and a quarter of the M_d2 error of ``kalman`` at
         0.1 s, but a 3 s start-up, ``phi_definition`` hinge and ``cog_method`` segments only, a
@@ -648,8 +646,6 @@ def extended_model_from_config(params: EucParams, effects: Sequence[str], assign
         Unknown effect, an effect that needs future samples (``mocap_time_offset``), a malformed
         assignment, one for an effect not listed, or a missing parameter.
     """
-    from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
-
     names = [e.strip() for e in effects if e and e.strip()]
     items = [a for a in assignments if a and a.strip()]
     for item in items:

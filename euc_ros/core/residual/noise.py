@@ -20,12 +20,17 @@ under-estimated here and shows as structure instead; the discovery step and the 
 """
 from __future__ import annotations
 
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
+from euc_ros.core.identify.simex import SIMEX_SEED, first_replicate
 from euc_ros.core.mocap.noise import renoised
-from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.residual.selection import Model
+from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, prepare
+from euc_ros.core.states.floor import floor_from_states
+from euc_ros.core.states.kinematics import RiderStates, reconstruct_states
 
 
 def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *, seed: int = 0,
@@ -58,3 +63,45 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
         diffs.append((r1[:n] - r0[:n])[m])
     d = np.concatenate(diffs) if diffs else np.zeros(0)
     return float(np.sqrt(np.mean(d ** 2))) if d.size else float("nan")
+
+
+def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
+                     seed: int | None = None, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, share=None
+                     ) -> Callable[[Model, np.ndarray], float]:
+    """``noise_floor_of`` for :func:`analyze`: the recordings' own pose noise propagated through the
+    reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`).
+
+    The re-noised recordings are the first replicate of the h interval's SIMEX
+    (:func:`euc_ros.core.identify.simex.first_replicate`, ``seed`` default its seed); with ``share`` (a
+    :class:`~euc_ros.core.identify.simex.SimexShare` later given to ``eiv_bias``) that replicate's h is
+    kept so SIMEX does not reconstruct it again.
+    """
+    floor = floor_from_states(states, params.R)
+    st0 = states[0]
+    window_s = st0.window * st0.dt if st0.window and np.isfinite(st0.dt) else None
+
+    def of(model: Model, x: np.ndarray) -> float:
+        def residual_of(st_list):
+            recs = prepare(st_list, params, floor=floor, analysis_rate_hz=analysis_rate_hz)
+            out = []
+            for rec, st in zip(recs, st_list):
+                r, m = model.residual(rec, x)
+                full, mask = np.zeros(len(st.t)), np.zeros(len(st.t), bool)
+                full[rec.index], mask[rec.index] = r, m
+                out.append((full, mask))
+            return out
+
+        def floor_of(noisy):
+            return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
+                               window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
+
+        if window_s is not None:
+            # the replicate's states go to the floor, then (dropped) to SIMEX's h: never beside its fit
+            out = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
+                                  phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
+                                  seed=SIMEX_SEED if seed is None else seed, share=share, use=floor_of)
+            if out is not None:
+                return out
+        return floor_of(None)
+
+    return of

@@ -1,4 +1,4 @@
-"""Low-lag states that follow the structure of the mocap noise ("split" estimator, issue 15).
+"""Low-lag states that follow the structure of the mocap noise (the "split" estimator).
 
 Why. A rigid body's orientation noise (0.5 deg per frame) is one small rotation about its pivot,
 shared by everything derived from that body; its position noise (0.2 mm) is 40x smaller in the

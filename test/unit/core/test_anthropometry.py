@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from euc_ros.core.errors import ConfigError
 from euc_ros.core.model.anthropometry import (
     SHOULDER_BELOW_C7,
     STATURE_M,
@@ -14,7 +15,6 @@ from euc_ros.core.model.anthropometry import (
     rider_segments,
     standing_rider,
 )
-from euc_ros.core.errors import ConfigError
 
 PAIRED = ("upper_arm", "forearm", "hand", "thigh", "shank", "foot")
 

@@ -12,8 +12,15 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from euc_ros.core.io.natnet import FrameOfData, RigidBodyData
-from euc_ros.core.mocap.ingest import (PoseSynchronizer, TrackingStats, capture_start_ns, format_capture_start,
-                                       frame_from_natnet, natnet_capture_stamp, replay_schedule)
+from euc_ros.core.mocap.ingest import (
+    PoseSynchronizer,
+    TrackingStats,
+    capture_start_ns,
+    format_capture_start,
+    frame_from_natnet,
+    natnet_capture_stamp,
+    replay_schedule,
+)
 
 MS = 1_000_000
 Q0 = [0, 0, 0, 1]

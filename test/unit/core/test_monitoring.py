@@ -6,8 +6,19 @@ import math
 import numpy as np
 import pytest
 
-from euc_ros.core.online.monitoring import (ERROR, OK, STALE, WARN, Limit, PeakAbs, StreamWindow, consistency_health,
-                                            limits_health, mocap_health, stale_health)
+from euc_ros.core.online.monitoring import (
+    ERROR,
+    OK,
+    STALE,
+    WARN,
+    Limit,
+    PeakAbs,
+    StreamWindow,
+    consistency_health,
+    limits_health,
+    mocap_health,
+    stale_health,
+)
 
 
 def _feed(window, rate_hz, seconds, *, start=0.0, skip_every=0, first_frame=0, lost=None):

@@ -13,8 +13,8 @@ import pytest
 
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
-from euc_ros.core.session import load_session
 from euc_ros.core.mocap.up_axis_watch import UpAxisWatch
+from euc_ros.core.session import load_session
 
 CHECKS = (1.0, 2.0)
 

@@ -56,17 +56,17 @@ def test_sse_grid_is_the_whole_products(ride):
 
 def test_pooled_h_of_states_is_identify_h_and_drops_the_states(ride):
     _, params, states = ride
-    want = I.identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m
+    want = I.fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m
     work = list(states)
     assert I.pooled_h_of_states(work, params) == want
     assert work == []
     one = [states[0]]
-    assert I.pooled_h_of_states(list(one), params) == I.identify_h(one, params, models=("3dof",)).pooled["3dof"].h_m
+    assert I.pooled_h_of_states(list(one), params) == I.fit_h(one, params, models=("3dof",)).pooled["3dof"].h_m
 
 
 def test_time_shift_hook_is_the_eager_whole_recording_one(ride, monkeypatch):
     from euc_ros.core.filters.derivatives import savgol_coefficients
-    from euc_ros.core.residual import analysis as A
+    from euc_ros.core.states import contexts as A
 
     _, params, states = ride
     st = states[0]

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.identify.fit import DEFAULT_H_GRID, identify_h, residual_coefficients, rmse_curve
+from euc_ros.core.identify.fit import DEFAULT_H_GRID, fit_h, residual_coefficients, rmse_curve
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques, torques_2dof
 from euc_ros.core.session import default_session
@@ -46,7 +46,7 @@ def rides(symbolic, synth):
 @pytest.mark.parametrize("h_true", [0.61, 0.42])
 def test_exact_states_give_zero_residual_at_the_true_h_and_recover_it(rides, h_true):
     states = [exact_states(r, f"run{i}") for i, r in enumerate(rides[h_true])]
-    res = identify_h(states, P)
+    res = fit_h(states, P)
     fit = res.pooled["3dof"]
     assert fit.h_m == pytest.approx(h_true, abs=1e-5)
     assert fit.rmse_nm < 1e-6
@@ -93,7 +93,7 @@ def test_pooled_fit_uses_all_samples_of_all_recordings(rides):
         st = exact_states(r, f"run{i}")
         st.x_ddot = st.x_ddot + rng.normal(0, 0.2, st.n)
         states.append(st)
-    res = identify_h(states, P)
+    res = fit_h(states, P)
     n = [int(s.valid.sum()) for s in states]
     sq = [rec.fits["3dof"].rmse_curve_nm ** 2 * k for rec, k in zip(res.per_recording, n)]
     np.testing.assert_allclose(res.pooled["3dof"].rmse_curve_nm, np.sqrt(np.sum(sq, 0) / sum(n)), rtol=1e-12)
@@ -109,7 +109,7 @@ def test_pooled_fit_uses_all_samples_of_all_recordings(rides):
 def test_bad_grid_and_model_are_config_errors(rides):
     st = exact_states(rides[0.61][0])
     with pytest.raises(ConfigError, match="h_grid"):
-        identify_h([st], P, h_grid=[0.5, 0.4, 0.6])
+        fit_h([st], P, h_grid=[0.5, 0.4, 0.6])
     with pytest.raises(ConfigError, match="model"):
         rmse_curve(st, P, model="4dof")
 
@@ -125,7 +125,7 @@ def test_coefficients_are_exact_for_the_rational_form(rides):
 
 @pytest.mark.parametrize("noise", [False, True])
 def test_full_pipeline_recovers_h_from_synthetic_mocap(symbolic, synth, noise):
-    """Mocap built from model-consistent rides -> reconstruct_states -> identify_h."""
+    """Mocap built from model-consistent rides -> reconstruct_states -> fit_h."""
     h_true = 0.61
     rng = np.random.default_rng(7)
     series = []
@@ -139,10 +139,10 @@ def test_full_pipeline_recovers_h_from_synthetic_mocap(symbolic, synth, noise):
             h=h_true, rng=rng, pos_noise=2e-4 if noise else 0.0, rot_noise=np.radians(0.1) if noise else 0.0,
             name=f"run{i}"))
     window_s = 0.25 if noise else 0.2
-    res = identify_h([reconstruct_states(s, SESSION, window_s=window_s, polyorder=3) for s in series], P)
+    res = fit_h([reconstruct_states(s, SESSION, window_s=window_s, polyorder=3) for s in series], P)
     fit = res.pooled["3dof"]
     assert abs(fit.h_m - h_true) < (0.02 if noise else 0.01)
     assert fit.rmse_nm < res.pooled["2dof"].rmse_nm
     # The eq (3) definition of phi (angle seen from C) is not the model's: it biases h.
     eq3 = [reconstruct_states(s, SESSION, window_s=window_s, polyorder=3, phi_definition="eq3") for s in series]
-    assert abs(identify_h(eq3, P).pooled["3dof"].h_m - h_true) > 0.02
+    assert abs(fit_h(eq3, P).pooled["3dof"].h_m - h_true) > 0.02

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.identify.fit import identify_h
+from euc_ros.core.identify.fit import fit_h
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques
 from euc_ros.core.online.window import OnlineHEstimator, SlidingRmse
@@ -58,7 +58,7 @@ def test_online_estimate_over_the_whole_ride_equals_the_offline_one(noisy_ride):
     est = OnlineHEstimator(P, window=st.n, update_every=st.n)
     for args in zip(*st.torque_args()):
         out = est.update(*args)
-    off = identify_h([st], P).pooled["3dof"]
+    off = fit_h([st], P).pooled["3dof"]
     assert out.n_samples == st.n
     assert out.h_m == pytest.approx(off.h_m, abs=1e-5)
     assert out.rmse_nm == pytest.approx(off.rmse_nm, rel=1e-6)

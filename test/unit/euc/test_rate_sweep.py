@@ -8,10 +8,15 @@ see the README's rate table).
 """
 from __future__ import annotations
 
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 
-from euc_ros.bench.rate_sweep import sweep
+# the experiment harnesses live in studies/ at the repository root, outside the package
+sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
+from studies.frame_rates import sweep  # noqa: E402
 
 
 @pytest.mark.slow

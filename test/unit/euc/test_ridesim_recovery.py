@@ -1,7 +1,8 @@
 """The paper's findings reproduced on the ride simulator's recordings (issue 4).
 
-The simulator (euc_ros.core.ridesim) shares no model code with euc_ros.core.euc: it integrates its
-own derivation of the truth and synthesizes noisy OptiTrack data (0.2 mm, 0.5 deg rms per frame).
+The simulator (euc_ros.core.ridesim) shares no model code with euc_ros.core.model or
+euc_ros.core.states: it integrates its own derivation of the truth and synthesizes noisy OptiTrack
+data (0.2 mm, 0.5 deg rms per frame).
 """
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ ridesim = pytest.importorskip("euc_ros.core.ridesim.simulate", reason="ride simu
 effects_mod = pytest.importorskip("euc_ros.core.ridesim.effects", reason="ride simulator not available yet")
 
 from euc_ros.core.filters.derivatives import StreamingSavgol  # noqa: E402
-from euc_ros.core.identify.fit import identify_h  # noqa: E402
+from euc_ros.core.identify.fit import fit_h  # noqa: E402
 from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.online.window import OnlineHEstimator  # noqa: E402
 from euc_ros.core.states.geometry import frame_geometry  # noqa: E402
@@ -66,13 +67,13 @@ def _params(ride):
 
 def test_true_states_of_the_simulator_satisfy_our_model_exactly(decel):
     """Two independent derivations agree: the true motion has zero residual at the true h."""
-    res = identify_h(_true_states(decel), _params(decel)).pooled["3dof"]
+    res = fit_h(_true_states(decel), _params(decel)).pooled["3dof"]
     assert res.h_m == pytest.approx(H_TRUE, abs=1e-6)
     assert res.rmse_nm < 1e-6
 
 
 def test_deceleration_runs_recover_h_within_1cm_and_3dof_beats_2dof(decel):
-    res = identify_h(_measured(decel), _params(decel))
+    res = fit_h(_measured(decel), _params(decel))
     f3, f2 = res.pooled["3dof"], res.pooled["2dof"]
     assert abs(f3.h_m - H_TRUE) < 0.01
     assert f3.rmse_nm < f2.rmse_nm
@@ -87,19 +88,19 @@ def test_deceleration_runs_recover_h_within_1cm_and_3dof_beats_2dof(decel):
 
 
 def test_constant_speed_curve_is_flatter_than_deceleration(decel, constant):
-    d = identify_h(_measured(decel), _params(decel)).pooled["3dof"]
-    c = identify_h(_measured(constant), _params(constant)).pooled["3dof"]
+    d = fit_h(_measured(decel), _params(decel)).pooled["3dof"]
+    c = fit_h(_measured(constant), _params(constant)).pooled["3dof"]
     assert c.sharpness < 0.7 * d.sharpness
 
 
 def test_figure_eight_with_tilt_gravity_has_a_residual_and_a_biased_h(decel, figure_eight):
     """The turning effect leaves a residual no h removes; with noise the figure-eight's h is biased."""
-    clean = identify_h(_true_states(figure_eight[0.0]), _params(figure_eight[0.0])).pooled["3dof"]
-    tilted = identify_h(_true_states(figure_eight[1.0]), _params(figure_eight[1.0])).pooled["3dof"]
+    clean = fit_h(_true_states(figure_eight[0.0]), _params(figure_eight[0.0])).pooled["3dof"]
+    tilted = fit_h(_true_states(figure_eight[1.0]), _params(figure_eight[1.0])).pooled["3dof"]
     assert clean.rmse_nm < 1e-6 and clean.h_m == pytest.approx(H_TRUE, abs=1e-6)
     assert tilted.rmse_nm > 0.02 and abs(tilted.h_m - H_TRUE) > 0.003
-    meas = identify_h(_measured(figure_eight[1.0]), _params(figure_eight[1.0])).pooled["3dof"]
-    dec = identify_h(_measured(decel), _params(decel)).pooled["3dof"]
+    meas = fit_h(_measured(figure_eight[1.0]), _params(figure_eight[1.0])).pooled["3dof"]
+    dec = fit_h(_measured(decel), _params(decel)).pooled["3dof"]
     assert abs(meas.h_m - H_TRUE) > abs(dec.h_m - H_TRUE) + 0.01
 
 
@@ -110,7 +111,7 @@ def test_live_pipeline_frame_by_frame_converges_to_the_offline_h(decel):
     # Offline on the samples the fixed-lag filter can produce (valid states are already half a window
     # inside their stretch).
     states = _measured(decel)
-    offline = identify_h(states, p).pooled["3dof"].h_m
+    offline = fit_h(states, p).pooled["3dof"].h_m
     n_total = sum(r.mocap.n_frames for r in decel.runs)
     est = OnlineHEstimator(p, window=n_total, update_every=n_total // 4)
     dt = 1.0 / decel.runs[0].mocap.rate_hz

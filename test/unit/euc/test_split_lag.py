@@ -11,8 +11,17 @@ from euc_ros.core.mocap.bridging import bridge_series
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.states.geometry import frame_geometry
-from euc_ros.core.states.split_lag import (GROUPS, SPLIT_SMOOTHING, StreamingSplit, compose, group_columns,
-                                           split_derivatives, split_pieces, split_weights, unwrap_turns)
+from euc_ros.core.states.split_lag import (
+    GROUPS,
+    SPLIT_SMOOTHING,
+    StreamingSplit,
+    compose,
+    group_columns,
+    split_derivatives,
+    split_pieces,
+    split_weights,
+    unwrap_turns,
+)
 
 DT = 1.0 / 120.0
 EPS = np.finfo(float).eps

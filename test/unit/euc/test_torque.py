@@ -12,8 +12,14 @@ import numpy as np
 import pytest
 import sympy as sp
 
-from euc_ros.core.model.terms import (EucParams, bias_terms, consistency_weights, gravity_forces, input_directions,
-                                      mass_matrix)
+from euc_ros.core.model.terms import (
+    EucParams,
+    bias_terms,
+    consistency_weights,
+    gravity_forces,
+    input_directions,
+    mass_matrix,
+)
 from euc_ros.core.model.torque import rider_torque, torques, torques_2dof
 
 

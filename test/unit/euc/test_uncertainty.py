@@ -15,7 +15,7 @@ from scipy.stats import binom
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.budget import budget, parse_tolerances
-from euc_ros.core.identify.fit import coefficients_for, identify_h
+from euc_ros.core.identify.fit import coefficients_for, fit_h
 from euc_ros.core.identify.interval import interval, turning_rms
 from euc_ros.core.identify.simex import SimexShare, eiv_bias, first_replicate
 from euc_ros.core.mocap.noise import estimate_pose_noise
@@ -33,7 +33,7 @@ from studies.coverage import run_case  # noqa: E402
 def _identify(ride):
     params = EucParams.from_session(ride.session)
     states = [reconstruct_states(r.mocap, ride.session) for r in ride.runs]
-    return params, states, identify_h(states, params, models=("3dof",)).pooled["3dof"]
+    return params, states, fit_h(states, params, models=("3dof",)).pooled["3dof"]
 
 
 def _interval(ride, **kw):
@@ -154,7 +154,9 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     """The residual's noise floor reconstructs SIMEX's first replicate once (SimexShare); eiv_bias given the
     share returns exactly what it returns when it reconstructs that replicate itself, and the share holds
     the h of that replicate's states (not, e.g., of the recording as given)."""
-    from euc_ros.core.residual.analysis import Model, fit_base_h, make_noise_floor, prepare
+    from euc_ros.core.residual.noise import make_noise_floor
+    from euc_ros.core.residual.selection import Model, fit_base_h
+    from euc_ros.core.states.contexts import prepare
 
     ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=3))
     params, states, fit = _identify(ride)
@@ -164,7 +166,7 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     floor = make_noise_floor(series, states, ride.session, params, share=share)(Model(), x)
     assert np.isfinite(floor) and floor > 0
     noisy = first_replicate(series, ride.session, params, window_s=1.2, polyorder=6)
-    h1 = identify_h(noisy, params, models=("3dof",)).pooled["3dof"].h_m
+    h1 = fit_h(noisy, params, models=("3dof",)).pooled["3dof"].h_m
     assert share.h_m == h1 != fit.h_m
     kw = dict(window_s=1.2, polyorder=6, with_error=True)
     shared = eiv_bias(series, ride.session, params, fit.h_m, share=share, **kw)

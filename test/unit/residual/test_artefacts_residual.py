@@ -15,7 +15,8 @@ import pytest
 
 from euc_ros.core.model.effects import LIBRARY
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.analysis import analyze, make_noise_floor
+from euc_ros.core.residual.analysis import analyze
+from euc_ros.core.residual.noise import make_noise_floor
 from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts, perturb_session
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.states.kinematics import reconstruct_states

@@ -13,7 +13,7 @@ import math
 import numpy as np
 import pytest
 
-from euc_ros.core.residual.floor import fit_floor, rolling_radius_from_floor
+from euc_ros.core.states.floor import fit_floor, rolling_radius_from_floor
 
 R = 0.203
 SIGMA = 0.0003             # wheel-centre noise after smoothing [m]

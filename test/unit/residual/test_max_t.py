@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from euc_ros.core.residual.analysis import HeldOut, Model, max_t_adjusted, paired_block_test
+from euc_ros.core.residual.selection import HeldOut, Model
+from euc_ros.core.residual.significance import max_t_adjusted, paired_block_test
 
 
 def _held_out(per_block_ms, samples=4, rng=None):

@@ -25,7 +25,8 @@ import pytest
 
 from euc_ros.core.model.effects import LIBRARY
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.analysis import NOISE_FLOOR_FACTOR, analyze, make_noise_floor
+from euc_ros.core.residual.analysis import NOISE_FLOOR_FACTOR, analyze
+from euc_ros.core.residual.noise import make_noise_floor
 from euc_ros.core.ridesim.external import ExternalForce
 from euc_ros.core.ridesim.rider_motion import ArmSwing, PedalFlex
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride

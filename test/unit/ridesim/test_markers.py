@@ -21,8 +21,15 @@ from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.mocap.series import MocapSeries
-from euc_ros.core.ridesim.markers import (fit_poses, marker_positions, random_layout, rms_angle_deg,
-                                          rotation_covariance, sigma_for_angle, synthesize)
+from euc_ros.core.ridesim.markers import (
+    fit_poses,
+    marker_positions,
+    random_layout,
+    rms_angle_deg,
+    rotation_covariance,
+    sigma_for_angle,
+    synthesize,
+)
 from euc_ros.core.ridesim.mocap_synth import rotations_to_quats
 from euc_ros.core.rotations import rotation_matrices
 

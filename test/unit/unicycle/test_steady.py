@@ -6,7 +6,6 @@ largest term, ~60): rel 1e-9 and 1e-12 leave >= 1000x.
 """
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from scipy.optimize import brentq, minimize_scalar

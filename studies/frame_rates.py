@@ -1,11 +1,12 @@
-"""Rate sweep: the same ride captured at several frame rates, analysed offline and live.
+"""The rate sweep's harness (run by studies/rate_sweep.py): one ride captured at several frame rates, analysed
+offline and live.
 
 The ride simulator integrates one continuous truth per run (its plan does not depend on the capture
 rate), so sampling it at 60, 100, ..., 1000 Hz gives the same ride captured by different cameras.
 For every rate this measures
 
 * offline: ``reconstruct_states`` (Savitzky-Golay, same window in seconds) and the pooled 3-DoF h of
-  ``identify_h``;
+  ``fit_h``;
 * live: the nodes' cores frame by frame (:class:`~euc_ros.core.online.estimators.RiderStateEstimator`
   -> :class:`~euc_ros.core.online.estimators.TorqueEstimator`), the final online h;
 * the driving torques M_d1, M_d2 at the true h, interpolated onto the reference rate's capture
@@ -21,6 +22,10 @@ from typing import Sequence
 
 import numpy as np
 
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.model.torque import torques
+from euc_ros.core.session import default_session
+
 #: The rates of the README table [Hz].
 RATES_HZ = (60, 100, 120, 180, 240, 360, 500, 1000)
 
@@ -29,7 +34,6 @@ def simulate_at(rate_hz: float, *, runs: int = 3, seed: int = 5, noise: bool = T
     """The simulator's ride with ``seed`` captured at ``rate_hz`` (session ``rate_hz`` set to it)."""
     from euc_ros.core.ridesim.mocap_synth import MocapNoise
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
-    from euc_ros.core.session import default_session
 
     session = dataclasses.replace(default_session("y"), rate_hz=float(rate_hz))
     cfg = RideConfig(maneuver=maneuver, runs=runs, seed=seed, session=session,
@@ -39,14 +43,12 @@ def simulate_at(rate_hz: float, *, runs: int = 3, seed: int = 5, noise: bool = T
 
 def offline(ride, h_true: float):
     """Offline states per run, the pooled 3-DoF h and the torques at ``h_true``."""
-    from euc_ros.core.identify.fit import identify_h
-    from euc_ros.core.model.terms import EucParams
-    from euc_ros.core.model.torque import torques
+    from euc_ros.core.identify.fit import fit_h
     from euc_ros.core.states.kinematics import reconstruct_states
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)
     states = [reconstruct_states(r.mocap, ride.session) for r in ride.runs]
-    h = identify_h(states, params, models=("3dof",)).pooled["3dof"].h_m
+    h = fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m
     series = []
     for st in states:
         m1, m2 = torques(st.gamma, st.phi, st.gamma_dot, st.phi_dot, st.x_ddot, st.gamma_ddot, st.phi_ddot, params)
@@ -57,7 +59,6 @@ def offline(ride, h_true: float):
 
 def live(ride, h_true: float):
     """The live cores frame by frame; returns the final online h and the torques per run."""
-    from euc_ros.core.model.terms import EucParams
     from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
 
     params = EucParams.from_session(ride.session, h_true, g=ride.params_true.g)

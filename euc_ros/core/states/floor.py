@@ -1,4 +1,4 @@
-"""The floor under the wheel, measured from the wheel's contact path (issue 12, bullet 1, first part).
+"""The floor under the wheel, measured from the wheel's contact path and what it says about the rolling radius.
 
 The wheel touches the floor at ``P = C - R (z - (z.a) a) / cos(theta)`` (wheel centre C, radius R,
 axle a tilted by theta from the horizontal): its height is ``C_z - R cos(theta)`` in the mocap world.
@@ -16,14 +16,21 @@ What the fit can say, and what it cannot:
   ground plane set a little high or low; it is inferred only from a floor that is flat (no slope
   and no deviation beyond the scatter) and whose scatter is small against the offset
   (:func:`rolling_radius_from_floor`). A radius is never inferred from a floor the fit cannot explain.
+
+:func:`floor_from_states` fits the contact path of reconstructed runs; a radius measured so enters the
+residual analysis' model with its parameter given, not fitted
+(:class:`~euc_ros.core.residual.analysis.MeasuredWheelRadius`).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass
+from typing import Sequence
 
 import numpy as np
 from scipy import ndimage
+
+from euc_ros.core.states.kinematics import RiderStates
 
 #: Length of path over which the smooth deviation from the plane is the running median [m].
 DEVIATION_WINDOW_M = 0.5
@@ -244,3 +251,21 @@ def slope_along_path(C: np.ndarray, theta: np.ndarray, psi: np.ndarray, valid: n
     res = np.full(len(C), np.nan)
     res[idx] = np.arctan(np.tan(out[idx]) + slope_dev)
     return res
+
+
+#: A measured rolling radius (wheel-centre height over the floor) this far from the nominal one is a
+#: wheel_radius_error found by geometry [m] (tyre and ground-plane tolerances are a few mm).
+RADIUS_TOL_M = 0.005
+
+
+def floor_from_states(states: Sequence[RiderStates], radius: float):
+    """The floor fit (:func:`euc_ros.core.states.floor.fit_floor`) of the contact path of every run."""
+    if not states:
+        return None
+    C = np.concatenate([st.C for st in states])
+    theta = np.concatenate([st.theta for st in states])
+    valid = np.concatenate([st.valid for st in states])
+    seg = np.concatenate([np.full(len(st.t), i) for i, st in enumerate(states)])
+    return fit_floor(C, theta, valid, radius, seg)
+
+

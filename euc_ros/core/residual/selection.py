@@ -1,0 +1,375 @@
+"""What the selection compares and how: the base model plus candidate effects (:class:`Model`, its
+parameters ``[h, theta...]``), its joint fit with h (:func:`fit_model`), its held-out residual over
+folds (:func:`held_out`), whether a candidate can show in the residual at all (:func:`detectability`)
+and whether a fitted model is physically admissible (:func:`admissibility`).
+
+The residual of a model is ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - dQ)) / D``
+(:mod:`euc_ros.core.model.torque`), so an extra force with ``w . dQ = 0`` cannot change it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+from scipy import optimize
+
+from euc_ros.core.model.effects import Candidate
+from euc_ros.core.model.terms import EucParams, bias_terms, consistency_weights, gravity_forces, mass_matrix
+from euc_ros.core.model.torque import torque_difference
+from euc_ros.core.residual.folds import folds_of
+from euc_ros.core.states.contexts import Recording, hinge_path
+from euc_ros.core.states.kinematics import RiderStates
+
+#: Relative tolerance of the least-squares fits: a cost change of 1e-6 moves a parameter by ~1e-3 of its
+#: standard error, far below what the selection can resolve (scipy's default 1e-8 took ~40 evaluations).
+FIT_TOL = 1e-6
+
+
+#: An effect is undetectable when its generalized force projects on w = [R, 1, 1] by less than this
+#: fraction of its size (it lies in the span of the input directions).
+DETECTABILITY_TOL = 1e-6
+
+
+#: h bounds of the joint fits [m].
+H_BOUNDS = (0.05, 1.6)
+
+
+#: Plausible rider CoG heights above the ankle hinge [m] (adult riders standing on pedals: the paper's
+#: 0.61 m, +-0.3 m for build, posture and session geometry); a model whose h leaves it is not selected.
+H_PLAUSIBLE = (0.3, 1.2)
+
+
+#: A model's h may differ from the geometric one (median |G - A| of the segment CoG over the hinge, from
+#: the session's mass fractions and CoM positions) by at most this much [m]. Measured: with an effect in
+#: the data the base model's h can be 0.5 m off (a 4 deg slope: 0.12 m for a true 0.61 m), so the base
+#: model is no reference; the segments' geometry is (session CoM errors of 1-3 cm move it by < 0.05 m).
+H_MAX_GEOMETRIC_DEV_M = 0.15
+
+
+#: A parameter closer than this fraction of its range to a bound is "on the bound".
+AT_BOUND_FRACTION = 1e-3
+
+
+@dataclass
+class Model:
+    """The base model plus a list of candidate effects; parameter vector ``[h, theta_1..., theta_2...]``."""
+
+    effects: list[Candidate] = field(default_factory=list)
+
+    @property
+    def name(self) -> str:
+        """``none`` or the effect names joined with ``+`` in selection order."""
+        return "+".join(c.name for c in self.effects) or "none"
+
+    @property
+    def n_params(self) -> int:
+        """1 (h) plus every effect's parameters."""
+        return 1 + sum(c.n_params for c in self.effects)
+
+    def split(self, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
+        """Return (h, [theta per effect])."""
+        out, k = [], 1
+        for c in self.effects:
+            out.append(np.asarray(x[k:k + c.n_params], float))
+            k += c.n_params
+        return float(x[0]), out
+
+    def residual(self, rec: Recording, x: np.ndarray, extra_dQ: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``
+        (``extra_dQ``: a further generalized force, for the discovery's sensitivities)."""
+        h, thetas = self.split(x)
+        ctx = rec.ctx.copy()
+        ctx.overrides["h"] = h
+        ctx.params = ctx.params.with_h(h)
+        mask = np.ones(ctx.t.shape[0], bool)
+        for c, th in zip(self.effects, thetas):
+            c.modify(ctx, th)
+            if ctx.mask is not None:
+                mask &= ctx.mask
+                ctx.mask = None
+        for c, th in zip(self.effects, thetas):
+            dQ = c.force(ctx, th)
+            if dQ is not None:
+                ctx.add_force(dQ)
+        if extra_dQ is not None:
+            ctx.add_force(extra_dQ)
+        p_mod = ctx.p()
+        diff = torque_difference(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot,
+                                 ctx.phi_ddot, p_mod, extra_Q=ctx.extra_Q)
+        # M_d1 - M_d2 = R m11 (x_ddot - x_ddot*): compare models on the acceleration mismatch scaled by the
+        # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
+        # For the base model and every effect that keeps R and m this is exactly M_d1 - M_d2.
+        p_nom = rec.ctx.params
+        ratio = (p_nom.R * _m11(p_nom)) / (np.asarray(p_mod.R, float) * _m11(p_mod))
+        r = diff * ratio
+        mask &= np.isfinite(r)
+        return np.where(mask, r, 0.0), mask
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of ``x``."""
+        lo = [H_BOUNDS[0]] + [q.low for c in self.effects for q in c.params]
+        hi = [H_BOUNDS[1]] + [q.high for c in self.effects for q in c.params]
+        return np.array(lo), np.array(hi)
+
+    def scales(self) -> np.ndarray:
+        """Typical magnitudes of ``x`` (least-squares scaling)."""
+        return np.array([0.1] + [q.scale for c in self.effects for q in c.params])
+
+    def starts(self, h0: float, fixed: np.ndarray | None = None) -> list[np.ndarray]:
+        """Starting points: the last effect's starts appended to ``fixed`` (the previous fit) or defaults."""
+        head = np.array([h0]) if fixed is None else np.asarray(fixed, float)
+        known = head.size - 1
+        rest = []
+        k = 0
+        for c in self.effects:
+            if k >= known:
+                rest.append(c.starts())
+            k += c.n_params
+        if not rest:
+            return [head]
+        combos = [head]
+        for options in rest:
+            combos = [np.concatenate([base, s]) for base in combos for s in options]
+        return combos
+
+    def report(self, x: np.ndarray) -> dict[str, float]:
+        """All effect parameters by their reported names."""
+        _, thetas = self.split(x)
+        out: dict[str, float] = {}
+        for c, th in zip(self.effects, thetas):
+            out.update(c.report(th))
+        return out
+
+
+@dataclass
+class Fit:
+    """A model fitted on some recordings."""
+
+    model: Model
+    x: np.ndarray
+    rmse: float
+    n: int
+
+    @property
+    def h(self) -> float:
+        """Fitted CoG height [m]."""
+        return float(self.x[0])
+
+
+def _m11(p: EucParams):
+    """First diagonal entry of the mass matrix, eq (6): m + m0 + mw + Jw / R^2."""
+    return p.m + p.m0 + p.mw + p.Jw / np.asarray(p.R, float) ** 2
+
+
+def _stack_residual(model: Model, recs: Sequence[Recording], x: np.ndarray) -> np.ndarray:
+    parts = [model.residual(r, x)[0] for r in recs]
+    return np.concatenate(parts) if parts else np.zeros(0)
+
+
+def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndarray | None = None,
+              start: np.ndarray | None = None) -> Fit:
+    """Least-squares fit of h and the effects' parameters to zero residual on ``recs``.
+
+    Several starting points (multi-modal parameters such as a period) are tried and the best is kept,
+    unless one ``start`` is given (e.g. the fit on all data, as the start of a fold's fit).
+    """
+    lo, hi = model.bounds()
+    best = None
+    for x0 in ([start] if start is not None else model.starts(h0, fixed)):
+        x0 = np.clip(x0, lo + 1e-9 * (hi - lo), hi - 1e-9 * (hi - lo))
+        try:
+            sol = optimize.least_squares(lambda x: _stack_residual(model, recs, x), x0, bounds=(lo, hi),
+                                         x_scale=model.scales(), method="trf", max_nfev=200 * len(x0),
+                                         ftol=FIT_TOL, xtol=FIT_TOL, gtol=FIT_TOL)
+        except ValueError:
+            continue
+        cost = float(np.sum(sol.fun ** 2))
+        if best is None or cost < best[0]:
+            best = (cost, sol.x)
+    if best is None:
+        raise RuntimeError(f"fit of model {model.name} failed from every start")
+    masks = [model.residual(r, best[1])[1] for r in recs]
+    n = int(sum(int(m.sum()) for m in masks))
+    return Fit(model, best[1], math.sqrt(best[0] / max(n, 1)), n)
+
+
+def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 45)) -> float:
+    """Grid-then-refine estimate of h with the base model (a good start for every joint fit)."""
+    base = Model()
+    sse = [float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)) for h in h_grid]
+    k = int(np.argmin(sse))
+    lo, hi = h_grid[max(k - 1, 0)], h_grid[min(k + 1, len(h_grid) - 1)]
+    res = optimize.minimize_scalar(lambda h: float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)),
+                                   bounds=(lo, hi), method="bounded")
+    return float(res.x)
+
+
+def detectability(candidate: Candidate, recs: Sequence[Recording], h: float) -> float:
+    """Fraction of the candidate's generalized force that is visible in M_d1 - M_d2.
+
+    The generalized-force equivalent of a unit-scale parameter change is compared with its
+    projection on ``w = [R, 1, 1]`` (which annihilates b_d and b_d): 0 means it lies in
+    span(b_d, b_h) and cannot show in the residual.
+    """
+    model = Model([candidate])
+    num = den = 0.0
+    for rec in recs:
+        x0 = np.concatenate([[h], candidate.starts()[0]])
+        x1 = x0.copy()
+        x1[1:] += np.array([q.scale for q in candidate.params])
+        dQ = _equivalent_force(model, rec, x1) - _equivalent_force(model, rec, x0)
+        w = consistency_weights(rec.ctx.params)
+        proj = dQ @ np.asarray(w, float) / np.linalg.norm(w)
+        num += float(np.nansum(proj ** 2))
+        den += float(np.nansum(dQ ** 2))
+    return math.sqrt(num / den) if den > 0 else 0.0
+
+
+def _equivalent_force(model: Model, rec: Recording, x: np.ndarray) -> np.ndarray:
+    """Generalized force a model adds, in the base model's terms: f_base - f_model (n, 3)."""
+    h, thetas = model.split(x)
+    ctx = rec.ctx.copy()
+    ctx.params = ctx.params.with_h(h)
+    for c, th in zip(model.effects, thetas):
+        c.modify(ctx, th)
+    for c, th in zip(model.effects, thetas):
+        dQ = c.force(ctx, th)
+        if dQ is not None:
+            ctx.add_force(dQ)
+    n = ctx.t.shape[0]
+    q = np.stack([np.zeros(n), ctx.gamma, ctx.phi], 1)
+    qd = np.stack([ctx.x_dot, ctx.gamma_dot, ctx.phi_dot], 1)
+    qdd = np.stack([ctx.x_ddot, ctx.gamma_ddot, ctx.phi_ddot], 1)
+    p = ctx.p()
+    f = np.einsum("nij,nj->ni", np.broadcast_to(mass_matrix(q, p), (n, 3, 3)), qdd) + bias_terms(q, qd, p) \
+        - gravity_forces(q, p)
+    if ctx.extra_Q is not None:
+        f = f - ctx.extra_Q
+    return -f
+
+
+def model_jacobian(model: Model, recs: Sequence[Recording], x: np.ndarray, res0=None
+                   ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
+    """Per recording: residual at ``x``, its usable mask and d(residual)/dx by forward differences
+    (steps of 1e-4 of each parameter's typical scale, inward at a bound)."""
+    res0 = res0 or [model.residual(r, x) for r in recs]
+    lo, hi = model.bounds()
+    steps = 1e-4 * model.scales()
+    J = [np.empty((r.ctx.t.shape[0], x.size)) for r in recs]
+    for k in range(x.size):
+        x1 = np.array(x, float)
+        step = steps[k] if x1[k] + steps[k] <= hi[k] else -steps[k]
+        x1[k] += step
+        for i, r in enumerate(recs):
+            J[i][:, k] = (model.residual(r, x1)[0] - res0[i][0]) / step
+    return [a for a, _ in res0], [m for _, m in res0], J
+
+
+def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
+             fixed: np.ndarray | None = None, start: np.ndarray | None = None) -> HeldOut:
+    """Fit on each fold's training samples, collect the residual on its held-out samples.
+
+    The fold fits are Gauss-Newton steps from the fit on all data (``start``; fitted here without it):
+    the model's Jacobian is evaluated once, each fold's parameters are ``x + dx`` with ``dx`` the
+    linear least-squares step on its training rows (clipped to the bounds), and the held-out residual is
+    the model evaluated at those parameters. The fold optima lie close to the full one (each fold drops a
+    small part of the data), where one step of Gauss-Newton is the standard approximate leave-out fit;
+    ``test_heldout.py`` compares it with refitting every fold from scratch.
+    """
+    folds = folds or folds_of(recs)
+    if start is None:
+        start = fit_model(model, recs, h0, fixed).x
+    x = np.asarray(start, float)
+    r_all, m_all, J = model_jacobian(model, recs, x)
+    lo, hi = model.bounds()
+    sc = model.scales()
+    offsets = block_offsets(recs)
+    res, blocks, params = [], [], []
+    for fold in folds:
+        rows = [np.asarray(tr, bool) & m for tr, m in zip(fold.train, m_all)]
+        A = np.concatenate([Ji[rw] for Ji, rw in zip(J, rows)]) * sc
+        b = -np.concatenate([ri[rw] for ri, rw in zip(r_all, rows)])
+        ok = np.all(np.isfinite(A), axis=0)
+        dx = np.zeros(x.size)
+        if ok.any():
+            dx[ok] = np.linalg.lstsq(A[:, ok], b, rcond=None)[0] * sc[ok]
+        xf = np.clip(x + dx, lo, hi)
+        params.append(xf)
+        for i, (r, te) in enumerate(zip(recs, fold.test)):
+            if not np.any(te):
+                continue
+            rr, mask = model.residual(r, xf)
+            keep = np.asarray(te, bool) & mask
+            res.append(rr[keep])
+            blocks.append(r.block[keep] + offsets[i])
+    return HeldOut(model, np.concatenate(res) if res else np.zeros(0),
+                   np.concatenate(blocks) if blocks else np.zeros(0, int), params)
+
+
+def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None:
+    """Why a fitted model cannot be selected (None when it can): a parameter on its physical bound
+    explains nothing, an h outside :data:`H_PLAUSIBLE` or further than :data:`H_MAX_GEOMETRIC_DEV_M`
+    from the segments' geometric h is not this rider."""
+    lo, hi = model.bounds()
+    span = hi - lo
+    k = 1
+    for c in model.effects:
+        for q in c.params:
+            v = float(x[k])
+            if q.reported and (v - q.low <= AT_BOUND_FRACTION * span[k] or q.high - v <= AT_BOUND_FRACTION * span[k]):
+                # a lower bound of 0 reached means "no effect", an upper bound "more than physical"
+                return f"{c.name}: {q.name} = {v:.4g} {q.unit} on its physical bound [{q.low:g}, {q.high:g}]"
+            k += 1
+    h = float(x[0])
+    if not H_PLAUSIBLE[0] <= h <= H_PLAUSIBLE[1]:
+        return f"h = {h:.3f} m outside the plausible range [{H_PLAUSIBLE[0]}, {H_PLAUSIBLE[1]}] m"
+    if math.isfinite(h_geometric) and abs(h - h_geometric) > H_MAX_GEOMETRIC_DEV_M:
+        return (f"h = {h:.3f} m is {abs(h - h_geometric):.3f} m from the segments' geometric {h_geometric:.3f} m "
+                f"(more than {H_MAX_GEOMETRIC_DEV_M} m)")
+    return None
+
+
+def geometric_h(states: Sequence[RiderStates], params: EucParams) -> float:
+    """Median distance of the rider CoG G from the ankle hinge A = C - l0 z_E over the valid samples [m]."""
+    vals = []
+    for st in states:
+        d = np.linalg.norm(st.G - hinge_path(st, params.l0), axis=1)
+        vals.append(d[np.asarray(st.valid, bool) & np.isfinite(d)])
+    v = np.concatenate(vals) if vals else np.zeros(0)
+    return float(np.median(v)) if v.size else float("nan")
+
+
+def implausibility(candidate: Candidate, theta) -> float:
+    """Size of a candidate's reported-scale parameters in units of their typical magnitude."""
+    th = np.asarray(theta, float)
+    scales = np.array([q.scale for q in candidate.params], float)
+    keep = np.array([q.reported for q in candidate.params], bool)
+    if hasattr(candidate, "PERIOD_STARTS"):      # time_varying_h: amplitude of (a_sin, a_cos)
+        return float(np.hypot(th[0], th[1]) / scales[0])
+    return float(np.sqrt(np.sum((th[keep] / scales[keep]) ** 2))) if keep.any() else 0.0
+
+
+@dataclass
+class HeldOut:
+    """Held-out residuals of a model over all folds, with their blocks (unique over recordings)."""
+
+    model: Model
+    residual: np.ndarray
+    block: np.ndarray
+    params: list[np.ndarray]
+
+    @property
+    def rmse(self) -> float:
+        """Held-out RMSE [N m]."""
+        return float(np.sqrt(np.mean(self.residual ** 2))) if self.residual.size else float("nan")
+
+
+def block_offsets(recs: Sequence[Recording]) -> list[int]:
+    out, off = [], 0
+    for r in recs:
+        out.append(off)
+        off += int(r.block.max()) + 1 if r.block.size else 0
+    return out

@@ -1,0 +1,163 @@
+"""Reconstructed recordings as the model's evaluation contexts: the valid samples of each run as a
+:class:`~euc_ros.core.model.effects.ModelContext` (decimated to an analysis rate, :func:`decimation_step`),
+with the hooks some effects need: the rider CoG shifted in time (``phi_shift``), the floor's slope under
+the wheel, the path travelled. The residual analysis and the identification with an extended model
+evaluate their models on these.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+import numpy as np
+
+from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
+from euc_ros.core.model.effects import ModelContext
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.states.floor import FloorFit, slope_along_path
+from euc_ros.core.states.geometry import to_moving_frame
+from euc_ros.core.states.kinematics import RiderStates
+
+#: Length of the blocks the paired test compares [s] (longer than the derivative filter's window).
+DEFAULT_BLOCK_S = 1.0
+
+
+#: Sample rate the analysis works at [Hz] (:func:`decimation_step`): 4x the derivative filter's passband.
+ANALYSIS_RATE_HZ = 10.0
+
+
+@dataclass
+class Recording:
+    """One recording prepared for the analysis: its valid samples as a model context."""
+
+    name: str
+    ctx: ModelContext
+    block: np.ndarray  # block index of each sample (for the paired test and single-run folds)
+    index: np.ndarray | None = None  # sample index in the recording of each valid sample
+
+
+#: Samples per block of the time-shift hook's geometry (:func:`hinge_path`, :func:`_phi_about_hinge`): the
+#: temporaries of the whole recording's (n, 3) rotations were ~60 MB an hour at 120 Hz.
+_SHIFT_BLOCK = 1 << 16
+
+
+def hinge_path(st: RiderStates, l0: float) -> np.ndarray:
+    """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis
+    (block by block: elementwise, so the same numbers as the whole at once)."""
+    n = st.C.shape[0]
+    out = np.empty((n, 3))
+    for lo in range(0, n, _SHIFT_BLOCK):
+        hi = min(n, lo + _SHIFT_BLOCK)
+        gamma, psi, theta = st.gamma[lo:hi], st.psi[lo:hi], st.theta[lo:hi]
+        zb = np.stack([np.sin(gamma), -np.sin(theta) * np.cos(gamma), np.cos(theta) * np.cos(gamma)], axis=1)
+        zw = np.stack([np.cos(psi) * zb[:, 0] - np.sin(psi) * zb[:, 1],
+                       np.sin(psi) * zb[:, 0] + np.cos(psi) * zb[:, 1], zb[:, 2]], axis=1)
+        out[lo:hi] = st.C[lo:hi] - l0 * zw
+    return out
+
+
+def _phi_about_hinge(G: np.ndarray, A: np.ndarray, psi: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Rider pitch of G about A in the moving frame, ``arctan2(r_x, r_z)`` of ``r = T(G - A)`` (n,), block by block."""
+    n = G.shape[0]
+    out = np.empty(n)
+    for lo in range(0, n, _SHIFT_BLOCK):
+        hi = min(n, lo + _SHIFT_BLOCK)
+        r = to_moving_frame(G[lo:hi] - A[lo:hi], psi[lo:hi], theta[lo:hi])
+        out[lo:hi] = np.arctan2(r[:, 0], r[:, 2])
+    return out
+
+
+def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: int, valid: np.ndarray
+                  ) -> Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time.
+
+    The hinge path and the unshifted pitch (4 numbers a sample) are made on the first call and kept:
+    every recording is prepared (the noise floor's re-noised ones too), few are shifted.
+    """
+    t = st.t
+    psi, theta = st.psi, st.theta
+    idx = np.flatnonzero(valid)
+    half = (window - 1) // 2
+    base: dict = {}
+
+    def geometry():
+        if not base:
+            A = hinge_path(st, params.l0)
+            base["A"], base["phi0"] = A, _phi_about_hinge(st.G, A, psi, theta)
+            uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
+                and np.isfinite(st.dt)
+            # the filter's centre weights evaluated only at the samples the analysis uses (valid samples lie at
+            # least half a window inside their stretch, so the centre weights are the ones the full filter uses)
+            base["weights"] = savgol_coefficients(window, polyorder, st.dt, [half])[:, 0, :] if uniform else None
+        return base["A"], base["phi0"], base["weights"]
+
+    def shift(dt: float):
+        A, phi0, weights = geometry()
+        Gs = np.stack([np.interp(t + dt, t, st.G[:, k], left=np.nan, right=np.nan) for k in range(3)], axis=1)
+        d = _phi_about_hinge(Gs, A, psi, theta)
+        d -= phi0
+        if weights is not None:
+            W = np.lib.stride_tricks.sliding_window_view(np.pad(d, half, constant_values=np.nan), window)[idx]
+            out = W @ weights.T
+            return out[:, 0], out[:, 1], out[:, 2]
+        der = savgol_derivatives(t, d, window=window, polyorder=polyorder, frame=st.frame)
+        return der.y[valid], der.y_dot[valid], der.y_ddot[valid]
+
+    return shift
+
+
+def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:
+    """Keep every k-th sample so that the analysis runs at about ``analysis_rate_hz`` (1: all samples).
+
+    The states come out of the Savitzky-Golay filter, whose passband ends near 2.5 Hz for the default
+    1.2 s window (response below 1 % of its peak from 2.6 Hz on, sidelobes of 6-22 % above it): the
+    residual's signal is over-sampled at 120-360 Hz and a sub-sample at :data:`ANALYSIS_RATE_HZ` keeps it
+    (the fits and held-out errors on the sub-sample are unbiased; measured against every sample in
+    ``test_decimation.py``), while the fits' cost falls with the number of samples.
+    """
+    if not analysis_rate_hz or not np.isfinite(dt) or dt <= 0:
+        return 1
+    return max(1, int(math.floor(1.0 / (dt * analysis_rate_hz) + 1e-9)))
+
+
+def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S,
+            floor: FloorFit | None = None, analysis_rate_hz: float | None = None) -> list[Recording]:
+    """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook).
+
+    ``analysis_rate_hz``: keep every k-th sample (:func:`decimation_step`); None keeps all of them.
+
+    With a ``floor`` that is not flat, each context also carries the floor's slope along travel under
+    the wheel (``extras['floor_a']``) and the wheel centre's vertical acceleration (``extras['c_zdd']``,
+    the states' derivative filter) for :class:`~euc_ros.core.model.effects.FloorGeometry`.
+    """
+    out = []
+    for st in states:
+        window = st.window if st.window and st.window % 2 == 1 else 9
+        valid = np.asarray(st.valid, bool).copy()   # already half a window inside each stretch
+        dpsi = savgol_derivatives(st.t, np.unwrap(st.psi), window=window, polyorder=st.polyorder, frame=st.frame)
+        valid &= np.isfinite(dpsi.y_dot) & np.isfinite(st.theta)
+        step = decimation_step(st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t))), analysis_rate_hz)
+        if step > 1:
+            valid &= (np.arange(valid.size) % step) == 0
+        ctx = ModelContext(
+            t=st.t[valid] - st.t[0], x_dot=st.x_dot[valid], x_ddot=st.x_ddot[valid], gamma=st.gamma[valid],
+            gamma_dot=st.gamma_dot[valid], gamma_ddot=st.gamma_ddot[valid], phi=st.phi[valid],
+            phi_dot=st.phi_dot[valid], phi_ddot=st.phi_ddot[valid], psi=np.unwrap(st.psi)[valid],
+            psi_dot=dpsi.y_dot[valid], theta=st.theta[valid], params=params)
+        if st.phi_definition == "hinge":
+            ctx.extras["phi_shift"] = _phi_shift_fn(st, params, window, st.polyorder, valid)
+        if floor is not None and not floor.flat:
+            a = slope_along_path(st.C, st.theta, st.psi, st.valid, params.R, floor)
+            czz = savgol_derivatives(st.t, st.C[:, 2], window=window, polyorder=st.polyorder, frame=st.frame).y_ddot
+            ctx.extras["floor_a"] = np.nan_to_num(a[valid])
+            ctx.extras["c_zdd"] = np.nan_to_num(czz[valid])
+        dt = st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t)))
+        block = np.floor((st.t[valid] - st.t[0]) / max(block_s, dt)).astype(int)
+        xd = np.nan_to_num(st.x_dot)
+        s_path = np.concatenate([[0.0], np.cumsum(0.5 * (xd[1:] + xd[:-1]) * np.diff(st.t))])
+        ctx.extras["path_s"] = s_path[valid]
+        ctx.extras["lab_x"] = np.nan_to_num(st.C[valid, 0])
+        ctx.extras["lab_y"] = np.nan_to_num(st.C[valid, 1])
+        out.append(Recording(st.name, ctx, block, np.flatnonzero(valid)))
+    return out
