@@ -45,6 +45,9 @@ from euc_ros.core.session import Session, default_session
 STATE_NAMES = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "X", "Y", "z", "Z")
 #: Default true rider CoG height (EUC paper, Fig. 6: h = 0.61 m).
 DEFAULT_H_M = 0.61
+#: Integration methods: the compiled right-hand side and DOP853 (:mod:`.compiled`), or the Python right-hand
+#: side with ``scipy.integrate.solve_ivp`` (DOP853) and the equations lambdified from sympy in this process.
+METHODS = ("compiled", "reference")
 
 
 @dataclass(frozen=True)
@@ -80,7 +83,10 @@ class RideConfig:
     rider_gains : tuple of float
         ``(k_p [N m/rad], k_d [N m s/rad], k_speed [rad s/m], k_int [rad/m])`` of the rider.
     rtol, atol : float
-        Integration tolerances of ``solve_ivp`` (DOP853).
+        Integration tolerances of DOP853: each step's local error estimate stays below ``atol + rtol |y|``.
+    method : str
+        ``compiled`` (default) or ``reference`` (:data:`METHODS`): the same DOP853 steps on the same equations,
+        compiled or in Python; their states agree within the tolerances.
     floor : FloorProfile, optional
         A floor that is not level in a level lab (:mod:`.floors`): the dynamics follow it
         (:class:`~euc_ros.core.ridesim.truth_model.FloorModel`, x is then the arc length of the wheel
@@ -110,6 +116,7 @@ class RideConfig:
     rider_gains: tuple[float, float, float, float] = (800.0, 150.0, 0.12, 0.05)
     rtol: float = 1e-10
     atol: float = 1e-10
+    method: str = "compiled"
     floor: FloorProfile | None = None
     external: tuple = ()
     pedals: PedalFlex | None = None
@@ -430,8 +437,12 @@ def _run_index(name: str) -> int:
     return max(int(tail) - 1, 0) if tail.isdigit() else 0
 
 
-def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
-    """State at t0 with zero accelerations at the reference speed (unknowns gamma, phi, z)."""
+def _initial_state(dyn: _RunDynamics, t0: float, rhs=None) -> np.ndarray:
+    """State at t0 with zero accelerations at the reference speed (unknowns gamma, phi, z).
+
+    ``rhs(t, y) -> list`` is the right-hand side to balance (default ``dyn.rhs``).
+    """
+    rhs = dyn.rhs if rhs is None else rhs
     v0 = float(dyn.plan.speed.reference(t0, dyn.plan.path.kappa(0.0), dyn.plan.path.dkappa(0.0), 0.0)[0])
     guess = np.array([-dyn.euc.k_v * v0 / dyn.euc.k_p, 0.0, 0.0])
     X0 = Z0 = 0.0
@@ -445,9 +456,9 @@ def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
     def acc(u):
         y = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
         if dyn.pedal_k is not None:
-            r = dyn.rhs(t0, y + [u[3], 0.0])
+            r = rhs(t0, y + [u[3], 0.0])
             return r[3:6] + [r[11]]
-        return dyn.rhs(t0, y)[3:6]
+        return rhs(t0, y)[3:6]
 
     sol, _, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
     u = sol if ok == 1 and np.all(np.abs(sol[:2]) < 0.5) else guess
@@ -466,10 +477,11 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
                           "force, arm swing, aero_drag or time_varying_h)", key="pedals")
     if config.arms is not None and (config.floor is not None or "time_varying_h" in effects):
         raise ConfigError("arm swing does not combine with a floor or time_varying_h", key="arms")
+    equations = "sympy" if config.method == "reference" else "generated"
     if config.pedals is not None:
-        model = PedalModel(params)
+        model = PedalModel(params, equations)
     else:
-        model = PlanarModel(params) if config.floor is None else FloorModel(params)
+        model = PlanarModel(params, equations) if config.floor is None else FloorModel(params, equations)
     m_eq = params.total_mass + params.Jw / params.R ** 2
     k_p, k_d, k_speed, k_int = config.rider_gains
     rider = RiderLeanController.for_rider(params.m, config.h, params.g, params.R, m_eq,
@@ -490,9 +502,16 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     if dt_off > config.settle_s:
         raise ConfigError(f"dt_ms must not exceed the settle time {config.settle_s} s", key="dt_ms")
     t_end = t[-1] + max(0.0, -dt_off) + 1.0 / rate
-    y0 = _initial_state(dyn, t0)
-    sol = solve_ivp(dyn.rhs, (t0, t_end), y0, method="DOP853", rtol=config.rtol, atol=config.atol,
-                    dense_output=True)
+    if config.method == "reference":
+        y0 = _initial_state(dyn, t0)
+        sol = solve_ivp(dyn.rhs, (t0, t_end), y0, method="DOP853", rtol=config.rtol, atol=config.atol,
+                        dense_output=True)
+    else:
+        from euc_ros.core.ridesim import compiled  # lazily: numba compiles (or loads its cache) on first use
+
+        packed = compiled.pack(dyn)
+        y0 = _initial_state(dyn, t0, lambda tt, y: compiled.rhs_value(tt, np.asarray(y, float), packed).tolist())
+        sol = compiled.integrate(packed, t0, t_end, y0, config.rtol, config.atol)
     if not sol.success:
         raise EucError(f"ride simulation of {plan.name} failed: {sol.message}")
     Y = sol.sol(t)
@@ -530,7 +549,7 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
         h=np.broadcast_to(s["h"], t.shape).copy(), h_dot=np.broadcast_to(s["h_dot"], t.shape).copy(),
         h_ddot=np.broadcast_to(s["h_ddot"], t.shape).copy(), signals=signals,
         C=w["C"], A=w["A"], G=w["G"], E=w["E"], mocap=recorded, mocap_clean=clean,
-        solver_stats={"nfev": int(sol.nfev), "rtol": config.rtol, "atol": config.atol},
+        solver_stats={"method": config.method, "nfev": int(sol.nfev), "rtol": config.rtol, "atol": config.atol},
     )
 
 
@@ -565,6 +584,8 @@ def simulate_ride(config: RideConfig, progress=None) -> RideResult:
         raise ConfigError(f"unknown maneuver {config.maneuver!r} (known: {', '.join(MANEUVERS)})", key="maneuver")
     if config.runs < 1:
         raise ConfigError(f"must be >= 1, got {config.runs}", key="runs")
+    if config.method not in METHODS:
+        raise ConfigError(f"unknown method {config.method!r} (known: {', '.join(METHODS)})", key="method")
     if not 0.1 < config.h < 2.0:
         raise ConfigError(f"rider CoG height must be in (0.1, 2) m, got {config.h}", key="h")
     session = config.nominal_session()
