@@ -491,8 +491,8 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
     -------
     ts : ndarray (s + 1,)
         Step boundaries.
-    y_old : ndarray (s, n)
-        State at the start of each step.
+    ys : ndarray (s + 1, n)
+        States at the step boundaries.
     F : ndarray (s, 7, n)
         Coefficients of each step's interpolant (scipy's ``Dop853DenseOutput``).
     nfev : int
@@ -503,7 +503,7 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
     n = y0.size
     cap = 256
     ts = np.empty(cap + 1)
-    Y = np.empty((cap, n))
+    Y = np.empty((cap + 1, n))
     F = np.empty((cap, _N_INTERP, n))
     K = np.empty((_N_EXT, n))
     t, y = t0, y0.copy()
@@ -512,6 +512,7 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
     h_abs = _initial_step(t, y, f, t_bound, rtol, atol, p)
     nfev = 2
     ts[0] = t
+    Y[0] = y
     steps = 0
     ys = np.empty(n)
     y_new = np.empty(n)
@@ -524,7 +525,7 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
         h = 0.0
         while not accepted:
             if h_abs < min_step:
-                return ts[:steps + 1], Y[:steps], F[:steps], nfev, STATUS_STEP_TOO_SMALL
+                return ts[:steps + 1], Y[:steps + 1], F[:steps], nfev, STATUS_STEP_TOO_SMALL
             t_new = t + h_abs
             if t_new - t_bound > 0:
                 t_new = t_bound
@@ -583,8 +584,8 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
         nfev += _N_EXT - _N_STAGES - 1
         if steps == cap:
             cap *= 2
-            ts2, Y2, F2 = np.empty(cap + 1), np.empty((cap, n)), np.empty((cap, _N_INTERP, n))
-            ts2[:steps + 1], Y2[:steps], F2[:steps] = ts[:steps + 1], Y[:steps], F[:steps]
+            ts2, Y2, F2 = np.empty(cap + 1), np.empty((cap + 1, n)), np.empty((cap, _N_INTERP, n))
+            ts2[:steps + 1], Y2[:steps + 1], F2[:steps] = ts[:steps + 1], Y[:steps + 1], F[:steps]
             ts, Y, F = ts2, Y2, F2
         for i in range(n):
             dyi = y_new[i] - y[i]
@@ -596,20 +597,20 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
                 for c in range(_N_EXT):
                     acc += _D[r, c] * K[c, i]
                 F[steps, 3 + r, i] = h * acc
-        Y[steps] = y
         steps += 1
         ts[steps] = t_new
+        Y[steps] = y_new
         t = t_new
         y[:] = y_new
         f[:] = f_new
-    return ts[:steps + 1], Y[:steps], F[:steps], nfev, STATUS_OK
+    return ts[:steps + 1], Y[:steps + 1], F[:steps], nfev, STATUS_OK
 
 
 @_jit
-def dense(ts, y_old, F, t):
+def dense(ts, ys, F, t):
     """The dense solution at times t (any order) as (n_times, n_states): scipy's ``OdeSolution`` with
     ``Dop853DenseOutput`` (at a step boundary, the earlier step)."""
-    nseg, n = y_old.shape
+    nseg, n = F.shape[0], ys.shape[1]
     out = np.empty((t.size, n))
     for j in range(t.size):
         seg = np.searchsorted(ts, t[j], side="left") - 1
@@ -620,31 +621,36 @@ def dense(ts, y_old, F, t):
             for r in range(_N_INTERP):
                 v += F[seg, _N_INTERP - 1 - r, i]
                 v *= x if r % 2 == 0 else 1 - x
-            out[j, i] = v + y_old[seg, i]
+            out[j, i] = v + ys[seg, i]
     return out
 
 
 class CompiledSolution:
     """Dense solution of one run (the part of ``solve_ivp``'s result the simulator uses)."""
 
-    def __init__(self, ts, y_old, F, nfev: int, status: int) -> None:
-        self.ts, self.y_old, self.F = ts, y_old, F
+    def __init__(self, ts, ys, F, nfev: int, status: int) -> None:
+        self.ts, self.ys, self.F = ts, ys, F
         self.nfev = int(nfev)
         self.success = status == STATUS_OK
         self.message = "ok" if self.success else "the step size fell below 10 ulp of t"
 
     @property
-    def n_steps(self) -> int:
-        """Accepted steps."""
-        return self.y_old.shape[0]
+    def t(self) -> np.ndarray:
+        """Step boundaries (steps + 1,) [s]."""
+        return self.ts
+
+    @property
+    def y(self) -> np.ndarray:
+        """States at the step boundaries (n_states, steps + 1)."""
+        return self.ys.T
 
     def sol(self, t) -> np.ndarray:
         """States (n_states, n_times) at times t, like ``solve_ivp(...).sol``."""
-        return dense(self.ts, self.y_old, self.F, np.ascontiguousarray(np.atleast_1d(t), float)).T
+        return dense(self.ts, self.ys, self.F, np.ascontiguousarray(np.atleast_1d(t), float)).T
 
 
 def integrate(params: RunParams, t0: float, t_end: float, y0, rtol: float, atol: float) -> CompiledSolution:
     """Integrate one run with :func:`dop853` (see :func:`~euc_ros.core.ridesim.simulate.simulate_run`)."""
-    ts, y_old, F, nfev, status = dop853(float(t0), float(t_end), np.ascontiguousarray(y0, float), float(rtol),
+    ts, ys, F, nfev, status = dop853(float(t0), float(t_end), np.ascontiguousarray(y0, float), float(rtol),
                                         float(atol), params)
-    return CompiledSolution(ts, y_old, F, nfev, status)
+    return CompiledSolution(ts, ys, F, nfev, status)

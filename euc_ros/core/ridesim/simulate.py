@@ -48,6 +48,8 @@ DEFAULT_H_M = 0.61
 #: Integration methods: the compiled right-hand side and DOP853 (:mod:`.compiled`), or the Python right-hand
 #: side with ``scipy.integrate.solve_ivp`` (DOP853) and the equations lambdified from sympy in this process.
 METHODS = ("compiled", "reference")
+#: Residual accelerations [m/s^2, rad/s^2] below which the initial state counts as balanced.
+BALANCE_TOL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -158,6 +160,10 @@ class RunResult:
         The recording as written (noise, gaps, dropped frames; measurement effects applied).
     mocap_clean : MocapSeries
         The same without noise, gaps and dropped frames (measurement effects applied).
+    state : ndarray (n, n_states)
+        The integrated state (:data:`STATE_NAMES`, then u, u_dot with pedals that flex) at the samples.
+    solver_stats : dict
+        Integration method, right-hand-side evaluations ``nfev``, accepted ``steps``, ``rtol``, ``atol``.
     """
 
     name: str
@@ -182,6 +188,7 @@ class RunResult:
     E: np.ndarray
     mocap: MocapSeries
     mocap_clean: MocapSeries
+    state: np.ndarray | None = None
     solver_stats: dict = field(default_factory=dict)
 
 
@@ -460,16 +467,23 @@ def _initial_state(dyn: _RunDynamics, t0: float, rhs=None) -> np.ndarray:
             return r[3:6] + [r[11]]
         return rhs(t0, y)[3:6]
 
-    sol, _, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
-    u = sol if ok == 1 and np.all(np.abs(sol[:2]) < 0.5) else guess
+    sol, info, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
+    # fsolve may stop short of its xtol ("not making good progress") on a solution balanced to rounding: the
+    # residual accelerations decide
+    balanced = ok == 1 or np.max(np.abs(info["fvec"])) <= BALANCE_TOL
+    u = sol if balanced and np.all(np.abs(sol[:2]) < 0.5) else guess
     y0 = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
     return np.array(y0 + ([u[3], 0.0] if dyn.pedal_k is not None else []))
 
 
-def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
-                 noise_rng: np.random.Generator) -> RunResult:
-    """Simulate one planned run (see :func:`simulate_ride`)."""
-    session = config.nominal_session()
+def run_dynamics(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton) -> _RunDynamics:
+    """The dynamics of one planned run: truth model, controllers, effects, floor, external forces, rider motion.
+
+    Raises
+    ------
+    ConfigError
+        For pedals or arm swing combined with what they do not support.
+    """
     effects = config.effects
     if config.pedals is not None and (config.floor is not None or config.external or config.arms is not None
                                       or "aero_drag" in effects or "time_varying_h" in effects):
@@ -493,6 +507,35 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
         dyn.pedal_k, dyn.pedal_c = config.pedals.k_n_per_m, config.pedals.damping(params.m)
     if config.arms is not None:
         dyn.arms = ArmKinematics(config.arms, skeleton, config.h, params.m, run_index=_run_index(plan.name))
+    return dyn
+
+
+def integrate_run(dyn: _RunDynamics, config: RideConfig, t0: float, t_end: float):
+    """Integrate a run's dynamics from its balanced initial state at t0 to t_end with ``config.method``.
+
+    Returns
+    -------
+    solution
+        ``solve_ivp``'s result (reference) or a :class:`~.compiled.CompiledSolution`: ``t`` (step boundaries),
+        ``y`` (states there, (n_states, steps + 1)), ``sol(t)`` (dense output), ``nfev``, ``success``, ``message``.
+    """
+    if config.method == "reference":
+        y0 = _initial_state(dyn, t0)
+        return solve_ivp(dyn.rhs, (t0, t_end), y0, method="DOP853", rtol=config.rtol, atol=config.atol,
+                         dense_output=True)
+    from euc_ros.core.ridesim import compiled  # lazily: numba compiles (or loads its cache) on first use
+
+    packed = compiled.pack(dyn)
+    y0 = _initial_state(dyn, t0, lambda tt, y: compiled.rhs_value(tt, np.asarray(y, float), packed).tolist())
+    return compiled.integrate(packed, t0, t_end, y0, config.rtol, config.atol)
+
+
+def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
+                 noise_rng: np.random.Generator) -> RunResult:
+    """Simulate one planned run (see :func:`simulate_ride`)."""
+    session = config.nominal_session()
+    effects = config.effects
+    dyn = run_dynamics(plan, config, params, skeleton)
     rate = session.rate_hz
     n = int(round(plan.duration_s * rate))
     frame = np.arange(n, dtype=np.int64)
@@ -502,16 +545,7 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     if dt_off > config.settle_s:
         raise ConfigError(f"dt_ms must not exceed the settle time {config.settle_s} s", key="dt_ms")
     t_end = t[-1] + max(0.0, -dt_off) + 1.0 / rate
-    if config.method == "reference":
-        y0 = _initial_state(dyn, t0)
-        sol = solve_ivp(dyn.rhs, (t0, t_end), y0, method="DOP853", rtol=config.rtol, atol=config.atol,
-                        dense_output=True)
-    else:
-        from euc_ros.core.ridesim import compiled  # lazily: numba compiles (or loads its cache) on first use
-
-        packed = compiled.pack(dyn)
-        y0 = _initial_state(dyn, t0, lambda tt, y: compiled.rhs_value(tt, np.asarray(y, float), packed).tolist())
-        sol = compiled.integrate(packed, t0, t_end, y0, config.rtol, config.atol)
+    sol = integrate_run(dyn, config, t0, t_end)
     if not sol.success:
         raise EucError(f"ride simulation of {plan.name} failed: {sol.message}")
     Y = sol.sol(t)
@@ -549,7 +583,9 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
         h=np.broadcast_to(s["h"], t.shape).copy(), h_dot=np.broadcast_to(s["h_dot"], t.shape).copy(),
         h_ddot=np.broadcast_to(s["h_ddot"], t.shape).copy(), signals=signals,
         C=w["C"], A=w["A"], G=w["G"], E=w["E"], mocap=recorded, mocap_clean=clean,
-        solver_stats={"method": config.method, "nfev": int(sol.nfev), "rtol": config.rtol, "atol": config.atol},
+        state=Y.T.copy(),
+        solver_stats={"method": config.method, "nfev": int(sol.nfev), "steps": int(sol.t.size - 1),
+                      "rtol": config.rtol, "atol": config.atol},
     )
 
 
