@@ -38,7 +38,6 @@ from euc_ros.core.ridesim.mocap_synth import MocapNoise, corrupt, rotations_to_q
 from euc_ros.core.ridesim.rider_motion import ArmKinematics, ArmSwing, PedalFlex
 from euc_ros.core.ridesim.skeleton import Skeleton
 from euc_ros.core.ridesim.truth_model import FloorModel, PedalModel, PlanarModel, PlanarParams
-from euc_ros.core.rotations import quat_from_yaw_tilt_pitch, rotation_matrices
 from euc_ros.core.session import Session, default_session
 
 #: State vector of the ODE (with pedals that flex, ``u`` and ``u_dot`` follow).
@@ -428,14 +427,24 @@ class _RunDynamics:
         h = self.h_profile(t)[0]
         n = np.size(t)
         C = np.stack([Y[6] - xy_offset[0], Y[7] - xy_offset[1], Y[9] + self.p.R * np.cos(theta)], -1).reshape(n, 3)
-        R_E = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, gam)).reshape(n, 3, 3)
-        R_L = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, phi)).reshape(n, 3, 3)
+        R_E = yaw_tilt_pitch_matrices(psi, theta, gam).reshape(n, 3, 3)
+        R_L = yaw_tilt_pitch_matrices(psi, theta, phi).reshape(n, 3, 3)
         p = np.asarray(session.euc.pivot_to_wheel_center, float)
         E = C - R_E @ p
         l_hinge = self.p.l0 if self.pedal_k is None else self.p.l0 + np.reshape(Y[10], (-1, 1))
         A = C - l_hinge * R_E[:, :, 2]
         G = A + np.reshape(h, (-1, 1)) * R_L[:, :, 2]
         return {"C": C, "A": A, "G": G, "E": E, "R_E": R_E, "R_L": R_L, "h": np.broadcast_to(h, (n,))}
+
+
+def yaw_tilt_pitch_matrices(psi, theta, pitch) -> np.ndarray:
+    """``Rz(psi) Rx(theta) Ry(pitch)`` (..., 3, 3) in closed form (the matrices of
+    :func:`~euc_ros.core.rotations.quat_from_yaw_tilt_pitch`, without the quaternion round trip)."""
+    psi, theta, pitch = np.broadcast_arrays(*(np.asarray(v, float) for v in (psi, theta, pitch)))
+    cz, sz, cx, sx, cy, sy = np.cos(psi), np.sin(psi), np.cos(theta), np.sin(theta), np.cos(pitch), np.sin(pitch)
+    return np.stack([np.stack([cz * cy - sz * sx * sy, -sz * cx, cz * sy + sz * sx * cy], -1),
+                     np.stack([sz * cy + cz * sx * sy, cz * cx, sz * sy - cz * sx * cy], -1),
+                     np.stack([-cx * sy, sx, cx * cy], -1)], -2)
 
 
 def _run_index(name: str) -> int:
