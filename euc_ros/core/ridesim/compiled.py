@@ -32,7 +32,7 @@ from euc_ros.core.ridesim import eom_generated as _eom
 from euc_ros.core.ridesim.effects import ROLLING_SIGN_SPEED
 from euc_ros.core.ridesim.external import AIR_DENSITY as EXTERNAL_AIR_DENSITY
 
-_jit = numba.njit(cache=True, nogil=True)
+_jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 # the equations of motion, compiled from the printed derivation
 _planar_mass = _jit(_eom.planar_mass)
@@ -290,9 +290,8 @@ def _external(p, x, gam, phi, xd, gd, pd, h, X, psi):
 
 
 @_jit
-def _spline(p, j, i, dx):
-    """Cubic j of the arm tables on interval i at offset dx (scipy's PPoly coefficients, highest power first)."""
-    c = p.arm_c
+def _spline(c, j, i, dx):
+    """Cubic j of the tables c on interval i at offset dx (scipy's PPoly coefficients, highest power first)."""
     return ((c[j, 0, i] * dx + c[j, 1, i]) * dx + c[j, 2, i]) * dx + c[j, 3, i]
 
 
@@ -304,12 +303,18 @@ def _arms(p, t):
     th = p.arm_amp * math.sin(arg)
     thd = p.arm_amp * p.arm_w * math.cos(arg)
     thdd = -p.arm_amp * p.arm_w * p.arm_w * math.sin(arg)
-    n = p.arm_x.shape[0]
-    i = np.searchsorted(p.arm_x, th, side="right") - 1
-    i = min(max(i, 0), n - 2)
-    dx = th - p.arm_x[i]
-    h, h1, h2 = _spline(p, 0, i, dx), _spline(p, 1, i, dx), _spline(p, 2, i, dx)
-    dJ, J1, K, P = _spline(p, 4, i, dx), _spline(p, 5, i, dx), _spline(p, 6, i, dx), _spline(p, 7, i, dx)
+    x, c = p.arm_x, p.arm_c
+    lo, hi = 0, x.shape[0] - 2          # the interval i with x[i] <= th < x[i + 1], clamped to the grid
+    while lo < hi:
+        mid = (lo + hi + 1) // 2
+        if x[mid] <= th:
+            lo = mid
+        else:
+            hi = mid - 1
+    i = lo
+    dx = th - x[i]
+    h, h1, h2 = _spline(c, 0, i, dx), _spline(c, 1, i, dx), _spline(c, 2, i, dx)
+    dJ, J1, K, P = _spline(c, 4, i, dx), _spline(c, 5, i, dx), _spline(c, 6, i, dx), _spline(c, 7, i, dx)
     return h, h1 * thd, h2 * thd**2 + h1 * thdd, dJ, J1 * thd, P * thd**2 + K * thdd
 
 
