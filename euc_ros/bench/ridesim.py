@@ -71,7 +71,7 @@ def measure_integration(runs: int, repeats: int = REPEATS) -> dict:
     dyns = [run_dynamics(p, config, params, skeleton) for p in plans]
     integrate_run(dyns[0], config, -0.5, 0.5)
     cpu, wall, _ = _timed(lambda: [integrate_run(d, config, -config.settle_s, p.duration_s)
-                                   for p, d in zip(plans, dyns)], repeats)
+                                   for p, d in zip(plans, dyns, strict=True)], repeats)
     recorded = float(sum(p.duration_s for p in plans))
     return {"cpu_s": cpu, "wall_s": wall, "recorded_s": recorded, "rtf": [recorded / c for c in cpu]}
 

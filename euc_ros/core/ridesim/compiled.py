@@ -127,8 +127,6 @@ class RunParams(NamedTuple):
 
 def pack(dyn) -> RunParams:
     """Pack a :class:`~euc_ros.core.ridesim.simulate._RunDynamics` into :class:`RunParams`."""
-    import math as _m
-
     p, plan, euc, rider = dyn.p, dyn.plan, dyn.euc, dyn.rider
 
     def sinusoids(s):
@@ -140,9 +138,9 @@ def pack(dyn) -> RunParams:
         for c in dyn.floor.components:
             q = c.params
             if c.kind == "ramp":
-                rows.append((FLOOR_RAMP, _m.tan(_m.radians(q["slope_deg"])), 0.0, 1.0))
+                rows.append((FLOOR_RAMP, math.tan(math.radians(q["slope_deg"])), 0.0, 1.0))
             elif c.kind == "ramp_from":
-                rows.append((FLOOR_RAMP_FROM, _m.tan(_m.radians(q["slope_deg"])), q["x0_m"], q["width_m"]))
+                rows.append((FLOOR_RAMP_FROM, math.tan(math.radians(q["slope_deg"])), q["x0_m"], q["width_m"]))
             else:
                 rows.append((FLOOR_BUMP if c.kind == "bump" else FLOOR_STEP, q["height_m"], q["x0_m"], q["width_m"]))
         floor = np.array(rows, float).reshape(-1, 4)

@@ -30,11 +30,14 @@ import math
 import types
 from dataclasses import dataclass, fields, replace
 from functools import lru_cache
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from euc_ros.core.session import Session
+
+if TYPE_CHECKING:
+    import sympy as sp
 
 #: Standard gravity [m/s^2].
 G_M_PER_S2 = 9.81
@@ -607,5 +610,5 @@ def wheel_rate(x_dot, R):
     return x_dot / R
 
 
-__all__ = ["COORDINATES", "EQUATIONS", "FloorModel", "G_M_PER_S2", "PedalModel", "PlanarModel", "PlanarParams", "input_directions", "solve3",
-           "symbolic_model", "wheel_rate"]
+__all__ = ["COORDINATES", "EQUATIONS", "FloorModel", "G_M_PER_S2", "PedalModel", "PlanarModel", "PlanarParams",
+           "input_directions", "solve3", "symbolic_model", "wheel_rate"]

@@ -25,7 +25,7 @@ def test_generated_functions_equal_the_lambdified_derivation(model, func):
     a = np.broadcast_arrays(*(np.asarray(v, float) for v in generated(*args)))
     b = np.broadcast_arrays(*(np.asarray(v, float) for v in lam(*args)))
     assert len(a) == len(b)
-    for x, y in zip(a, b):
+    for x, y in zip(a, b, strict=True):
         # the same expressions evaluated in another order: equal to a few units of rounding
         np.testing.assert_allclose(x, y, rtol=1e-13, atol=1e-13 * max(1.0, np.abs(y).max()))
 
