@@ -488,6 +488,22 @@ def _initial_state(dyn: _RunDynamics, t0: float, rhs=None) -> np.ndarray:
 def run_dynamics(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton) -> _RunDynamics:
     """The dynamics of one planned run: truth model, controllers, effects, floor, external forces, rider motion.
 
+    Parameters
+    ----------
+    plan : RunPlan
+        The run's plan (path, speed profile, sway).
+    config : RideConfig
+        The ride's configuration (its ``method`` picks the source of the equations: generated or sympy).
+    params : PlanarParams
+        True physical parameters.
+    skeleton : Skeleton
+        The rider's segments (for arm swing).
+
+    Returns
+    -------
+    _RunDynamics
+        Right-hand side (``rhs``), sampled truth (``sample``) and 3-D placement (``world``) of the run.
+
     Raises
     ------
     ConfigError
@@ -521,6 +537,15 @@ def run_dynamics(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
 
 def integrate_run(dyn: _RunDynamics, config: RideConfig, t0: float, t_end: float):
     """Integrate a run's dynamics from its balanced initial state at t0 to t_end with ``config.method``.
+
+    Parameters
+    ----------
+    dyn : _RunDynamics
+        From :func:`run_dynamics`.
+    config : RideConfig
+        ``method``, ``rtol`` and ``atol`` are used.
+    t0, t_end : float
+        Start (settling included, negative) and end of the integration [s].
 
     Returns
     -------
