@@ -126,7 +126,18 @@ class RunParams(NamedTuple):
 
 
 def pack(dyn) -> RunParams:
-    """Pack a :class:`~euc_ros.core.ridesim.simulate._RunDynamics` into :class:`RunParams`."""
+    """Pack a run's dynamics into :class:`RunParams`.
+
+    Parameters
+    ----------
+    dyn : euc_ros.core.ridesim.simulate._RunDynamics
+        Plan, true parameters, controllers, effects, floor, external forces and rider motion of one run.
+
+    Returns
+    -------
+    RunParams
+        The same numbers, in the form the compiled right-hand side reads.
+    """
     p, plan, euc, rider = dyn.p, dyn.plan, dyn.euc, dyn.rider
 
     def sinusoids(s):
@@ -653,7 +664,24 @@ class CompiledSolution:
 
 
 def integrate(params: RunParams, t0: float, t_end: float, y0, rtol: float, atol: float) -> CompiledSolution:
-    """Integrate one run with :func:`dop853` (see :func:`~euc_ros.core.ridesim.simulate.simulate_run`)."""
+    """Integrate one run with :func:`dop853`.
+
+    Parameters
+    ----------
+    params : RunParams
+        The run, from :func:`pack`.
+    t0, t_end : float
+        Start and end time [s].
+    y0 : array_like (n_states,)
+        State at t0 (:data:`~euc_ros.core.ridesim.simulate.STATE_NAMES`, then u, u_dot with pedals).
+    rtol, atol : float
+        DOP853's tolerances: each step's local error estimate stays below ``atol + rtol |y|`` (RMS norm).
+
+    Returns
+    -------
+    CompiledSolution
+        Step boundaries, states there, dense output, ``nfev`` and ``success``.
+    """
     ts, ys, F, nfev, status = dop853(float(t0), float(t_end), np.ascontiguousarray(y0, float), float(rtol),
                                         float(atol), params)
     return CompiledSolution(ts, ys, F, nfev, status)
