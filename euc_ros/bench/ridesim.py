@@ -24,10 +24,10 @@ REPEATS = 3
 MANEUVER = "deceleration"
 
 
-def _config(runs: int, method: str):
+def _config(runs: int, method: str, duration_s: float | None):
     from euc_ros.core.ridesim import RideConfig
 
-    return RideConfig(maneuver=MANEUVER, runs=runs, seed=1, method=method)
+    return RideConfig(maneuver=MANEUVER, runs=runs, seed=1, method=method, duration_s=duration_s)
 
 
 def _timed(fn, repeats: int) -> tuple[list[float], list[float], object]:
@@ -42,18 +42,19 @@ def _timed(fn, repeats: int) -> tuple[list[float], list[float], object]:
     return cpu, wall, out
 
 
-def measure_ride(runs: int, method: str, repeats: int = REPEATS) -> dict:
-    """Whole rides on one core: ``{"cpu_s": [...], "wall_s": [...], "recorded_s", "rtf": [...]}``."""
+def measure_ride(runs: int, method: str, repeats: int = REPEATS, duration_s: float | None = None) -> dict:
+    """Whole rides on one core: ``{"cpu_s": [...], "wall_s": [...], "recorded_s", "rtf": [...]}`` (``duration_s``:
+    recorded seconds per run, default the maneuver's)."""
     from euc_ros.core.ridesim import RideConfig, simulate_ride
 
     simulate_ride(RideConfig(maneuver=MANEUVER, runs=1, seed=0, duration_s=0.5, method=method))
-    cpu, wall, ride = _timed(lambda: simulate_ride(_config(runs, method)), repeats)
+    cpu, wall, ride = _timed(lambda: simulate_ride(_config(runs, method, duration_s)), repeats)
     recorded = float(sum(r.plan.duration_s for r in ride.runs))
     return {"cpu_s": cpu, "wall_s": wall, "recorded_s": recorded, "rtf": [recorded / c for c in cpu],
             "nfev": [r.solver_stats["nfev"] for r in ride.runs]}
 
 
-def measure_integration(runs: int, repeats: int = REPEATS) -> dict:
+def measure_integration(runs: int, repeats: int = REPEATS, duration_s: float | None = None) -> dict:
     """The compiled integration of the same runs alone, on one core (keys as :func:`measure_ride`)."""
     import numpy as np
 
@@ -62,12 +63,12 @@ def measure_integration(runs: int, repeats: int = REPEATS) -> dict:
     from euc_ros.core.ridesim.skeleton import Skeleton
     from euc_ros.core.ridesim.truth_model import PlanarParams
 
-    config = _config(runs, "compiled")
+    config = _config(runs, "compiled", duration_s)
     session = config.nominal_session()
     params = true_params(PlanarParams.from_session(session), config.effects)
     skeleton = Skeleton.for_session(session)
     children = np.random.SeedSequence(config.seed).spawn(2 * runs)
-    plans = [plan_run(MANEUVER, k, np.random.default_rng(children[2 * k]), None) for k in range(runs)]
+    plans = [plan_run(MANEUVER, k, np.random.default_rng(children[2 * k]), duration_s) for k in range(runs)]
     dyns = [run_dynamics(p, config, params, skeleton) for p in plans]
     integrate_run(dyns[0], config, -0.5, 0.5)
     cpu, wall, _ = _timed(lambda: [integrate_run(d, config, -config.settle_s, p.duration_s)
