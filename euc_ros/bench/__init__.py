@@ -20,6 +20,8 @@ recording      recorder messages per second into MCAP with no loss (rosbags writ
                same messages directly)
 unicycle       unicycle simulation real-time factor in process and in lockstep over topics
                (the bare RK4 physics; a bare rclpy lockstep ping-pong)
+ridesim        ride simulator real-time factor, compiled and reference (the compiled
+               integration of the same runs alone)
 play           replay timing of ``euc-ros play`` per message, at rates 1 and 2 (a bare wait
                loop on the same schedule)
 fuzz           NatNet packets and Motive CSV files: inputs, crashes, hangs, rejection classes
@@ -31,5 +33,5 @@ soak           10 minutes at 360 Hz x 14 bodies through the whole pipeline (the 
 """
 
 #: Benchmarks in the order they run (module names under euc_ros.bench).
-BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "recording", "latency", "play", "fuzz", "live_sweep",
+BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "ridesim", "recording", "latency", "play", "fuzz", "live_sweep",
               "soak")

@@ -8,7 +8,7 @@ of the offline filter of ``euc-ros identify``) give the derivatives: each state 
 120 Hz), stamped with the capture time of *its own* frame. With ``estimator: kalman`` a steady-state
 Kalman fixed-lag smoother replaces them (:mod:`euc_ros.core.filters.causal`): states
 ``lag_s`` late (0.1 s by default), noisier (docs/low_lag.md). The logic lives in
-:class:`~euc_ros.core.euc.estimators.RiderStateEstimator`; this module only wires ROS.
+:class:`~euc_ros.core.online.estimators.RiderStateEstimator`; this module only wires ROS.
 
 Bad input never stops the node:
 
@@ -18,7 +18,7 @@ Bad input never stops the node:
   filters (no state across it);
 * repeated and out-of-order frames are dropped; a frame numbering that restarts or a stamp that jumps
   back by more than ``restart_jump`` restarts the filters
-  (:class:`~euc_ros.core.euc.estimators.FrameSequencer`); frames without a number (``-1``, topic
+  (:class:`~euc_ros.core.online.estimators.FrameSequencer`); frames without a number (``-1``, topic
   sources) are numbered from their stamps.
 """
 from __future__ import annotations

@@ -5,7 +5,7 @@ For every usable state: M_d1 (eq 9) and M_d2 (eq 10) of the 3-DoF model at the c
 online sliding-window estimate of h with its standard deviation. With ``effects`` (and
 ``effect_parameters``) the 3-DoF torques are those of the model extended with the effects the
 residual analysis selected (``model`` then reads ``"3dof+ground_slope"``), so the live residual drops
-too. The logic lives in :class:`~euc_ros.core.euc.estimators.TorqueEstimator`; this module only wires
+too. The logic lives in :class:`~euc_ros.core.online.estimators.TorqueEstimator`; this module only wires
 ROS.
 
 A NaN never reaches a published torque: a state that is not usable (no rider, a NaN derivative, a

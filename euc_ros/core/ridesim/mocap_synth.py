@@ -19,11 +19,10 @@ import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.mocap.series import MocapSeries
-from euc_ros.core.rotations import canonical_quat
+from euc_ros.core.rotations import canonical_quat, quat_multiply
 
 
 @dataclass(frozen=True)
@@ -61,10 +60,38 @@ class MocapNoise:
 
 
 def rotations_to_quats(rot: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) -> canonical quaternions (..., 4) (x, y, z, w), w >= 0."""
-    flat = rot.reshape(-1, 3, 3)
-    q = Rotation.from_matrix(flat).as_quat()
-    return canonical_quat(q).reshape(rot.shape[:-2] + (4,))
+    """Rotation matrices (..., 3, 3) -> canonical quaternions (..., 4) (x, y, z, w), w >= 0.
+
+    Shepperd's method, as ``scipy.spatial.transform.Rotation.from_matrix`` computes it (the largest of
+    ``4 w^2, 4 x^2, 4 y^2, 4 z^2`` picks the formula), in numpy: about 10x cheaper on many matrices.
+    """
+    R = np.asarray(rot, float).reshape(-1, 3, 3)
+    d = np.stack([R[:, 0, 0], R[:, 1, 1], R[:, 2, 2], R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]], axis=-1)
+    choice = np.argmax(d, axis=-1)
+    q = np.empty((R.shape[0], 4))
+    w = choice == 3
+    q[w] = np.stack([R[w, 2, 1] - R[w, 1, 2], R[w, 0, 2] - R[w, 2, 0], R[w, 1, 0] - R[w, 0, 1], 1 + d[w, 3]], -1)
+    for i in range(3):
+        j, k = (i + 1) % 3, (i + 2) % 3
+        c = choice == i
+        q[c, i] = 1 - d[c, 3] + 2 * R[c, i, i]
+        q[c, j] = R[c, j, i] + R[c, i, j]
+        q[c, k] = R[c, k, i] + R[c, i, k]
+        q[c, 3] = R[c, k, j] - R[c, j, k]
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    return canonical_quat(q).reshape(np.shape(rot)[:-2] + (4,))
+
+
+def rotvec_to_quats(rv: np.ndarray) -> np.ndarray:
+    """Rotation vectors (..., 3) [rad] -> quaternions (..., 4) (x, y, z, w) (``Rotation.from_rotvec``'s formula,
+    with its series for angles below 1e-3 rad)."""
+    rv = np.asarray(rv, float)
+    angle = np.linalg.norm(rv, axis=-1, keepdims=True)
+    small = angle <= 1e-3
+    a2 = angle * angle
+    safe = np.where(small, 1.0, angle)
+    scale = np.where(small, 0.5 - a2 / 48 + a2 * a2 / 3840, np.sin(0.5 * angle) / safe)
+    return np.concatenate([scale * rv, np.cos(0.5 * angle)], axis=-1)
 
 
 def corrupt(clean: MocapSeries, noise: MocapNoise, rng: np.random.Generator) -> MocapSeries:
@@ -76,8 +103,9 @@ def corrupt(clean: MocapSeries, noise: MocapNoise, rng: np.random.Generator) -> 
     b, n = clean.position.shape[:2]
     pos = clean.position + rng.normal(0.0, 1.0, (b, n, 3)) * noise.pos_sigma_m
     rv = rng.normal(0.0, 1.0, (b, n, 3)) * (math.radians(noise.rot_rms_deg) / math.sqrt(3.0))
-    rot = Rotation.from_quat(clean.quat.reshape(-1, 4)) * Rotation.from_rotvec(rv.reshape(-1, 3))
-    quat = canonical_quat(rot.as_quat()).reshape(b, n, 4)
+    q0 = clean.quat.reshape(-1, 4)
+    q = quat_multiply(q0 / np.linalg.norm(q0, axis=-1, keepdims=True), rotvec_to_quats(rv.reshape(-1, 3)))
+    quat = canonical_quat(q / np.linalg.norm(q, axis=-1, keepdims=True)).reshape(b, n, 4)
     err = noise.marker_error_m * (1.0 + 0.3 * np.abs(rng.normal(0.0, 1.0, (b, n))))
     tracked = np.ones((b, n), bool)
     rate = clean.rate_hz

@@ -38,13 +38,17 @@ from euc_ros.core.ridesim.mocap_synth import MocapNoise, corrupt, rotations_to_q
 from euc_ros.core.ridesim.rider_motion import ArmKinematics, ArmSwing, PedalFlex
 from euc_ros.core.ridesim.skeleton import Skeleton
 from euc_ros.core.ridesim.truth_model import FloorModel, PedalModel, PlanarModel, PlanarParams
-from euc_ros.core.rotations import quat_from_yaw_tilt_pitch, rotation_matrices
 from euc_ros.core.session import Session, default_session
 
 #: State vector of the ODE (with pedals that flex, ``u`` and ``u_dot`` follow).
 STATE_NAMES = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "X", "Y", "z", "Z")
 #: Default true rider CoG height (EUC paper, Fig. 6: h = 0.61 m).
 DEFAULT_H_M = 0.61
+#: Integration methods: the compiled right-hand side and DOP853 (:mod:`.compiled`), or the Python right-hand
+#: side with ``scipy.integrate.solve_ivp`` (DOP853) and the equations lambdified from sympy in this process.
+METHODS = ("compiled", "reference")
+#: Residual accelerations [m/s^2, rad/s^2] below which the initial state counts as balanced.
+BALANCE_TOL = 1e-10
 
 
 @dataclass(frozen=True)
@@ -80,7 +84,10 @@ class RideConfig:
     rider_gains : tuple of float
         ``(k_p [N m/rad], k_d [N m s/rad], k_speed [rad s/m], k_int [rad/m])`` of the rider.
     rtol, atol : float
-        Integration tolerances of ``solve_ivp`` (DOP853).
+        Integration tolerances of DOP853: each step's local error estimate stays below ``atol + rtol |y|``.
+    method : str
+        ``compiled`` (default) or ``reference`` (:data:`METHODS`): the same DOP853 steps on the same equations,
+        compiled or in Python; their states agree within the tolerances.
     floor : FloorProfile, optional
         A floor that is not level in a level lab (:mod:`.floors`): the dynamics follow it
         (:class:`~euc_ros.core.ridesim.truth_model.FloorModel`, x is then the arc length of the wheel
@@ -110,6 +117,7 @@ class RideConfig:
     rider_gains: tuple[float, float, float, float] = (800.0, 150.0, 0.12, 0.05)
     rtol: float = 1e-10
     atol: float = 1e-10
+    method: str = "compiled"
     floor: FloorProfile | None = None
     external: tuple = ()
     pedals: PedalFlex | None = None
@@ -151,6 +159,10 @@ class RunResult:
         The recording as written (noise, gaps, dropped frames; measurement effects applied).
     mocap_clean : MocapSeries
         The same without noise, gaps and dropped frames (measurement effects applied).
+    state : ndarray (n, n_states)
+        The integrated state (:data:`STATE_NAMES`, then u, u_dot with pedals that flex) at the samples.
+    solver_stats : dict
+        Integration method, right-hand-side evaluations ``nfev``, accepted ``steps``, ``rtol``, ``atol``.
     """
 
     name: str
@@ -175,6 +187,7 @@ class RunResult:
     E: np.ndarray
     mocap: MocapSeries
     mocap_clean: MocapSeries
+    state: np.ndarray | None = None
     solver_stats: dict = field(default_factory=dict)
 
 
@@ -414,8 +427,8 @@ class _RunDynamics:
         h = self.h_profile(t)[0]
         n = np.size(t)
         C = np.stack([Y[6] - xy_offset[0], Y[7] - xy_offset[1], Y[9] + self.p.R * np.cos(theta)], -1).reshape(n, 3)
-        R_E = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, gam)).reshape(n, 3, 3)
-        R_L = rotation_matrices(quat_from_yaw_tilt_pitch(psi, theta, phi)).reshape(n, 3, 3)
+        R_E = yaw_tilt_pitch_matrices(psi, theta, gam).reshape(n, 3, 3)
+        R_L = yaw_tilt_pitch_matrices(psi, theta, phi).reshape(n, 3, 3)
         p = np.asarray(session.euc.pivot_to_wheel_center, float)
         E = C - R_E @ p
         l_hinge = self.p.l0 if self.pedal_k is None else self.p.l0 + np.reshape(Y[10], (-1, 1))
@@ -424,14 +437,28 @@ class _RunDynamics:
         return {"C": C, "A": A, "G": G, "E": E, "R_E": R_E, "R_L": R_L, "h": np.broadcast_to(h, (n,))}
 
 
+def yaw_tilt_pitch_matrices(psi, theta, pitch) -> np.ndarray:
+    """``Rz(psi) Rx(theta) Ry(pitch)`` (..., 3, 3) in closed form (the matrices of
+    :func:`~euc_ros.core.rotations.quat_from_yaw_tilt_pitch`, without the quaternion round trip)."""
+    psi, theta, pitch = np.broadcast_arrays(*(np.asarray(v, float) for v in (psi, theta, pitch)))
+    cz, sz, cx, sx, cy, sy = np.cos(psi), np.sin(psi), np.cos(theta), np.sin(theta), np.cos(pitch), np.sin(pitch)
+    return np.stack([np.stack([cz * cy - sz * sx * sy, -sz * cx, cz * sy + sz * sx * cy], -1),
+                     np.stack([sz * cy + cz * sx * sy, cz * cx, sz * sy - cz * sx * cy], -1),
+                     np.stack([-cx * sy, sx, cx * cy], -1)], -2)
+
+
 def _run_index(name: str) -> int:
     """k (from 0) of a run named ``<maneuver>_NN`` (NN = k + 1)."""
     tail = name.rsplit("_", 1)[-1]
     return max(int(tail) - 1, 0) if tail.isdigit() else 0
 
 
-def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
-    """State at t0 with zero accelerations at the reference speed (unknowns gamma, phi, z)."""
+def _initial_state(dyn: _RunDynamics, t0: float, rhs=None) -> np.ndarray:
+    """State at t0 with zero accelerations at the reference speed (unknowns gamma, phi, z).
+
+    ``rhs(t, y) -> list`` is the right-hand side to balance (default ``dyn.rhs``).
+    """
+    rhs = dyn.rhs if rhs is None else rhs
     v0 = float(dyn.plan.speed.reference(t0, dyn.plan.path.kappa(0.0), dyn.plan.path.dkappa(0.0), 0.0)[0])
     guess = np.array([-dyn.euc.k_v * v0 / dyn.euc.k_p, 0.0, 0.0])
     X0 = Z0 = 0.0
@@ -445,20 +472,43 @@ def _initial_state(dyn: _RunDynamics, t0: float) -> np.ndarray:
     def acc(u):
         y = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
         if dyn.pedal_k is not None:
-            r = dyn.rhs(t0, y + [u[3], 0.0])
+            r = rhs(t0, y + [u[3], 0.0])
             return r[3:6] + [r[11]]
-        return dyn.rhs(t0, y)[3:6]
+        return rhs(t0, y)[3:6]
 
-    sol, _, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
-    u = sol if ok == 1 and np.all(np.abs(sol[:2]) < 0.5) else guess
+    sol, info, ok, _ = fsolve(acc, guess, full_output=True, xtol=1e-12)
+    # fsolve may stop short of its xtol ("not making good progress") on a solution balanced to rounding: the
+    # residual accelerations decide
+    balanced = ok == 1 or np.max(np.abs(info["fvec"])) <= BALANCE_TOL
+    u = sol if balanced and np.all(np.abs(sol[:2]) < 0.5) else guess
     y0 = [0.0, u[0], u[1], v0, 0.0, 0.0, X0, 0.0, u[2], Z0]
     return np.array(y0 + ([u[3], 0.0] if dyn.pedal_k is not None else []))
 
 
-def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
-                 noise_rng: np.random.Generator) -> RunResult:
-    """Simulate one planned run (see :func:`simulate_ride`)."""
-    session = config.nominal_session()
+def run_dynamics(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton) -> _RunDynamics:
+    """The dynamics of one planned run: truth model, controllers, effects, floor, external forces, rider motion.
+
+    Parameters
+    ----------
+    plan : RunPlan
+        The run's plan (path, speed profile, sway).
+    config : RideConfig
+        The ride's configuration (its ``method`` picks the source of the equations: generated or sympy).
+    params : PlanarParams
+        True physical parameters.
+    skeleton : Skeleton
+        The rider's segments (for arm swing).
+
+    Returns
+    -------
+    _RunDynamics
+        Right-hand side (``rhs``), sampled truth (``sample``) and 3-D placement (``world``) of the run.
+
+    Raises
+    ------
+    ConfigError
+        For pedals or arm swing combined with what they do not support.
+    """
     effects = config.effects
     if config.pedals is not None and (config.floor is not None or config.external or config.arms is not None
                                       or "aero_drag" in effects or "time_varying_h" in effects):
@@ -466,10 +516,11 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
                           "force, arm swing, aero_drag or time_varying_h)", key="pedals")
     if config.arms is not None and (config.floor is not None or "time_varying_h" in effects):
         raise ConfigError("arm swing does not combine with a floor or time_varying_h", key="arms")
+    equations = "sympy" if config.method == "reference" else "generated"
     if config.pedals is not None:
-        model = PedalModel(params)
+        model = PedalModel(params, equations)
     else:
-        model = PlanarModel(params) if config.floor is None else FloorModel(params)
+        model = PlanarModel(params, equations) if config.floor is None else FloorModel(params, equations)
     m_eq = params.total_mass + params.Jw / params.R ** 2
     k_p, k_d, k_speed, k_int = config.rider_gains
     rider = RiderLeanController.for_rider(params.m, config.h, params.g, params.R, m_eq,
@@ -481,6 +532,44 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
         dyn.pedal_k, dyn.pedal_c = config.pedals.k_n_per_m, config.pedals.damping(params.m)
     if config.arms is not None:
         dyn.arms = ArmKinematics(config.arms, skeleton, config.h, params.m, run_index=_run_index(plan.name))
+    return dyn
+
+
+def integrate_run(dyn: _RunDynamics, config: RideConfig, t0: float, t_end: float):
+    """Integrate a run's dynamics from its balanced initial state at t0 to t_end with ``config.method``.
+
+    Parameters
+    ----------
+    dyn : _RunDynamics
+        From :func:`run_dynamics`.
+    config : RideConfig
+        ``method``, ``rtol`` and ``atol`` are used.
+    t0, t_end : float
+        Start (settling included, negative) and end of the integration [s].
+
+    Returns
+    -------
+    solution
+        ``solve_ivp``'s result (reference) or a :class:`~.compiled.CompiledSolution`: ``t`` (step boundaries),
+        ``y`` (states there, (n_states, steps + 1)), ``sol(t)`` (dense output), ``nfev``, ``success``, ``message``.
+    """
+    if config.method == "reference":
+        y0 = _initial_state(dyn, t0)
+        return solve_ivp(dyn.rhs, (t0, t_end), y0, method="DOP853", rtol=config.rtol, atol=config.atol,
+                         dense_output=True)
+    from euc_ros.core.ridesim import compiled  # lazily: numba compiles (or loads its cache) on first use
+
+    packed = compiled.pack(dyn)
+    y0 = _initial_state(dyn, t0, lambda tt, y: compiled.rhs_value(tt, np.asarray(y, float), packed).tolist())
+    return compiled.integrate(packed, t0, t_end, y0, config.rtol, config.atol)
+
+
+def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
+                 noise_rng: np.random.Generator) -> RunResult:
+    """Simulate one planned run (see :func:`simulate_ride`)."""
+    session = config.nominal_session()
+    effects = config.effects
+    dyn = run_dynamics(plan, config, params, skeleton)
     rate = session.rate_hz
     n = int(round(plan.duration_s * rate))
     frame = np.arange(n, dtype=np.int64)
@@ -490,9 +579,7 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
     if dt_off > config.settle_s:
         raise ConfigError(f"dt_ms must not exceed the settle time {config.settle_s} s", key="dt_ms")
     t_end = t[-1] + max(0.0, -dt_off) + 1.0 / rate
-    y0 = _initial_state(dyn, t0)
-    sol = solve_ivp(dyn.rhs, (t0, t_end), y0, method="DOP853", rtol=config.rtol, atol=config.atol,
-                    dense_output=True)
+    sol = integrate_run(dyn, config, t0, t_end)
     if not sol.success:
         raise EucError(f"ride simulation of {plan.name} failed: {sol.message}")
     Y = sol.sol(t)
@@ -530,7 +617,9 @@ def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skelet
         h=np.broadcast_to(s["h"], t.shape).copy(), h_dot=np.broadcast_to(s["h_dot"], t.shape).copy(),
         h_ddot=np.broadcast_to(s["h_ddot"], t.shape).copy(), signals=signals,
         C=w["C"], A=w["A"], G=w["G"], E=w["E"], mocap=recorded, mocap_clean=clean,
-        solver_stats={"nfev": int(sol.nfev), "rtol": config.rtol, "atol": config.atol},
+        state=Y.T.copy(),
+        solver_stats={"method": config.method, "nfev": int(sol.nfev), "steps": int(sol.t.size - 1),
+                      "rtol": config.rtol, "atol": config.atol},
     )
 
 
@@ -565,6 +654,8 @@ def simulate_ride(config: RideConfig, progress=None) -> RideResult:
         raise ConfigError(f"unknown maneuver {config.maneuver!r} (known: {', '.join(MANEUVERS)})", key="maneuver")
     if config.runs < 1:
         raise ConfigError(f"must be >= 1, got {config.runs}", key="runs")
+    if config.method not in METHODS:
+        raise ConfigError(f"unknown method {config.method!r} (known: {', '.join(METHODS)})", key="method")
     if not 0.1 < config.h < 2.0:
         raise ConfigError(f"rider CoG height must be in (0.1, 2) m, got {config.h}", key="h")
     session = config.nominal_session()

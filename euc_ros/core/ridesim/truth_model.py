@@ -26,19 +26,28 @@ where ``b`` holds the velocity terms, the rheonomic h(t) terms and minus the gra
 """
 from __future__ import annotations
 
+import math
+import types
 from dataclasses import dataclass, fields, replace
 from functools import lru_cache
-from typing import Callable
+from typing import TYPE_CHECKING, Callable
 
 import numpy as np
 
 from euc_ros.core.session import Session
+
+if TYPE_CHECKING:
+    import sympy as sp
 
 #: Standard gravity [m/s^2].
 G_M_PER_S2 = 9.81
 
 #: Names of the generalized coordinates, in order (EUC paper, eq. 4).
 COORDINATES = ("x", "gamma", "phi")
+
+#: Sources of the numeric model functions: ``generated`` (the derivation printed once into
+#: :mod:`.eom_generated`, no sympy at run time) or ``sympy`` (derived and lambdified in this process).
+EQUATIONS = ("generated", "sympy")
 
 
 @dataclass(frozen=True)
@@ -116,10 +125,12 @@ class _Compiled:
     bias_v: Callable
     jac_g_v: Callable
     vel_g_v: Callable
-    # sympy expressions kept for the docs and for independent checks
+    # sympy expressions kept for the docs, for independent checks and for code generation
     M: sp.Matrix
     b: sp.Matrix
     syms: dict
+    #: ``{"mass": (args, exprs), "bias": ..., "jac_g": ..., "vel_g": ...}``: what each function computes
+    functions: dict
 
 
 def _time_to_symbols(t, pairs) -> dict:
@@ -154,7 +165,8 @@ def _extension(M, b, mass_args, m_entries, bias_args, syms) -> _Compiled:
         mass_s=_lam(mass_args, m_entries, "math"), bias_s=_lam(bias_args, list(b), "math"),
         jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
         mass_v=_lam(mass_args, m_entries, "numpy"), bias_v=_lam(bias_args, list(b), "numpy"),
-        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b, syms=syms)
+        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b, syms=syms,
+        functions={"mass": (mass_args, m_entries), "bias": (bias_args, list(b))})
 
 
 @lru_cache(maxsize=1)
@@ -227,6 +239,8 @@ def _derive() -> _Compiled:
         M=M, b=b,
         syms={"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
               "g": (gx, gz), "params": pars, "G": Gs},
+        functions={"mass": (mass_args, m_entries), "bias": (bias_args, list(b)), "jac_g": (jac_args, jac_list),
+                   "vel_g": (vel_args, list(vel_G))},
     )
 
 
@@ -250,6 +264,42 @@ def solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2):
             (c02 * r0 + c12 * r1 + c22 * r2) / det)
 
 
+@dataclass(frozen=True)
+class _Numeric:
+    """Numeric functions of one truth geometry: scalar (``_s``) and vectorized (``_v``) versions."""
+
+    mass_s: Callable
+    bias_s: Callable
+    jac_g_s: Callable
+    vel_g_s: Callable
+    mass_v: Callable
+    bias_v: Callable
+    jac_g_v: Callable
+    vel_g_v: Callable
+
+
+def _on_floats(f: Callable) -> Callable:
+    """The generated function ``f`` with :mod:`math` in place of numpy (same code, faster on floats)."""
+    if not all(hasattr(math, n) for n in f.__code__.co_names if n != "numpy"):
+        return f
+    return types.FunctionType(f.__code__, {"numpy": math, "__builtins__": __builtins__}, f.__name__)
+
+
+@lru_cache(maxsize=None)
+def _numeric(model: str, equations: str) -> _Numeric:
+    """The numeric functions of ``model`` (``planar``, ``floor``, ``pedal``) from the source ``equations``."""
+    if equations == "sympy":
+        c = {"planar": _derive, "floor": _derive_floor, "pedal": _derive_pedal}[model]()
+        return _Numeric(c.mass_s, c.bias_s, c.jac_g_s, c.vel_g_s, c.mass_v, c.bias_v, c.jac_g_v, c.vel_g_v)
+    if equations != "generated":
+        raise ValueError(f"equations must be one of {EQUATIONS}, got {equations!r}")
+    from euc_ros.core.ridesim import eom_generated as g
+
+    mass, bias = getattr(g, f"{model}_mass"), getattr(g, f"{model}_bias")
+    return _Numeric(_on_floats(mass), _on_floats(bias), _on_floats(g.planar_jac_g), _on_floats(g.planar_vel_g),
+                    mass, bias, g.planar_jac_g, g.planar_vel_g)
+
+
 class PlanarModel:
     """The planar 3-DoF truth model with numeric parameters.
 
@@ -257,6 +307,8 @@ class PlanarModel:
     ----------
     params : PlanarParams
         True physical parameters (not the session's nominal ones when an effect changes them).
+    equations : {"generated", "sympy"}
+        Source of the numeric functions (:data:`EQUATIONS`): the same expressions either way.
 
     Notes
     -----
@@ -265,10 +317,10 @@ class PlanarModel:
     h(t) (rheonomic terms, see ``docs/ridesim.md``).
     """
 
-    def __init__(self, params: PlanarParams) -> None:
+    def __init__(self, params: PlanarParams, equations: str = "generated") -> None:
         self.params = params
         self._p = params.as_tuple()
-        self._c = _derive()
+        self._c = _numeric("planar", equations)
 
     # --- scalar (ODE right-hand side) -------------------------------------------------------------
     def accel_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float,
@@ -393,11 +445,11 @@ class FloorModel:
     path ``a1 = da/ds`` [rad/m] as extra arguments.
     """
 
-    def __init__(self, params: PlanarParams) -> None:
+    def __init__(self, params: PlanarParams, equations: str = "generated") -> None:
         self.params = params
         self._p = params.as_tuple()
-        self._c = _derive_floor()
-        self._plain = PlanarModel(params)
+        self._c = _numeric("floor", equations)
+        self._plain = PlanarModel(params, equations)
 
     def accel_scalar(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, Q0, Q1, Q2):
         """``(s_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc."""
@@ -503,10 +555,11 @@ class PedalModel:
     (``-k u - c u_dot``) and return the four accelerations.
     """
 
-    def __init__(self, params: PlanarParams) -> None:
+    def __init__(self, params: PlanarParams, equations: str = "generated") -> None:
         self.params = params
         self._p = params.as_tuple()
-        self._c = _derive_pedal()
+        self._c = _numeric("pedal", equations)
+        self._equations = equations
 
     def mass_matrix(self, gam, phi, u, h) -> np.ndarray:
         """M (..., 4, 4)."""
@@ -535,11 +588,11 @@ class PedalModel:
     def rider_cog_jacobian(self, *args):
         """dG/d(x, gamma, phi) of the unflexed geometry (u = 0): the simulator uses it only for forces at G,
         which it does not combine with pedals."""
-        return PlanarModel(self.params).rider_cog_jacobian(*args)
+        return PlanarModel(self.params, self._equations).rider_cog_jacobian(*args)
 
     def rider_cog_velocity(self, *args):
         """v_G of the unflexed geometry (see :meth:`rider_cog_jacobian`)."""
-        return PlanarModel(self.params).rider_cog_velocity(*args)
+        return PlanarModel(self.params, self._equations).rider_cog_velocity(*args)
 
 
 def input_directions(R: float) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
@@ -557,5 +610,5 @@ def wheel_rate(x_dot, R):
     return x_dot / R
 
 
-__all__ = ["COORDINATES", "FloorModel", "G_M_PER_S2", "PedalModel", "PlanarModel", "PlanarParams", "input_directions", "solve3",
-           "symbolic_model", "wheel_rate"]
+__all__ = ["COORDINATES", "EQUATIONS", "FloorModel", "G_M_PER_S2", "PedalModel", "PlanarModel", "PlanarParams",
+           "input_directions", "solve3", "symbolic_model", "wheel_rate"]

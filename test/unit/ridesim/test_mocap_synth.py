@@ -99,3 +99,30 @@ def test_occlusion_gaps_are_nan_and_dropped_frames_are_missing(ride_noisy):
     # gaps are contiguous stretches of one body
     stretches = sum(int(np.sum(np.diff(np.r_[0, (~tr).astype(int), 0]) == 1)) for tr in rec.tracked)
     assert 1 <= stretches <= 3  # gaps of one body may merge
+
+
+def test_numpy_rotation_conversions_are_scipys():
+    """rotations_to_quats and rotvec_to_quats compute scipy's from_matrix and from_rotvec (to a few ulps), on every
+    branch of Shepperd's method and on both sides of the rotation-vector series."""
+    from euc_ros.core.ridesim.mocap_synth import rotations_to_quats, rotvec_to_quats
+    from euc_ros.core.rotations import canonical_quat
+
+    rng = np.random.default_rng(3)
+    rots = Rotation.random(400, random_state=4)
+    flips = Rotation.from_rotvec(np.pi * np.eye(3))      # near-180 deg turns: x, y, z largest
+    all_rots = Rotation.concatenate([rots, flips, Rotation.identity(1)])
+    R = all_rots.as_matrix()
+    np.testing.assert_allclose(rotations_to_quats(R), canonical_quat(Rotation.from_matrix(R).as_quat()), atol=4e-16)
+    assert rotations_to_quats(R[:6].reshape(3, 2, 3, 3)).shape == (3, 2, 4)
+    rv = rng.normal(size=(500, 3)) * np.repeat([1e-5, 1e-3, 0.5, 3.0], 125)[:, None]
+    np.testing.assert_allclose(rotvec_to_quats(rv), Rotation.from_rotvec(rv).as_quat(), atol=4e-16)
+
+
+def test_yaw_tilt_pitch_matrices_are_the_quaternions_rotations():
+    from euc_ros.core.ridesim.simulate import yaw_tilt_pitch_matrices
+    from euc_ros.core.rotations import quat_from_yaw_tilt_pitch, rotation_matrices
+
+    rng = np.random.default_rng(5)
+    a = rng.uniform(-3, 3, (3, 50))
+    np.testing.assert_allclose(yaw_tilt_pitch_matrices(*a), rotation_matrices(quat_from_yaw_tilt_pitch(*a)),
+                               atol=1e-15)

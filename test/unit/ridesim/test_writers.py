@@ -163,6 +163,14 @@ def test_cli_writes_a_deterministic_ride(tmp_path, capsys):
     assert truth["effect_parameters"] == {"alpha_deg": 3.0} and truth["seed"] == 7
 
 
+def test_cli_method_option_is_recorded_in_the_truth(tmp_path):
+    argv = ["simulate-ride", "--runs", "1", "--duration", "0.5", "--no-progress", "--method", "reference",
+            "--out", str(tmp_path)]
+    assert cli_main(argv) == 0
+    truth = json.loads((tmp_path / "truth" / "truth.json").read_text())
+    assert truth["runs"][0]["solver"]["method"] == "reference"
+
+
 def test_cli_reports_user_errors_with_exit_code_2(tmp_path, capsys):
     assert cli_main(["simulate-ride", "--effect", "gravity_off", "--out", str(tmp_path)]) == 2
     assert cli_main(["simulate-ride", "--param", "c_rr=0.1", "--out", str(tmp_path)]) == 2
