@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Issue 13 campaign: h error and RMSE of M_d1 - M_d2 against soft-tissue sliding, both CoG methods.
+"""The h error and the RMSE of M_d1 - M_d2 against soft-tissue sliding, both CoG methods.
 
     .venv/bin/python studies/artefact_campaign.py [--seeds 11 23 37] [--out docs/figures/cog/campaign.json]
         [--residual] [--figure docs/figures/cog/segment_fit.png]

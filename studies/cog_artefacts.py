@@ -1,4 +1,4 @@
-"""Issue 13 campaign: h and the RMSE of M_d1 - M_d2 under soft-tissue artefacts, per CoG method.
+"""h and the RMSE of M_d1 - M_d2 under soft-tissue artefacts, per CoG method.
 
 The rides come from the ride simulator without noise (:func:`simulate_clean`); the artefacts are added
 afterwards by the independent generator (:mod:`euc_ros.core.ridesim.artefacts`), so one simulation
@@ -35,7 +35,7 @@ ROT_DEG_PER_MM = 0.2
 NOISE_CORNER_HZ = 10.0
 #: The paper's real rides: RMSE of M_d1 - M_d2 [N m].
 PAPER_RMSE_NM = 4.76
-#: Goals of issue 13: |h error| [m] at a sliding amplitude [m].
+#: Goals: |h error| [m] at a sliding amplitude [m].
 GOALS_M = {0.003: 0.010, 0.010: 0.020}
 
 

@@ -1,7 +1,7 @@
 """Run ``euc-ros residual`` from two source trees on one recording and compare the JSON outputs.
 
-Used for the memory work of issue 15 (the residual's peak at 60 minutes): the changes there reorder,
-block and free arrays, and must leave every number unchanged. ``--base REV`` exports that git revision
+Used for changes that must leave every number unchanged (restructuring, memory work that reorders,
+blocks and frees arrays). ``--base REV`` exports that git revision
 of this repository (``git archive``) into a temporary directory and runs the command with it first on
 ``PYTHONPATH``; the working tree is the other side. Both runs use the same interpreter.
 

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Lag against torque error (issue 15): how late must the live states be for a given torque accuracy?
+"""Lag against torque error: how late must the live states be for a given torque accuracy?
 
 Usage: python studies/lag_curve.py [--seeds 1 2 3 4] [--train-seeds 1 2] [--duration 12] [--out docs/figures/lag]
 

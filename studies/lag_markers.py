@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""The low-lag estimators on marker-level mocap noise (an independent data path for issue 15).
+"""The low-lag estimators on marker-level mocap noise (an independent data path).
 
 Usage: python studies/lag_markers.py [--seeds 1 2 3 4] [--train-seeds 1 2] [--duration 12]
        [--out docs/figures/lag_markers]

@@ -33,5 +33,5 @@ soak           10 minutes at 360 Hz x 14 bodies through the whole pipeline (the 
 """
 
 #: Benchmarks in the order they run (module names under euc_ros.bench).
-BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "ridesim", "recording", "latency", "play", "fuzz", "live_sweep",
+BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "ridesim", "recording", "latency", "play", "fuzz", "live_sweep",  # noqa: E501
               "soak")

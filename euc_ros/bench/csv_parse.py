@@ -10,7 +10,7 @@ into one float array and nothing else. Each runs in a fresh interpreter on one c
 Memory: each measurement also reports how far its call raised the resident set above the
 interpreter's (``VmHWM`` after the call minus ``VmRSS`` before it, the high-water mark reset at the
 start: :func:`~euc_ros.bench.common.peak_rss_increase`), so imports are not counted. The second
-figure compares the reader's increase with the loader's; the target is at most 1.5x (issue 15).
+figure compares the reader's increase with the loader's; the target is at most 1.5x.
 """
 from __future__ import annotations
 

@@ -22,7 +22,7 @@ is parsed under a per-input time limit (``SIGALRM``) and classified:
 Rejections are grouped into classes (the message with numbers replaced by ``N``).
 
 Seeds are written here from the protocol and file-format descriptions (``docs/natnet.md``,
-recording-format spec section 1), independently of the parsers.
+docs/motive_csv.md), independently of the parsers.
 """
 from __future__ import annotations
 
@@ -141,7 +141,7 @@ def natnet_seeds() -> list[tuple[bytes, tuple[int, int]]]:
 
 
 # ---------------------------------------------------------------------------------------------------------------------
-# Motive CSV seeds (recording-format spec, section 1)
+# Motive CSV seeds (docs/motive_csv.md)
 # ---------------------------------------------------------------------------------------------------------------------
 
 def _csv_header(rate: str, bodies: list[str], rot: str, units: str, n_rot: int, extra_meta: str = "") -> list[str]:

@@ -1,6 +1,6 @@
 """Benchmark: how the cost of ``identify`` and ``residual`` grows with the length of the recording.
 
-Issue 15 asks that time and peak memory grow linearly with the recording, and that the peak memory
+The target is that time and peak memory grow linearly with the recording, and that the peak memory
 stay within 1.5x of the recording's own arrays. This benchmark runs both commands on recordings of
 1, 10 and 60 minutes (``--quick``: 1 and 3 minutes) of the same session and states:
 

@@ -41,7 +41,7 @@ RATES_HZ = {False: (120, 240, 360, 500), True: (120, 360)}
 BODIES = {False: (14, 28, 56), True: (14, 56)}
 #: Stream length per cell [s]: full and --quick.
 CELL_S = {False: 60.0, True: 8.0}
-#: Target: end-to-end p99 at most this multiple of the floor's (issue 15).
+#: Target: end-to-end p99 at most this multiple of the floor's.
 TARGET_RATIO = 1.5
 #: Seed and cache version of the recordings.
 SEED = 11
@@ -190,7 +190,7 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 0)
 
 
-if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S [PRIO]
+if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S [PRIO]  # noqa: E501
     import json
     import tempfile
 

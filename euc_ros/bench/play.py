@@ -11,7 +11,7 @@ when allowed, so that what is measured is the player and the transport). Per mes
   executor; both processes read the same CLOCK_MONOTONIC).
 
 Figures: p99 of |error| for both, and the share of messages within 2 ms of their target (the
-replay's contract, issue 8). **Floor:** a bare loop in a fresh interpreter that waits for the same
+replay's contract). **Floor:** a bare loop in a fresh interpreter that waits for the same
 schedule the same way (sleep until 1 ms before, spin the rest), at the player's priority, and does
 nothing else: the scheduling jitter of the machine under its current load, which no player can beat.
 

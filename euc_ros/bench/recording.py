@@ -11,7 +11,7 @@ KiB lets only 512 of its messages wait for a receiver, 5 ms at 100k msgs/s). The
 a ladder (each step a fresh recorder and bag), then bisects twice between the last lossless and the
 first lossy rate; a step is lossless when every topic's count in the closed bag equals what was
 published (a lossy step also says which frames each topic lost). The figure is the highest publish
-rate (messages/s) of a lossless step, with issue 15's target (>= 100k msgs/s on one core, within 4x
+rate (messages/s) of a lossless step, with the target (>= 100k msgs/s on one core, within 4x
 of the floor); the ladder stops at the first loss or when the publishers cannot reach the rate
 asked. A second, shorter ladder publishes the same mix best effort (a mocap driver's QoS): no
 heartbeats or acknowledgements, somewhat less publisher CPU per message, and nothing lost can be
@@ -56,7 +56,7 @@ SATURATION = 0.8
 #: 60-100k msgs/s to a recorder on this class of machine (~8-10 us of CPU a message with the
 #: recorder matched, ~2.6 us alone).
 PUBLISHERS = 2
-#: Issue 15's target: lossless at this rate [msgs/s] (on one core), within this factor of the floor.
+#: The target: lossless at this rate [msgs/s] (on one core), within this factor of the floor.
 TARGET_MSGS_PER_S = 100_000
 TARGET_RATIO = 4.0
 #: The recorder's CPU per message counts what it used until this long after the last publish [s].
@@ -271,7 +271,7 @@ def _ladder(ctx: BenchContext, out: Path, rates, bisect: int, qos: str) -> list[
 
 
 def _lossless_figure(metric: str, steps: list[dict], floor: dict, extra: str) -> tuple[dict, dict | None]:
-    """The figure of a ladder: its best lossless rate against the floor, with issue 15's target."""
+    """The figure of a ladder: its best lossless rate against the floor, with the target."""
     lossless = [s for s in steps if s["lossless"]]
     best = max(lossless, key=lambda s: s["achieved_msgs_per_s"]) if lossless else None
     value = best["achieved_msgs_per_s"] if best else 0.0

@@ -5,7 +5,7 @@ in real time into ``rider_state``, ``torque_estimator``, ``monitor`` and the ``r
 pipeline topic into an MCAP bag), with the latency probe; then the bare relay chain at the same rate
 and body count for the same number of frames (the floor). Measured as one cell of
 :mod:`euc_ros.bench.live_sweep`: end-to-end p50/p99 against the floor, frames dropped, frames in the
-bag, CPU per process, peak RSS. Targets (issue 15): 0 frames dropped, every frame in the bag, end-to-end
+bag, CPU per process, peak RSS. Targets: 0 frames dropped, every frame in the bag, end-to-end
 p99 at most 1.5x the floor's. ``--quick`` runs 30 s.
 """
 from __future__ import annotations
@@ -34,6 +34,6 @@ def run(ctx: BenchContext) -> dict:
                       note=f"of {p['frames_sent']} sent; in the bag {p.get('bag_frames', 0)}; "
                            f"states {p['states']}, torques {p['torques']}, NaN torques {p['nan_torques']}")]
     rt = f", SCHED_FIFO {ctx.realtime}" if ctx.realtime is not None else ""
-    return {"name": "soak", "title": f"Soak: {duration / 60:g} min at {RATE_HZ} Hz x {BODIES} bodies, whole pipeline{rt}",
+    return {"name": "soak", "title": f"Soak: {duration / 60:g} min at {RATE_HZ} Hz x {BODIES} bodies, whole pipeline{rt}",  # noqa: E501
             "figures": figures, "peak_rss_mb": {f"pipeline {k}": v for k, v in p["peak_rss_mb"].items()},
             "details": cell, "wall_s": time.monotonic() - t0}

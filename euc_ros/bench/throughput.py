@@ -31,7 +31,7 @@ DURATION_S = {False: 600.0, True: 60.0}
 WARMUP_S = 10.0
 #: Target of identify [x real time].
 TARGET_IDENTIFY = 500.0
-#: Target of residual, discovery and noise floor included [x real time] (issue 12).
+#: Target of residual, discovery and noise floor included [x real time].
 TARGET_RESIDUAL = 100.0
 
 

@@ -1,6 +1,6 @@
 """`euc-ros convert IN OUT`: Motive CSV -> rosbag2 bag, or bag -> Motive CSV.
 
-CSV -> bag (spec section 2): one ``geometry_msgs/msg/PoseStamped`` per rigid body and tracked frame
+CSV -> bag (docs/bags.md): one ``geometry_msgs/msg/PoseStamped`` per rigid body and tracked frame
 on ``<prefix>/<Body>/pose`` (Z-up, ``frame_id`` world), optionally ``euc_msgs/msg/MocapFrame`` on
 ``--frame-topic`` (``--frames``). Header stamps and bag times are the capture times
 ``start + frame / rate``, where ``start`` is the file's ``Capture Start Time`` read as UTC

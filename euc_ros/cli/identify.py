@@ -7,7 +7,7 @@ h for the 3-DoF model (eqs (9)-(10)) and the reduced 2-DoF model (eq (13)), per 
 (Fig. 8), refines the optimum, and gives the interval of h. This module parses, calls and formats.
 
 Output: a table on stdout; with ``--json OUT`` the analysis output of the recording-format spec
-(section 5) plus both models' curves; with ``--plots DIR`` PNG figures: ``<recording>_states.png``
+(docs/residual.md, JSON) plus both models' curves; with ``--plots DIR`` PNG figures: ``<recording>_states.png``
 (Figs 6-7 layout at the recording's optimal h) and ``rmse_curves.png`` (Fig. 8).
 
 Extended model. ``--effect NAME`` (repeatable) with ``--param EFFECT.NAME=VALUE``
@@ -50,7 +50,7 @@ HELP = "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Add the options of ``euc-ros identify``."""
-    parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
+    parser.add_argument("session", metavar="SESSION.yaml", help="session file (docs/session.md)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
                         help="Motive CSV export, rosbag2 directory or .mcap file")
     parser.add_argument("--json", metavar="OUT", default=None, help="write the results as JSON to OUT")

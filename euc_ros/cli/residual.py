@@ -6,7 +6,7 @@ in r) fit its parameters jointly with h on training data and evaluate on held-ou
 segments of a single run); 4. select by held-out error with a paired block test (max-T over the
 candidates) and a minimum gain, greedily, until nothing significant remains; 5. report the extended
 model, which ``identify --from-residual`` and the ``torque_estimator`` node (``effects``,
-``effect_parameters``) use; 6. write JSON (spec section 5), a Markdown report and PNG figures.
+``effect_parameters``) use; 6. write JSON (docs/residual.md, JSON), a Markdown report and PNG figures.
 """
 from __future__ import annotations
 
@@ -41,10 +41,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
     from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
-    parser.add_argument("session", metavar="SESSION.yaml", help="session file (spec section 4)")
+    parser.add_argument("session", metavar="SESSION.yaml", help="session file (docs/session.md)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",
                         help="Motive CSV export, rosbag2 directory or .mcap file")
-    parser.add_argument("--json", metavar="OUT", required=True, help="write the analysis JSON (spec section 5)")
+    parser.add_argument("--json", metavar="OUT", required=True, help="write the analysis JSON (docs/residual.md, JSON)")
     parser.add_argument("--plots", metavar="DIR", default=None, help="write figures into DIR")
     add_figure_arguments(parser)
     parser.add_argument("--report", metavar="OUT.md", default=None, help="write a Markdown report")
@@ -163,7 +163,7 @@ def format_summary(data: dict) -> str:
                      f"{' (flat)' if floor['flat'] else ''}")
     if geo.get("samples") and math.isfinite(geo.get("rolling_radius_measured_m", float("nan"))):
         lines.append(f"rolling radius from the contact path: {geo['rolling_radius_measured_m']:.4f} m "
-                     f"(session {geo['rolling_radius_nominal_m']:.4f} m){' -> wheel_radius_error' if geo['used'] else ''}")
+                     f"(session {geo['rolling_radius_nominal_m']:.4f} m){' -> wheel_radius_error' if geo['used'] else ''}")  # noqa: E501
     elif geo.get("rolling_radius_reason"):
         lines.append(f"rolling radius: not measured: {geo['rolling_radius_reason']}")
     lines.append(f"{'candidate':22s} {'held-out RMSE':>14s} {'p':>9s} {'p adj.':>9s}  parameters")

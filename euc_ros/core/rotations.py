@@ -7,7 +7,7 @@ Conventions
   yaw psi about world Z (up), then tilt theta about the yawed forward axis x, then pitch about the
   tilted lateral axis y. Positive pitch tips the body's z axis towards its x axis (forward).
 * Motive's default world is Y-up; with REP-103 axes (x, y, z) the Motive axes are (X, Y, Z) = (x, z, -y)
-  (recording-format spec, section 1).
+  (docs/motive_csv.md).
 
 Examples
 --------

@@ -1,4 +1,4 @@
-"""Session file (recording-format spec, section 4): the subject and vehicle of a recording.
+"""Session file (docs/session.md): the subject and vehicle of a recording.
 
 The session file holds *nominal* values. :func:`load_session` validates it strictly: unknown keys,
 missing keys, wrong types and mass fractions that do not sum to 1 are :class:`ConfigError` naming
@@ -26,7 +26,7 @@ from euc_ros.core.yamlfile import load_yaml
 
 #: Rigid bodies of the rider (EUC paper, Table 2), in a fixed order.
 SEGMENT_BODIES = ("H", "CHR", "CHL", "UAR", "UAL", "LAR", "LAL", "HR", "HL", "TR", "TL", "LR", "LL")
-#: Tolerance on the sum of the mass fractions (spec section 4).
+#: Tolerance on the sum of the mass fractions (docs/session.md).
 MASS_FRACTION_TOL = 1e-3
 
 
@@ -284,7 +284,7 @@ def parse_session(data: Any, source: str | Path | None = None) -> Session:
 
 
 def load_session(path: str | Path) -> Session:
-    """Read and validate a session YAML file (spec section 4)."""
+    """Read and validate a session YAML file (docs/session.md)."""
     p = Path(path)
     if p.is_dir() or p.suffix.lower() in (".csv", ".mcap", ".db3"):
         what = "a bag" if p.is_dir() or p.suffix.lower() != ".csv" else "a Motive CSV export"

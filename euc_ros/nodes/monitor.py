@@ -50,7 +50,7 @@ SPECS = (
     ParamSpec("max_gamma_deg", 15.0, "limit of the EUC pitch abs(gamma)", "deg", 0.0, 180.0, live=True),
     ParamSpec("max_tilt_deg", 30.0, "limit of the EUC tilt abs(theta)", "deg", 0.0, 180.0, live=True),
     ParamSpec("motor_limit_nm", 120.0, "limit of the estimated motor torque abs(M_d1)", "N m", 0.0, 1e6, live=True),
-    ParamSpec("warn_fraction", 0.8, "a quantity above this fraction of its limit is a warning", "", 0.0, 1.0, live=True),
+    ParamSpec("warn_fraction", 0.8, "a quantity above this fraction of its limit is a warning", "", 0.0, 1.0, live=True),  # noqa: E501
 )
 
 STATUS_NAMES = ("monitor: mocap", "monitor: model consistency", "monitor: rider lean", "monitor: EUC attitude",

@@ -42,7 +42,7 @@ SPECS = (
     ParamSpec("output", "", "bag directory to create (default: bags/euc_<UTC time>); must not exist"),
     ParamSpec("topics", list(itf.PIPELINE_TOPICS), "topics to record (relative names resolve in the node's namespace)"),
     ParamSpec("all_topics", False, "record every topic that appears (except /rosout and parameter events)"),
-    ParamSpec("chunk_size", 1 << 16, "MCAP chunk size: what a SIGKILL can lose (~0.2 s of the pipeline at 64 KiB)", "bytes",
+    ParamSpec("chunk_size", 1 << 16, "MCAP chunk size: what a SIGKILL can lose (~0.2 s of the pipeline at 64 KiB)", "bytes",  # noqa: E501
               4096, 1 << 28),
     ParamSpec("discovery_period", 0.1, "how often to look for new topics", "s", 0.01, 10.0),
     ParamSpec("queue_depth", 10000, "subscription queue depth: how far the recorder may fall behind per topic "

@@ -47,7 +47,7 @@ from euc_ros.ros.rate_gate import NodeRateGate
 from euc_ros.ros.runtime import drain, main_for
 
 SPECS = (
-    ParamSpec("session_file", "", "session file (spec section 4): rider segments and EUC geometry (required)"),
+    ParamSpec("session_file", "", "session file (docs/session.md): rider segments and EUC geometry (required)"),
     ParamSpec("phi_definition", "hinge", "rider pitch phi: about the ankle hinge A (model) or about the wheel "
               "centre C (eq 3)", choices=PHI_DEFINITIONS),
     ParamSpec("window_s", DEFAULT_WINDOW_S, "Savitzky-Golay window; states are published half of it late",

@@ -35,7 +35,7 @@ from euc_ros.ros.rate_gate import NodeRateGate
 from euc_ros.ros.runtime import drain, main_for
 
 SPECS = (
-    ParamSpec("session_file", "", "session file (spec section 4): rider and EUC parameters (required)"),
+    ParamSpec("session_file", "", "session file (docs/session.md): rider and EUC parameters (required)"),
     ParamSpec("h", 0.61, "rider CoG height above the ankle hinge A used for the torques (the identified value)",
               "m", 0.05, 3.0, live=True),
     ParamSpec("rmse_window_s", 5.0, "window of the sliding RMSE of M_d1 - M_d2", "s", 0.01, 3600.0),

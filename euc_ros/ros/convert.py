@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
 from builtin_interfaces.msg import Time
@@ -11,6 +12,9 @@ from geometry_msgs.msg import Pose, PoseStamped, TransformStamped
 
 from euc_ros.core.io import cdr_frame
 from euc_ros.core.mocap.ingest import Frame
+
+if TYPE_CHECKING:
+    from rosbags.interfaces import Qos
 
 NAN = float("nan")
 

@@ -19,7 +19,7 @@ CLOCK = "/clock"                             # rosgraph_msgs/Clock
 UNICYCLE_STATE = "unicycle/state"            # euc_msgs/UnicycleState
 UNICYCLE_POSE = "unicycle/pose"              # geometry_msgs/PoseStamped for viewing
 STEERING_COMMAND = "unicycle/command"        # euc_msgs/SteeringCommand
-VRPN_PREFIX = "/vrpn_mocap"                  # live input convention <prefix>/<Body>/pose (spec section 2)
+VRPN_PREFIX = "/vrpn_mocap"                  # live input convention <prefix>/<Body>/pose (docs/bags.md)
 
 #: The pipeline's topics that the recorder takes by default.
 PIPELINE_TOPICS = (MOCAP_FRAME, RIDER_STATE, TORQUE, DIAGNOSTICS, TF)

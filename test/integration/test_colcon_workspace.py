@@ -1,4 +1,4 @@
-"""The README's colcon recipe, run as written on a temporary workspace (issue 14, bullets 1-3).
+"""The README's colcon recipe, run as written on a temporary workspace.
 
 A lab clones euc_ros into ``src/`` of a ROS 2 Jazzy workspace and builds with colcon. Here the ROS
 underlay is this environment's PyPI wheels instead of /opt/ros/jazzy, so two things differ from a

@@ -1,4 +1,4 @@
-"""Faults and bad input (issue 7): recorder killed or interrupted, a node restarted mid-stream,
+"""Faults and bad input: recorder killed or interrupted, a node restarted mid-stream,
 ill-formed session files and parameters.
 
 Process tests run the real console scripts through :mod:`euc_ros.ros.launcher` on a simulated 25 s ride.

@@ -1,4 +1,4 @@
-"""A bag the recorder node wrote, read by Foxglove's own TypeScript libraries (issue 14, bullet 6).
+"""A bag the recorder node wrote, read by Foxglove's own TypeScript libraries.
 
 tools/foxglove_reader/read_bag.mjs opens the .mcap with @mcap/core's indexed reader and decodes every
 message with @foxglove/rosmsg2-serialization from the schema embedded in the file, as Foxglove Studio

@@ -1,6 +1,6 @@
-"""Foundation (issue 2): nodes as separate processes through the launcher, over DDS, into a bag.
+"""Foundation: nodes as separate processes through the launcher, over DDS, into a bag.
 
-CSV source -> mocap_ingest -> recorder -> MCAP bag -> read back equals the CSV (issue 8 as well).
+CSV source -> mocap_ingest -> recorder -> MCAP bag -> read back equals the CSV.
 
 Tolerances: poses are float64 all the way (1e-12); stamps are integer nanoseconds of start + frame /
 rate (within 0.5e-9 s, plus the ulp of the start: 2e-9 s).

@@ -1,4 +1,4 @@
-"""The packaged launch files run for real through `euc-ros launch` (issue 14, bullet 3).
+"""The packaged launch files run for real through `euc-ros launch`.
 
 pipeline.launch.xml (CSV source, recorder on) records a ride; replay.launch.xml plays that bag's mocap
 frames back through rider_state and torque_estimator into a second bag; unicycle.launch.xml runs the

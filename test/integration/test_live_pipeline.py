@@ -1,4 +1,4 @@
-"""The live pipeline as separate processes over DDS (issue 4, "Done when"):
+"""The live pipeline as separate processes over DDS:
 
 CSV source -> mocap_ingest -> rider_state -> torque_estimator -> recorder (and the monitor), then the
 bag is read back and the recorded torques are compared with the offline torques that ``identify``

@@ -1,4 +1,4 @@
-"""The MOCAP4ROS2 driver's messages (mocap4r2_msgs/RigidBodies) as input (issue 14, bullet 4).
+"""The MOCAP4ROS2 driver's messages (mocap4r2_msgs/RigidBodies) as input.
 
 A hand-built trajectory of three bodies (one hidden for 10 frames, a fourth body nobody asked for) is
 written the way the driver publishes it: one RigidBodies per frame, bodies by name, frame numbers.

@@ -1,4 +1,4 @@
-"""The recorder's drain loop (issue 15): every message of every topic, a topic that appears late,
+"""The recorder's drain loop: every message of every topic, a topic that appears late,
 a clean close on SIGINT. Real processes: the ``recorder`` console script and ``relay blast``
 publishers (pre-serialized CDR, the pipeline's reliable QoS). Speed is the benchmark's business.
 """

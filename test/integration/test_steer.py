@@ -1,4 +1,4 @@
-"""Issue 6 closed loop over topics: `euc-ros steer` (simulator, controller, recorder as processes).
+"""`euc-ros steer` (simulator, controller, recorder as processes).
 
 The lockstep run read back from the bag must end where the in-process simulation ends (< 1 mm).
 

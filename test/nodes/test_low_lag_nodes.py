@@ -1,4 +1,4 @@
-"""Issue 15 through the nodes: rider_state with ``estimator: kalman`` or ``split`` -> torque_estimator -> monitor.
+"""Rider_state with ``estimator: kalman`` or ``split`` -> torque_estimator -> monitor.
 
 The ride: a level-calibrated lab whose floor turns into a 5 deg ramp at X = 12 m, ridden at constant
 speed (test/unit/euc/test_low_lag_monitor.py does the same with the core classes). The frames are fed

@@ -1,4 +1,4 @@
-"""Live nodes say what is wrong (issue 11, bullet 6): missing bodies by name, h_online "not yet"."""
+"""Live nodes say what is wrong: missing bodies by name, h_online "not yet"."""
 from __future__ import annotations
 
 import dataclasses

@@ -1,4 +1,4 @@
-"""``ros2 param`` on the nodes (issue 14, bullet 7): every parameter readable; a set either takes effect
+"""``ros2 param`` on the nodes: every parameter readable; a set either takes effect
 (the node reacts) or is refused with the reason.
 
 ros2cli is not on PyPI; ``ros2 param get/set/describe`` are clients of the node's parameter services,

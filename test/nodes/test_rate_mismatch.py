@@ -1,6 +1,6 @@
 """A 240 Hz stream analysed with a 120 Hz session: the nodes measure the rate, use it and say so.
 
-Issue 11: before, the live residual was 7 N m and h_online ran to its bound with nothing in the
+Before, the live residual was 7 N m and h_online ran to its bound with nothing in the
 logs. Now rider_state and torque_estimator measure the frame rate from the first frames, publish a
 diagnostics ERROR naming both rates, and run their filters at the measured rate, so the states
 equal the core's at 240 Hz and the residual is back at its noise floor.

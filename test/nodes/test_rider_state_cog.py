@@ -1,4 +1,4 @@
-"""rider_state with ``cog_method: skeleton`` (issue 13): the same states as the core estimator, no lag
+"""rider_state with ``cog_method: skeleton``: the same states as the core estimator, no lag
 added, flipped bodies counted in the diagnostics."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Parameters as the ROS command line spells them (issue 14, bullet 7): `-p world_up:=y` works.
+"""Parameters as the ROS command line spells them: `-p world_up:=y` works.
 
 rcl reads a bare `y` as the YAML 1.1 boolean true; the node maps it back to the choice it spelt
 instead of exiting 2. A real node process, started the way a lab starts it.

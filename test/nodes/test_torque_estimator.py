@@ -122,7 +122,7 @@ def test_unusable_states_are_counted_not_published(pipes, ros_context, ride):
 
 @pytest.fixture(scope="module")
 def sloped(tmp_path_factory):
-    """One deceleration run simulated on a floor rising 3 deg (issue 5: the effect the analysis selects)."""
+    """One deceleration run simulated on a floor rising 3 deg."""
     from euc_ros.core.ridesim.effects import make_effects
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 

@@ -1,4 +1,4 @@
-"""unicycle_sim and steering_controller in process (issue 6): lockstep loop, realtime mode, domain stop.
+"""unicycle_sim and steering_controller in process: lockstep loop, realtime mode, domain stop.
 
 Each test runs the real nodes in its own rclpy Context with a single-threaded executor; the test's
 own node plays the part of the missing peer (an observer or a controller that answers ``u = 0``).
@@ -249,7 +249,7 @@ def test_wheel_pose_axle_and_height():
         x = rng.normal(0, 1, 10)
         x[3] = rng.uniform(-1.2, 1.2)
         pos, q = wheel_pose(x, p)
-        psi, th, phi = x[6], x[3], x[7]
+        psi, th = x[6], x[3]
         axle = rotate(q, np.array([0.0, 1.0, 0.0]))
         np.testing.assert_allclose(axle, [-math.sin(psi) * math.cos(th), math.cos(psi) * math.cos(th), math.sin(th)],
                                    atol=1e-12)

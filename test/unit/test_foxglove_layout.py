@@ -1,4 +1,4 @@
-"""The Foxglove/Lichtblick layout (issue 14, bullet 6), checked against the pipeline's interfaces.
+"""The Foxglove/Lichtblick layout, checked against the pipeline's interfaces.
 
 Every panel of the mosaic has a configuration; every topic the layout names is one the pipeline
 publishes (euc_ros.ros.interfaces); every message path ``/topic.field[.sub]`` names a field of that

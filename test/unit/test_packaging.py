@@ -1,4 +1,4 @@
-"""The ament_python layout colcon installs (issue 14, bullet 2): `ros2 run euc_ros <node>` finds the
+"""The ament_python layout colcon installs: `ros2 run euc_ros <node>` finds the
 node executables in lib/euc_ros, the package is indexed, and its config is in share/euc_ros.
 
 colcon-python-setup-py installs with `setup.py install --single-version-externally-managed`; this

@@ -1,8 +1,8 @@
-"""The recorder's Fast DDS profile (issue 15): when the recorder applies it, and that Fast DDS reads it.
+"""The recorder's Fast DDS profile: when the recorder applies it, and that Fast DDS reads it.
 
 A shared-memory push that finds the receiver's port full is dropped; a publisher whose segment has
 no free buffer reuses the oldest one not being read. The profiles size both for a receive thread that
-waits for a core: at issue 15's 100k msgs/s, 100 ms of waiting are 10 000 messages.
+waits for a core: at the target 100k msgs/s, 100 ms of waiting are 10 000 messages.
 """
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import pytest
 from euc_ros.ros.fastdds import FAST_PUBLISHER_PROFILE, RECORDER_PROFILE, TRANSPORT_CHOICES, transport_env
 
 NS = {"d": "http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"}
-#: Messages that arrive while a receive thread waits 100 ms for a core at issue 15's target rate.
+#: Messages that arrive while a receive thread waits 100 ms for a core at the target rate.
 BACKLOG = int(100_000 * 0.1)
 
 

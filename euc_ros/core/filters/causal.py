@@ -1,4 +1,4 @@
-"""Low-lag derivative estimation: a steady-state Kalman fixed-lag smoother per coordinate (issue 15).
+"""Low-lag derivative estimation: a steady-state Kalman fixed-lag smoother per coordinate.
 
 The Savitzky-Golay filter of :mod:`euc_ros.core.filters.derivatives` gives each state half its window
 late (0.6 s with the 1.2 s default). This module gives the value, first and second derivative of a

@@ -340,7 +340,7 @@ class IdentifyResult:
     settings: dict = field(default_factory=dict)
 
     def to_json(self, model: str = "3dof") -> dict[str, Any]:
-        """The analysis output of spec section 5, headed by ``model``, plus every model's results and curves."""
+        """The analysis output of docs/residual.md, JSON, headed by ``model``, plus every model's results and curves."""
         head = self.pooled[model]
         out: dict[str, Any] = {
             "model": model, "h_m": _f(head.h_m), "rmse_nm": _f(head.rmse_nm), "n_samples": head.n_samples,

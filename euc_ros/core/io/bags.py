@@ -14,7 +14,7 @@ Contents
 * :func:`recover_bag` - rebuild a valid bag from the complete chunks of a truncated MCAP.
 * :func:`inspect_bag` - what a bag holds, with the check's problems.
 * :func:`read_mocap_bag`, :func:`write_mocap_bag` - :class:`~euc_ros.core.mocap.series.MocapSeries` from/to
-  ``euc_msgs/msg/MocapFrame`` and/or one ``geometry_msgs/msg/PoseStamped`` per body (spec section 2).
+  ``euc_msgs/msg/MocapFrame`` and/or one ``geometry_msgs/msg/PoseStamped`` per body (docs/bags.md).
 
 See ``docs/bags.md``.
 """
@@ -1087,7 +1087,7 @@ def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", f
     path : str or Path
         New bag directory.
     prefix : str
-        PoseStamped topics are ``<prefix>/<Body>/pose`` (spec section 2).
+        PoseStamped topics are ``<prefix>/<Body>/pose`` (docs/bags.md).
     frame_topic : str or None
         Topic of ``euc_msgs/msg/MocapFrame`` messages (one per frame, every body, untracked ones
         with ``tracked=false`` and a NaN pose); None writes none.
@@ -1177,7 +1177,7 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
 
     Source, in order: ``frame_topic`` (``euc_msgs/msg/MocapFrame``); else the first MocapFrame topic
     of the bag; else one ``geometry_msgs/msg/PoseStamped`` per body on ``<prefix>/<Body>/pose``
-    (spec section 2), aligned on their header stamps.
+    (docs/bags.md), aligned on their header stamps.
 
     Parameters
     ----------

@@ -42,7 +42,7 @@ class FlatEncoder:
     >>> enc = FlatEncoder([("ok", "bool"), ("a", "float64"), ("b", "float64"), ("s", "string")])
     >>> raw = enc.encode(1_500_000_000, "world", (True, 1.0, 2.0, "hi"))
     >>> len(raw), raw[:4]
-    (47, b'\\x00\\x01\\x00\\x00')
+    (51, b'\\x00\\x01\\x00\\x00')
     """
 
     def __init__(self, fields: Sequence[tuple[str, str]]) -> None:

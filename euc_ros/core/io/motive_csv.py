@@ -1,7 +1,7 @@
 """OptiTrack Motive CSV exports: a fast, strict-where-broken, lenient-where-real reader and a writer.
 
-The reader turns a Motive "Export Tracking Data" CSV (format 1.21, 1.22, 1.23; recording-format spec,
-section 1) into a :class:`~euc_ros.core.mocap.series.MocapSeries` in the REP-103 Z-up world, SI units.
+The reader turns a Motive "Export Tracking Data" CSV (format 1.21, 1.22, 1.23;
+docs/motive_csv.md) into a :class:`~euc_ros.core.mocap.series.MocapSeries` in the REP-103 Z-up world, SI units.
 It is ROS-free and used by the mocap node and by every offline command.
 
 Layout of a file (1.23; in 1.21/1.22 the label cells ``Type``, ``Name``, ``ID`` are empty)::
@@ -24,7 +24,7 @@ Conventions
   by rigid bodies at the pivots of the recording contract, and a bone's frame is not one of them. A
   file with no rigid body at all is refused by every command (:func:`require_rigid_bodies`), with
   what it holds instead and what to export.
-* Time is ``t = Frame / Export Frame Rate`` [s] (spec, section 1): the ``Time (Seconds)`` column is
+* Time is ``t = Frame / Export Frame Rate`` [s] (docs/motive_csv.md): the ``Time (Seconds)`` column is
   rounded to whole milliseconds by some exporters and is not used.
 * Y-up files (Motive's default, ``world_up="y"``): with REP-103 axes (x, y, z) the Motive axes are
   (X, Y, Z) = (x, z, -y), so a position (X, Y, Z) becomes (X, -Z, Y) and a quaternion
@@ -901,7 +901,7 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     Parameters
     ----------
     path : str or Path
-        Motive "Export Tracking Data" CSV, format 1.21 to 1.23 (recording-format spec, section 1).
+        Motive "Export Tracking Data" CSV, format 1.21 to 1.23 (docs/motive_csv.md).
     world_up : {"y", "z"}
         Up axis of the Motive world the file was exported in (the file never says; the session file
         does). ``"y"`` (Motive's default): positions (X, Y, Z) -> (X, -Z, Y) and quaternions

@@ -1,9 +1,9 @@
 """Open a recording of any supported kind as a :class:`~euc_ros.core.mocap.series.MocapSeries` (Z-up, metres).
 
-* ``*.csv``: a Motive CSV export (recording-format spec, section 1), read with
+* ``*.csv``: a Motive CSV export (docs/motive_csv.md), read with
   :func:`euc_ros.core.io.motive_csv.read_motive_csv` in the Motive world given by ``world_up``;
 * a directory holding ``metadata.yaml`` or ``*.mcap`` files, or an ``.mcap`` file: a rosbag2 bag
-  (spec section 2, always Z-up), read with :func:`euc_ros.core.io.bags.read_mocap_bag`.
+  (docs/bags.md, always Z-up), read with :func:`euc_ros.core.io.bags.read_mocap_bag`.
 
 The readers are imported only when needed.
 """

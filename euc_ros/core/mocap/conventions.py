@@ -23,7 +23,7 @@ suggest. Short recordings (under :data:`MIN_DURATION_S` tracked) and recordings 
 (an EUC standing still where its sideways offset happens to look like a height) are ambiguous: never
 an error.
 
-Bags are Z-up by contract (recording-format spec, section 2): their ``y`` and ``z`` axes are the
+Bags are Z-up by contract (docs/bags.md): their ``y`` and ``z`` axes are the
 candidates, and a bag whose data say ``y`` is an :class:`~euc_ros.core.errors.InputError` naming it.
 """
 from __future__ import annotations
@@ -78,7 +78,7 @@ def poses_with_up(series, up: str) -> tuple[np.ndarray, np.ndarray]:
     """Return (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up.
 
     ``series`` was read with ``series.meta["world_up"]`` (a Motive CSV) or is Z-up (a bag): with the
-    other candidate the file's own axes are recovered and read again (recording-format spec, section 1).
+    other candidate the file's own axes are recovered and read again (docs/motive_csv.md).
     """
     read_as, _ = _read_as(series)
     pos, quat = np.asarray(series.position, float), np.asarray(series.quat, float)

@@ -739,7 +739,7 @@ def frame_from_natnet(frame, names_by_id: dict, bodies: list[str], stamp_ns: int
     stamp_ns : int
         Frame stamp [ns].
     world_up : {"y", "z"}
-        Up axis of Motive's streaming world; ``"y"`` maps (X, Y, Z) -> (X, -Z, Y) (spec section 1).
+        Up axis of Motive's streaming world; ``"y"`` maps (X, Y, Z) -> (X, -Z, Y) (docs/motive_csv.md).
     """
     from euc_ros.core.rotations import y_up_to_z_up_position, y_up_to_z_up_quat
 

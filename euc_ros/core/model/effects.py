@@ -401,7 +401,7 @@ def _x_force(F: np.ndarray) -> np.ndarray:
     return np.stack([F, z, z], axis=1)
 
 
-#: The library, by spec name (recording-format spec, section 5).
+#: The library, by spec name (docs/residual.md, JSON).
 LIBRARY: dict[str, type[Candidate]] = {c.name: c for c in (
     RollingResistance, ViscousFriction, AeroDrag, GroundSlope, WheelRadiusError, MocapTimeOffset,
     RiderMassError, RiderInertiaError, TiltGravity, TimeVaryingH, WheelBodyFriction)}

@@ -73,7 +73,7 @@ class ResidualResult:
     block_s: float = float("nan")
 
     def to_json(self) -> dict:
-        """JSON per recording-format spec section 5 (plus the analysis settings and steps)."""
+        """JSON per docs/residual.md, JSON (plus the analysis settings and steps)."""
         rows = sorted(self.candidates, key=lambda c: (not c.detectable, c.rmse_after_nm))
         table = [c.to_dict() for c in rows]
         if not any(c["effect"] == "none" for c in table):

@@ -196,7 +196,11 @@ def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndar
     return Fit(model, best[1], math.sqrt(best[0] / max(n, 1)), n)
 
 
-def fit_base_h(recs: Sequence[Recording], h_grid=np.linspace(0.1, 1.2, 45)) -> float:
+#: Coarse grid of :func:`fit_base_h` [m].
+BASE_H_GRID = np.linspace(0.1, 1.2, 45)
+
+
+def fit_base_h(recs: Sequence[Recording], h_grid=BASE_H_GRID) -> float:
     """Grid-then-refine estimate of h with the base model (a good start for every joint fit)."""
     base = Model()
     sse = [float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)) for h in h_grid]

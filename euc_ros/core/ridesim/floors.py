@@ -1,4 +1,4 @@
-"""Floors that are not level, for the ride simulator (issue 12): ramps, bumps and steps in a level lab.
+"""Floors that are not level, for the ride simulator: ramps, bumps and steps in a level lab.
 
 A floor is a height profile ``z_f(X)`` along the lab's X axis (Z up, gravity along -Z: Motive's
 ground plane calibrated on a level part of the floor), the sum of smooth components:

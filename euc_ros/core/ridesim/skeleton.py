@@ -4,7 +4,7 @@ The rider is built in the *lean frame* L (origin the ankle hinge A, axes Rz(psi)
 x forward, y left, z along the lean axis). A crouched riding posture gives each rigid body of the EUC
 paper's Table 2 a pivot (top of helmet, shoulder, elbow, wrist, hip, knee, ankle) and a fixed pitch
 ``beta_i`` of the segment relative to L (shanks forward, thighs back, forearms forward...). With the
-session's mass fractions ``f_i`` and CoM offsets ``o_i`` (recording-format spec, section 3) the
+session's mass fractions ``f_i`` and CoM offsets ``o_i`` (docs/session.md, rigid bodies) the
 segment CoMs are ``c_i = p_i + Ry(beta_i) o_i`` in L.
 
 To put the weighted CoG exactly at ``(0, 0, h)`` in L (distance h from A along the lean axis):

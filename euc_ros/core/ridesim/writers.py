@@ -1,4 +1,4 @@
-"""Files of a simulated ride: Motive CSV (spec section 1), session.yaml (section 4), truth, MCAP bag.
+"""Files of a simulated ride: Motive CSV (docs/motive_csv.md), session.yaml (docs/session.md), truth, MCAP bag.
 
 Layout of ``write_ride(result, out_dir)``::
 
@@ -40,7 +40,7 @@ from euc_ros.core.session import save_session
 CAPTURE_START = datetime(2024, 5, 2, 10, 15, 0, tzinfo=timezone.utc)
 #: Minutes between the capture starts of consecutive runs.
 RUN_SPACING_MIN = 10
-#: Topic prefix of the bag (vrpn_mocap driver convention, spec section 2).
+#: Topic prefix of the bag (vrpn_mocap driver convention, docs/bags.md).
 TOPIC_PREFIX = "/vrpn_mocap"
 
 TRUTH_COLUMNS = ("t", "frame", "x", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",

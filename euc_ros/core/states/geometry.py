@@ -4,7 +4,7 @@ Per frame (:func:`frame_geometry`, vectorized over any number of frames, so the 
 live frame and a whole recording):
 
 * EUC pivot ``E`` and orientation ``R_E = Rz(psi) Rx(theta) Ry(gamma)`` (yaw, tilt, pitch, Fig. 2);
-* wheel centre ``C = E + R_E @ pivot_to_wheel_center`` (spec section 3);
+* wheel centre ``C = E + R_E @ pivot_to_wheel_center`` (docs/session.md, rigid bodies);
 * ankle hinge ``A = C - l0 R_E e_z`` (``l0`` below C along the EUC body axis, Fig. 5);
 * segment centres of mass ``pivot + R_body @ com_offset`` and the rider CoG
   ``G = sum_i f_i CoM_i`` (mass fractions ``f_i``, sum 1). A frame in which any segment of non-zero

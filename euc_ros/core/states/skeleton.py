@@ -3,7 +3,7 @@
 Markers sit on skin, so each rigid body slides against its bone by millimetres and degrees. The
 per-segment CoG (``G = sum f_i (p_i + R_i o_i)``, :func:`~euc_ros.core.states.geometry.frame_geometry`)
 takes every slide straight into G. The bones, however, are rigid and meet at joints: the pivot of one
-body (spec section 3: helmet top, shoulder, elbow, wrist, hip, knee, ankle) is a fixed point of the
+body (docs/session.md, rigid bodies: helmet top, shoulder, elbow, wrist, hip, knee, ankle) is a fixed point of the
 neighbouring bone. This module uses that redundancy.
 
 Links
@@ -53,7 +53,7 @@ from scipy.spatial.transform import Rotation
 
 from euc_ros.core.errors import ConfigError
 
-#: Chain links ``(a, b)``: body b's pivot is a fixed point of body a (spec section 3 pivots).
+#: Chain links ``(a, b)``: body b's pivot is a fixed point of body a (docs/session.md, rigid bodies pivots).
 DEFAULT_LINKS: tuple[tuple[str, str], ...] = (
     ("E", "LR"), ("E", "LL"),            # pedals carry the ankles
     ("LR", "TR"), ("LL", "TL"),          # shank: ankle -> knee

@@ -147,7 +147,6 @@ def derive_kane(with_mass: bool = True) -> DerivedModel:
     f_mass = sm.lambdify(args, me.msubs(mass_matrix, plain).tolist(), "numpy", cse=True)
     f_forcing = sm.lambdify(args, me.msubs(forcing, plain).tolist(), "numpy", cse=True)
     f_hidden = sm.lambdify(args, [me.msubs(h, plain) for h in hidden], "numpy", cse=True)
-    k = len(u_ind)
 
     def rhs(X, U, p: UnicycleParams):
         n = X.shape[1]

@@ -1,7 +1,7 @@
 """The rider's segments and the EUC body as rigid bodies: posture, segment table, poses.
 
 The rider of the planar model is one rigid body hinged at the ankle A. Its thirteen segments
-(recording-format spec, section 3) are fixed in a rider frame with origin A (x forward, y left, z up;
+(docs/session.md, rigid bodies) are fixed in a rider frame with origin A (x forward, y left, z up;
 the rider's centre of gravity G on the frame's z axis at height h), each with its own pitch from the
 standing pose. So every segment turns with the rider pitch ``phi`` and the mass-weighted segment
 centres of mass are G of the model exactly.

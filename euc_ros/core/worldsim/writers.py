@@ -167,7 +167,7 @@ def motive_csv_text(frames, rate_hz: float, bodies, position, quat, capture: Cap
 
 
 def session_text(ride, capture: Capture, rate_hz: float) -> str:
-    """The session YAML of a ride (recording-format spec, section 4), written without a YAML library.
+    """The session YAML of a ride (docs/session.md), written without a YAML library.
 
     The segment table and the EUC's values are the generator's own, so the weighted segment centres of
     mass give the model's G exactly (noise-free), and the EUC parameters are the truth.

@@ -1,4 +1,4 @@
-"""Damaged bags give one line naming the file and what to do, in every command (issue 11, bullet 5).
+"""Damaged bags give one line naming the file and what to do, in every command.
 
 Real MCAP files written by the project's writer, then damaged the way recordings get damaged: cut
 mid-file (recorder killed), metadata.yaml broken or missing, the .mcap copied alone.

@@ -1,4 +1,4 @@
-"""Nothing recorded is lost: output paths are checked before any work (issue 11, bullet 5)."""
+"""Nothing recorded is lost: output paths are checked before any work."""
 from __future__ import annotations
 
 import json

@@ -1,4 +1,4 @@
-"""Issue 11, first list: 360 Hz recordings give the right numbers; a session rate that contradicts
+"""360 Hz recordings give the right numbers; a session rate that contradicts
 the data is a one-line refusal naming both rates (offline)."""
 from __future__ import annotations
 
@@ -32,7 +32,7 @@ def ride360(tmp_path_factory):
 def test_identify_at_360hz_finds_h(ride360, tmp_path, capsys):
     """Before: h = 1.200 (the grid edge), RMSE ~3500 N m."""
     out = tmp_path / "id.json"
-    rc = main(["identify", str(ride360 / "session.yaml"), *sorted(map(str, ride360.glob("deceleration_[0-9][0-9].csv"))),
+    rc = main(["identify", str(ride360 / "session.yaml"), *sorted(map(str, ride360.glob("deceleration_[0-9][0-9].csv"))),  # noqa: E501
                "--json", str(out), "--no-progress"])
     assert rc == 0
     js = json.loads(out.read_text())
@@ -45,7 +45,7 @@ def test_identify_at_360hz_finds_h(ride360, tmp_path, capsys):
 def test_residual_at_360hz_reports_no_false_effect(ride360, tmp_path):
     """Before: `wheel_radius_error -0.2 m`."""
     out = tmp_path / "res.json"
-    rc = main(["residual", str(ride360 / "session.yaml"), *sorted(map(str, ride360.glob("deceleration_[0-9][0-9].csv"))),
+    rc = main(["residual", str(ride360 / "session.yaml"), *sorted(map(str, ride360.glob("deceleration_[0-9][0-9].csv"))),  # noqa: E501
                "--json", str(out), "--no-progress"])
     assert rc == 0
     js = json.loads(out.read_text())

@@ -1,4 +1,4 @@
-"""Each body's short gaps are bridged before the geometry, offline and live alike (issue 11, bullet 2)."""
+"""Each body's short gaps are bridged before the geometry, offline and live alike."""
 from __future__ import annotations
 
 import dataclasses

@@ -1,4 +1,4 @@
-"""The up axis checked against the data (issue 11, "conventions checked against the data").
+"""The up axis checked against the data.
 
 The recordings come from the ride simulator (a Y-up Motive export, as Motive writes by default); the
 Z-up export and the Y-up bag are the same frames written with the other convention, so the tests

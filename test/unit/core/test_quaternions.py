@@ -24,7 +24,7 @@ def test_against_scipy():
     # round trip: rotation angles below pi come back as the same vector (relative to their size, and
     # to rounding of the unit quaternion, ~1e-16 rad)
     back = rotvec_from_quat(q)
-    assert np.all(np.linalg.norm(back - Rotation.from_quat(q).as_rotvec(), axis=1) <= 1e-12 * (1 + np.linalg.norm(v, axis=1)))
+    assert np.all(np.linalg.norm(back - Rotation.from_quat(q).as_rotvec(), axis=1) <= 1e-12 * (1 + np.linalg.norm(v, axis=1)))  # noqa: E501
 
 
 @pytest.mark.parametrize("angle", [0.0, 1e-8, np.pi - 1e-6])

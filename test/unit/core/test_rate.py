@@ -1,4 +1,4 @@
-"""Measured frame rate and its agreement with the session (issue 11, bullet 1)."""
+"""Measured frame rate and its agreement with the session."""
 from __future__ import annotations
 
 import dataclasses

@@ -1,4 +1,4 @@
-"""Frames from named poses (mocap4r2_msgs/RigidBodies, issue 14 bullet 4), by hand.
+"""Frames from named poses (mocap4r2_msgs/RigidBodies), by hand.
 
 Expected values are written out for each case: body order from ``bodies``, not from the message; a
 body absent, repeated, unknown, with a non-finite position or a non-unit quaternion; Y-up worlds

@@ -1,4 +1,4 @@
-"""Session values checked at load time (issue 11): plausible SI ranges with unit hints, duplicate keys."""
+"""Session values checked at load time: plausible SI ranges with unit hints, duplicate keys."""
 from __future__ import annotations
 
 import pytest

@@ -1,4 +1,4 @@
-"""Block-by-block reconstruction and re-noising (issue 15, memory) give what the whole-array code gives.
+"""Block-by-block reconstruction and re-noising give what the whole-array code gives.
 
 The geometry's reference is the whole-array version the block code replaced (bridging and
 ``frame_geometry`` of the whole recording). The re-noised recordings draw their noise per block
@@ -99,7 +99,7 @@ def test_pose_noise_series_adds_the_stated_noise(ride, small_blocks):
     from euc_ros.core.rotations import quat_conjugate, quat_multiply, rotvec_from_quat
 
     series, _ = ride
-    b, n = len(series.bodies), series.n_frames
+    b = len(series.bodies)
     sp, sr = np.full(b, 2e-4), np.full(b, 0.008)
     sp[3], sr[5] = np.nan, np.nan                 # a body without position noise, one without rotation noise
     draws = pose_noise_draws(series, np.random.default_rng(4))

@@ -63,7 +63,7 @@ def test_identify_csv_writes_table_json_and_figures(recordings, tmp_path, capsys
     text = capsys.readouterr().out
     assert "decel_01" in text and "decel_02" in text and "pooled" in text
     js = json.loads(out.read_text())
-    assert js["model"] == "3dof" and abs(js["h_m"] - H_TRUE) < 0.03  # 2 short runs; accuracy proper: test_ridesim_recovery
+    assert js["model"] == "3dof" and abs(js["h_m"] - H_TRUE) < 0.03  # 2 short runs; accuracy proper: test_ridesim_recovery  # noqa: E501
     assert [r["recording"] for r in js["per_recording"]] == ["decel_01", "decel_02"]
     assert js["models"]["2dof"]["rmse_nm"] > js["rmse_nm"]
     assert js["settings"]["phi_definition"] == "hinge" and js["settings"]["window_s"] == 0.3
@@ -122,7 +122,7 @@ def test_bad_session_and_missing_recording_exit_2(recordings, tmp_path, capsys):
     assert "unknown recording type" in capsys.readouterr().err
 
 
-# --- the extended model (issue 5, step 5): --effect, --param, --from-residual --------------------------------
+# --- the extended model: --effect, --param, --from-residual --------------------------------
 @pytest.fixture(scope="module")
 def sloped(tmp_path_factory):
     """Two deceleration runs of the ride simulator on a floor rising 3 deg along +x (true h = 0.61 m)."""
@@ -162,7 +162,7 @@ def test_identify_with_the_selected_effect_recovers_h(sloped, tmp_path, capsys):
 def test_residual_json_gives_the_same_model_as_the_options(sloped, tmp_path):
     d, files = sloped
     residual = tmp_path / "residual.json"
-    # the recording-format spec's residual output (section 5), several effects joined by '+'
+    # the recording-format spec's residual output (docs/residual.md, JSON), several effects joined by '+'
     residual.write_text(json.dumps({"h_m": 0.2, "rmse_before_nm": 8.0, "effect": "ground_slope+time_varying_h",
                                     "effect_parameters": {"alpha_deg": 3.0, "amplitude_m": 0.0, "period_s": 4.0,
                                                           "phase_rad": 0.0},

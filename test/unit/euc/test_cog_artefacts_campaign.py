@@ -1,4 +1,4 @@
-"""Issue 13 campaign, the part a test can afford (one seed; the full campaign is studies/artefact_campaign.py).
+"""Campaign, the part a test can afford (one seed; the full campaign is studies/artefact_campaign.py).
 
 What the campaign measured and this test pins (docs/cog_artefacts.md): no CoG method reaches the
 issue's h goals (10 mm at 3 mm sliding, 20 mm at 10 mm) on these 7 s runs, so the test asserts what

@@ -180,7 +180,7 @@ def test_torque_estimator_window_covers_time_across_gaps_and_forgets_on_a_jump_b
     assert te.counts["resets"] == 2
 
 
-# --- the extended model (issue 5, step 5) ---------------------------------------------------------------------
+# --- the extended model ---------------------------------------------------------------------
 def _truth_states(run):
     from types import SimpleNamespace
 

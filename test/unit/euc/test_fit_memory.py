@@ -1,4 +1,4 @@
-"""The memory-lean paths of the h fit (issue 15: residual's peak at 60 minutes) give the numbers of the
+"""The memory-lean paths of the h fit give the numbers of the
 plain ones bit for bit: block-made coefficients, the chunked SSE grid, the pooled h from coefficients
 with the states dropped, and the time-shift hook made lazily and block by block."""
 from __future__ import annotations

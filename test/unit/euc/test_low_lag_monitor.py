@@ -1,4 +1,4 @@
-"""Issue 15: with the low-lag estimator the live residual monitor flags a slope that starts mid-ride
+"""With the low-lag estimator the live residual monitor flags a slope that starts mid-ride
 within 1 s of its onset (core classes fed sample by sample, as the nodes run them).
 
 A level-calibrated lab (Motive's ground plane on the level part) whose floor turns into a 5 deg ramp

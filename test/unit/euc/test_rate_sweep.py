@@ -1,4 +1,4 @@
-"""The same ride captured at other frame rates gives the same h and torques, offline and live (issue 11).
+"""The same ride captured at other frame rates gives the same h and torques, offline and live.
 
 The simulator integrates one continuous truth per run whatever the capture rate, so sampling it at
 60, 240 and 1000 Hz is the same ride seen by three cameras. Noise-free mocap isolates the method's

@@ -1,4 +1,4 @@
-"""The paper's findings reproduced on the ride simulator's recordings (issue 4).
+"""The paper's findings reproduced on the ride simulator's recordings.
 
 The simulator (euc_ros.core.ridesim) shares no model code with euc_ros.core.model or
 euc_ros.core.states: it integrates its own derivation of the truth and synthesizes noisy OptiTrack

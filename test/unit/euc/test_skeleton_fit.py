@@ -1,4 +1,4 @@
-"""Issue 13: skeleton-constrained CoG, against hand-built chains with known joints.
+"""Skeleton-constrained CoG, against hand-built chains with known joints.
 
 The poses are built here by hand (joint vectors in each bone's frame, rotations per frame), not by the
 ride simulator: a tree chain whose joints bend over time (custom links) and a rigid rider in the

@@ -1,4 +1,4 @@
-"""Split low-lag estimator (issue 15): the pieces add up to the geometry, the composition is exact on
+"""Split low-lag estimator: the pieces add up to the geometry, the composition is exact on
 cubic pieces (against finite differences of the composed functions), one smoothing time reduces to
 the plain filter of C, and streaming equals offline within a derived round-off bound."""
 from __future__ import annotations

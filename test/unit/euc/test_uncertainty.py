@@ -1,4 +1,4 @@
-"""Honest uncertainty of h (issue 11, bullet 4): interval, identifiability, errors in variables, budget.
+"""Honest uncertainty of h: interval, identifiability, errors in variables, budget.
 
 Every check runs on the ride simulator, whose truth shares no code with the analysis, against the
 known h = 0.61 m or against a second simulated ride (a known change of the truth).

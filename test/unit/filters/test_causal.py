@@ -1,4 +1,4 @@
-"""Low-lag Kalman fixed-lag smoother (issue 15): known answers, an independent Kalman recursion,
+"""Low-lag Kalman fixed-lag smoother: known answers, an independent Kalman recursion,
 gap handling and streaming == offline."""
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The Savitzky-Golay coefficients are numerically sound at every frame rate and window (issue 11).
+"""The Savitzky-Golay coefficients are numerically sound at every frame rate and window.
 
 Known solutions: a least-squares polynomial fit of order p reproduces every polynomial of degree
 <= p exactly, so the value/derivative coefficients applied to t**k give k t**(k-1) etc. at any

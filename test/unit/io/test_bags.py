@@ -576,7 +576,7 @@ def test_rclpy_deserializes_our_mocap_frames(series, tmp_path):
 
 
 def test_metadata_names_the_ros_distribution_as_rosbag2_does(tmp_path):
-    """rosbag2 writes the ROS_DISTRO it runs on (issue 14, bullet 5); rosbags' writer says "rosbags"."""
+    """rosbag2 writes the ROS_DISTRO it runs on; rosbags' writer says "rosbags"."""
     import yaml
 
     from euc_ros.core.io.bags import BagWriter, check_bag

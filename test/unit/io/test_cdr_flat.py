@@ -65,7 +65,7 @@ def test_flat_encoder_writes_what_rclpy_serializes(cls_name):
             for part in name.split("."):
                 obj = getattr(obj, part)
             if kind == "float64":
-                assert (math.isnan(v) and math.isnan(obj)) or (obj == v and math.copysign(1, obj) == math.copysign(1, v))
+                assert (math.isnan(v) and math.isnan(obj)) or (obj == v and math.copysign(1, obj) == math.copysign(1, v))  # noqa: E501
             else:
                 assert obj == v, name
 

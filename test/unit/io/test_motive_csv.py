@@ -1,4 +1,4 @@
-"""Motive CSV reader and writer (euc_ros.core.io.motive_csv), issue 8.
+"""Motive CSV reader and writer (euc_ros.core.io.motive_csv).
 
 Hand-made files with known poses are built here as text, independently of the product's writer.
 Expected rotations are built from elementary rotation matrices multiplied by hand (not scipy's Euler
@@ -34,7 +34,7 @@ from euc_ros.core.rotations import rotation_matrices
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "motive_real"
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real Motive exports not available ({REAL} is absent)")
 
-#: Z-up (REP-103) coordinates -> Motive Y-up coordinates: (X, Y, Z) = (x, z, -y) (spec, section 1).
+#: Z-up (REP-103) coordinates -> Motive Y-up coordinates: (X, Y, Z) = (x, z, -y) (docs/motive_csv.md).
 M = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [0.0, -1.0, 0.0]])
 
 

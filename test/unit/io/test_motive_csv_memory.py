@@ -1,4 +1,4 @@
-"""Peak memory of ``read_motive_csv`` (issue 15): the result plus a bounded working set, never a
+"""Peak memory of ``read_motive_csv``: the result plus a bounded working set, never a
 multiple of the file.
 
 The reader runs in a fresh interpreter on a generated export (10 000 frames x 14 bodies, 10 % of the
@@ -7,7 +7,7 @@ over the interpreter's (:func:`euc_ros.bench.common.peak_rss_increase`) must sta
 
     1.5 x (bytes of the returned arrays) + CHUNKS x the reader's chunk size + SLACK_MB
 
-* 1.5 x the result: the target of issue 15 is 1.5x numpy's loader, and numpy's loader itself needs
+* 1.5 x the result: the target is 1.5x numpy's loader, and numpy's loader itself needs
   about 1.15x its array (it grows the array as it reads);
 * CHUNKS chunks: the working set of one chunk is its text (the piece read, the piece joined to the
   previous row's tail, the rows cut out of it), numpy's reader's own copy of it (4 bytes a

@@ -1,4 +1,4 @@
-"""`euc-ros inspect` (euc_ros/cli/inspect.py), issue 8: Motive CSV summaries, JSON output, bag dispatch."""
+"""`euc-ros inspect` (euc_ros/cli/inspect.py): Motive CSV summaries, JSON output, bag dispatch."""
 from __future__ import annotations
 
 import importlib.util

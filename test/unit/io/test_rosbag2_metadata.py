@@ -1,4 +1,4 @@
-"""Bags as rosbag2 Jazzy writes them (issue 14, bullet 5).
+"""Bags as rosbag2 Jazzy writes them.
 
 The fixture ``data/rosbag2_jazzy/metadata.yaml`` is the metadata.yaml of a ``ros2 bag record -s mcap``
 bag on Jazzy, written here from the format's definition (rosbag2 jazzy branch:

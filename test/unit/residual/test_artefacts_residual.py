@@ -1,4 +1,4 @@
-"""Issue 12, bullet 4 (measurement realism): the residual analysis on recordings with soft-tissue
+"""The residual analysis on recordings with soft-tissue
 sliding, wrong session CoM offsets and coloured pose noise, and no physical effect.
 
 The artefacts come from :mod:`euc_ros.core.ridesim.artefacts`, a generator that shares no code with
@@ -40,7 +40,7 @@ def run(artefacts: SoftTissueArtefacts, offsets=None, seed=11):
 
 
 @pytest.mark.parametrize("name, artefacts, offsets", [
-    ("sliding 3 mm + CoM offsets 2 cm off", SoftTissueArtefacts(slide_rms_m=0.003, slide_rot_rms_deg=1.0), (0.02, 0.02)),
+    ("sliding 3 mm + CoM offsets 2 cm off", SoftTissueArtefacts(slide_rms_m=0.003, slide_rot_rms_deg=1.0), (0.02, 0.02)),  # noqa: E501
     ("coloured pose noise (1 Hz corner)", SoftTissueArtefacts(slide_rms_m=0.0, slide_rot_rms_deg=0.0,
                                                              noise_corner_hz=1.0), None),
 ])

@@ -1,4 +1,4 @@
-"""The floor measured from the wheel's contact path (issue 12, bullet 1), on hand-built geometry.
+"""The floor measured from the wheel's contact path, on hand-built geometry.
 
 Not the ride simulator: wheel centres are placed by hand over a known floor surface. A wheel of
 rolling radius R' standing upright on a surface with unit normal n (in the wheel's plane) has its

@@ -1,4 +1,4 @@
-"""Issue 12, bullet 1: both lab set-ups, and floors that are not flat, give the right slope and h.
+"""Both lab set-ups, and floors that are not flat, give the right slope and h.
 
 (a) a level-calibrated lab (gravity along the mocap's -Z) with a ramp, a level floor then a ramp, a
 bump or a step: the simulator's floor dynamics (:class:`~euc_ros.core.ridesim.truth_model.FloorModel`,

@@ -1,4 +1,4 @@
-"""Issue 12, bullets 3-4: forces outside the named library, from the simulator's independent force
+"""Forces outside the named library, from the simulator's independent force
 models (:mod:`euc_ros.core.ridesim.external`, written from their own physics), and the noise floor.
 
 * a steady headwind on the rider (not the library's still-air drag: a constant part that flips with

@@ -1,4 +1,4 @@
-"""Issue 5: recordings with an effect the analysis is not told about must be traced to that effect.
+"""Recordings with an effect the analysis is not told about must be traced to that effect.
 
 Every family at two plausible magnitudes, plus three controls (no effect over several seeds, the
 undetectable wheel-body friction, two effects at once). Each must be named (or ``none``), its

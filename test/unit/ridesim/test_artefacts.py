@@ -1,4 +1,4 @@
-"""Issue 13: the soft-tissue artefact generator, measured from its output.
+"""The soft-tissue artefact generator, measured from its output.
 
 Every amplitude, band and fault is measured on the returned series against the clean one (the
 generator's settings are not read back). Tolerances: the sliding is scaled to its RMS exactly, so the

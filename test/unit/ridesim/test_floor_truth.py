@@ -1,4 +1,4 @@
-"""Floors in a level lab (issue 12): the simulator's floor dynamics, and the analysis' floor geometry.
+"""Floors in a level lab: the simulator's floor dynamics, and the analysis' floor geometry.
 
 Two derivations meet here. The simulator's :func:`~euc_ros.core.ridesim.truth_model._derive_floor`
 is Lagrange's equations (sympy) of a wheel centre moving along a curve with tangent angle a(s) and

@@ -14,7 +14,7 @@ from euc_ros.core.session import SEGMENT_BODIES
 
 
 def _cog_from_segments(series, session):
-    """CoG the way an analysis reconstructs it: sum f_i (pivot_i + R_i com_offset_i) (spec section 3)."""
+    """CoG the way an analysis reconstructs it: sum f_i (pivot_i + R_i com_offset_i) (docs/session.md, rigid bodies)."""
     names, fr, off = session.segment_arrays()
     idx = [series.bodies.index(n) for n in names]
     com = series.position[idx] + rotate(series.quat[idx], off[:, None, :])

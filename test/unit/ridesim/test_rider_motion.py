@@ -83,7 +83,7 @@ def test_pedal_force_is_the_riders_load_along_the_axis(pedal_ride):
     x, ga, ph = run.q.T
     u = run.signals["pedal_u"]
     # the rider's CoG in the plane of the truth model, by hand: G = C + (l0 + u)(-sin ga, -cos ga) + h (sin ph, cos ph)
-    Gp = np.stack([x - (p.l0 + u) * np.sin(ga) + run.h * np.sin(ph), p.R - (p.l0 + u) * np.cos(ga) + run.h * np.cos(ph)], 1)
+    Gp = np.stack([x - (p.l0 + u) * np.sin(ga) + run.h * np.sin(ph), p.R - (p.l0 + u) * np.cos(ga) + run.h * np.cos(ph)], 1)  # noqa: E501
     aG = np.gradient(np.gradient(Gp, dt, axis=0), dt, axis=0)
     e_ax = np.stack([np.sin(ga), np.cos(ga)], 1)
     load = m * np.einsum("ni,ni->n", aG + [0.0, G], e_ax)

@@ -1,4 +1,4 @@
-"""Files of a simulated ride: Motive CSV per spec section 1, session, truth, MCAP bag, CLI.
+"""Files of a simulated ride: Motive CSV per docs/motive_csv.md, session, truth, MCAP bag, CLI.
 
 Tolerances come from what the files store, the same on every machine: the Motive CSV has 6 decimals
 (a cell is within half a unit, 5e-7, of its value; +1e-8 for the ulps of the axis change), the truth
