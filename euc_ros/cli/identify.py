@@ -219,45 +219,61 @@ def format_table(result, identifiable: bool | None = None) -> str:
     return "\n".join(lines)
 
 
+def run_identify(session_path, recordings, *, window_s: float = DEFAULT_WINDOW_S,
+                 polyorder: int = DEFAULT_SG_POLYORDER, phi_definition: str = "hinge", cog_method: str = "segments",
+                 h_min: float = 0.1, h_max: float = 1.2, h_step: float = 0.005, effects: dict | None = None,
+                 model: str | None = None, uncertainty: bool = True, sliding: bool = True,
+                 tolerances: dict | None = None, progress: bool = False):
+    """The identification ``euc-ros identify`` runs: ``(HIdentification, JSON document, states, params)``.
+
+    The document is the command's ``--json`` output, key for key; :func:`euc_ros.identify` returns it too.
+    Defaults are the command's.
+    """
+    grid = h_grid_from_args(argparse.Namespace(h_min=h_min, h_max=h_max, h_step=h_step))
+    effects = dict(effects or {})
+    session = load_session(session_path)
+    params = EucParams.from_session(session)
+    if effects:
+        ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
+    states = load_states(session, recordings, window_s=window_s, polyorder=polyorder,
+                         phi_definition=phi_definition, progress=progress, desc="identify",
+                         keep_series=uncertainty, cog_method=cog_method)
+    settings = {"session": str(session_path), "recordings": [str(p) for p in recordings],
+                "phi_definition": phi_definition, "cog_method": cog_method, "window_s": window_s,
+                "window_samples": states[0].window, "polyorder": polyorder,
+                "h_grid": {"min_m": float(grid[0]), "max_m": float(grid[-1]), "step_m": h_step},
+                "gravity_m_per_s2": float(params.g)}
+    ident = identify_h(states, session, params, h_grid=grid, h_bounds=(h_min, h_max), effects=effects,
+                       model=model, settings=settings, uncertainty=uncertainty, sliding=sliding,
+                       tolerances=tolerances if tolerances is not None else parse_tolerances([]),
+                       window_s=window_s, polyorder=polyorder, phi_definition=phi_definition, cog_method=cog_method)
+    data = ident.to_dict()
+    usage = {u["recording"]: u for u in usage_table(states)}
+    for rec in data.get("per_recording", []):
+        rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
+    data["cog"] = cog_faults(states)
+    data["warnings"] = collect_warnings(states)
+    return ident, data, states, params
+
+
 def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
     configure_from_args(args)
-    tolerances = parse_tolerances(args.tolerance)
-    grid = h_grid_from_args(args)
-    effects = effects_from_args(args)
-    session = load_session(args.session)
-    params = EucParams.from_session(session)
-    if effects:
-        ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
-    states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
-                         phi_definition=args.phi_definition, progress=not args.no_progress, desc="identify",
-                         keep_series=not args.no_uncertainty, cog_method=args.cog_method)
-    settings = {"session": str(args.session), "recordings": [str(p) for p in args.recordings],
-                "phi_definition": args.phi_definition, "cog_method": args.cog_method, "window_s": args.window_s,
-                "window_samples": states[0].window, "polyorder": args.polyorder,
-                "h_grid": {"min_m": float(grid[0]), "max_m": float(grid[-1]), "step_m": args.h_step},
-                "gravity_m_per_s2": float(params.g)}
-    ident = identify_h(states, session, params, h_grid=grid, h_bounds=(args.h_min, args.h_max), effects=effects,
-                       model=args.model, settings=settings, uncertainty=not args.no_uncertainty,
-                       sliding=args.sliding_bias, tolerances=tolerances, window_s=args.window_s,
-                       polyorder=args.polyorder, phi_definition=args.phi_definition, cog_method=args.cog_method)
-    warnings = collect_warnings(states)
+    ident, data, states, params = run_identify(
+        args.session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
+        phi_definition=args.phi_definition, cog_method=args.cog_method, h_min=args.h_min, h_max=args.h_max,
+        h_step=args.h_step, effects=effects_from_args(args), model=args.model,
+        uncertainty=not args.no_uncertainty, sliding=args.sliding_bias, tolerances=parse_tolerances(args.tolerance),
+        progress=not args.no_progress)
     print(format_table(ident.fits, identifiable=ident.identifiable))
     if ident.uncertainty is not None:
         print(format_uncertainty(ident))
     print(format_usage(usage_table(states)))
-    faults = cog_faults(states)
-    print(format_cog_faults(faults))
-    print_warnings(warnings)
+    print(format_cog_faults(data["cog"]))
+    print_warnings(data["warnings"])
     if args.json:
-        data = ident.to_dict()
-        usage = {u["recording"]: u for u in usage_table(states)}
-        for rec in data.get("per_recording", []):
-            rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
-        data["cog"] = faults
-        data["warnings"] = warnings
         write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     if args.plots:
         finite = ident.uncertainty is not None and all(np.isfinite(ident.interval))

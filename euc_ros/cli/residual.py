@@ -68,52 +68,90 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--cog-method", choices=("segments", "skeleton"), default="segments",
                         help="rider CoG from the measured segments (default) or from a kinematic chain fitted to "
                              "them (swapped/flipped bodies excluded; docs/cog_artefacts.md)")
+    parser.add_argument("--phi-definition", choices=("hinge", "eq3"), default="hinge",
+                        help="rider pitch about the ankle hinge A (the model's, default) or about the wheel centre C")
+    parser.add_argument("--tolerance", action="append", default=[], metavar="KEY=VALUE",
+                        help="tolerance of a nominal session value, e.g. rider.mass=2 or euc.body_inertia=20%%: adds "
+                             "the h budget for these tolerances to the base model's uncertainty (repeatable)")
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
-def main(args: argparse.Namespace) -> int:
-    """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
-    from euc_ros.cli.identify import format_usage
-    from euc_ros.core.residual.analysis import analyze
-    from euc_ros.core.residual.noise import make_noise_floor
+def run_residual(session_path, recordings, *, candidates=None, alpha: float | None = None,
+                 min_gain: float | None = None, max_effects: int = 3, use_geometry: bool = True,
+                 discover: bool = True, window_s: float | None = None, polyorder: int | None = None,
+                 cog_method: str = "segments", phi_definition: str = "hinge", tolerances: dict | None = None,
+                 progress: bool = False):
+    """The analysis ``euc-ros residual`` runs: ``(result, JSON document, states, params)``.
 
-    check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
-                   Output("--report", args.report)], [args.session, *args.recordings])
-    configure_from_args(args)
-    if not 0 < args.alpha < 1:
-        raise ConfigError(f"--alpha must be in (0, 1), got {args.alpha}", key="--alpha")
-    if not 0 <= args.min_gain < 1:
-        raise ConfigError(f"--min-gain must be in [0, 1), got {args.min_gain}", key="--min-gain")
-    session = load_session(args.session)
-    candidates = make_candidates(args.candidates)
-    states = load_states(session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
-                         progress=not args.no_progress, keep_series=True, cog_method=args.cog_method)
-    params = EucParams.from_session(session)
-    say = (lambda m: print(m, file=sys.stderr, flush=True)) if not args.no_progress else None
-    series = [st.meta.get("series") for st in states]
-    # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
+    The document is the command's ``--json`` output, key for key; :func:`euc_ros.residual` returns it too.
+    Defaults are the command's.
+    """
     from euc_ros.core.identify.cog_height import identify_h
     from euc_ros.core.identify.simex import SimexShare
+    from euc_ros.core.residual.analysis import (
+        DEFAULT_ALPHA,
+        DEFAULT_MIN_GAIN,
+        RESIDUAL_POLYORDER,
+        RESIDUAL_WINDOW_S,
+        analyze,
+    )
+    from euc_ros.core.residual.noise import make_noise_floor
 
+    alpha = DEFAULT_ALPHA if alpha is None else alpha
+    min_gain = DEFAULT_MIN_GAIN if min_gain is None else min_gain
+    window_s = RESIDUAL_WINDOW_S if window_s is None else window_s
+    polyorder = RESIDUAL_POLYORDER if polyorder is None else polyorder
+    if not 0 < alpha < 1:
+        raise ConfigError(f"--alpha must be in (0, 1), got {alpha}", key="--alpha")
+    if not 0 <= min_gain < 1:
+        raise ConfigError(f"--min-gain must be in [0, 1), got {min_gain}", key="--min-gain")
+    session = load_session(session_path)
+    cands = make_candidates(candidates)
+    states = load_states(session, recordings, window_s=window_s, polyorder=polyorder, phi_definition=phi_definition,
+                         progress=progress, keep_series=True, cog_method=cog_method)
+    params = EucParams.from_session(session)
+    say = (lambda m: print(m, file=sys.stderr, flush=True)) if progress else None
+    series = [st.meta.get("series") for st in states]
+    # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
     simex = SimexShare()
     noise_of = make_noise_floor(series, states, session, params, share=simex) \
         if all(s is not None for s in series) else None
-    result = analyze(states, params, candidates=candidates, alpha=args.alpha, min_gain=args.min_gain,
-                     max_effects=args.max_effects, use_geometry=not args.no_geometry,
-                     discover=not args.no_discovery, noise_floor_of=noise_of, progress=say)
+    result = analyze(states, params, candidates=cands, alpha=alpha, min_gain=min_gain,
+                     max_effects=max_effects, use_geometry=use_geometry,
+                     discover=discover, noise_floor_of=noise_of, progress=say)
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
-    base = identify_h(states, session, params, models=("3dof",), with_budget=False, window_s=args.window_s,
-                      polyorder=args.polyorder, cog_method=args.cog_method, simex_share=simex).uncertainty
+    budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
+    base = identify_h(states, session, params, models=("3dof",), window_s=window_s, polyorder=polyorder,
+                      phi_definition=phi_definition, cog_method=cog_method, simex_share=simex, **budget).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     data["uncertainty"] = base["uncertainty"]
     data["recordings"] = [st.name for st in states]
     data["per_recording"] = usage_table(states)
     data["warnings"] = collect_warnings(states)
-    data["settings"] = {"session": str(args.session), "window_s": args.window_s, "polyorder": args.polyorder,
-                        "candidates": [c.name for c in candidates], "cog_method": args.cog_method}
+    data["settings"] = {"session": str(session_path), "window_s": window_s, "polyorder": polyorder,
+                        "candidates": [c.name for c in cands], "cog_method": cog_method}
+    if phi_definition != "hinge":
+        data["settings"]["phi_definition"] = phi_definition
     data["cog"] = cog_faults(states)
+    return result, data, states, params
+
+
+def main(args: argparse.Namespace) -> int:
+    """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
+    from euc_ros.cli.identify import format_usage
+    from euc_ros.core.identify.budget import parse_tolerances
+
+    check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
+                   Output("--report", args.report)], [args.session, *args.recordings])
+    configure_from_args(args)
+    result, data, states, params = run_residual(
+        args.session, args.recordings, candidates=args.candidates, alpha=args.alpha, min_gain=args.min_gain,
+        max_effects=args.max_effects, use_geometry=not args.no_geometry, discover=not args.no_discovery,
+        window_s=args.window_s, polyorder=args.polyorder, cog_method=args.cog_method,
+        phi_definition=args.phi_definition, tolerances=parse_tolerances(args.tolerance) if args.tolerance else None,
+        progress=not args.no_progress)
     write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     print(format_summary(data))
     if not data["identifiable"]:
