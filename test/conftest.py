@@ -76,3 +76,63 @@ def short_ride(tmp_path_factory):
     result = simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=3, duration_s=3.0))
     write_ride(result, out)
     return out, result
+
+
+NPM_NETWORK_ERRORS = ("ENOTFOUND", "EAI_AGAIN", "ETIMEDOUT", "ECONNREFUSED", "ECONNRESET", "network")
+
+
+@pytest.fixture(scope="session")
+def npm_tool():
+    """``install(tool_dir, marker, script, purpose) -> Path``: a tools/ folder's pinned npm packages
+    (``npm ci`` of its lock file, cached by the lock's hash) with its script beside them; skips with the
+    reason where node, npm or the registry are absent."""
+    import hashlib
+    import shutil
+    import subprocess
+
+    def install(tool_dir: Path, marker: str, script: str, purpose: str) -> Path:
+        node, npm = shutil.which("node"), shutil.which("npm")
+        if node is None or npm is None:
+            pytest.skip(f"node and npm are needed for {purpose} (Node 20)")
+        lock = (tool_dir / "package-lock.json").read_bytes()
+        cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "euc_ros" / tool_dir.name / \
+            hashlib.sha256(lock).hexdigest()[:16]
+        if not (cache / "node_modules" / marker).is_dir():
+            cache.mkdir(parents=True, exist_ok=True)
+            for name in ("package.json", "package-lock.json"):
+                shutil.copy(tool_dir / name, cache / name)
+            r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=cache,
+                               capture_output=True, text=True, timeout=600)
+            if r.returncode != 0:
+                if any(e in r.stderr for e in NPM_NETWORK_ERRORS):
+                    pytest.skip(f"the npm registry is unreachable: {r.stderr.strip().splitlines()[-1]}")
+                pytest.fail(f"npm ci failed (lock file or packages broken):\n{r.stderr[-3000:]}")
+        shutil.copy(tool_dir / script, cache / script)
+        return cache
+
+    return install
+
+
+@pytest.fixture
+def looping_launch(short_ride, tmp_path):
+    """``(launch file, bag)``: a recorder and a mocap_ingest looping the short ride's CSV (it waits for the
+    recorder's subscription), as a ROS 2 XML launch file."""
+    config = Path(__file__).resolve().parents[1] / "config"
+    ride_dir, _ = short_ride
+    bag = tmp_path / "bag"
+    launch_file = tmp_path / "two.launch.xml"
+    launch_file.write_text(f"""<launch>
+  <node pkg="euc_ros" exec="recorder" output="screen" on_exit="shutdown">
+    <param from="{config / 'recorder.yaml'}"/>
+    <param name="output" value="{bag}" type="str"/>
+  </node>
+  <node pkg="euc_ros" exec="mocap_ingest" output="screen" on_exit="shutdown">
+    <param from="{config / 'mocap_ingest.yaml'}"/>
+    <param name="csv_path" value="{ride_dir / 'deceleration_01.csv'}" type="str"/>
+    <param name="loop" value="true"/>
+    <param name="start_delay" value="0.5"/>
+    <param name="wait_subscribers" value="1"/>
+  </node>
+</launch>
+""")
+    return launch_file, bag

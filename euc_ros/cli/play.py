@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import gc
 import importlib
-import signal
 import threading
 import time
 from pathlib import Path
@@ -27,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.cli.outputs import Output, check_outputs
+from euc_ros.cli.stop import StopSignals
 from euc_ros.core.errors import InputError
 from euc_ros.core.io.bags import readable_bag
 from euc_ros.core.io.msgdefs import make_typestore
@@ -175,21 +175,6 @@ def set_realtime(priority: int) -> str:
     return _set(priority, "playing")
 
 
-class _Stop:
-    """SIGINT/SIGTERM set a flag (the player checks it at least every ``MAX_SLEEP_S``)."""
-
-    def __init__(self) -> None:
-        self.event = threading.Event()
-        self._old = {}
-
-    def __enter__(self) -> threading.Event:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, lambda *_: self.event.set())
-        return self.event
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self._old.items():
-            signal.signal(sig, handler)
 
 
 class Player:
@@ -339,7 +324,7 @@ def main(args: argparse.Namespace) -> int:
         if first is None:
             print("play: nothing to play (empty bag, or --start-offset past its end)")
             return 0
-        with _Stop() as stop:
+        with StopSignals() as stop:
             if args.realtime is not None:   # before rclpy.init: the DDS threads inherit the policy
                 print(f"play: {set_realtime(args.realtime)}", flush=True)
             rclpy.init(signal_handler_options=SignalHandlerOptions.NO)

@@ -14,10 +14,9 @@ stop it cleanly (exit code 0). See ``docs/viewing_live.md``.
 from __future__ import annotations
 
 import argparse
-import signal
-import threading
 import time
 
+from euc_ros.cli.stop import StopSignals
 from euc_ros.core.errors import ConfigError
 
 HELP = "serve the live topics to Foxglove over WebSocket (this machine only unless --address is given)"
@@ -93,21 +92,6 @@ def start_line(address: str, port: int, local: bool) -> str:
             f"this machine (--address {address} is not a loopback address)")
 
 
-class _Stop:
-    """SIGINT and SIGTERM set an event instead of raising; the previous handlers come back on exit."""
-
-    def __init__(self) -> None:
-        self.event = threading.Event()
-        self._old = {}
-
-    def __enter__(self) -> threading.Event:
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            self._old[sig] = signal.signal(sig, lambda *_: self.event.set())
-        return self.event
-
-    def __exit__(self, *exc) -> None:
-        for sig, handler in self._old.items():
-            signal.signal(sig, handler)
 
 
 def _start_server(address: str, port: int, context):
@@ -137,7 +121,7 @@ def main(args: argparse.Namespace) -> int:
     from euc_ros.ros.foxglove_bridge import DISCOVERY_PERIOD_S, FoxgloveBridge, is_local_address
 
     local = is_local_address(args.address)
-    with _Stop() as stop:
+    with StopSignals() as stop:
         context = foxglove.Context()
         server = _start_server(args.address, args.port, context)
         node = executor = bridge = None

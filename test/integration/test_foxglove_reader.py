@@ -13,11 +13,8 @@ a cache outside the repository, keyed by the lock file's hash.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import math
-import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -30,29 +27,11 @@ from euc_ros.core.io.bags import read_bag
 pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]
 TOOL = REPO / "tools" / "foxglove_reader"
-NETWORK_ERRORS = ("ENOTFOUND", "EAI_AGAIN", "ETIMEDOUT", "ECONNREFUSED", "ECONNRESET", "network")
 
 
 @pytest.fixture(scope="module")
-def reader_dir():
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None or npm is None:
-        pytest.skip("node and npm are needed for Foxglove's TypeScript MCAP reader (Node 20)")
-    lock = (TOOL / "package-lock.json").read_bytes()
-    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "euc_ros" / "foxglove_reader" / \
-        hashlib.sha256(lock).hexdigest()[:16]
-    if not (cache / "node_modules" / "@mcap" / "core").is_dir():
-        cache.mkdir(parents=True, exist_ok=True)
-        for name in ("package.json", "package-lock.json"):
-            shutil.copy(TOOL / name, cache / name)
-        r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=cache,
-                           capture_output=True, text=True, timeout=600)
-        if r.returncode != 0:
-            if any(e in r.stderr for e in NETWORK_ERRORS):
-                pytest.skip(f"the npm registry is unreachable: {r.stderr.strip().splitlines()[-1]}")
-            pytest.fail(f"npm ci failed (lock file or packages broken):\n{r.stderr[-3000:]}")
-    shutil.copy(TOOL / "read_bag.mjs", cache / "read_bag.mjs")
-    return cache
+def reader_dir(npm_tool):
+    return npm_tool(TOOL, "@mcap/core", "read_bag.mjs", "Foxglove's TypeScript MCAP reader")
 
 
 @pytest.fixture(scope="module")

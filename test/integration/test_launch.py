@@ -69,23 +69,8 @@ def _children(pid: int) -> list[psutil.Process]:
         return []
 
 
-def test_sigint_to_launcher_ends_every_child(ros_domain, short_ride, tmp_path):
-    ride_dir, _ = short_ride
-    launch_file = tmp_path / "two.launch.xml"
-    launch_file.write_text(f"""<launch>
-  <node pkg="euc_ros" exec="recorder" output="screen" on_exit="shutdown">
-    <param from="{CONFIG / 'recorder.yaml'}"/>
-    <param name="output" value="{tmp_path / 'bag'}" type="str"/>
-  </node>
-  <node pkg="euc_ros" exec="mocap_ingest" output="screen" on_exit="shutdown">
-    <param from="{CONFIG / 'mocap_ingest.yaml'}"/>
-    <param name="csv_path" value="{ride_dir / 'deceleration_01.csv'}" type="str"/>
-    <param name="loop" value="true"/>
-    <param name="start_delay" value="0.5"/>
-    <param name="wait_subscribers" value="1"/>
-  </node>
-</launch>
-""")
+def test_sigint_to_launcher_ends_every_child(ros_domain, looping_launch, tmp_path):
+    launch_file, _ = looping_launch
     exe = Path(sys.executable).parent / "euc-ros"
     proc = subprocess.Popen([str(exe), "launch", str(launch_file)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True)

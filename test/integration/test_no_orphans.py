@@ -76,24 +76,8 @@ def _assert_no_orphans_and_bag_reads(kids: list[psutil.Process], bag: Path) -> N
 
 
 @pytest.mark.parametrize("how", ["SIGHUP", "SIGKILL"])
-def test_launch_leaves_no_orphans(ros_domain, short_ride, tmp_path, how):
-    ride_dir, _ = short_ride
-    bag = tmp_path / "bag"
-    launch_file = tmp_path / "two.launch.xml"
-    launch_file.write_text(f"""<launch>
-  <node pkg="euc_ros" exec="recorder" output="screen" on_exit="shutdown">
-    <param from="{CONFIG / 'recorder.yaml'}"/>
-    <param name="output" value="{bag}" type="str"/>
-  </node>
-  <node pkg="euc_ros" exec="mocap_ingest" output="screen" on_exit="shutdown">
-    <param from="{CONFIG / 'mocap_ingest.yaml'}"/>
-    <param name="csv_path" value="{ride_dir / 'deceleration_01.csv'}" type="str"/>
-    <param name="loop" value="true"/>
-    <param name="start_delay" value="0.5"/>
-    <param name="wait_subscribers" value="1"/>
-  </node>
-</launch>
-""")
+def test_launch_leaves_no_orphans(ros_domain, looping_launch, how):
+    launch_file, bag = looping_launch
     proc = subprocess.Popen([EUC_ROS, "launch", str(launch_file)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             start_new_session=True)
     try:

@@ -20,13 +20,11 @@ a cache outside the repository, keyed by the lock file's hash.
 """
 from __future__ import annotations
 
-import hashlib
 import io
 import json
 import math
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -44,7 +42,6 @@ REPO = Path(__file__).resolve().parents[2]
 CONFIG = REPO / "config"
 TOOL = REPO / "tools" / "foxglove_live"
 LAYOUT = CONFIG / "foxglove" / "euc_pipeline.json"
-NETWORK_ERRORS = ("ENOTFOUND", "EAI_AGAIN", "ETIMEDOUT", "ECONNREFUSED", "ECONNRESET", "network")
 
 #: How long the client listens [s]; rates are measured over what it receives in that time.
 LISTEN_S = 8.0
@@ -83,25 +80,8 @@ def rate_tolerance(rate_hz: float, span_s: float, publishers: int = 1) -> float:
 
 
 @pytest.fixture(scope="module")
-def client_dir():
-    node, npm = shutil.which("node"), shutil.which("npm")
-    if node is None or npm is None:
-        pytest.skip("node and npm are needed for Foxglove's WebSocket client (Node 20)")
-    lock = (TOOL / "package-lock.json").read_bytes()
-    cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "euc_ros" / "foxglove_live" / \
-        hashlib.sha256(lock).hexdigest()[:16]
-    if not (cache / "node_modules" / "@foxglove" / "ws-protocol").is_dir():
-        cache.mkdir(parents=True, exist_ok=True)
-        for name in ("package.json", "package-lock.json"):
-            shutil.copy(TOOL / name, cache / name)
-        r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=cache,
-                           capture_output=True, text=True, timeout=600)
-        if r.returncode != 0:
-            if any(e in r.stderr for e in NETWORK_ERRORS):
-                pytest.skip(f"the npm registry is unreachable: {r.stderr.strip().splitlines()[-1]}")
-            pytest.fail(f"npm ci failed (lock file or packages broken):\n{r.stderr[-3000:]}")
-    shutil.copy(TOOL / "view_client.mjs", cache / "view_client.mjs")
-    return cache
+def client_dir(npm_tool):
+    return npm_tool(TOOL, "@foxglove/ws-protocol", "view_client.mjs", "Foxglove's WebSocket client")
 
 
 class Viewer:
