@@ -1,6 +1,6 @@
 """Ride simulator: synthetic OptiTrack recordings of a human-ridden EUC with known truth.
 
-Independent of the estimator (:mod:`euc_ros.core.euc`) by design: the truth model is derived here
+Independent of the estimator (the model and states packages) by design: the truth model is derived here
 from the point kinematics with sympy, so a bug in one cannot hide in the other. See
 ``docs/ridesim.md`` for the model, the controllers and every effect's derivation.
 

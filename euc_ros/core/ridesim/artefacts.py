@@ -7,7 +7,7 @@ jumps by centimetres and tens of degrees for a short stretch) and single frames 
 flipped by 180 deg. The session's segment CoM offsets come from anthropometric tables and are
 centimetres off.
 
-This module is the generator side only: it shares no code with the analysis (:mod:`euc_ros.core.euc`).
+This module is the generator side only: it shares no code with the analysis (the model and states packages).
 Everything is seeded and vectorized over bodies and frames.
 
 * :func:`apply_artefacts` turns a clean :class:`~euc_ros.core.mocap.series.MocapSeries` into a recorded one

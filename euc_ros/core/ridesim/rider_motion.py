@@ -1,7 +1,7 @@
 """The rider is not one rigid body on a rigid hinge: pedals that flex, arms that swing.
 
 Truth-side effects outside the residual analysis' library, written from their own physics (no code
-shared with :mod:`euc_ros.core.residual` or :mod:`euc_ros.core.euc`).
+shared with :mod:`euc_ros.core.residual` or the model and states packages).
 
 ``PedalFlex``
     The pedals (and the shoe soles) give under the rider's load: the ankle hinge A moves down the EUC's

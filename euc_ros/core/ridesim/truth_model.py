@@ -1,6 +1,6 @@
 """Truth dynamics of the ride simulator: the planar EUC + rider, derived here with sympy.
 
-This module deliberately shares no code with :mod:`euc_ros.core.euc` (the estimator). Instead of
+This module deliberately shares no code with the model and states packages (the estimator). Instead of
 transcribing the EUC paper's eqs (5)-(8), it writes down the *point kinematics* of Fig. 5 (with the
 geometry of ``papers/ERRATA.md``) and lets sympy form Lagrange's equations of the second kind (eq. 4)
 once, on first use. The tests then compare the result with eqs (5)-(8) written out by hand.

@@ -1,6 +1,6 @@
 """An independent ride generator: EUC and rider dynamics, controllers, excitation and Motive exports.
 
-It shares no code with the model used for identification (:mod:`euc_ros.core.euc`), the residual
+It shares no code with the model used for identification (the model and states packages), the residual
 analysis or the project's ride simulator: the dynamics are derived here by Newton-Euler with the
 constraint forces as unknowns (:mod:`.dynamics`), the EUC's balance loop and the rider's ankle loop
 are controllers of their own (:mod:`.control`), the excitation is band-limited noise and random
