@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import importlib
 import os
-import shutil
 import time
 from pathlib import Path
 
@@ -55,6 +54,10 @@ def _msg_class(type_name: str):
     pkg, kind, name = type_name.split("/")
     return getattr(importlib.import_module(f"{pkg}.{kind}"), name)
 
+
+#: A wanted topic seen only through subscribers is subscribed after this wait at the latest [s]: a
+#: publisher that appears meanwhile gives its offered QoS to the bag's metadata (as rosbag2 records it).
+PUBLISHER_WAIT_S = 1.0
 
 class Recorder(Node):
     """Record topics into a rosbag2 MCAP bag.
@@ -97,6 +100,7 @@ class Recorder(Node):
         self.add_waitable(self._drain)
         self._subscribed: set[str] = set()
         self._wanted = {self.resolve_topic_name(t) for t in self.config["topics"]}
+        self._seen: dict[str, float] = {}    # topic -> when it was first seen without a publisher
         self._timer = self.create_timer(self.config["discovery_period"], self._discover)
         self._discover()
         self.get_logger().info(f"recording to {self.path} "
@@ -115,8 +119,8 @@ class Recorder(Node):
                                           throttle_duration_sec=10.0)
                 continue
             pubs = self.get_publishers_info_by_topic(topic)
-            if not pubs:   # seen through a subscriber only: wait for a publisher (its QoS decides ours, as in rosbag2)
-                continue
+            if not pubs and self._seen.setdefault(topic, time.monotonic()) > time.monotonic() - PUBLISHER_WAIT_S:
+                continue   # seen through a subscriber only: a publisher's offered QoS is worth a moment's wait
             best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs)
             qos = QoSProfile(depth=self.config["queue_depth"],
                              reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
@@ -146,10 +150,6 @@ class Recorder(Node):
         self.writer.close()
         total = sum(self.counts.values())
         # the context may already be shut down (rosout unavailable): print instead of the node logger
-        if total == 0:   # nothing was recorded: leave no empty bag that looks like a recording
-            shutil.rmtree(self.path, ignore_errors=True)
-            print(f"[recorder] no message arrived: no bag written ({self.path} removed)", flush=True)
-            return
         print(f"[recorder] closed {self.path}: {total} messages "
               + ", ".join(f"{t}={n}" for t, n in sorted(self.counts.items())), flush=True)
 
