@@ -127,6 +127,9 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     data["uncertainty"] = base["uncertainty"]
+    if tolerances:   # what the stated tolerances of nominal values do to the base model's h
+        data["uncertainty_budget"] = base.get("uncertainty_budget")
+        data["h_range_for_tolerances_m"] = base.get("h_range_m")
     data["recordings"] = [st.name for st in states]
     data["per_recording"] = usage_table(states)
     data["warnings"] = collect_warnings(states)

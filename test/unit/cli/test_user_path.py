@@ -67,3 +67,17 @@ def test_renamed_bodies_with_the_skeleton_are_used_and_said(ride, tmp_path, caps
     assert "Helmet" not in data["cog"]["per_body"] and "RShoulder" not in data["cog"]["per_body"]
     assert any("no link for Helmet, RShoulder" in w for w in data["warnings"]), data["warnings"]
     assert "no link for Helmet, RShoulder" in capsys.readouterr().err
+
+
+def test_residual_takes_the_phi_definition_and_tolerances(ride, tmp_path):
+    session, csv = ride
+    out, base = tmp_path / "r.json", tmp_path / "base.json"
+    assert main(["residual", str(session), str(csv), "--json", str(base), "--no-progress"]) == 0
+    assert main(["residual", str(session), str(csv), "--json", str(out), "--no-progress", "--phi-definition", "eq3",
+                 "--tolerance", "rider.mass=2"]) == 0
+    data, plain = json.loads(out.read_text()), json.loads(base.read_text())
+    assert data["settings"]["phi_definition"] == "eq3" and "phi_definition" not in plain["settings"]
+    budget = data["uncertainty_budget"]
+    assert budget["sensitivity"]["rider.mass"]["tolerance"] == 2.0, budget
+    assert "uncertainty_budget" not in plain                 # the default output is unchanged
+    assert data["rmse_before_nm"] != plain["rmse_before_nm"]  # another phi: other states, other residual
