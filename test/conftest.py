@@ -29,18 +29,29 @@ def ros_domain():
         yield did
 
 
-@pytest.fixture
-def ros_context(ros_domain):
-    """A private rclpy Context on the run's domain, shut down after the test."""
+def _private_context(domain: int):
+    """A private rclpy Context on ``domain`` (yields it; shut down after)."""
     import rclpy
     from rclpy.signals import SignalHandlerOptions
 
     ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(context=ctx, domain_id=domain, signal_handler_options=SignalHandlerOptions.NO)
     try:
         yield ctx
     finally:
         ctx.try_shutdown()
+
+
+@pytest.fixture
+def ros_context(ros_domain):
+    """A private rclpy Context on the run's domain, shut down after the test."""
+    yield from _private_context(ros_domain)
+
+
+@pytest.fixture
+def other_ros_context(ros_domain):
+    """A second private Context (a participant of its own: DDS refuses two types on one topic in one)."""
+    yield from _private_context(ros_domain)
 
 
 @pytest.fixture(scope="session")

@@ -32,20 +32,7 @@ def spin_until(executor, condition, timeout_s: float = 10.0) -> bool:
     return True
 
 
-@pytest.fixture
-def other_context(ros_domain):
-    """A second rclpy Context (a participant of its own: DDS refuses two types on one topic in one)."""
-    from rclpy.signals import SignalHandlerOptions
-
-    ctx = rclpy.Context()
-    rclpy.init(context=ctx, domain_id=ros_domain, signal_handler_options=SignalHandlerOptions.NO)
-    try:
-        yield ctx
-    finally:
-        ctx.try_shutdown()
-
-
-def test_viewed_topics_are_forwarded_as_ros2msg_cdr(ros_context, other_context, tmp_path):
+def test_viewed_topics_are_forwarded_as_ros2msg_cdr(ros_context, other_ros_context, tmp_path):
     from mcap.reader import make_reader
     from mcap_ros2.decoder import DecoderFactory
     from rclpy.executors import SingleThreadedExecutor
@@ -64,7 +51,7 @@ def test_viewed_topics_are_forwarded_as_ros2msg_cdr(ros_context, other_context, 
         pose_pub = talker.create_publisher(PoseStamped, "mocap/Box/pose", qos)
         talker.create_publisher(String, "chatter", qos)                 # not a viewed topic
         talker.create_publisher(PoseStamped, "mocap/Two/pose", qos)     # two types on one topic
-        other = rclpy.create_node("bridge_other", context=other_context)
+        other = rclpy.create_node("bridge_other", context=other_ros_context)
         other.create_publisher(String, "mocap/Two/pose", qos)
         graph = {"/mocap/Box/pose": 1, "/mocap/Two/pose": 2, "/chatter": 1}   # topic -> types
 
