@@ -101,6 +101,7 @@ class Recorder(Node):
         self._subscribed: set[str] = set()
         self._wanted = {self.resolve_topic_name(t) for t in self.config["topics"]}
         self._seen: dict[str, float] = {}    # topic -> when it was first seen without a publisher
+        self._unwritten: dict[str, str] = {}  # subscribed topic -> type, until its bag connection exists
         self._timer = self.create_timer(self.config["discovery_period"], self._discover)
         self._discover()
         self.get_logger().info(f"recording to {self.path} "
@@ -124,17 +125,31 @@ class Recorder(Node):
             best_effort = any(p.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT for p in pubs)
             qos = QoSProfile(depth=self.config["queue_depth"],
                              reliability=ReliabilityPolicy.BEST_EFFORT if best_effort else ReliabilityPolicy.RELIABLE)
-            # as ros2 bag record does: the publishers' offered QoS go into metadata.yaml (a player uses them)
-            self.writer.connection(topic, types[0], offered_qos_profiles=[bag_qos(p.qos_profile) for p in pubs])
             self._drain.subscribe(topic, types[0], cls, qos)
             self._subscribed.add(topic)
+            self._unwritten[topic] = types[0]
             self.get_logger().info(f"subscribed {topic} [{types[0]}]{' best effort' if best_effort else ''}")
+
+    def _connect(self, topic: str) -> None:
+        """Add ``topic``'s bag connection with the offered QoS of the publishers known now.
+
+        As ros2 bag record does, the publishers' offered QoS go into metadata.yaml (a player uses them).
+        The connection is made at the topic's first message, when its publisher is known even if it
+        appeared long after the topic's subscribers, or at close for a topic that got nothing."""
+        type_name = self._unwritten.pop(topic)
+        try:
+            profiles = [bag_qos(p.qos_profile) for p in self.get_publishers_info_by_topic(topic)]
+        except Exception:   # the context may be shut down at close: the connection without profiles
+            profiles = []
+        self.writer.connection(topic, type_name, offered_qos_profiles=profiles)
 
     def _on_messages(self, taken: list) -> None:
         """Write what one pass took (``[(topic, type name, [cdr...]), ...]``), stamped with the time of the pass."""
         stamp = self.get_clock().now().nanoseconds
         counts, write = self.counts, self.writer.write_raw_many
         for topic, type_name, datas in taken:
+            if topic in self._unwritten:
+                self._connect(topic)
             write(topic, type_name, datas, stamp)
             counts[topic] = counts.get(topic, 0) + len(datas)
 
@@ -146,6 +161,8 @@ class Recorder(Node):
             self._on_messages(self._drain.take_all())
         except Exception as exc:   # the middleware may be gone already: keep what was written
             print(f"[recorder] could not take the last messages: {exc}", flush=True)
+        for topic in list(self._unwritten):
+            self._connect(topic)
         self._drain.destroy()
         self.writer.close()
         total = sum(self.counts.values())

@@ -136,3 +136,51 @@ def test_recorder_keeps_every_message_of_a_burst_above_the_old_limit(ros_domain,
     for topic, got in stamps.items():
         assert got == every, f"{topic}: frames doubled or out of order"   # each frame once, in order
         assert received[topic] == sorted(received[topic]), topic            # receive stamps in order per topic
+
+
+@pytest.mark.ros
+@pytest.mark.integration
+def test_a_publisher_that_appears_long_after_the_subscribers_gives_its_qos_to_the_bag(ros_context, tmp_path):
+    """A topic the recorder sees through a subscriber only is subscribed after PUBLISHER_WAIT_S; the
+    publisher that comes later (a slow node at launch) still gives its offered QoS to metadata.yaml."""
+    import time
+
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import String
+
+    from euc_ros.nodes.recorder import PUBLISHER_WAIT_S
+
+    bag = tmp_path / "bag"
+    log = io.StringIO()
+    node = Node("late_pub_test", context=ros_context)
+    executor = SingleThreadedExecutor(context=ros_context)
+    executor.add_node(node)
+    node.create_subscription(String, "/late_topic", lambda m: None, 10)
+    recorder = NodeSpec("recorder", parameters={"output": str(bag), "topics": ["/late_topic"],
+                                                "discovery_period": 0.05}, required=False)
+    with Launcher([recorder], stream=log) as launcher:
+        deadline = time.monotonic() + 30
+        while "subscribed /late_topic" not in log.getvalue() and time.monotonic() < deadline:
+            executor.spin_once(timeout_sec=0.05)
+        assert "subscribed /late_topic" in log.getvalue(), log.getvalue()
+        time.sleep(PUBLISHER_WAIT_S)
+        pub = node.create_publisher(String, "/late_topic", 10)
+        deadline = time.monotonic() + 30
+        while pub.get_subscription_count() < 2 and time.monotonic() < deadline:   # ours and the recorder's
+            executor.spin_once(timeout_sec=0.05)
+        for k in range(5):
+            pub.publish(String(data=str(k)))
+            executor.spin_once(timeout_sec=0.05)
+        time.sleep(1.0)
+        os.killpg(launcher.procs["recorder"].pid, signal.SIGINT)
+        assert launcher.procs["recorder"].wait(timeout=15) == 0, log.getvalue()
+    executor.shutdown()
+    node.destroy_node()
+
+    assert check_bag(bag) == []
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    (entry,) = meta["topics_with_message_count"]
+    assert entry["message_count"] == 5
+    offered = entry["topic_metadata"]["offered_qos_profiles"]
+    assert offered and all(q["reliability"] == "reliable" for q in offered), offered
