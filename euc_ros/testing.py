@@ -8,8 +8,11 @@ multiplies it by ~5000 s^-2).
 """
 from __future__ import annotations
 
+import importlib.util
 import math
 import time
+from pathlib import Path
+from types import ModuleType
 from typing import Callable
 
 import numpy as np
@@ -43,6 +46,56 @@ def spin_until(node, predicate: Callable[[], bool], timeout_s: float, executor=N
         return bool(predicate())
     finally:
         ex.remove_node(node)
+
+
+def spin_executor_until(executor, predicate: Callable[[], bool], timeout_s: float, what: str = "condition") -> None:
+    """Spin ``executor`` until ``predicate`` holds; fail the test if it does not within ``timeout_s``.
+
+    Parameters
+    ----------
+    executor : rclpy.executors.Executor
+        The executor of the nodes under test, spun once per 5 ms at the most.
+    predicate : callable
+        Checked before every spin.
+    timeout_s : float
+        How long to spin [s].
+    what : str
+        What is waited for, named in the assertion's message.
+
+    Raises
+    ------
+    AssertionError
+        ``timed out waiting for <what>``.
+    """
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return
+        executor.spin_once(timeout_sec=0.005)
+    assert predicate(), f"timed out waiting for {what}"
+
+
+def load_module(path: str | Path, name: str) -> ModuleType:
+    """Load a Python file as a new module (one test file's helpers and fixtures used by another).
+
+    The tests run with ``--import-mode=importlib``, where a test file cannot import another; each call
+    executes the file again, as a module of its own named ``name`` (not entered in ``sys.modules``).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+    name : str
+        The module's ``__name__``.
+
+    Returns
+    -------
+    ModuleType
+    """
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
 def savgol_coefficients(window: int, polyorder: int, deriv: int, dt: float, pos: int | None = None) -> np.ndarray:

@@ -69,13 +69,11 @@ def live(ride, h_true: float):
         m = run.mocap
         est = RiderStateEstimator(ride.session, dt)
         rows = []
-        for k in range(m.n_frames):
-            for s in est.update(int(m.frame[k]), float(m.t[k]), m.position[:, k], m.quat[:, k], m.tracked[:, k],
-                                m.bodies):
-                out = torque.update(dataclasses.replace(s, t=s.t + t_offset))
-                if out is not None and np.isfinite(out.M_d1):
-                    rows.append((s.t, out.M_d1, out.M_d2))
-                    h_online = out.h_online_m if np.isfinite(out.h_online_m) else h_online
+        for _, s in est.update_series(m):
+            out = torque.update(dataclasses.replace(s, t=s.t + t_offset))
+            if out is not None and np.isfinite(out.M_d1):
+                rows.append((s.t, out.M_d1, out.M_d2))
+                h_online = out.h_online_m if np.isfinite(out.h_online_m) else h_online
         t_offset += float(m.t[-1]) + dt
         arr = np.asarray(rows, dtype=float).reshape(-1, 3)
         series.append((arr[:, 0], arr[:, 1], arr[:, 2]))

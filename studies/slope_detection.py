@@ -30,7 +30,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.online import monitoring as mon  # noqa: E402
 from euc_ros.core.online.alarm import rmse_threshold  # noqa: E402
-from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator  # noqa: E402
+from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator, series_torques  # noqa: E402
 from euc_ros.core.ridesim.floors import FloorProfile  # noqa: E402
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride  # noqa: E402
 
@@ -52,12 +52,8 @@ def live(ride, settings, rmse_window_s):
     states = RiderStateEstimator(ride.session, dt, **settings)
     torque = TorqueEstimator(EucParams.from_session(ride.session, ride.config.h), dt, rmse_window_s=rmse_window_s)
     rows = []
-    for i in range(m.n_frames):
-        for s in states.update(int(m.frame[i]), float(m.t[i]), m.position[:, i], m.quat[:, i], m.tracked[:, i],
-                               m.bodies):
-            out = torque.update(s)
-            if out is not None:
-                rows.append((float(m.t[i]), out.rmse_window_nm, torque._rmse.count, out.residual_nm))
+    for i, _, out in series_torques(m, states, torque):
+        rows.append((float(m.t[i]), out.rmse_window_nm, torque._rmse.count, out.residual_nm))
     return np.array(rows), int(round(rmse_window_s / dt))
 
 

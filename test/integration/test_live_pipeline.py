@@ -134,10 +134,8 @@ def test_live_torques_match_the_offline_identification(ros_context, gappy_ride, 
     index = {_stamp(f): k for k, f in enumerate(frames)}           # stamp -> row of the CSV
     core = RiderStateEstimator(session, 1 / session.rate_hz)
     expected_states = {}
-    for k in range(series.n_frames):
-        for s in core.update(int(series.frame[k]), float(series.t[k]), series.position[:, k], series.quat[:, k],
-                             series.tracked[:, k], series.bodies):
-            expected_states[int(np.flatnonzero(series.frame == s.frame)[0])] = s
+    for _, s in core.update_series(series):
+        expected_states[int(np.flatnonzero(series.frame == s.frame)[0])] = s
     states = recorded["/rider/state"]
     state_rows = [index[_stamp(m)] for m in states]                 # every state carries its frame's stamp
     assert sorted(state_rows) == sorted(expected_states) and len(states) == len(expected_states)

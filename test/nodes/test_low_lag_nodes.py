@@ -11,7 +11,6 @@ before the onset, a flag within 1 s after it.
 """
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,7 @@ from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.online.alarm import rmse_threshold  # noqa: E402
-from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator  # noqa: E402
+from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator, series_torques  # noqa: E402
 from euc_ros.core.online.monitoring import OK, WARN  # noqa: E402
 from euc_ros.core.ridesim.floors import FloorProfile  # noqa: E402
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride  # noqa: E402
@@ -31,6 +30,7 @@ from euc_ros.core.session import save_session  # noqa: E402
 from euc_ros.nodes.monitor import Monitor  # noqa: E402
 from euc_ros.nodes.rider_state import RiderStateNode  # noqa: E402
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode  # noqa: E402
+from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -39,16 +39,7 @@ RMSE_WINDOW_S = 0.5
 ALPHA = 1e-8          # as the core test (heavier-than-Gaussian tail of the level rides' sliding RMSE)
 
 
-def _load_helpers():
-    path = Path(__file__).with_name("test_rider_state.py")
-    spec = importlib.util.spec_from_file_location("rider_state_helpers", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-H = _load_helpers()
-pipes = H.pipes
+H = load_module(Path(__file__).with_name("test_rider_state.py"), "rider_state_helpers")
 
 
 def _calibrate(ride, estimator="kalman") -> float:
@@ -57,12 +48,8 @@ def _calibrate(ride, estimator="kalman") -> float:
     torque = TorqueEstimator(EucParams.from_session(ride.session, ride.config.h), dt, rmse_window_s=RMSE_WINDOW_S)
     m = ride.runs[0].mocap
     res = []
-    for i in range(m.n_frames):
-        for s in states.update(int(m.frame[i]), float(m.t[i]), m.position[:, i], m.quat[:, i], m.tracked[:, i],
-                               m.bodies):
-            out = torque.update(s)
-            if out is not None:
-                res.append(out.residual_nm)
+    for _, _, out in series_torques(m, states, torque):
+        res.append(out.residual_nm)
     return rmse_threshold(res, int(round(RMSE_WINDOW_S / dt)), ALPHA)
 
 

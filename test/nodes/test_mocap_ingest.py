@@ -10,7 +10,6 @@ float32 ulp, 6e-8: atol 1e-7; quaternions 1e-6).
 """
 from __future__ import annotations
 
-import importlib.util
 import time
 from pathlib import Path
 
@@ -32,18 +31,12 @@ from euc_ros.core.errors import ConfigError  # noqa: E402
 from euc_ros.core.mocap.series import MocapSeries  # noqa: E402
 from euc_ros.nodes.mocap_ingest import MocapIngest  # noqa: E402
 from euc_ros.ros import interfaces as itf  # noqa: E402
+from euc_ros.testing import load_module, spin_executor_until  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 MS = 1_000_000
 IO_TESTS = Path(__file__).resolve().parents[1] / "unit" / "io"
-
-
-def _load(name: str, file: str):
-    spec = importlib.util.spec_from_file_location(name, IO_TESTS / file)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
 
 
 def stamp_ns(stamp) -> int:
@@ -99,12 +92,7 @@ class Rig:
         self.ex.add_node(self.ingest)
 
     def spin_until(self, predicate, timeout_s=5.0, what="condition"):
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return
-            self.ex.spin_once(timeout_sec=0.005)
-        assert predicate(), f"timed out waiting for {what}"
+        spin_executor_until(self.ex, predicate, timeout_s, what)
 
     def settle(self, seconds=0.3):
         deadline = time.monotonic() + seconds
@@ -293,7 +281,7 @@ LATENCY_TICKS = 1_000_000            # 0.1 s at the encoder's 10 MHz server cloc
 
 @pytest.fixture(scope="module")
 def natnet_kit():
-    client_tests = _load("natnet_client_tests_for_ingest", "test_natnet_client.py")
+    client_tests = load_module(IO_TESTS / "test_natnet_client.py", "natnet_client_tests_for_ingest")
     return client_tests, client_tests.enc
 
 

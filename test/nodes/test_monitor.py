@@ -5,7 +5,6 @@ them what arrived over DDS and publish the five statuses on /diagnostics.
 """
 from __future__ import annotations
 
-import importlib.util
 import math
 import time
 from pathlib import Path
@@ -22,22 +21,12 @@ from euc_ros.core.online.monitoring import ERROR, OK, STALE, WARN  # noqa: E402
 from euc_ros.nodes.monitor import STATUS_NAMES, Monitor  # noqa: E402
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode  # noqa: E402
 from euc_ros.ros import interfaces as itf  # noqa: E402
+from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 
-def _load_helpers():
-    path = Path(__file__).with_name("test_rider_state.py")
-    spec = importlib.util.spec_from_file_location("rider_state_helpers", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-H = _load_helpers()
-ride = H.ride
-pipes = H.pipes
-
+H = load_module(Path(__file__).with_name("test_rider_state.py"), "rider_state_helpers")
 
 
 def monitor(ctx, **params):

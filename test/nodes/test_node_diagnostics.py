@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 from pathlib import Path
 
 import numpy as np
@@ -11,22 +10,13 @@ import pytest
 pytest.importorskip("rclpy")
 
 from euc_ros.ros.convert import WARN  # noqa: E402
+from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 
-def _load(name):
-    path = Path(__file__).with_name(name)
-    spec = importlib.util.spec_from_file_location(name[:-3] + "_diag_helpers", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-H = _load("test_rider_state.py")
-T = _load("test_torque_estimator.py")
-ride = H.ride
-pipes = H.pipes
+H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_diag_helpers")
+T = load_module(Path(__file__).with_name("test_torque_estimator.py"), "test_torque_estimator_diag_helpers")
 
 
 def _status(pipe, name, level=None):

@@ -6,7 +6,6 @@ and the second test uses that client (rclpy's AsyncParameterClient) against a no
 """
 from __future__ import annotations
 
-import importlib.util
 import subprocess
 import sys
 import time
@@ -21,22 +20,13 @@ import rclpy  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.nodes.monitor import Monitor  # noqa: E402
+from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 
-def _load(name):
-    path = Path(__file__).with_name(name)
-    spec = importlib.util.spec_from_file_location(name[:-3] + "_param_helpers", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-H = _load("test_rider_state.py")
-T = _load("test_torque_estimator.py")
-ride = H.ride
-pipes = H.pipes
+H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_param_helpers")
+T = load_module(Path(__file__).with_name("test_torque_estimator.py"), "test_torque_estimator_param_helpers")
 
 
 def test_a_live_threshold_is_used_at_the_next_report_and_others_are_refused_with_a_reason(ros_context):

@@ -33,7 +33,7 @@ from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
 from euc_ros.nodes.rider_state import RiderStateNode  # noqa: E402
 from euc_ros.ros import convert  # noqa: E402
 from euc_ros.ros import interfaces as itf  # noqa: E402
-from euc_ros.testing import savgol_roundoff  # noqa: E402
+from euc_ros.testing import savgol_roundoff, spin_executor_until  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -102,12 +102,7 @@ class Pipe:
         return sum(r.counts["states"] for r in self._riders()) + self.removed_states + self.fed_states
 
     def spin_until(self, predicate, timeout_s=10.0, what="condition"):
-        deadline = time.monotonic() + timeout_s
-        while time.monotonic() < deadline:
-            if predicate():
-                return
-            self.ex.spin_once(timeout_sec=0.005)
-        assert predicate(), f"timed out waiting for {what}"
+        spin_executor_until(self.ex, predicate, timeout_s, what)
 
     def settle(self, seconds):
         deadline = time.monotonic() + seconds
@@ -224,10 +219,8 @@ def core_states(series, session, frames=None, **kw):
     """The core estimator on the same frames, keyed by the capture stamp of each state's frame [ns]."""
     est = RiderStateEstimator(session, 1 / session.rate_hz, **{**TEST_FILTER, **kw})
     out = {}
-    for k in range(series.n_frames) if frames is None else frames:
-        for s in est.update(int(series.frame[k]), float(series.t[k]), series.position[:, k], series.quat[:, k],
-                            series.tracked[:, k], series.bodies):
-            out[T0_NS + int(round(s.t * 1e9))] = s
+    for _, s in est.update_series(series, frames):
+        out[T0_NS + int(round(s.t * 1e9))] = s
     return out
 
 

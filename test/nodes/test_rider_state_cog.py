@@ -3,7 +3,6 @@ added, flipped bodies counted in the diagnostics."""
 from __future__ import annotations
 
 import dataclasses
-import importlib.util
 import math
 from pathlib import Path
 
@@ -15,21 +14,12 @@ pytest.importorskip("rclpy")
 from scipy.spatial.transform import Rotation  # noqa: E402
 
 from euc_ros.core.online.estimators import RiderStateEstimator  # noqa: E402
+from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 
-def _load(name):
-    path = Path(__file__).with_name(name)
-    spec = importlib.util.spec_from_file_location(name[:-3] + "_helpers_cog", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-H = _load("test_rider_state.py")
-ride = H.ride
-pipes = H.pipes
+H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_helpers_cog")
 CALIBRATION_S = 1.0
 FLIP = ("TR", slice(200, 203))
 
@@ -52,10 +42,8 @@ def test_skeleton_states_equal_the_core_and_flips_are_counted(pipes, ros_context
                               skeleton_calibration_frames=int(round(CALIBRATION_S * session.rate_hz)),
                               **H.TEST_FILTER)
     want = {}
-    for k in range(series.n_frames):
-        for s in est.update(int(series.frame[k]), float(series.t[k]), series.position[:, k], series.quat[:, k],
-                            series.tracked[:, k], series.bodies):
-            want[H.T0_NS + int(round(s.t * 1e9))] = s
+    for _, s in est.update_series(series):
+        want[H.T0_NS + int(round(s.t * 1e9))] = s
     got = {H.stamp_ns(m.header.stamp): m for m in pipe.states}
     assert set(got) == set(want) and len(got) > 100
     for stamp, m in got.items():

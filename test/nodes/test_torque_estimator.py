@@ -9,7 +9,6 @@ RMSE against a direct mean differs by its running sum's round-off (~1e-13 relati
 """
 from __future__ import annotations
 
-import importlib.util
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -26,21 +25,12 @@ from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.online.estimators import TorqueEstimator  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode  # noqa: E402
+from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 
-def _load_helpers():
-    path = Path(__file__).with_name("test_rider_state.py")
-    spec = importlib.util.spec_from_file_location("rider_state_helpers", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
-H = _load_helpers()
-ride = H.ride          # the module fixture of the rider_state tests (4 s deceleration with losses)
-pipes = H.pipes
+H = load_module(Path(__file__).with_name("test_rider_state.py"), "rider_state_helpers")
 stamp_ns = H.stamp_ns
 
 

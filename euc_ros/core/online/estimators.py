@@ -20,7 +20,7 @@ A node only converts messages and calls these (functional core, imperative shell
 from __future__ import annotations
 
 from dataclasses import dataclass, field, fields, replace
-from typing import Callable, Sequence
+from typing import Callable, Iterable, Iterator, Sequence
 
 import numpy as np
 
@@ -205,6 +205,28 @@ class RiderStateEstimator:
             self.bridged_samples += int(bridged.sum())
             out += self._update_bridged(f, t_f, pos, q, trk, bodies)
         return out
+
+    def update_series(self, series, frames: Iterable[int] | None = None) -> Iterator[tuple[int, RiderStateSample]]:
+        """Feed the frames of a recording one at a time, as a live stream (:meth:`update` on each).
+
+        Parameters
+        ----------
+        series : MocapSeries
+            The recording (Z-up world).
+        frames : iterable of int, optional
+            Indices of the frames to feed, in order (default: all).
+
+        Yields
+        ------
+        k : int
+            Index of the newest frame fed.
+        state : RiderStateSample
+            A state that became available with it.
+        """
+        for k in range(series.n_frames) if frames is None else frames:
+            for state in self.update(int(series.frame[k]), float(series.t[k]), series.position[:, k],
+                                     series.quat[:, k], series.tracked[:, k], series.bodies):
+                yield k, state
 
     def _update_bridged(self, frame: int, t: float, position, quat, tracked, bodies) -> list[RiderStateSample]:
         if self._skeleton is None:
@@ -622,6 +644,31 @@ class TorqueEstimator:
                             residual_nm=d1 - d2, rmse_window_nm=rmse, window_s=self.window_s,
                             h_online_m=est.h_m, h_online_std_m=est.h_std_m, model=self.model_name,
                             h_online_status=self._h.status(self.dt, est))
+
+
+def series_torques(series, states: RiderStateEstimator,
+                   torque: TorqueEstimator) -> Iterator[tuple[int, RiderStateSample, TorqueSample]]:
+    """Feed a recording frame by frame through a state and a torque estimator, as the nodes chain them.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording (Z-up world).
+    states : RiderStateEstimator
+    torque : TorqueEstimator
+
+    Yields
+    ------
+    k : int
+        Index of the newest frame fed.
+    state : RiderStateSample
+    out : TorqueSample
+        The torque of ``state`` (states without one, ``None``, are passed over).
+    """
+    for k, state in states.update_series(series):
+        out = torque.update(state)
+        if out is not None:
+            yield k, state, out
 
 
 def extended_model_from_config(params: EucParams, effects: Sequence[str], assignments: Sequence[str],

@@ -47,10 +47,8 @@ def test_frame_by_frame_states_equal_the_offline_reconstruction(recording):
     off = reconstruct_states(s, SESSION)
     est = RiderStateEstimator(SESSION, 1 / 120)
     got = {}
-    for k in range(s.n_frames):
-        for out in est.update(int(s.frame[k]), float(s.t[k]), s.position[:, k], s.quat[:, k], s.tracked[:, k],
-                              s.bodies):
-            got[out.frame] = out
+    for _, out in est.update_series(s):
+        got[out.frame] = out
     assert est.lag_s == pytest.approx((off.window // 2) / 120)
     # Both paths apply the same Savitzky-Golay fit to the same samples, so they differ by round-off
     # only: each is within savgol_roundoff of the exact filter output. Scales: C is up to ~25 m from

@@ -21,7 +21,7 @@ import pytest
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.online import monitoring as mon
 from euc_ros.core.online.alarm import rmse_threshold
-from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
+from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator, series_torques
 from euc_ros.core.ridesim.floors import FloorProfile
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 
@@ -43,13 +43,9 @@ def _live(ride, rmse_window_s=RMSE_WINDOW_S):
     assert states.lag_s == pytest.approx(0.1)
     torque = TorqueEstimator(EucParams.from_session(ride.session, ride.config.h), dt, rmse_window_s=rmse_window_s)
     rows = []
-    for i in range(m.n_frames):
-        for s in states.update(int(m.frame[i]), float(m.t[i]), m.position[:, i], m.quat[:, i], m.tracked[:, i],
-                               m.bodies):
-            out = torque.update(s)
-            if out is not None:
-                rows.append((float(m.t[i]), s.frame, int(m.frame[i]), out.rmse_window_nm, torque._rmse.count,
-                             out.residual_nm))
+    for i, s, out in series_torques(m, states, torque):
+        rows.append((float(m.t[i]), s.frame, int(m.frame[i]), out.rmse_window_nm, torque._rmse.count,
+                     out.residual_nm))
     return np.array(rows), int(round(rmse_window_s / dt))
 
 
