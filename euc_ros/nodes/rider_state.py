@@ -24,25 +24,22 @@ Bad input never stops the node:
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import MocapFrame, RiderState
 from rclpy.node import Node
 
-from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.causal import LOW_LAG_S, STATE_ESTIMATORS
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.mocap.presence import BodyPresence
 from euc_ros.core.online.estimators import FrameSequencer, RiderStateEstimator
-from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.states.skeleton import COG_METHODS
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.intra import LocalFanout
-from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.params import ParamSpec, declare_params, required_session
 from euc_ros.ros.rate_gate import NodeRateGate
 from euc_ros.ros.runtime import drain, main_for
 
@@ -119,10 +116,7 @@ class RiderStateNode(Node):
     def __init__(self, **kwargs):
         super().__init__(self.NAME, **kwargs)
         self.config = cfg = declare_params(self, SPECS)
-        if not cfg["session_file"]:
-            raise ConfigError("parameter 'session_file' is required", key=f"{self.NAME}.ros__parameters.session_file")
-        self.session = load_session(cfg["session_file"])
-        self.hardware_id = f"session:{Path(cfg['session_file']).name}"   # the rider and EUC of this session
+        self.session, self.hardware_id = required_session(self.NAME, cfg)
         rate = cfg["rate_hz"] or self.session.rate_hz
         # the filters are built once the rate is measured (the frames meanwhile are held, not lost)
         self._build(rate)

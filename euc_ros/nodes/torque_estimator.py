@@ -16,21 +16,18 @@ restarted upstream) or a gap longer than the RMSE window resets them, so nothing
 from __future__ import annotations
 
 import time
-from pathlib import Path
 from types import SimpleNamespace
 
 from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import RiderState, TorqueEstimate
 from rclpy.node import Node
 
-from euc_ros.core.errors import ConfigError
 from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.online.estimators import TorqueEstimator, extended_model_from_config
-from euc_ros.core.session import load_session
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
-from euc_ros.ros.params import ParamSpec, declare_params
+from euc_ros.ros.params import ParamSpec, declare_params, required_session
 from euc_ros.ros.rate_gate import NodeRateGate
 from euc_ros.ros.runtime import drain, main_for
 
@@ -93,10 +90,7 @@ class TorqueEstimatorNode(Node):
         super().__init__(self.NAME, **kwargs)
         self.config = cfg = declare_params(self, SPECS)
         key = f"{self.NAME}.ros__parameters"
-        if not cfg["session_file"]:
-            raise ConfigError("parameter 'session_file' is required", key=f"{key}.session_file")
-        session = load_session(cfg["session_file"])
-        self.hardware_id = f"session:{Path(cfg['session_file']).name}"   # the rider and EUC of this session
+        session, self.hardware_id = required_session(self.NAME, cfg)
         params = EucParams.from_session(session, cfg["h"])
         model = extended_model_from_config(params, cfg["effects"], cfg["effect_parameters"],
                                            key=f"{key}.effect_parameters")

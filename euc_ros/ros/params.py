@@ -7,6 +7,7 @@ returns a plain dict. Invalid values raise :class:`ConfigError` naming the param
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, Sequence
 
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -14,6 +15,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.session import Session, load_session
 from euc_ros.core.yamlfile import load_yaml
 
 
@@ -116,6 +118,33 @@ def declare_params(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
         values[spec.name] = value
     watch_params(node, specs, values, getattr(node, "on_parameter", None))
     return values
+
+
+def required_session(node_name: str, config: dict[str, Any]) -> tuple[Session, str]:
+    """Load the session of a node's required ``session_file`` parameter.
+
+    Parameters
+    ----------
+    node_name : str
+        The node's name, for the key of the error.
+    config : dict
+        The node's parameters (:func:`declare_params`).
+
+    Returns
+    -------
+    session : Session
+    hardware_id : str
+        ``session:<file name>``: what the node's diagnostics concern (the rider and EUC of the session).
+
+    Raises
+    ------
+    ConfigError
+        ``session_file`` is empty (key ``<node_name>.ros__parameters.session_file``), or the file is not
+        a valid session.
+    """
+    if not config["session_file"]:
+        raise ConfigError("parameter 'session_file' is required", key=f"{node_name}.ros__parameters.session_file")
+    return load_session(config["session_file"]), f"session:{Path(config['session_file']).name}"
 
 
 def check_value(spec: ParamSpec, value: Any) -> Any:

@@ -31,6 +31,7 @@ from scipy.integrate._ivp import dop853_coefficients as _dop
 from euc_ros.core.ridesim import eom_generated as _eom
 from euc_ros.core.ridesim.effects import ROLLING_SIGN_SPEED
 from euc_ros.core.ridesim.external import AIR_DENSITY as EXTERNAL_AIR_DENSITY
+from euc_ros.core.ridesim.truth_model import solve3
 
 _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
@@ -327,18 +328,8 @@ def _arms(p, t):
     return h, h1 * thd, h2 * thd**2 + h1 * thdd, dJ, J1 * thd, P * thd**2 + K * thdd
 
 
-@_jit
-def _solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2):
-    """:func:`~euc_ros.core.ridesim.truth_model.solve3` (Cramer's rule, symmetric 3x3)."""
-    c00 = a11 * a22 - a12 * a12
-    c01 = a02 * a12 - a01 * a22
-    c02 = a01 * a12 - a02 * a11
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    c11 = a00 * a22 - a02 * a02
-    c12 = a01 * a02 - a00 * a12
-    c22 = a00 * a11 - a01 * a01
-    return ((c00 * r0 + c01 * r1 + c02 * r2) / det, (c01 * r0 + c11 * r1 + c12 * r2) / det,
-            (c02 * r0 + c12 * r1 + c22 * r2) / det)
+#: :func:`~euc_ros.core.ridesim.truth_model.solve3` compiled (Cramer's rule, symmetric 3x3).
+_solve3 = _jit(solve3)
 
 
 @_jit
@@ -498,6 +489,17 @@ def _initial_step(t0, y0, f0, t_bound, rtol, atol, p):
 
 
 @_jit
+def _stage(t, y, h, K, s, ys, p):
+    """Stage ``s`` of the step ``h`` from ``(t, y)``: its state into ``ys``, its slope into ``K[s]``."""
+    for i in range(y.size):
+        acc = 0.0
+        for r in range(s):
+            acc += K[r, i] * _A[s, r]
+        ys[i] = y[i] + acc * h
+    rhs(t + _C[s] * h, ys, K[s], p)
+
+
+@_jit
 def dop853(t0, t_bound, y0, rtol, atol, p):
     """Integrate from t0 to t_bound with dense output.
 
@@ -548,12 +550,7 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
             # Runge-Kutta stages
             K[0] = f
             for s in range(1, _N_STAGES):
-                for i in range(n):
-                    acc = 0.0
-                    for r in range(s):
-                        acc += K[r, i] * _A[s, r]
-                    ys[i] = y[i] + acc * h
-                rhs(t + _C[s] * h, ys, K[s], p)
+                _stage(t, y, h, K, s, ys, p)
             for i in range(n):
                 acc = 0.0
                 for r in range(_N_STAGES):
@@ -589,12 +586,7 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
                 rejected = True
         # dense output: three extra stages and the interpolant of the step
         for s in range(_N_STAGES + 1, _N_EXT):
-            for i in range(n):
-                acc = 0.0
-                for r in range(s):
-                    acc += K[r, i] * _A[s, r]
-                ys[i] = y[i] + acc * h
-            rhs(t + _C[s] * h, ys, K[s], p)
+            _stage(t, y, h, K, s, ys, p)
         nfev += _N_EXT - _N_STAGES - 1
         if steps == cap:
             cap *= 2

@@ -114,8 +114,8 @@ _PARAM_ORDER = tuple(f.name for f in fields(PlanarParams) if f.name != "g")
 
 
 @dataclass(frozen=True)
-class _Compiled:
-    """Lambdified pieces of the derived model (scalar ``math`` and vectorized ``numpy`` versions)."""
+class _Numeric:
+    """Numeric functions of one truth geometry: scalar (``_s``) and vectorized (``_v``) versions."""
 
     mass_s: Callable
     bias_s: Callable
@@ -125,6 +125,13 @@ class _Compiled:
     bias_v: Callable
     jac_g_v: Callable
     vel_g_v: Callable
+
+
+@dataclass(frozen=True)
+class _Compiled(_Numeric):
+    """Lambdified pieces of the derived model (scalar ``math`` and vectorized ``numpy`` versions) and its sympy
+    expressions."""
+
     # sympy expressions kept for the docs, for independent checks and for code generation
     M: sp.Matrix
     b: sp.Matrix
@@ -262,20 +269,6 @@ def solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2):
     return ((c00 * r0 + c01 * r1 + c02 * r2) / det,
             (c01 * r0 + c11 * r1 + c12 * r2) / det,
             (c02 * r0 + c12 * r1 + c22 * r2) / det)
-
-
-@dataclass(frozen=True)
-class _Numeric:
-    """Numeric functions of one truth geometry: scalar (``_s``) and vectorized (``_v``) versions."""
-
-    mass_s: Callable
-    bias_s: Callable
-    jac_g_s: Callable
-    vel_g_s: Callable
-    mass_v: Callable
-    bias_v: Callable
-    jac_g_v: Callable
-    vel_g_v: Callable
 
 
 def _on_floats(f: Callable) -> Callable:
