@@ -188,6 +188,18 @@ def _truth_states(run):
                             valid=True, frame=int(run.frame[i])) for i in range(run.t.size)]
 
 
+def _plain_and_extended(ride, effects, rmse_window_s):
+    """Outputs of a 3-DoF and of an extended-model TorqueEstimator (h 0.61 m) on the true states of the
+    ride's first run; and the extended estimator."""
+    from euc_ros.core.model.extended import ExtendedModel
+
+    p = EucParams.from_session(ride.session, 0.61)
+    plain = TorqueEstimator(p, 1 / 120, rmse_window_s=rmse_window_s)
+    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=rmse_window_s, model=ExtendedModel(p, effects, online=True))
+    states = _truth_states(ride.runs[0])
+    return [plain.update(x) for x in states], [ext.update(x) for x in states], ext
+
+
 @pytest.fixture(scope="module")
 def sloped_ride():
     from euc_ros.core.ridesim.effects import make_effects
@@ -199,16 +211,8 @@ def sloped_ride():
 
 def test_extended_model_explains_a_slope_on_the_simulators_true_states(sloped_ride):
     """The simulator derives the slope's gravity independently: with the effect, M_d1 = M_d2 = true M_d."""
-    from euc_ros.core.model.extended import ExtendedModel
-
     run = sloped_ride.runs[0]
-    p = EucParams.from_session(sloped_ride.session, 0.61)
-    plain = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0)
-    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0,
-                          model=ExtendedModel(p, {"ground_slope": {"alpha_deg": 3.0}}, online=True))
-    states = _truth_states(run)
-    a = [plain.update(x) for x in states]
-    b = [ext.update(x) for x in states]
+    a, b, _ = _plain_and_extended(sloped_ride, {"ground_slope": {"alpha_deg": 3.0}}, rmse_window_s=2.0)
     assert all(o is not None for o in a + b)
     assert b[-1].model == "3dof+ground_slope" and a[-1].model == "3dof"
     d1, d2 = np.array([o.M_d1 for o in b]), np.array([o.M_d2 for o in b])
@@ -220,20 +224,12 @@ def test_extended_model_explains_a_slope_on_the_simulators_true_states(sloped_ri
 
 
 def test_extended_model_with_a_yaw_rate_effect_uses_a_causal_yaw_rate():
-    from euc_ros.core.model.extended import ExtendedModel
     from euc_ros.core.ridesim.effects import make_effects
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 
     ride = simulate_ride(RideConfig(maneuver="figure_eight", runs=1, seed=2, duration_s=8.0,
                                     effects=make_effects(["tilt_gravity"], {"gain": 1.0})))
-    run = ride.runs[0]
-    p = EucParams.from_session(ride.session, 0.61)
-    plain = TorqueEstimator(p, 1 / 120, rmse_window_s=8.0)
-    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=8.0,
-                          model=ExtendedModel(p, {"tilt_gravity": {"gain": 1.0}}, online=True))
-    states = _truth_states(run)
-    a = [plain.update(x) for x in states]
-    b = [ext.update(x) for x in states]
+    a, b, ext = _plain_and_extended(ride, {"tilt_gravity": {"gain": 1.0}}, rmse_window_s=8.0)
     n_missing = sum(o is None for o in b)
     assert n_missing == ext._psi_rate.window - 1        # no yaw rate until its first window is full
     assert a[-1].rmse_window_nm > 0.02 and b[-1].rmse_window_nm < 0.15 * a[-1].rmse_window_nm

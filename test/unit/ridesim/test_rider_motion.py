@@ -69,10 +69,15 @@ def test_pedal_model_conserves_energy_without_inputs_and_damping():
     assert np.ptp(sol.y[3]) > 1e-3          # the pedals did bounce
 
 
+def _noiseless_acceleration(**rider_motion):
+    """A 3 s acceleration run without mocap noise, the rider moving as ``rider_motion`` says."""
+    return simulate_ride(RideConfig(maneuver="acceleration", runs=1, seed=11, duration_s=3.0,
+                                    noise=MocapNoise.none(), **rider_motion))
+
+
 @pytest.fixture(scope="module")
 def pedal_ride():
-    return simulate_ride(RideConfig(maneuver="acceleration", runs=1, seed=11, duration_s=3.0,
-                                    noise=MocapNoise.none(), pedals=PedalFlex(1.0e5, 0.3)))
+    return _noiseless_acceleration(pedals=PedalFlex(1.0e5, 0.3))
 
 
 def test_pedal_force_is_the_riders_load_along_the_axis(pedal_ride):
@@ -105,8 +110,7 @@ def test_pedals_refuse_forces_at_the_rider_cog():
 
 @pytest.fixture(scope="module")
 def arm_ride():
-    return simulate_ride(RideConfig(maneuver="acceleration", runs=1, seed=11, duration_s=3.0,
-                                    noise=MocapNoise.none(), arms=ArmSwing(15.0, 1.2)))
+    return _noiseless_acceleration(arms=ArmSwing(15.0, 1.2))
 
 
 def test_swinging_arms_keep_the_reconstructed_cog_on_the_truth(arm_ride):
