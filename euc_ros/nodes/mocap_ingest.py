@@ -133,8 +133,7 @@ class MocapIngest(Node):
                                                event_callbacks=itf.pub_events())
         self.tf_pub = self.create_publisher(TFMessage, itf.TF, itf.RELIABLE_QOS,
                                             event_callbacks=itf.pub_events()) if cfg["publish_tf"] else None
-        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
-                                              event_callbacks=itf.pub_events())
+        self.diag_pub = itf.diagnostics_publisher(self)
         self.pose_pubs: dict[str, object] = {}
         self.stats = TrackingStats(self.bodies, restart_frames=cfg["restart_frames"])
         self.published = self.received = self.errors = self.view_published = 0

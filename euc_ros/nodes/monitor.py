@@ -98,8 +98,7 @@ class Monitor(Node):
         self.last: dict[str, mon.Health] = {}
         self.received = {"frames": 0, "states": 0, "torques": 0}
         self.reports = 0
-        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
-                                              event_callbacks=itf.pub_events())
+        self.diag_pub = itf.diagnostics_publisher(self)
         # frames, states and torques are counted, not acted on one by one: taken in batches (one executor
         # wake-up per ~20 ms instead of one per message: 1080 messages/s at 360 Hz)
         self._inputs = SubscriptionDrain(self, self._on_batch, poll_s=0.02, max_poll_s=0.1)

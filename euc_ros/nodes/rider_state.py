@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import time
 
-from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import MocapFrame, RiderState
 from rclpy.node import Node
 
@@ -130,8 +129,7 @@ class RiderStateNode(Node):
         self._encoder = FlatEncoder(convert.checked_flat_fields(RiderState, convert.RIDER_STATE_FIELDS))
         self.state_pub = self.create_publisher(RiderState, itf.RIDER_STATE, itf.RELIABLE_QOS,
                                                event_callbacks=itf.pub_events())
-        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
-                                              event_callbacks=itf.pub_events())
+        self.diag_pub = itf.diagnostics_publisher(self)
         # raw: the frame is read with numpy (convert.raw_to_frame), not through ~15 message objects
         self._frame_sub = self.create_subscription(MocapFrame, itf.MOCAP_FRAME, self._on_frames, itf.RELIABLE_QOS,
                                                    raw=True, event_callbacks=itf.sub_events())

@@ -108,8 +108,7 @@ class TorqueEstimatorNode(Node):
         self._encoder = FlatEncoder(convert.checked_flat_fields(TorqueEstimate, convert.TORQUE_FIELDS))
         self.torque_pub = self.create_publisher(TorqueEstimate, itf.TORQUE, itf.RELIABLE_QOS,
                                                 event_callbacks=itf.pub_events())
-        self.diag_pub = self.create_publisher(DiagnosticArray, itf.DIAGNOSTICS, itf.DIAGNOSTICS_QOS,
-                                              event_callbacks=itf.pub_events())
+        self.diag_pub = itf.diagnostics_publisher(self)
         self._state_sub = self.create_subscription(RiderState, itf.RIDER_STATE, self._on_states, itf.RELIABLE_QOS,
                                                    event_callbacks=itf.sub_events())
         # rider_state names the bodies it misses; a torque that cannot be computed then says which

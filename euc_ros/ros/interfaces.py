@@ -79,3 +79,20 @@ def pub_events() -> PublisherEventCallbacks:
 def sub_events() -> SubscriptionEventCallbacks:
     """Subscription event callbacks without the default handlers (see above)."""
     return SubscriptionEventCallbacks(use_default_callbacks=False)
+
+
+def diagnostics_publisher(node):
+    """Create the node's publisher of :data:`DIAGNOSTICS` (:data:`DIAGNOSTICS_QOS`, :func:`pub_events`).
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+
+    Returns
+    -------
+    rclpy.publisher.Publisher
+        Of ``diagnostic_msgs/DiagnosticArray``.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    return node.create_publisher(DiagnosticArray, DIAGNOSTICS, DIAGNOSTICS_QOS, event_callbacks=pub_events())
