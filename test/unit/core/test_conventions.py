@@ -6,7 +6,6 @@ do not share the inference's assumptions about where the bodies are.
 """
 from __future__ import annotations
 
-import shutil
 from dataclasses import replace
 
 import numpy as np
@@ -23,18 +22,15 @@ from euc_ros.core.session import default_session, load_session, save_session
 
 
 @pytest.fixture(scope="module")
-def files(short_ride, tmp_path_factory):
+def files(short_ride, up_axis_csvs):
     """The simulated Y-up CSV, a Z-up export of the same frames, sessions with each world_up."""
     src, _ = short_ride
-    d = tmp_path_factory.mktemp("conv")
-    yup = d / "ride_yup.csv"
-    shutil.copy(src / "deceleration_01.csv", yup)
+    yup, zup = up_axis_csvs["y"], up_axis_csvs["z"]
     session = load_session(src / "session.yaml")
     assert session.world_up == "y"
-    zup = write_motive_csv(read_motive_csv(yup, world_up="y"), d / "ride_zup.csv", world_up="z")
     sessions = {}
     for up in ("y", "z"):
-        sessions[up] = d / f"session_{up}.yaml"
+        sessions[up] = yup.parent / f"session_{up}.yaml"
         save_session(replace(session, world_up=up), sessions[up])
     return {"yup": yup, "zup": zup, "session": sessions}
 

@@ -5,14 +5,13 @@ read as the live sources read them (converted with the configured ``world_up``).
 """
 from __future__ import annotations
 
-import shutil
 from dataclasses import replace
 
 import numpy as np
 import pytest
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
+from euc_ros.core.io.motive_csv import read_motive_csv
 from euc_ros.core.mocap.up_axis_watch import UpAxisWatch
 from euc_ros.core.session import load_session
 
@@ -20,13 +19,9 @@ CHECKS = (1.0, 2.0)
 
 
 @pytest.fixture(scope="module")
-def ride(short_ride, tmp_path_factory):
+def ride(short_ride, up_axis_csvs):
     src, _ = short_ride
-    d = tmp_path_factory.mktemp("watch")
-    yup = d / "ride_yup.csv"
-    shutil.copy(src / "deceleration_01.csv", yup)
-    zup = write_motive_csv(read_motive_csv(yup, world_up="y"), d / "ride_zup.csv", world_up="z")
-    return {"y": yup, "z": zup}, load_session(src / "session.yaml")
+    return up_axis_csvs, load_session(src / "session.yaml")
 
 
 def _feed(watch: UpAxisWatch, series, until_s: float | None = None) -> list[str]:
