@@ -55,6 +55,22 @@ def other_ros_context(ros_domain):
 
 
 @pytest.fixture(scope="session")
+def layout_topics() -> set[str]:
+    """Every topic the Foxglove layout (config/foxglove/euc_pipeline.json) names: 3D panel topics, plot paths,
+    diagnostics panels."""
+    import json
+
+    layout = json.loads((REPO / "config" / "foxglove" / "euc_pipeline.json").read_text(encoding="utf-8"))
+    topics = set()
+    for cfg in layout["configById"].values():
+        topics.update(cfg.get("topics", {}))
+        topics.update(p["value"].split(".")[0] for p in cfg.get("paths", []))
+        if "topicToRender" in cfg:
+            topics.add(cfg["topicToRender"])
+    return topics
+
+
+@pytest.fixture(scope="session")
 def shared_dir() -> Path:
     """The ../shared folder (tests using it are marked ``shared`` and skip where it is absent)."""
     return SHARED

@@ -41,7 +41,6 @@ pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]
 REPO = Path(__file__).resolve().parents[2]
 CONFIG = REPO / "config"
 TOOL = REPO / "tools" / "foxglove_live"
-LAYOUT = CONFIG / "foxglove" / "euc_pipeline.json"
 
 #: How long the client listens [s]; rates are measured over what it receives in that time.
 LISTEN_S = 8.0
@@ -164,18 +163,6 @@ def finite(*values) -> bool:
     return all(isinstance(v, (int, float)) and math.isfinite(v) for v in values)
 
 
-def layout_topics() -> set[str]:
-    """Every topic the Foxglove layout names (3D panel topics, plot paths, diagnostics panels)."""
-    layout = json.loads(LAYOUT.read_text(encoding="utf-8"))
-    topics = set()
-    for cfg in layout["configById"].values():
-        topics.update(cfg.get("topics", {}))
-        topics.update(p["value"].split(".")[0] for p in cfg.get("paths", []))
-        if "topicToRender" in cfg:
-            topics.add(cfg["topicToRender"])
-    return topics
-
-
 @pytest.fixture(scope="module")
 def ride_dir(tmp_path_factory) -> Path:
     """A simulated deceleration run of :data:`RIDE_S` (Motive CSV and session.yaml)."""
@@ -219,14 +206,14 @@ def test_the_client_connects_with_foxglove_sdk_subprotocol(session_report):
     assert first.startswith("view: Foxglove WebSocket server at ws://127.0.0.1:") and "this machine only" in first
 
 
-def test_every_expected_channel_is_advertised_as_ros2msg_cdr(session_report):
+def test_every_expected_channel_is_advertised_as_ros2msg_cdr(session_report, layout_topics):
     out, _, _ = session_report
     topics = out["topics"]
     assert set(TYPES) <= set(topics), sorted(set(TYPES) - set(topics))
     for topic, type_name in TYPES.items():
         ch = topics[topic]
         assert (ch["encoding"], ch["schemaEncoding"], ch["schemaName"]) == ("cdr", "ros2msg", type_name), ch
-    assert layout_topics() <= set(topics), sorted(layout_topics() - set(topics))
+    assert layout_topics <= set(topics), sorted(layout_topics - set(topics))
 
 
 def test_every_message_decodes(session_report):

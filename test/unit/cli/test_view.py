@@ -2,7 +2,6 @@
 topics and schemas it serves (the project's Foxglove layout names only topics it serves)."""
 from __future__ import annotations
 
-import json
 import socket
 from pathlib import Path
 
@@ -22,7 +21,6 @@ from euc_ros.ros.foxglove_bridge import (
 )
 
 REPO = Path(__file__).resolve().parents[3]
-LAYOUT = REPO / "config" / "foxglove" / "euc_pipeline.json"
 
 
 def test_defaults_are_this_machine_and_foxgloves_port():
@@ -92,14 +90,8 @@ def test_viewed_topics():
     assert not is_viewed("/mocap/a/b/pose") and not is_viewed("/rosout") and not is_viewed("mocap/H/pose")
 
 
-def test_the_layout_names_only_topics_the_viewer_serves():
-    layout = json.loads(LAYOUT.read_text(encoding="utf-8"))
-    named = set()
-    for cfg in layout["configById"].values():
-        named.update(cfg.get("topics", {}))
-        named.update(p["value"].split(".")[0] for p in cfg.get("paths", []))
-        if "topicToRender" in cfg:
-            named.add(cfg["topicToRender"])
+def test_the_layout_names_only_topics_the_viewer_serves(layout_topics):
+    named = layout_topics
     assert named and all(is_viewed(t) for t in named), sorted(t for t in named if not is_viewed(t))
 
 
