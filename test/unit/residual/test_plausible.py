@@ -16,6 +16,7 @@ from pathlib import Path
 
 import pytest
 
+from euc_ros.cli.residual import verdict_lines
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.model.effects import (
     AIR_DENSITY,
@@ -72,6 +73,9 @@ def test_quadratic_drag_at_the_contact_is_not_named_aero_drag(contact_drag_ride)
     assert refused and refused[0]["parameter"] == "cda_m2"
     assert refused[0]["value"] > AeroDrag.params[0].plausible[1]
     assert any(w.startswith("refused aero_drag: cda_m2=") for w in out["analysis_warnings"])
+    lines = verdict_lines(out)
+    assert len(lines) == len(out["refused"]) + len(out["ties"])
+    assert [ln for ln in lines if ln.startswith("refused aero_drag: cda_m2=")], lines
     # the residual sees a horizontal force at height z above the contact through w = [R, 1, 1]: R F at the
     # contact, (R - l0 + h) F at the rider's CoG (upright rider); the drag area that gives the contact's
     # moment is then 2 c R / (rho (R - l0 + h)); 10 %: the rider's own pitching speed in |v_G| v_G
@@ -107,6 +111,8 @@ def test_a_rider_inertia_error_ties_with_a_mass_error_with_the_h_of_each():
     assert lo == pytest.approx(min(tried.values())) and hi == pytest.approx(max(tried.values()))
     assert abs(tried["rider_inertia_error"] - H_TRUE) < 0.010 and hi - lo > 0.03
     assert set(out["ambiguous_with"]) == {"rider_mass_error", "rider_inertia_error"} - {out["effect"]}
+    (line,) = verdict_lines(out)
+    assert line.startswith("tie: ") and "rider_mass_error (h " in line and "rider_inertia_error (h " in line
 
 
 def test_no_effect_names_nothing_refuses_nothing_and_ties_nothing():
