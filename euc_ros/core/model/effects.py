@@ -30,6 +30,10 @@ time_varying_h              amplitude_m, period_s   h(t) = h + a sin(2 pi t / T 
 wheel_body_friction         c_wb [N m s/rad]        dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]   (undetectable)
 ==========================  ======================  ==========================================================
 
+Every reported parameter also has a plausible range for riders on lab floors (:attr:`ParamInfo.plausible`,
+sources in :data:`PLAUSIBLE_SOURCES`, table in ``docs/effects.md``), which the residual analysis
+requires of a name; :func:`with_plausible` replaces ranges.
+
 Geometry (EUC paper, Appendix A): C = (x, R), A = C + l0 (-sin gamma, -cos gamma),
 G = A + h (sin phi, cos phi), so ``J_G = [[1, -l0 cos gamma, h cos phi], [0, l0 sin gamma, -h sin phi]]``.
 """

@@ -11,7 +11,9 @@
 4. :func:`select_named`: fit each detectable candidate's parameters jointly with h on training data
    and evaluate on held-out data (other runs, or other segments of a single run); select by held-out
    error with a one-sided paired test over blocks (family-wise over the candidates: max-T) and a
-   minimum relative gain; repeat greedily until nothing significant remains;
+   minimum relative gain; repeat greedily until nothing significant remains. A fit outside its parameter's
+   plausible range is refused as a name; candidates the data cannot tell from the selected one (held out,
+   or confounded in shape) are its ties;
 5. :func:`radius_step`: a rolling radius measured on a flat floor is a wheel_radius_error by geometry;
 6. :func:`discovery_alternative` and :func:`discovery_step`: sparse basis forces for what the named
    effects leave, against and after them;
