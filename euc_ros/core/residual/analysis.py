@@ -52,6 +52,7 @@ from euc_ros.core.residual.selection import (
     HeldOut,
     Model,
     admissibility,
+    common_samples,
     confounding,
     detectability,
     fit_base_h,
@@ -542,23 +543,26 @@ def discovery_alternative(setup: Setup, stage: Stage, rules: Rules, journal: Jou
     root_ho = held_out(root, setup.recs, setup.h0, setup.folds, start=root_fit.x)
     alt = discover_terms(root, root_fit.x, setup.recs, setup.folds, setup.h0, root_ho, setup.h_geo)
     sel = alt["info"].pop("selection_heldout", None)
-    if sel is None or sel.residual.shape != stage.heldout.residual.shape:
+    pair = None if sel is None else common_samples(stage.heldout, sel)
+    if pair is None or not pair[0].residual.size:
         return Alternative(stage, {})
-    p_alt = paired_block_test(stage.heldout, sel)
+    # on the samples both models have (a named time offset drops some at the runs' ends)
+    named_ho, sel = pair
+    p_alt = paired_block_test(named_ho, sel)
     record = {"rmse_after_nm": sel.rmse, "p_value_against_named": p_alt,
               "fitted_rmse_after_nm": alt["heldout"].rmse if alt.get("heldout") is not None else None,
               "terms": ([r["formula"] for r in alt["model"].effects[-1].describe(
                   alt["x"][-alt["model"].effects[-1].n_params:])] if alt.get("model") is not None else []),
               "linearised_at_h_m": alt["info"].get("linearised_at_h_m"),
               "linearisations_tried_h_m": alt["info"].get("linearisations_tried_h_m")}
-    name, rmse = stage.model.name, stage.heldout.rmse
-    if p_alt < rules.alpha and rules.cuts(sel, stage.heldout):
+    name, rmse = stage.model.name, named_ho.rmse
+    if p_alt < rules.alpha and rules.cuts(sel, named_ho):
         journal.warnings.append(f"named {name} not reported: a discovered combination explains "
                                 f"significantly more (held-out {rmse:.3f} -> {sel.rmse:.3f} N m, p = {p_alt:.2g})")
         journal.steps.append({"model": name, "rmse_nm": rmse, "selected": None, "dropped_for_discovery": name,
                               "p_value": p_alt})
         return Alternative(Stage(root, root_ho, root_fit.x), record)
-    if alt.get("model") is not None and paired_block_test(sel, stage.heldout) >= AMBIGUITY_ALPHA:
+    if alt.get("model") is not None and paired_block_test(sel, named_ho) >= AMBIGUITY_ALPHA:
         # statistically tied: the named effect is kept (the physical hypothesis of the library) and the
         # discovered alternative is listed with the h it implies
         terms = record["terms"]
@@ -589,9 +593,9 @@ def named_equal_to_discovery(stage: Stage, last: LastStep | None, sel_ho: HeldOu
         return None
     equal = []
     for t in last.trials:
-        if t.usable and t.p_value < rules.alpha and rules.cuts(t.heldout, stage.heldout) \
-                and t.heldout.residual.shape == sel_ho.residual.shape:
-            p_better = paired_block_test(t.heldout, sel_ho)
+        pair = common_samples(t.heldout, sel_ho)
+        if t.usable and t.p_value < rules.alpha and rules.cuts(t.heldout, stage.heldout) and pair is not None:
+            p_better = paired_block_test(*pair)
             if p_better >= AMBIGUITY_ALPHA:
                 equal.append((t, p_better))
     if not equal:

@@ -291,7 +291,8 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
     lo, hi = model.bounds()
     sc = model.scales()
     offsets = block_offsets(recs)
-    res, blocks, params = [], [], []
+    starts = np.concatenate([[0], np.cumsum([r.ctx.t.shape[0] for r in recs])])
+    res, blocks, params, index = [], [], [], []
     for fold in folds:
         rows = [np.asarray(tr, bool) & m for tr, m in zip(fold.train, m_all)]
         A = np.concatenate([Ji[rw] for Ji, rw in zip(J, rows)]) * sc
@@ -309,8 +310,10 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
             keep = np.asarray(te, bool) & mask
             res.append(rr[keep])
             blocks.append(r.block[keep] + offsets[i])
+            index.append(np.flatnonzero(keep) + starts[i])
     return HeldOut(model, np.concatenate(res) if res else np.zeros(0),
-                   np.concatenate(blocks) if blocks else np.zeros(0, int), params)
+                   np.concatenate(blocks) if blocks else np.zeros(0, int), params,
+                   np.concatenate(index) if index else np.zeros(0, int))
 
 
 def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None:
@@ -451,11 +454,31 @@ class HeldOut:
     residual: np.ndarray
     block: np.ndarray
     params: list[np.ndarray]
+    #: Sample of each residual over the recordings in order (None: unknown).
+    index: np.ndarray | None = None
+
+    def restricted(self, keep: np.ndarray) -> "HeldOut":
+        """The residuals at the positions ``keep``."""
+        return HeldOut(self.model, self.residual[keep], self.block[keep], self.params,
+                       None if self.index is None else self.index[keep])
 
     @property
     def rmse(self) -> float:
         """Held-out RMSE [N m]."""
         return float(np.sqrt(np.mean(self.residual ** 2))) if self.residual.size else float("nan")
+
+
+def common_samples(a: HeldOut, b: HeldOut) -> tuple[HeldOut, HeldOut] | None:
+    """Two held-out residuals on the samples both have (a time offset drops samples at the runs' ends).
+
+    Returns ``(a, b)`` restricted to their common samples in the same order, or None when they cannot be
+    paired (different lengths and no sample index).
+    """
+    if a.index is not None and b.index is not None and not (
+            a.index.shape == b.index.shape and np.array_equal(a.index, b.index)):
+        _, ia, ib = np.intersect1d(a.index, b.index, assume_unique=True, return_indices=True)
+        return a.restricted(ia), b.restricted(ib)
+    return (a, b) if a.residual.shape == b.residual.shape else None
 
 
 def block_offsets(recs: Sequence[Recording]) -> list[int]:
