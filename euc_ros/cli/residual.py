@@ -30,7 +30,7 @@ from euc_ros.cli.loading import (
 from euc_ros.cli.outputs import Output, check_outputs, write_output
 from euc_ros.cli.plots import add_figure_arguments, configure_from_args, pyplot, save_figure
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.model.effects import LIBRARY, make_candidates
+from euc_ros.core.model.effects import LIBRARY, make_candidates, parse_plausible
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.session import load_session
 
@@ -73,6 +73,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tolerance", action="append", default=[], metavar="KEY=VALUE",
                         help="tolerance of a nominal session value, e.g. rider.mass=2 or euc.body_inertia=20%%: adds "
                              "the h budget for these tolerances to the base model's uncertainty (repeatable)")
+    parser.add_argument("--plausible", action="append", default=[], metavar="EFFECT.PARAM=LOW:HIGH",
+                        help="plausible range of a library parameter instead of the library's (docs/effects.md), "
+                             "e.g. aero_drag.cda_m2=0.2:1.4; a fit outside it is not named (repeatable)")
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
@@ -80,7 +83,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
                  min_gain: float | None = None, max_effects: int = 3, use_geometry: bool = True,
                  discover: bool = True, window_s: float | None = None, polyorder: int | None = None,
                  cog_method: str = "segments", phi_definition: str = "hinge", tolerances: dict | None = None,
-                 progress: bool = False):
+                 plausible: dict | None = None, progress: bool = False):
     """The analysis ``euc-ros residual`` runs: ``(result, JSON document, states, params)``.
 
     The document is the command's ``--json`` output, key for key; :func:`euc_ros.residual` returns it too.
@@ -106,7 +109,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     if not 0 <= min_gain < 1:
         raise ConfigError(f"--min-gain must be in [0, 1), got {min_gain}", key="--min-gain")
     session = load_session(session_path)
-    cands = make_candidates(candidates)
+    cands = make_candidates(candidates, plausible)
     states = load_states(session, recordings, window_s=window_s, polyorder=polyorder, phi_definition=phi_definition,
                          progress=progress, keep_series=True, cog_method=cog_method)
     params = EucParams.from_session(session)
@@ -137,6 +140,8 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
                         "candidates": [c.name for c in cands], "cog_method": cog_method}
     if phi_definition != "hinge":
         data["settings"]["phi_definition"] = phi_definition
+    if plausible:
+        data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
     data["cog"] = cog_faults(states)
     return result, data, states, params
 
@@ -154,7 +159,7 @@ def main(args: argparse.Namespace) -> int:
         max_effects=args.max_effects, use_geometry=not args.no_geometry, discover=not args.no_discovery,
         window_s=args.window_s, polyorder=args.polyorder, cog_method=args.cog_method,
         phi_definition=args.phi_definition, tolerances=parse_tolerances(args.tolerance) if args.tolerance else None,
-        progress=not args.no_progress)
+        plausible=parse_plausible(args.plausible), progress=not args.no_progress)
     write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     print(format_summary(data))
     if not data["identifiable"]:
@@ -180,10 +185,12 @@ def format_summary(data: dict) -> str:
         lines.append("effect: none (the residual is at its noise floor; no candidate beats chance)")
     else:
         params = ", ".join(f"{k} = {v:.4g}" for k, v in data["effect_parameters"].items())
-        lines.append(f"effect: {data['effect']} ({params}); h = {data['h_after_m']:.3f} m; held-out RMSE "
+        tie = " (one of a tie)" if data.get("effect_is_tie") else ""
+        lines.append(f"effect{tie}: {data['effect']} ({params}); h = {data['h_after_m']:.3f} m; held-out RMSE "
                      f"{data['rmse_before_nm']:.3f} -> {data['rmse_after_nm']:.3f} N m")
         if data.get("ambiguous_with"):
             lines.append(f"  not distinguishable on this data from: {', '.join(data['ambiguous_with'])}")
+    lines += verdict_lines(data)
     lo, hi = data.get("h_range_m") or (None, None)
     if lo is not None and hi - lo > 0.001:
         lines.append(f"  h range over the models the data cannot tell apart: [{lo:.3f}, {hi:.3f}] m ("
@@ -215,6 +222,14 @@ def format_summary(data: dict) -> str:
         params = ", ".join(f"{k}={v:.4g}" for k, v in (c.get("effect_parameters") or {}).items())
         lines.append(f"{c['effect']:22s} {rmse:>14s} {p:>9s} {pa:>9s}  {params}")
     return "\n".join(lines)
+
+
+def verdict_lines(data: dict) -> list[str]:
+    """One line per tie (the names with the h each implies) and per refused name."""
+    lines = [f"tie: {' | '.join(f'{e} (h {h:.3f} m)' for e, h in zip(t['effects'], t['h_m']))}: the data cannot "
+             f"tell them apart" for t in data.get("ties", [])]
+    return lines + [f"{r['text']} (its fit would leave {r['rmse_after_nm']:.3f} N m held out)"
+                    for r in data.get("refused", [])]
 
 
 def paper_paragraph(data: dict) -> str:
@@ -256,7 +271,8 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
         out.append(f"**{data['effect']}** ({params}).")
         if data.get("ambiguous_with"):
             out.append(f"The held-out data cannot tell it apart from: {', '.join(data['ambiguous_with'])} "
-                       "(the choice among them is the one needing the most typical parameter values).")
+                       "(listed first: the lowest held-out RMSE; the result names none of them alone).")
+    out += [f"- {line}" for line in verdict_lines(data)]
     lo, hi = data.get("h_range_m") or (None, None)
     if lo is not None and hi - lo > 0.001:
         out.append(f"h range over the models the data cannot tell apart: **[{lo:.3f}, {hi:.3f}] m** ("

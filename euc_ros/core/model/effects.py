@@ -30,6 +30,10 @@ time_varying_h              amplitude_m, period_s   h(t) = h + a sin(2 pi t / T 
 wheel_body_friction         c_wb [N m s/rad]        dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]   (undetectable)
 ==========================  ======================  ==========================================================
 
+Every reported parameter also has a plausible range for riders on lab floors (:attr:`ParamInfo.plausible`,
+sources in :data:`PLAUSIBLE_SOURCES`, table in ``docs/effects.md``), which the residual analysis
+requires of a name; :func:`with_plausible` replaces ranges.
+
 Geometry (EUC paper, Appendix A): C = (x, R), A = C + l0 (-sin gamma, -cos gamma),
 G = A + h (sin phi, cos phi), so ``J_G = [[1, -l0 cos gamma, h cos phi], [0, l0 sin gamma, -h sin phi]]``.
 """
@@ -52,7 +56,7 @@ ROLLING_SIGN_SPEED = 0.05
 
 @dataclass(frozen=True)
 class ParamInfo:
-    """One fitted parameter: reported name, unit, bounds, start value and typical magnitude.
+    """One fitted parameter: reported name, unit, bounds, start value, typical magnitude, plausible range.
 
     ``low``/``high`` are the physical range: resistances, drag areas and the tilt coupling are not
     negative (a negative drag area is a force that pushes the rider, not drag), a mass or an inertia
@@ -62,6 +66,11 @@ class ParamInfo:
     is the prior scale of the tie-break between candidates the data cannot tell apart (a Motive system
     stamps all rigid bodies of a frame together, so a rider/EUC time offset is typically ~0; a tyre's
     rolling radius is known to ~1 cm; a rider's mass to ~5 kg; ...).
+
+    ``plausible`` is the range the parameter takes for riders on lab floors (:data:`PLAUSIBLE_SOURCES`
+    gives the reference of each, ``docs/effects.md`` the table), narrower than the fitting bounds: a fit
+    outside it is not named as the effect (the residual analysis refuses the name). None: no range
+    beyond the bounds.
     """
 
     name: str
@@ -71,7 +80,48 @@ class ParamInfo:
     start: float = 0.0
     scale: float = 1.0
     reported: bool = True
+    plausible: tuple[float, float] | None = None
 
+
+#: Where each plausible range of the library comes from, by ``effect.parameter`` (docs/effects.md).
+PLAUSIBLE_SOURCES: dict[str, str] = {
+    "rolling_resistance.c_rr": (
+        "pneumatic tyres on hard smooth floors 0.002-0.01, several times more on carpet and gym mats "
+        "(D. G. Wilson, Bicycling Science, 3rd ed., MIT Press 2004, ch. 5); 0.05 covers a soft EUC tyre on a mat"),
+    "viscous_friction.c_v": (
+        "the largest plausible resistance at riding speed, over that speed: rolling resistance at 0.05 of the "
+        "weight (~45 N for 90 kg) plus air drag at 1 m^2 and 3 m/s (~5 N), at a typical 1.7 m/s: 30 N s/m"),
+    "aero_drag.cda_m2": (
+        "drag areas of cyclists 0.2-0.5 m^2 from racing to upright (P. Debraux et al., Aerodynamic drag in "
+        "cycling: methods of assessment, Sports Biomechanics 10(3):197-218, 2011); a standing adult about "
+        "0.8-0.9 m^2 (S. F. Hoerner, Fluid-Dynamic Drag, 1965, ch. 3): 0.2-1.0 m^2 for an EUC rider"),
+    "ground_slope.alpha_deg": (
+        "lab floors are level to well under a degree; a mocap ground plane set on a ramp at most the steepest "
+        "accessible ramp, 1:12 = 4.8 deg (2010 ADA Standards for Accessible Design, 405.2): +-5 deg"),
+    "wheel_radius_error.delta_r_m": (
+        "tyre deflection under a rider 5-15 mm; a wrong nominal size (14/16/18 in tyres differ by 25 mm): "
+        "+-30 mm"),
+    "mocap_time_offset.dt_ms": (
+        "one Motive system stamps all rigid bodies of a frame together (0 ms); separately synchronised "
+        "systems or a resampled export: a few frames at 60-120 Hz, +-50 ms"),
+    "rider_mass_error.delta_m_kg": (
+        "a weighed rider is known to ~1 kg; a mass guessed from build is off by up to two standard deviations "
+        "of adult body mass (~15 kg each, e.g. NCD-RisC body-mass surveys), a backpack adds up to ~10 kg: "
+        "-30 to +40 kg"),
+    "rider_inertia_error.delta_j_kgm2": (
+        "a standing adult's pitch inertia about the CoG is 10-17 kg m^2 (segment tables: P. de Leva, J. "
+        "Biomech. 29(9):1223-1230, 1996); tables differ by 20-30 %, arms held out add ~3 kg m^2, a backpack "
+        "~1-2 kg m^2: -10 to +14 kg m^2"),
+    "tilt_gravity.gain": (
+        "1 is the coupling of a rider tilted with the EUC; a rider leaning further into the turn than the EUC "
+        "(up to about twice its tilt): 0-2.5"),
+    "time_varying_h.amplitude_m": (
+        "the CoG of a rider flexing the knees moves by up to ~0.2 m (a squat from standing moves it by ~0.3 m, "
+        "not held while riding): 0-0.2 m"),
+    "time_varying_h.period_s": "any period the fit allows (1-60 s): the amplitude is what is implausible",
+    "wheel_body_friction.c_wb": (
+        "hub-motor bearing and seal friction: well under 1 N m s/rad; 3 N m s/rad with a dragging brake"),
+}
 
 @dataclass
 class ModelContext:
@@ -144,6 +194,32 @@ class Candidate:
         return {q.name: float(v) for q, v in zip(self.params, theta) if q.reported}
 
     @property
+    def checked(self) -> tuple[ParamInfo, ...]:
+        """The parameters whose plausible range is checked, by their reported names (keys of :meth:`report`)."""
+        return tuple(q for q in self.params if q.reported)
+
+    def plausible_range(self, param: str) -> tuple[float, float] | None:
+        """Plausible range of a reported parameter: the override of :func:`with_plausible`, else its ParamInfo's."""
+        over = getattr(self, "plausible_overrides", {})
+        if param in over:
+            return over[param]
+        return next((q.plausible for q in self.checked if q.name == param), None)
+
+    def implausible(self, theta: np.ndarray) -> list[dict]:
+        """The reported parameters of ``theta`` outside their plausible range (empty: plausible).
+
+        Each record: ``effect``, ``parameter``, ``value``, ``unit``, ``plausible`` ([low, high]).
+        """
+        values = self.report(theta)
+        out = []
+        for q in self.checked:
+            rng, v = self.plausible_range(q.name), values.get(q.name)
+            if rng is not None and v is not None and not rng[0] <= v <= rng[1]:
+                out.append({"effect": self.name, "parameter": q.name, "value": float(v), "unit": q.unit,
+                            "plausible": [float(rng[0]), float(rng[1])]})
+        return out
+
+    @property
     def n_params(self) -> int:
         """Number of fitted parameters."""
         return len(self.params)
@@ -153,7 +229,7 @@ class RollingResistance(Candidate):
     """Coulomb-like rolling resistance at the contact: dQ = [-c_rr N tanh(x_dot / v0), 0, 0]."""
 
     name = "rolling_resistance"
-    params = (ParamInfo("c_rr", "-", 0.0, 0.1, 0.0, 0.01),)
+    params = (ParamInfo("c_rr", "-", 0.0, 0.1, 0.0, 0.01, plausible=(0.001, 0.05)),)
     formula = "dQ = [-c_rr (m+m0+mw) g tanh(x_dot/0.05), 0, 0]"
 
     def force(self, ctx, theta):
@@ -166,7 +242,7 @@ class ViscousFriction(Candidate):
     """Viscous friction at the contact: dQ = [-c_v x_dot, 0, 0]."""
 
     name = "viscous_friction"
-    params = (ParamInfo("c_v", "N s/m", 0.0, 200.0, 0.0, 10.0),)
+    params = (ParamInfo("c_v", "N s/m", 0.0, 200.0, 0.0, 10.0, plausible=(0.0, 30.0)),)
     formula = "dQ = [-c_v x_dot, 0, 0]"
 
     def force(self, ctx, theta):
@@ -177,7 +253,7 @@ class AeroDrag(Candidate):
     """Aerodynamic drag on the rider at G: dQ = J_G^T F with F = -rho/2 cda |v_G| v_G."""
 
     name = "aero_drag"
-    params = (ParamInfo("cda_m2", "m^2", 0.0, 3.0, 0.0, 0.5),)
+    params = (ParamInfo("cda_m2", "m^2", 0.0, 3.0, 0.0, 0.5, plausible=(0.2, 1.0)),)
     formula = "dQ = J_G^T F, F = -0.5 rho cda |v_G| v_G"
 
     def force(self, ctx, theta):
@@ -194,7 +270,7 @@ class GroundSlope(Candidate):
     """Ground slope alpha along world +x: gravity tilted in the plane of a run with heading psi."""
 
     name = "ground_slope"
-    params = (ParamInfo("alpha_deg", "deg", -20.0, 20.0, 0.0, 2.0),)
+    params = (ParamInfo("alpha_deg", "deg", -20.0, 20.0, 0.0, 2.0, plausible=(-5.0, 5.0)),)
     formula = "g = (-g sin(a) cos(psi), -g cos(a)); dQ = Q_g(tilted) - Q_g(vertical)"
 
     def force(self, ctx, theta):
@@ -215,7 +291,7 @@ class WheelRadiusError(Candidate):
     """Rolling radius different from nominal: R -> R + delta."""
 
     name = "wheel_radius_error"
-    params = (ParamInfo("delta_r_m", "m", -0.08, 0.08, 0.0, 0.01),)
+    params = (ParamInfo("delta_r_m", "m", -0.08, 0.08, 0.0, 0.01, plausible=(-0.03, 0.03)),)
     formula = "R -> R + delta_r"
 
     def modify(self, ctx, theta):
@@ -226,7 +302,7 @@ class RiderMassError(Candidate):
     """Rider mass different from nominal: m -> m + delta."""
 
     name = "rider_mass_error"
-    params = (ParamInfo("delta_m_kg", "kg", -45.0, 80.0, 0.0, 5.0),)
+    params = (ParamInfo("delta_m_kg", "kg", -45.0, 80.0, 0.0, 5.0, plausible=(-30.0, 40.0)),)
     formula = "m -> m + delta_m"
 
     def modify(self, ctx, theta):
@@ -237,7 +313,7 @@ class RiderInertiaError(Candidate):
     """Rider pitch inertia different from nominal: J -> J + delta."""
 
     name = "rider_inertia_error"
-    params = (ParamInfo("delta_j_kgm2", "kg m^2", -15.0, 40.0, 0.0, 3.0),)
+    params = (ParamInfo("delta_j_kgm2", "kg m^2", -15.0, 40.0, 0.0, 3.0, plausible=(-10.0, 14.0)),)
     formula = "J -> J + delta_J"
 
     def modify(self, ctx, theta):
@@ -248,7 +324,7 @@ class TiltGravity(Candidate):
     """Tilt-gravity coupling in turns: the in-plane gravity of a tilted, turning rider."""
 
     name = "tilt_gravity"
-    params = (ParamInfo("gain", "-", 0.0, 10.0, 0.0, 1.0),)
+    params = (ParamInfo("gain", "-", 0.0, 10.0, 0.0, 1.0, plausible=(0.0, 2.5)),)
     formula = "g -> g + gain (g cos(theta) - a_c sin(theta) - g), a_c = psi_dot x_dot"
 
     def modify(self, ctx, theta):
@@ -263,10 +339,17 @@ class TimeVaryingH(Candidate):
     name = "time_varying_h"
     params = (ParamInfo("a_sin", "m", -0.4, 0.4, 0.0, 0.05, reported=False),
               ParamInfo("a_cos", "m", -0.4, 0.4, 0.0, 0.05, reported=False),
-              ParamInfo("period_s", "s", 1.0, 60.0, 5.0, 1.0))
+              ParamInfo("period_s", "s", 1.0, 60.0, 5.0, 1.0, plausible=(1.0, 60.0)))
     formula = "h(t) = h + a sin(2 pi t / T + p0); dQ = -m J_G^T [h_dd (sin phi, cos phi) + 2 h_d phi_d (cos phi, -sin phi)]"
     #: Periods tried as starting points [s] (the fit is multi-modal in the period).
     PERIOD_STARTS = (1.5, 2.0, 3.0, 4.5, 6.5, 9.0, 13.0, 20.0, 30.0)
+
+    #: The amplitude as reported (hypot of a_sin, a_cos), for its plausible range.
+    AMPLITUDE = ParamInfo("amplitude_m", "m", 0.0, 0.4 * math.sqrt(2.0), plausible=(0.0, 0.2))
+
+    @property
+    def checked(self):
+        return (self.AMPLITUDE, self.params[2])
 
     def starts(self):
         return [np.array([0.0, 0.0, T]) for T in self.PERIOD_STARTS]
@@ -303,7 +386,7 @@ class MocapTimeOffset(Candidate):
     """
 
     name = "mocap_time_offset"
-    params = (ParamInfo("dt_ms", "ms", -200.0, 200.0, 0.0, 2.0),)
+    params = (ParamInfo("dt_ms", "ms", -200.0, 200.0, 0.0, 2.0, plausible=(-50.0, 50.0)),)
     formula = "G(t) -> G(t + dt); phi, phi_dot, phi_ddot recomputed"
 
     def starts(self):
@@ -322,7 +405,7 @@ class WheelBodyFriction(Candidate):
     """Friction torque between wheel and body; acts along the M_d direction (undetectable)."""
 
     name = "wheel_body_friction"
-    params = (ParamInfo("c_wb", "N m s/rad", 0.0, 10.0, 0.0, 0.5),)
+    params = (ParamInfo("c_wb", "N m s/rad", 0.0, 10.0, 0.0, 0.5, plausible=(0.0, 3.0)),)
     formula = "dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]"
 
     def force(self, ctx, theta):
@@ -407,13 +490,92 @@ LIBRARY: dict[str, type[Candidate]] = {c.name: c for c in (
     RiderMassError, RiderInertiaError, TiltGravity, TimeVaryingH, WheelBodyFriction)}
 
 
-def make_candidates(names=None) -> list[Candidate]:
-    """Instantiate library candidates (all by default) in library order."""
+def make_candidates(names=None, plausible: dict[str, tuple[float, float]] | None = None) -> list[Candidate]:
+    """Instantiate library candidates (all by default) in library order.
+
+    Parameters
+    ----------
+    names : iterable of str, optional
+        Effect names of :data:`LIBRARY` (default: all).
+    plausible : dict, optional
+        Plausible ranges that replace the library's, by ``"effect.parameter"`` (:func:`with_plausible`).
+
+    Returns
+    -------
+    list of Candidate
+    """
     names = list(LIBRARY) if names is None else list(names)
     unknown = [n for n in names if n not in LIBRARY]
     if unknown:
         raise ConfigError(f"unknown effect {unknown[0]!r} (known: {', '.join(LIBRARY)})", key="effect")
-    return [LIBRARY[n]() for n in names]
+    return with_plausible([LIBRARY[n]() for n in names], plausible or {})
+
+
+def with_plausible(candidates: list[Candidate], ranges: dict[str, tuple[float, float]]) -> list[Candidate]:
+    """Set plausible ranges other than the library's on ``candidates`` (in place; returns them).
+
+    Parameters
+    ----------
+    candidates : list of Candidate
+    ranges : dict
+        ``"effect.parameter" -> (low, high)`` in the parameter's reported unit; an effect not among
+        ``candidates`` is ignored (it is not tried), an unknown parameter of a library effect is an error.
+
+    Returns
+    -------
+    list of Candidate
+
+    Raises
+    ------
+    ConfigError
+        For an unknown effect or parameter, or a range with ``low > high``.
+    """
+    by_name = {c.name: c for c in candidates}
+    for key, (lo, hi) in ranges.items():
+        effect, _, param = key.partition(".")
+        if effect not in LIBRARY:
+            raise ConfigError(f"unknown effect {effect!r} in plausible range {key!r} (known: {', '.join(LIBRARY)})",
+                              key=key)
+        known = [q.name for q in LIBRARY[effect]().checked]
+        if param not in known:
+            raise ConfigError(f"{effect} has no parameter {param!r} (known: {', '.join(known)})", key=key)
+        if not lo <= hi:
+            raise ConfigError(f"plausible range of {key} has low {lo:g} > high {hi:g}", key=key)
+        c = by_name.get(effect)
+        if c is not None:
+            c.plausible_overrides = {**getattr(c, "plausible_overrides", {}), param: (float(lo), float(hi))}
+    return candidates
+
+
+def parse_plausible(items) -> dict[str, tuple[float, float]]:
+    """Plausible ranges from ``EFFECT.PARAM=LOW:HIGH`` strings (the ``--plausible`` option).
+
+    Parameters
+    ----------
+    items : iterable of str
+
+    Returns
+    -------
+    dict
+        ``"effect.parameter" -> (low, high)``, checked by :func:`with_plausible` when applied.
+
+    Raises
+    ------
+    ConfigError
+        For an item not of that form.
+    """
+    out = {}
+    for item in items:
+        key, sep, rng = item.partition("=")
+        lo, sep2, hi = rng.partition(":")
+        try:
+            if not (sep and sep2 and "." in key):
+                raise ValueError(item)
+            out[key.strip()] = (float(lo), float(hi))
+        except ValueError:
+            raise ConfigError(f"plausible range {item!r} is not EFFECT.PARAM=LOW:HIGH (e.g. aero_drag.cda_m2=0.2:1.2)",
+                              key="--plausible") from None
+    return out
 
 
 def theta_from_report(candidate: Candidate, values: dict[str, float]) -> np.ndarray:

@@ -11,7 +11,9 @@
 4. :func:`select_named`: fit each detectable candidate's parameters jointly with h on training data
    and evaluate on held-out data (other runs, or other segments of a single run); select by held-out
    error with a one-sided paired test over blocks (family-wise over the candidates: max-T) and a
-   minimum relative gain; repeat greedily until nothing significant remains;
+   minimum relative gain; repeat greedily until nothing significant remains. A fit outside its parameter's
+   plausible range is refused as a name; candidates the data cannot tell from the selected one (held out,
+   or confounded in shape) are its ties;
 5. :func:`radius_step`: a rolling radius measured on a flat floor is a wheel_radius_error by geometry;
 6. :func:`discovery_alternative` and :func:`discovery_step`: sparse basis forces for what the named
    effects leave, against and after them;
@@ -31,7 +33,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from euc_ros.core.model.effects import Candidate, FloorGeometry, make_candidates
+from euc_ros.core.model.effects import Candidate, FloorGeometry, make_candidates, with_plausible
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.discovery import discover_terms
 from euc_ros.core.residual.folds import (
@@ -50,12 +52,16 @@ from euc_ros.core.residual.selection import (
     HeldOut,
     Model,
     admissibility,
+    common_samples,
+    confounding,
     detectability,
     fit_base_h,
     fit_model,
     geometric_h,
     held_out,
     implausibility,
+    plausibility,
+    refusal,
 )
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, max_t_adjusted, paired_block_test
 from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, Recording, prepare
@@ -164,11 +170,17 @@ class Trial:
     p_value: float
     fit: Fit
     inadmissible: str | None
+    refused: tuple[dict, ...] = ()
 
-    def tied_record(self) -> dict:
-        """The JSON record of a tied candidate."""
+    @property
+    def usable(self) -> bool:
+        """Admissible and plausible: the trial may be named (or tied with the named one)."""
+        return self.inadmissible is None and not self.refused
+
+    def tied_record(self, why: str = "selected") -> dict:
+        """The JSON record of a tied candidate (``why``: ``selected``, ``held-out`` or ``confounded``)."""
         return {"effect": self.candidate.name, "h_m": self.fit.h, "rmse_after_nm": self.heldout.rmse,
-                "effect_parameters": self.model.report(self.fit.x)}
+                "effect_parameters": self.model.report(self.fit.x), "tie": why}
 
 
 @dataclass(frozen=True, eq=False)
@@ -227,6 +239,7 @@ class Journal:
     rows: dict[str, CandidateResult] = field(default_factory=dict)
     steps: list[dict] = field(default_factory=list)
     warnings: list[str] = field(default_factory=list)
+    refused: list[dict] = field(default_factory=list)
 
 
 # ------------------------------------------------------------------------------------------------ the driver
@@ -234,7 +247,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
             n_folds: int | None = None, use_geometry: bool = True, discover: bool = True,
             noise_floor_of: Callable[[Model, np.ndarray], float] | None = None,
-            analysis_rate_hz: float | None = ANALYSIS_RATE_HZ,
+            analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, plausible: dict | None = None,
             progress: Callable[[str], None] | None = None) -> ResidualResult:
     """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (greedy forward selection).
 
@@ -266,6 +279,10 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         of the residual rests on the held-out test of the discovery step alone.
     analysis_rate_hz : float or None
         Work on a sub-sample at about this rate (:func:`~.data.decimation_step`); None: every sample.
+    plausible : dict, optional
+        Plausible ranges that replace the library's, ``"effect.parameter" -> (low, high)``
+        (:func:`~euc_ros.core.model.effects.with_plausible`). A named effect whose fit leaves its plausible
+        range is refused as a name (reported in ``refused``): the discovered terms, or ``unexplained``.
     progress : callable, optional
         Called with a line of text at each step.
 
@@ -275,7 +292,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     """
     say = progress or (lambda _m: None)
     rules = Rules(alpha, min_gain, max_effects)
-    candidates = list(candidates) if candidates is not None else make_candidates()
+    candidates = with_plausible(list(candidates) if candidates is not None else make_candidates(), plausible or {})
     setup = prepare_setup(states, params, n_folds=n_folds, use_geometry=use_geometry,
                           analysis_rate_hz=analysis_rate_hz, say=say)
     screening = screen_candidates(candidates, setup, say)
@@ -369,7 +386,7 @@ def try_candidate(candidate: Candidate, stage: Stage, setup: Setup) -> Trial:
     full = fit_model(model, setup.recs, setup.h0, fixed=stage.x)
     ho = held_out(model, setup.recs, setup.h0, setup.folds, start=full.x)
     return Trial(candidate, model, ho, paired_block_test(stage.heldout, ho), full,
-                 admissibility(model, full.x, setup.h_geo))
+                 admissibility(model, full.x, setup.h_geo), tuple(plausibility(model, full.x)))
 
 
 def select_named(setup: Setup, stage: Stage, remaining: list[Candidate], screening: Screening, rules: Rules,
@@ -379,7 +396,7 @@ def select_named(setup: Setup, stage: Stage, remaining: list[Candidate], screeni
     while remaining and len(stage.model.effects) < rules.max_effects:
         trials = [try_candidate(c, stage, setup) for c in remaining]
         last = LastStep(stage.model, tuple(trials))
-        best = selection_step(stage, trials, screening, rules, journal, say)
+        best = selection_step(setup, stage, trials, screening, rules, journal, say)
         if best is None:
             break
         stage = Stage(best.model, best.heldout, best.fit.x)
@@ -387,31 +404,50 @@ def select_named(setup: Setup, stage: Stage, remaining: list[Candidate], screeni
     return Selection(stage, last)
 
 
-def selection_step(stage: Stage, trials: list[Trial], screening: Screening, rules: Rules, journal: Journal,
-                   say: Callable[[str], None]) -> Trial | None:
-    """One step of :func:`select_named`: the trial selected (None: nothing passes), reported in ``journal``."""
+def selection_step(setup: Setup, stage: Stage, trials: list[Trial], screening: Screening, rules: Rules,
+                   journal: Journal, say: Callable[[str], None]) -> Trial | None:
+    """One step of :func:`select_named`: the trial selected (None: nothing passes), reported in ``journal``.
+
+    A trial that passes the test but is not admissible, or whose fit leaves a plausible range (refused),
+    is not selected; a refused trial is reported as such (``refused``: it explains the residual only with
+    parameters no rider has, so it is no explanation, and what it would cut is left to the discovery).
+    The selected trial is reported as tied (``tied``, ``ambiguous_with``) with every usable trial the
+    data cannot tell from it (:func:`tied_trials`).
+    """
     # family-wise over this step's candidates: max-T over sign flips of whole blocks (the candidates' test
     # statistics are strongly correlated, so this asks less of each than Bonferroni's alpha / candidates)
     p_adj = dict(zip((t.candidate.name for t in trials), max_t_adjusted(stage.heldout, [t.heldout for t in trials])))
     for t in trials:
         name = t.candidate.name
         say(f"  + {name}: held-out RMSE {t.heldout.rmse:.3f} N m (p = {t.p_value:.2g}, adjusted {p_adj[name]:.2g})"
-            + (f"; not admissible: {t.inadmissible}" if t.inadmissible else ""))
+            + (f"; not admissible: {t.inadmissible}" if t.inadmissible else "")
+            + (f"; {refusal(list(t.refused))}" if t.refused else ""))
         if name not in journal.rows:
             journal.rows[name] = CandidateResult(name, True, screening.visible[name], t.heldout.rmse, t.p_value,
-                                                 t.model.report(t.fit.x), t.fit.h, t.inadmissible, p_adj[name])
+                                                 t.model.report(t.fit.x), t.fit.h, t.inadmissible, p_adj[name],
+                                                 None if t.inadmissible else refusal(list(t.refused)))
     threshold = rules.alpha
     passing = [t for t in trials if p_adj[t.candidate.name] < threshold and rules.cuts(t.heldout, stage.heldout)]
-    ok = [t for t in passing if t.inadmissible is None]
+    ok = [t for t in passing if t.usable]
     for t in passing:
         if t.inadmissible is not None:
             journal.warnings.append(f"{t.candidate.name} would cut the held-out RMSE {stage.heldout.rmse:.3f} -> "
                                     f"{t.heldout.rmse:.3f} N m but is not admissible: {t.inadmissible}")
+        elif t.refused:
+            journal.warnings.append(f"{refusal(list(t.refused))} (it would cut the held-out RMSE "
+                                    f"{stage.heldout.rmse:.3f} -> {t.heldout.rmse:.3f} N m)")
+            journal.refused.extend({**r, "rmse_after_nm": t.heldout.rmse, "h_m": t.fit.h, "model": t.model.name,
+                                    "text": refusal([r])} for r in t.refused)
     step = {"model": stage.model.name, "rmse_nm": stage.heldout.rmse, "threshold_p": threshold,
             "correction": "max-T over the step's candidates (sign flips of whole blocks)",
             "tried": [{"effect": t.candidate.name, "rmse_after_nm": t.heldout.rmse, "p_value": t.p_value,
                        "p_adjusted": p_adj[t.candidate.name], "h_m": t.fit.h,
-                       **({"inadmissible": t.inadmissible} if t.inadmissible else {})} for t in trials]}
+                       **({"inadmissible": t.inadmissible} if t.inadmissible else {}),
+                       **({"refused": refusal(list(t.refused))} if t.refused and not t.inadmissible else {})}
+                      for t in trials]}
+    refused_passing = [t.candidate.name for t in passing if t.inadmissible is None and t.refused]
+    if refused_passing:
+        step["refused"] = refused_passing
     if not ok:
         step["selected"] = None
         journal.steps.append(step)
@@ -425,15 +461,40 @@ def selection_step(stage: Stage, trials: list[Trial], screening: Screening, rule
         best = min(tied, key=lambda t: implausibility(t.candidate, t.fit.x[-t.candidate.n_params:]
                                                       if t.candidate.n_params else []))
     step["selected"] = best.candidate.name
-    # reported as tied: every admissible candidate the held-out data cannot tell from the selected one,
-    # also those that did not pass the (family-wise) test against the current model on their own
-    tied = [t for t in trials if t.inadmissible is None and rules.cuts(t.heldout, stage.heldout)
-            and (t is best or paired_block_test(t.heldout, best.heldout) >= AMBIGUITY_ALPHA)]
-    step["ambiguous_with"] = [t.candidate.name for t in tied if t is not best]
-    step["tied"] = [t.tied_record() for t in tied]
+    tied = tied_trials(setup, stage, best, trials, rules)
+    step["ambiguous_with"] = [t.candidate.name for t, _, _ in tied if t is not best]
+    step["tied"] = [{**t.tied_record(why), **extra} for t, why, extra in tied]
     journal.steps.append(step)
-    say(f"selected {best.candidate.name}: held-out RMSE {stage.heldout.rmse:.3f} -> {best.heldout.rmse:.3f} N m")
+    say(f"selected {best.candidate.name}: held-out RMSE {stage.heldout.rmse:.3f} -> {best.heldout.rmse:.3f} N m"
+        + (f" (tied with {', '.join(step['ambiguous_with'])})" if step["ambiguous_with"] else ""))
     return best
+
+
+def tied_trials(setup: Setup, stage: Stage, best: Trial, trials: Sequence[Trial], rules: Rules
+                ) -> list[tuple[Trial, str, dict]]:
+    """The usable trials the data cannot tell from ``best`` (``best`` first), each with why and its measures.
+
+    ``held-out``: the paired block test does not find ``best`` better at :data:`AMBIGUITY_ALPHA`;
+    ``confounded``: the two contributions have nearly the same shape once h is projected out, so that what
+    tells them apart is below the residual's noise (:func:`~.selection.confounding`, at the same level),
+    even when one held-out realisation happens to prefer one (a rider's pitch-inertia error and a mass
+    error, whose h differ by 8 cm). Also trials that did not pass the family-wise test against the
+    current model on their own; each must cut the held-out RMSE by the minimum gain.
+    """
+    out: list[tuple[Trial, str, dict]] = [(best, "selected", {})]
+    for t in trials:
+        if t is best or not t.usable or not rules.cuts(t.heldout, stage.heldout):
+            continue
+        p_best = paired_block_test(t.heldout, best.heldout)
+        if p_best >= AMBIGUITY_ALPHA:
+            out.append((t, "held-out", {"p_value_best_better": p_best}))
+            continue
+        conf = confounding(stage.model, stage.x, (best.model, best.fit.x), (t.model, t.fit.x), setup.recs,
+                           best.fit.rmse, AMBIGUITY_ALPHA)
+        if conf.tied:
+            out.append((t, "confounded", {"p_value_best_better": p_best, "cosine": conf.cosine,
+                                          "chi2": conf.chi2}))
+    return out
 
 
 def radius_step(setup: Setup, candidates: Sequence[Candidate], stage: Stage, use_geometry: bool, journal: Journal,
@@ -482,23 +543,26 @@ def discovery_alternative(setup: Setup, stage: Stage, rules: Rules, journal: Jou
     root_ho = held_out(root, setup.recs, setup.h0, setup.folds, start=root_fit.x)
     alt = discover_terms(root, root_fit.x, setup.recs, setup.folds, setup.h0, root_ho, setup.h_geo)
     sel = alt["info"].pop("selection_heldout", None)
-    if sel is None or sel.residual.shape != stage.heldout.residual.shape:
+    pair = None if sel is None else common_samples(stage.heldout, sel)
+    if pair is None or not pair[0].residual.size:
         return Alternative(stage, {})
-    p_alt = paired_block_test(stage.heldout, sel)
+    # on the samples both models have (a named time offset drops some at the runs' ends)
+    named_ho, sel = pair
+    p_alt = paired_block_test(named_ho, sel)
     record = {"rmse_after_nm": sel.rmse, "p_value_against_named": p_alt,
               "fitted_rmse_after_nm": alt["heldout"].rmse if alt.get("heldout") is not None else None,
               "terms": ([r["formula"] for r in alt["model"].effects[-1].describe(
                   alt["x"][-alt["model"].effects[-1].n_params:])] if alt.get("model") is not None else []),
               "linearised_at_h_m": alt["info"].get("linearised_at_h_m"),
               "linearisations_tried_h_m": alt["info"].get("linearisations_tried_h_m")}
-    name, rmse = stage.model.name, stage.heldout.rmse
-    if p_alt < rules.alpha and rules.cuts(sel, stage.heldout):
+    name, rmse = stage.model.name, named_ho.rmse
+    if p_alt < rules.alpha and rules.cuts(sel, named_ho):
         journal.warnings.append(f"named {name} not reported: a discovered combination explains "
                                 f"significantly more (held-out {rmse:.3f} -> {sel.rmse:.3f} N m, p = {p_alt:.2g})")
         journal.steps.append({"model": name, "rmse_nm": rmse, "selected": None, "dropped_for_discovery": name,
                               "p_value": p_alt})
         return Alternative(Stage(root, root_ho, root_fit.x), record)
-    if alt.get("model") is not None and paired_block_test(sel, stage.heldout) >= AMBIGUITY_ALPHA:
+    if alt.get("model") is not None and paired_block_test(sel, named_ho) >= AMBIGUITY_ALPHA:
         # statistically tied: the named effect is kept (the physical hypothesis of the library) and the
         # discovered alternative is listed with the h it implies
         terms = record["terms"]
@@ -529,9 +593,9 @@ def named_equal_to_discovery(stage: Stage, last: LastStep | None, sel_ho: HeldOu
         return None
     equal = []
     for t in last.trials:
-        if t.inadmissible is None and t.p_value < rules.alpha and rules.cuts(t.heldout, stage.heldout) \
-                and t.heldout.residual.shape == sel_ho.residual.shape:
-            p_better = paired_block_test(t.heldout, sel_ho)
+        pair = common_samples(t.heldout, sel_ho)
+        if t.usable and t.p_value < rules.alpha and rules.cuts(t.heldout, stage.heldout) and pair is not None:
+            p_better = paired_block_test(*pair)
             if p_better >= AMBIGUITY_ALPHA:
                 equal.append((t, p_better))
     if not equal:
@@ -574,7 +638,7 @@ def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None
                         f"as the discovered terms (p = {p_better:.2g} that they explain more)",
             "rmse_after_nm": t.heldout.rmse, "discovered_alternative": [r["formula"] for r in rows_found],
             "ambiguous_with": [e.candidate.name for e in tied if e.candidate is not t.candidate],
-            "tied": [e.tied_record() for e in tied]})
+            "tied": [e.tied_record("selected" if e is t else "held-out") for e in tied]})
         say(f"named instead of the discovered terms: {t.candidate.name} (held-out RMSE {t.heldout.rmse:.3f} N m, "
             f"terms {disc['heldout'].rmse:.3f} N m)")
         info["named_instead"] = t.candidate.name
@@ -605,7 +669,10 @@ def conclude(setup: Setup, base: Stage, found: Discovery, geometry: dict,
         except Exception as exc:  # noqa: BLE001 - a floor we cannot measure is reported, not fatal
             journal.warnings.append(f"noise floor not measured: {exc}")
     above_noise = math.isfinite(noise) and named.heldout.rmse > NOISE_FLOOR_FACTOR * noise
-    residual_significant = bool(found.p_value < rules.alpha or above_noise)
+    # a refused name passed the family-wise test in a step that then named nothing: structure is there
+    refused_left = any(s_.get("refused") and s_.get("selected") is None for s_ in journal.steps) \
+        and not named.model.effects
+    residual_significant = bool(found.p_value < rules.alpha or above_noise or refused_left)
     still_above = math.isfinite(noise) and current.heldout.rmse > NOISE_FLOOR_FACTOR * noise
     # explained when the discovered terms were accepted (their formula is the explanation offered); what
     # they leave above the noise floor is reported as residual_after_above_noise
@@ -614,6 +681,9 @@ def conclude(setup: Setup, base: Stage, found: Discovery, geometry: dict,
         else setup.base_fit
     # h of every model the data cannot tell apart from the selected one
     tied = [t for s_ in journal.steps for t in s_.get("tied", []) if s_.get("selected")]
+    ties = [{"effects": [t["effect"] for t in s_["tied"]], "h_m": [t["h_m"] for t in s_["tied"]],
+             "tie": [t.get("tie", "held-out") for t in s_["tied"]], "step_model": s_["model"]}
+            for s_ in journal.steps if s_.get("selected") and len(s_.get("tied", [])) > 1]
     hs = [final_fit.h] + [t["h_m"] for t in tied]
     h_range = (float(min(hs)), float(max(hs)))
     if h_range[1] - h_range[0] > 0.01:
@@ -636,7 +706,8 @@ def conclude(setup: Setup, base: Stage, found: Discovery, geometry: dict,
         geometry=geometry, warnings=journal.warnings, h_range=h_range, tied=tied,
         residual_significant=residual_significant, unexplained=unexplained, discovered=found.rows,
         discovery=found.info, noise_floor_nm=noise, floor_fit=setup.floor,
-        residual_after_above_noise=bool(still_above) if math.isfinite(noise) else None)
+        residual_after_above_noise=bool(still_above) if math.isfinite(noise) else None, refused=journal.refused,
+        ties=ties)
 
 
 class MeasuredWheelRadius(Candidate):

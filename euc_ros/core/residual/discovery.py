@@ -399,5 +399,5 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         return {"model": None, "x": None, "heldout": None, "info": info}
     # the held-out residual of the terms chosen within each fold (no leakage of the selection into the test)
     if complete[best_k].shape == current_ho.residual.shape:
-        info["selection_heldout"] = HeldOut(current, complete[best_k], current_ho.block, [])
+        info["selection_heldout"] = HeldOut(current, complete[best_k], current_ho.block, [], current_ho.index)
     return {"model": best["model"], "x": best["x"], "heldout": best["heldout"], "info": info}

@@ -25,6 +25,7 @@ class CandidateResult:
     h_m: float
     inadmissible: str | None = None
     p_adjusted: float | None = None
+    refused: str | None = None
 
     def to_dict(self) -> dict:
         """JSON row."""
@@ -34,6 +35,8 @@ class CandidateResult:
              "h_m": self.h_m}
         if self.inadmissible:
             d["inadmissible"] = self.inadmissible
+        if self.refused:
+            d["refused"] = self.refused
         return d
 
 
@@ -71,6 +74,8 @@ class ResidualResult:
     residual_after_above_noise: bool | None = None
     floor_fit: FloorFit | None = None
     block_s: float = float("nan")
+    refused: list = field(default_factory=list)
+    ties: list = field(default_factory=list)
 
     def to_json(self) -> dict:
         """JSON per docs/residual.md, JSON (plus the analysis settings and steps)."""
@@ -94,4 +99,6 @@ class ResidualResult:
                 "discovered": self.discovered, "discovery": self.discovery,
                 "noise_floor_nm": None if not math.isfinite(self.noise_floor_nm) else self.noise_floor_nm,
                 "residual_after_above_noise": self.residual_after_above_noise,
+                "refused": list(self.refused), "ties": list(self.ties),
+                "effect_is_tie": any(set(t["effects"]) & set(self.selected) for t in self.ties),
                 "analysis_warnings": list(self.warnings)}

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
-from scipy import optimize
+from scipy import optimize, stats
 
 from euc_ros.core.model.effects import Candidate
 from euc_ros.core.model.terms import EucParams, bias_terms, consistency_weights, gravity_forces, mass_matrix
@@ -291,7 +291,8 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
     lo, hi = model.bounds()
     sc = model.scales()
     offsets = block_offsets(recs)
-    res, blocks, params = [], [], []
+    starts = np.concatenate([[0], np.cumsum([r.ctx.t.shape[0] for r in recs])])
+    res, blocks, params, index = [], [], [], []
     for fold in folds:
         rows = [np.asarray(tr, bool) & m for tr, m in zip(fold.train, m_all)]
         A = np.concatenate([Ji[rw] for Ji, rw in zip(J, rows)]) * sc
@@ -309,8 +310,10 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
             keep = np.asarray(te, bool) & mask
             res.append(rr[keep])
             blocks.append(r.block[keep] + offsets[i])
+            index.append(np.flatnonzero(keep) + starts[i])
     return HeldOut(model, np.concatenate(res) if res else np.zeros(0),
-                   np.concatenate(blocks) if blocks else np.zeros(0, int), params)
+                   np.concatenate(blocks) if blocks else np.zeros(0, int), params,
+                   np.concatenate(index) if index else np.zeros(0, int))
 
 
 def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None:
@@ -334,6 +337,93 @@ def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None
         return (f"h = {h:.3f} m is {abs(h - h_geometric):.3f} m from the segments' geometric {h_geometric:.3f} m "
                 f"(more than {H_MAX_GEOMETRIC_DEV_M} m)")
     return None
+
+
+@dataclass(frozen=True)
+class Confounding:
+    """How far two fitted extensions of one model can be told apart on these recordings.
+
+    Attributes
+    ----------
+    cosine : float
+        Cosine between the two fitted contributions to the residual, each with the current model's
+        parameters (h among them) projected out: 1 is the same shape.
+    chi2 : float
+        What the data hold against the second as a stand-in for the first: the part of the first's
+        contribution the second cannot reproduce, ``|d_1|^2 (1 - cosine^2)``, over the residual's variance
+        per block (the blocks of the paired test: the residual's correlation length).
+    tied : bool
+        ``chi2`` below the chi-square(1) quantile at ``1 - level``: the data cannot tell them apart.
+    """
+
+    cosine: float
+    chi2: float
+    tied: bool
+
+
+def contribution(base: Model, x_base: np.ndarray, extended: Model, x_ext: np.ndarray,
+                 recs: Sequence[Recording]) -> tuple[np.ndarray, np.ndarray]:
+    """What the last effect of ``extended`` does to the residual of ``base`` with the base parameters kept.
+
+    ``x_ext``'s own first entries are replaced by ``x_base`` (h and the base effects held at the base fit);
+    returns ``(r_base - r_extended, usable mask)`` over all recordings.
+    """
+    x = np.concatenate([np.asarray(x_base, float), np.asarray(x_ext, float)[np.asarray(x_base).size:]])
+    d, ok = [], []
+    for r in recs:
+        r0, m0 = base.residual(r, x_base)
+        r1, m1 = extended.residual(r, x)
+        d.append(r0 - r1)
+        ok.append(m0 & m1)
+    return np.concatenate(d), np.concatenate(ok)
+
+
+def confounding(base: Model, x_base: np.ndarray, first: tuple[Model, np.ndarray], second: tuple[Model, np.ndarray],
+                recs: Sequence[Recording], sigma: float, level: float) -> Confounding:
+    """Whether two candidates added to ``base`` are confounded on ``recs`` (:class:`Confounding`).
+
+    Each candidate's fitted contribution (:func:`contribution`) is taken with the base model's sensitivities
+    (to h and the current parameters) projected out, which the joint fit absorbs. ``sigma`` is the RMS of
+    the residual once ``first`` is fitted [N m]; one block of the paired test counts as one independent
+    sample (its length follows the residual's correlation), so the chi-square is per block. ``level`` is
+    the test's one-sided level (the paired block test's :data:`~.significance.AMBIGUITY_ALPHA`).
+    """
+    d1, m1 = contribution(base, x_base, *first, recs)
+    d2, m2 = contribution(base, x_base, *second, recs)
+    _, masks, J = model_jacobian(base, recs, np.asarray(x_base, float))
+    keep = m1 & m2 & np.concatenate(masks)
+    A = np.concatenate(J)[keep]
+    A = A[:, np.all(np.isfinite(A), axis=0)]
+    Q = np.linalg.qr(A)[0] if A.size else np.zeros((int(keep.sum()), 0))
+    p1, p2 = d1[keep] - Q @ (Q.T @ d1[keep]), d2[keep] - Q @ (Q.T @ d2[keep])
+    n1, n2 = float(np.linalg.norm(p1)), float(np.linalg.norm(p2))
+    if n1 == 0.0 or n2 == 0.0 or not sigma > 0:
+        return Confounding(float("nan"), float("nan"), False)
+    cos = float(np.clip(p1 @ p2 / (n1 * n2), -1.0, 1.0))
+    n_blocks = sum(int(np.unique(r.block).size) for r in recs)
+    per_block = keep.sum() / max(n_blocks, 1)
+    chi2 = n1 ** 2 * (1.0 - cos ** 2) / (sigma ** 2 * per_block)
+    return Confounding(cos, float(chi2), bool(chi2 < stats.chi2.ppf(1.0 - level, 1)))
+
+
+def plausibility(model: Model, x: np.ndarray) -> list[dict]:
+    """The fitted parameters of ``model`` outside their plausible range (:attr:`ParamInfo.plausible`).
+
+    A model with one of them is not named as the explanation, whatever its fit: a quadratic drag at the
+    tyre contact fits as the rider's aero_drag with a drag area 2-3 times a standing rider's, a name no
+    rider's physics supports. Returns the records of :meth:`Candidate.implausible` (empty: plausible).
+    """
+    _, thetas = model.split(x)
+    return [r for c, th in zip(model.effects, thetas) for r in c.implausible(th)]
+
+
+def refusal(records: list[dict]) -> str | None:
+    """One line for refused names: ``refused aero_drag: cda_m2=1.36 outside plausible [0.2, 1]`` (None: none)."""
+    if not records:
+        return None
+    return "; ".join(f"refused {r['effect']}: {r['parameter']}={r['value']:.4g} outside plausible "
+                     f"[{r['plausible'][0]:g}, {r['plausible'][1]:g}]" + (f" {r['unit']}" if r["unit"] != "-" else "")
+                     for r in records)
 
 
 def geometric_h(states: Sequence[RiderStates], params: EucParams) -> float:
@@ -364,11 +454,31 @@ class HeldOut:
     residual: np.ndarray
     block: np.ndarray
     params: list[np.ndarray]
+    #: Sample of each residual over the recordings in order (None: unknown).
+    index: np.ndarray | None = None
+
+    def restricted(self, keep: np.ndarray) -> "HeldOut":
+        """The residuals at the positions ``keep``."""
+        return HeldOut(self.model, self.residual[keep], self.block[keep], self.params,
+                       None if self.index is None else self.index[keep])
 
     @property
     def rmse(self) -> float:
         """Held-out RMSE [N m]."""
         return float(np.sqrt(np.mean(self.residual ** 2))) if self.residual.size else float("nan")
+
+
+def common_samples(a: HeldOut, b: HeldOut) -> tuple[HeldOut, HeldOut] | None:
+    """Two held-out residuals on the samples both have (a time offset drops samples at the runs' ends).
+
+    Returns ``(a, b)`` restricted to their common samples in the same order, or None when they cannot be
+    paired (different lengths and no sample index).
+    """
+    if a.index is not None and b.index is not None and not (
+            a.index.shape == b.index.shape and np.array_equal(a.index, b.index)):
+        _, ia, ib = np.intersect1d(a.index, b.index, assume_unique=True, return_indices=True)
+        return a.restricted(ia), b.restricted(ib)
+    return (a, b) if a.residual.shape == b.residual.shape else None
 
 
 def block_offsets(recs: Sequence[Recording]) -> list[int]:

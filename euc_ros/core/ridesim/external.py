@@ -12,6 +12,8 @@ at distance d from A along the rider ``P = A + d (sin phi, cos phi)``, so
                     changes with position
 ``headwind``        steady wind of ``wind_m_per_s`` blowing along lab -x on the rider at G (drag area
                     ``cda_m2``): ``F = -rho/2 cda |v_rel| v_rel``, ``v_rel = v_G - w``
+``contact_drag``    a drag growing with the square of speed at the tyre contact (a soft floor mat, a tyre that
+                    scrubs): ``F = -c x_dot |x_dot|`` along x at the contact (``c`` = ``c_n_s2_per_m2``)
 ``torque_ripple``   motor torque ripple ``amp_nm sin(n x / R)`` (``n`` = ``per_turn``): internal, along
                     the input direction b_d = (1/R, -1, 0): it cannot show in M_d1 - M_d2
 ==================  =====================================================================================
@@ -26,7 +28,7 @@ from euc_ros.core.errors import ConfigError
 
 AIR_DENSITY = 1.2
 KINDS = {"rope": ("k_n_per_m", "anchor_x_m", "hand_m"), "headwind": ("wind_m_per_s", "cda_m2"),
-         "torque_ripple": ("amp_nm", "per_turn")}
+         "torque_ripple": ("amp_nm", "per_turn"), "contact_drag": ("c_n_s2_per_m2",)}
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,10 @@ class ExternalForce:
         if self.kind == "torque_ripple":
             tau = p["amp_nm"] * np.sin(p["per_turn"] * x / R)
             return tau / R, -tau, 0.0 * tau
+        if self.kind == "contact_drag":
+            # the contact point moves with x_dot and does no virtual work through gamma or phi
+            F = -p["c_n_s2_per_m2"] * x_dot * np.abs(x_dot)
+            return F, 0.0 * F, 0.0 * F
         if self.kind == "rope":
             d = p["hand_m"]
             # the hand's lab x (C's x plus its offset along the heading); the pull is along lab x, its in-plane

@@ -37,6 +37,7 @@ EXTERNAL_CASES = {
     "rope": {"k_n_per_m": 40.0, "anchor_x_m": 2.0, "hand_m": 1.0},
     "headwind": {"wind_m_per_s": 4.0, "cda_m2": 0.6},
     "torque_ripple": {"amp_nm": 3.0, "per_turn": 16.0},
+    "contact_drag": {"c_n_s2_per_m2": 3.0},
 }
 
 
