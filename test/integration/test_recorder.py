@@ -74,7 +74,7 @@ def _expected_mix(n_bodies: int = 14) -> dict:
 @pytest.mark.integration
 def test_recorder_keeps_every_message_of_a_burst_above_the_old_limit(ros_domain, tmp_path):
     """One publisher process sends 10 000 frames of the mix (180 000 messages) at 2000 frames/s, 36k
-    msgs/s asked: above the ~28k msgs/s where the recorder used to lose (it lost 13-26 % at 45-50k). (At
+    msgs/s asked: above ~28k msgs/s, where a recorder that takes one message per callback loses (13-26 % at 45-50k). (At
     3000 frames/s the test lost a few messages of the publisher's own segment in one run at load ~4 with
     other ROS processes on the machine; the recorder's capacity itself is `euc-ros bench --only recording`'s.)
     The rate reached is printed, not asserted (a starved publisher falls behind, as fast as it can;

@@ -1,9 +1,9 @@
 """A node process ended by SIGINT or SIGTERM exits cleanly, every time (euc_ros.ros.runtime, executor).
 
 rclpy (Jazzy) handles a signal on a thread of its own that triggers every executor's signal guard
-condition and then shuts the contexts down; the main thread, woken by Python's KeyboardInterrupt,
-used to destroy its executor (and that guard condition) while the signal thread was still
-triggering it: a segfault or abort at shutdown in about one exit of three (mocap_ingest in CI).
+condition and then shuts the contexts down; a main thread, woken by Python's KeyboardInterrupt, that
+destroys its executor (and that guard condition) while the signal thread is still triggering it
+crashes (a segfault or abort at shutdown in about one exit of three).
 
 One child process runs a node through ``run_node`` many times, each run ended by a SIGINT the node
 sends itself from its timer (the earliest moment a spinning node can be signalled); the child must

@@ -1,7 +1,7 @@
 """A node executable stopped by SIGINT or SIGTERM while it starts exits 0 with one line at most, no traceback.
 
-``euc-ros launch`` stops its nodes with SIGINT; a node still importing numpy, scipy and rclpy used to
-print a KeyboardInterrupt traceback (~15-35 lines each, ~110 for a launch) and exit non-zero, and died
+``euc-ros launch`` stops its nodes with SIGINT; a node still importing numpy, scipy and rclpy must not
+print a KeyboardInterrupt traceback (~15-35 lines each, ~110 for a launch), exit non-zero, or die
 by SIGTERM with -15. The node console scripts (the ones of the shared environment, running this tree's
 code through PYTHONPATH) are started and signalled 0-0.4 s after the handlers are in place (seen in
 /proc: the process catches SIGTERM, which Python alone does not), inside their imports on this class

@@ -81,7 +81,7 @@ DEFAULT_MIN_GAIN = 0.10
 #: is one realisation of the white pose noise propagated (within 3 % of the true noise contribution on a
 #: simulated ride, test_noise.py); on no-effect rides the held-out RMSE is 0.9x it at 120 Hz and 1.1x at
 #: 360 Hz (filter bias, 3-D reconstruction): 1.5x leaves ~4 standard errors of that ratio on 3 runs of 7 s
-#: (~30 blocks). It was 3x, which reported swinging arms at 1.8 floors as `none` ("at the noise floor");
+#: (~30 blocks). A factor of 3 would report swinging arms at 1.8 floors as `none` ("at the noise floor");
 #: coloured noise the floor does not see is then `unexplained`, which is what it is.
 NOISE_FLOOR_FACTOR = 1.5
 #: Which of the candidates the held-out data cannot tell apart is named (all of them are reported as tied with

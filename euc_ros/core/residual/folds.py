@@ -22,8 +22,8 @@ TREND_WINDOWS = 16.0
 
 
 #: Shortest block of the paired test, in filter windows. The block is twice the residual noise's integrated
-#: correlation time, measured at 0.35-0.47 s on the power rides (1.2 s window); a floor of one window used to set
-#: every block (15 blocks in 3 runs of 7 s). Measured on 100 no-effect rides (README, statistical power): the
+#: correlation time, measured at 0.35-0.47 s on the power rides (1.2 s window); a floor of one whole window would
+#: give only 15 blocks in 3 runs of 7 s. Measured on 100 no-effect rides (README, statistical power): the
 #: per-candidate p-values stay uniform or conservative from 0.3 s to 1.2 s blocks (lag-1 correlation of the
 #: blocks' log ratios -0.04); below half a window a block holds 3-4 correlated samples at the analysis rate and
 #: its mean square can come near 0 (log ratios of -10), which costs power.
