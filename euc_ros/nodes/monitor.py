@@ -50,6 +50,8 @@ SPECS = (
     ParamSpec("max_gamma_deg", 15.0, "limit of the EUC pitch abs(gamma)", "deg", 0.0, 180.0, live=True),
     ParamSpec("max_tilt_deg", 30.0, "limit of the EUC tilt abs(theta)", "deg", 0.0, 180.0, live=True),
     ParamSpec("motor_limit_nm", 120.0, "limit of the estimated motor torque abs(M_d1)", "N m", 0.0, 1e6, live=True),
+    ParamSpec("batch_s", 0.02, "inputs are counted in batches: while messages flow they are taken every batch_s "
+              "(one wake-up per batch, not per message); 0 takes what each wake-up finds", "s", 0.0, 1.0),
     ParamSpec("warn_fraction", 0.8, "a quantity above this fraction of its limit is a warning", "", 0.0, 1.0, live=True),  # noqa: E501
 )
 
@@ -64,7 +66,7 @@ class Monitor(Node):
     direction    topic               type                              what
     ===========  ==================  ================================  ===========================================
     Subscribes   ``mocap/frame``     euc_msgs/MocapFrame               reliable; taken raw in batches every
-    Subscribes   ``rider/state``     euc_msgs/RiderState               ~20 ms (a SubscriptionDrain), counted
+    Subscribes   ``rider/state``     euc_msgs/RiderState               ``batch_s`` (a SubscriptionDrain), counted
     Subscribes   ``euc/torque``      euc_msgs/TorqueEstimate           as the other two
     Publishes    ``/diagnostics``    diagnostic_msgs/DiagnosticArray   the five statuses, every ``period``
     ===========  ==================  ================================  ===========================================
@@ -101,7 +103,7 @@ class Monitor(Node):
         self.diag_pub = itf.diagnostics_publisher(self)
         # frames, states and torques are counted, not acted on one by one: taken in batches (one executor
         # wake-up per ~20 ms instead of one per message: 1080 messages/s at 360 Hz)
-        self._inputs = SubscriptionDrain(self, self._on_batch, poll_s=0.02, max_poll_s=0.1)
+        self._inputs = SubscriptionDrain(self, self._on_batch, poll_s=cfg["batch_s"], max_poll_s=5 * cfg["batch_s"])
         for topic, cls in ((itf.MOCAP_FRAME, MocapFrame), (itf.RIDER_STATE, RiderState), (itf.TORQUE, TorqueEstimate)):
             self._inputs.subscribe(topic, cls.__name__, cls, itf.RELIABLE_QOS)
         self.add_waitable(self._inputs)

@@ -78,9 +78,11 @@ def test_low_lag_pipeline_flags_a_slope_within_one_second(pipes, ros_context, tm
     te = TorqueEstimatorNode(context=ros_context, parameter_overrides=[
         Parameter("session_file", value=path), Parameter("rmse_window_s", value=RMSE_WINDOW_S),
         Parameter("h", value=ride.config.h)])
+    # batch_s 0: the frames are fed one at a time and waited for, nothing to batch (each batch's wait
+    # would only add itself to every frame)
     mon = Monitor(context=ros_context, parameter_overrides=[
-        Parameter("rmse_threshold_nm", value=threshold), Parameter("period", value=60.0),
-        Parameter("timeout_s", value=60.0)])
+        Parameter("rmse_threshold_nm", value=threshold), Parameter("batch_s", value=0.0),
+        Parameter("period", value=60.0), Parameter("timeout_s", value=60.0)])
     pipe = pipes([rider, te, mon])
     series = run.mocap
     msgs = H.frame_msgs(series)
