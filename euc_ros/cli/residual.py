@@ -129,6 +129,8 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
                       phi_definition=phi_definition, cog_method=cog_method, simex_share=simex, **budget).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
+    if result.final_interval is not None:
+        data.update(result.final_interval.widened(*base_widening(base)).to_json())
     data["uncertainty"] = base["uncertainty"]
     if tolerances:   # what the stated tolerances of nominal values do to the base model's h
         data["uncertainty_budget"] = base.get("uncertainty_budget")
@@ -144,6 +146,19 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
     data["cog"] = cog_faults(states)
     return result, data, states, params
+
+
+def base_widening(base_uncertainty: dict) -> tuple[float, float]:
+    """How far identify's interval of the base model reaches beyond its block bootstrap, below and above [m].
+
+    Those are the terms the fit's statistics do not hold (errors in variables, sliding, the filter's
+    distortion, few blocks); the final model is fitted on the same states, so its interval is widened alike.
+    """
+    ci = base_uncertainty.get("h_ci95_m") or [None, None]
+    boot = (base_uncertainty.get("uncertainty") or {}).get("bootstrap_ci95_m") or [None, None]
+    if None in ci or None in boot:
+        return 0.0, 0.0
+    return max(boot[0] - ci[0], 0.0), max(ci[1] - boot[1], 0.0)
 
 
 def main(args: argparse.Namespace) -> int:
@@ -190,6 +205,9 @@ def format_summary(data: dict) -> str:
                      f"{data['rmse_before_nm']:.3f} -> {data['rmse_after_nm']:.3f} N m")
         if data.get("ambiguous_with"):
             lines.append(f"  not distinguishable on this data from: {', '.join(data['ambiguous_with'])}")
+    final = final_interval_text(data)
+    if final:
+        lines.append(final)
     lines += verdict_lines(data)
     lo, hi = data.get("h_range_m") or (None, None)
     if lo is not None and hi - lo > 0.001:
@@ -224,6 +242,22 @@ def format_summary(data: dict) -> str:
     return "\n".join(lines)
 
 
+def _ci(iv) -> str:
+    return f"[{iv[0]:.4g}, {iv[1]:.4g}]" if iv and None not in iv else "[not bounded]"
+
+
+def final_interval_text(data: dict) -> str | None:
+    """The final model's h with its 95 % interval and its effect parameters' intervals (None without)."""
+    ci = data.get("h_after_ci95_m")
+    if ci is None:
+        return None
+    params = "; ".join(f"{k} {_ci(v)}" for k, v in (data.get("effect_parameters_ci95") or {}).items())
+    held = data.get("h_after_uncertainty", {}).get("widened_by") or []
+    return (f"h (final model, {data['effect']}) = {data['h_after_m']:.3f} m, 95 % interval {_ci(ci)} m"
+            + (f"; parameters 95 %: {params}" if params else "")
+            + (f" (the interval holds {' and '.join(held)})" if held else ""))
+
+
 def verdict_lines(data: dict) -> list[str]:
     """One line per tie (the names with the h each implies) and per refused name."""
     lines = [f"tie: {' | '.join(f'{e} (h {h:.3f} m)' for e, h in zip(t['effects'], t['h_m']))}: the data cannot "
@@ -248,7 +282,9 @@ def paper_paragraph(data: dict) -> str:
     params = ", ".join(f"{k} = {v:.3g}" for k, v in data["effect_parameters"].items())
     text += (f" Adding {data['effect'].replace('_', ' ')} ({params}) reduced it to {data['rmse_after_nm']:.2f} N m "
              f"(significant at the {data['significance_level']:g} level, family-wise over "
-             f"{len(data.get('candidates', []))} candidates); with it h = {data['h_after_m']:.3f} m.")
+             f"{len(data.get('candidates', []))} candidates); with it h = {data['h_after_m']:.3f} m"
+             + (f" (95 % interval {_ci(data['h_after_ci95_m'])} m, block-robust, with the base model's bias terms)"
+                if data.get("h_after_ci95_m") else "") + ".")
     lo, hi = data.get("h_range_m") or (None, None)
     if lo is not None and hi - lo > 0.001:
         text += f" Explanations the data cannot tell apart put h between {lo:.3f} and {hi:.3f} m."
@@ -272,7 +308,8 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
         if data.get("ambiguous_with"):
             out.append(f"The held-out data cannot tell it apart from: {', '.join(data['ambiguous_with'])} "
                        "(listed first: the lowest held-out RMSE; the result names none of them alone).")
-    out += [f"- {line}" for line in verdict_lines(data)]
+    final = final_interval_text(data)
+    out += [f"- {line}" for line in ([final] if final else []) + verdict_lines(data)]
     lo, hi = data.get("h_range_m") or (None, None)
     if lo is not None and hi - lo > 0.001:
         out.append(f"h range over the models the data cannot tell apart: **[{lo:.3f}, {hi:.3f}] m** ("

@@ -45,6 +45,7 @@ from euc_ros.core.residual.folds import (
     residual_block_length,
     with_blocks,
 )
+from euc_ros.core.residual.interval import final_interval
 from euc_ros.core.residual.result import CandidateResult, ResidualResult
 from euc_ros.core.residual.selection import (
     DETECTABILITY_TOL,
@@ -689,6 +690,9 @@ def conclude(setup: Setup, base: Stage, found: Discovery, geometry: dict,
     if h_range[1] - h_range[0] > 0.01:
         journal.warnings.append(f"tied models imply h from {h_range[0]:.3f} to {h_range[1]:.3f} m: h is not "
                                 f"determined better than that by these recordings")
+    # the final model's intervals: its own statistics, and the h of every tied explanation
+    interval = final_interval(current.model, setup.recs, final_fit.x,
+                              tied_h=[t["h_m"] for t in tied if t.get("tie") != "selected"])
     effect = current.model.name
     if found.rows:
         effect = "+".join([c.name for c in current.model.effects if c.name != "discovered"] + ["discovered"])
@@ -707,7 +711,7 @@ def conclude(setup: Setup, base: Stage, found: Discovery, geometry: dict,
         residual_significant=residual_significant, unexplained=unexplained, discovered=found.rows,
         discovery=found.info, noise_floor_nm=noise, floor_fit=setup.floor,
         residual_after_above_noise=bool(still_above) if math.isfinite(noise) else None, refused=journal.refused,
-        ties=ties)
+        ties=ties, final_interval=interval)
 
 
 class MeasuredWheelRadius(Candidate):

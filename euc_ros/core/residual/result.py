@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from euc_ros.core.residual.interval import FinalInterval
 from euc_ros.core.residual.selection import HeldOut, Model
 from euc_ros.core.states.floor import FloorFit
 
@@ -76,6 +77,7 @@ class ResidualResult:
     block_s: float = float("nan")
     refused: list = field(default_factory=list)
     ties: list = field(default_factory=list)
+    final_interval: FinalInterval | None = None
 
     def to_json(self) -> dict:
         """JSON per docs/residual.md, JSON (plus the analysis settings and steps)."""
@@ -101,4 +103,5 @@ class ResidualResult:
                 "residual_after_above_noise": self.residual_after_above_noise,
                 "refused": list(self.refused), "ties": list(self.ties),
                 "effect_is_tie": any(set(t["effects"]) & set(self.selected) for t in self.ties),
-                "analysis_warnings": list(self.warnings)}
+                "analysis_warnings": list(self.warnings),
+                **(self.final_interval.to_json() if self.final_interval is not None else {})}

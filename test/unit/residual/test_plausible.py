@@ -110,6 +110,9 @@ def test_a_rider_inertia_error_ties_with_a_mass_error_with_the_h_of_each():
     lo, hi = out["h_range_m"]
     assert lo == pytest.approx(min(tried.values())) and hi == pytest.approx(max(tried.values()))
     assert abs(tried["rider_inertia_error"] - H_TRUE) < 0.010 and hi - lo > 0.03
+    # the final model's interval holds the h of every tied explanation
+    ci = out["h_after_ci95_m"]
+    assert ci[0] < min(tried.values()) and ci[1] > max(tried.values()), (ci, tried)
     assert set(out["ambiguous_with"]) == {"rider_mass_error", "rider_inertia_error"} - {out["effect"]}
     (line,) = verdict_lines(out)
     assert line.startswith("tie: ") and "rider_mass_error (h " in line and "rider_inertia_error (h " in line

@@ -1,0 +1,197 @@
+"""The final model's intervals: h and every effect parameter, with what the data cannot settle.
+
+The final model (the base model with the selected and discovered effects) is a joint least-squares fit
+of ``x = [h, theta...]`` to zero residual. Its covariance is the block-robust sandwich
+
+    cov = (J^T J)^-1 (sum_b s_b s_b^T) (J^T J)^-1 * B / (B - p),    s_b = J_b^T r_b,
+
+with ``J`` the residual's Jacobian at the fit, ``r`` the residual, ``b`` the blocks of the analysis'
+paired test (each about twice the residual's correlation time, so the block scores are nearly
+independent) and ``B / (B - p)`` the small-sample correction for ``p`` fitted parameters (the
+cluster-robust estimator's CR1). It holds for a residual that is correlated within blocks and of any
+variance, which the residual of an imperfect model is. The 95 % interval uses Student's t with
+``B - p`` degrees of freedom. A reported parameter that is a function of ``x`` (an amplitude and a
+phase, a unit change) gets its interval by the delta method.
+
+What the fit's statistics do not hold is added to h's interval:
+
+* the widening ``identify`` applies to the base model's bootstrap interval (errors in variables from
+  the pose noise, soft-tissue sliding, the filter's distortion), taken alike for the final model
+  (the same recordings, filtered alike; passed in as ``extra_low_m``/``extra_high_m``);
+* every admissible explanation the data cannot tell from the final one (the tied models, named or
+  discovered): the interval covers each one's h with the same half-width, since they are fitted on the
+  same samples with nearly the same sensitivity of the residual to h.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Sequence
+
+import numpy as np
+
+from euc_ros.core.residual.selection import Model, block_offsets, model_jacobian
+from euc_ros.core.states.contexts import Recording
+
+#: Level of the intervals.
+LEVEL = 0.95
+
+
+@dataclass(frozen=True)
+class FinalInterval:
+    """Intervals of the final model.
+
+    Attributes
+    ----------
+    h_m : float
+        The final model's h [m].
+    h_se_m : float
+        Its block-robust standard error [m].
+    quantile : float
+        Student's t quantile of the intervals (``B - p`` degrees of freedom).
+    parameters_ci95 : dict of str to list of float
+        Per reported effect parameter (keys of ``Model.report``), its ``[low, high]`` interval.
+    n_blocks : int
+        Blocks of the sandwich.
+    tied_h_m : tuple of float
+        h of the other admissible explanations the interval covers [m].
+    extra_low_m, extra_high_m : float
+        Widening beyond the statistics, below and above [m] (:meth:`widened`).
+    """
+
+    h_m: float
+    h_se_m: float
+    quantile: float
+    parameters_ci95: dict[str, list[float]]
+    n_blocks: int
+    tied_h_m: tuple[float, ...] = ()
+    extra_low_m: float = 0.0
+    extra_high_m: float = 0.0
+
+    @property
+    def h_ci95_m(self) -> tuple[float, float]:
+        """h's interval: its own, and each tied h with the same half-width, widened by the extras [m]."""
+        half = self.quantile * self.h_se_m if math.isfinite(self.h_se_m) else float("inf")
+        hs = [self.h_m, *self.tied_h_m]
+        return (min(v - half for v in hs) - self.extra_low_m, max(v + half for v in hs) + self.extra_high_m)
+
+    def widened(self, extra_low_m: float, extra_high_m: float) -> "FinalInterval":
+        """The same intervals with h's widened by ``extra_low_m`` below and ``extra_high_m`` above [m]."""
+        return replace(self, extra_low_m=max(float(extra_low_m), 0.0), extra_high_m=max(float(extra_high_m), 0.0))
+
+    def widened_by(self) -> list[str]:
+        """What h's interval holds beyond its own statistics, in words."""
+        out = []
+        if self.extra_low_m > 0 or self.extra_high_m > 0:
+            out.append(f"the base model's bias terms (-{self.extra_low_m * 1e3:.1f} / "
+                       f"+{self.extra_high_m * 1e3:.1f} mm)")
+        if self.tied_h_m:
+            out.append("the h of " + ", ".join(f"{v:.3f}" for v in self.tied_h_m) + " m (tied explanations)")
+        return out
+
+    def to_json(self) -> dict:
+        """The JSON keys ``h_after_ci95_m``, ``effect_parameters_ci95`` and ``h_after_uncertainty``."""
+        def f(v):
+            return float(v) if math.isfinite(v) else None
+
+        return {"h_after_ci95_m": [f(v) for v in self.h_ci95_m],
+                "effect_parameters_ci95": {k: [f(v) for v in iv] for k, iv in self.parameters_ci95.items()},
+                "h_after_uncertainty": {"method": "block sandwich", "h_se_m": f(self.h_se_m),
+                                        "n_blocks": self.n_blocks, "t_quantile": f(self.quantile),
+                                        "widened_by": self.widened_by()}}
+
+
+def sandwich_covariance(model: Model, recs: Sequence[Recording], x: np.ndarray) -> tuple[np.ndarray, int]:
+    """Block-robust covariance of the fitted ``x`` (p, p) and the number of blocks.
+
+    Parameters without a finite sensitivity get NaN variances. With fewer blocks than parameters + 2
+    the covariance is all NaN (no degrees of freedom left).
+    """
+    x = np.asarray(x, float)
+    r, masks, J = model_jacobian(model, recs, x)
+    offsets = block_offsets(recs)
+    rows = [np.asarray(m, bool) & np.all(np.isfinite(j), axis=1) for m, j in zip(masks, J)]
+    Jm = np.concatenate([j[k] for j, k in zip(J, rows)]) if recs else np.zeros((0, x.size))
+    rm = np.concatenate([ri[k] for ri, k in zip(r, rows)]) if recs else np.zeros(0)
+    blocks = np.concatenate([np.asarray(rec.block)[k] + o for rec, k, o in zip(recs, rows, offsets)]) \
+        if recs else np.zeros(0, int)
+    p = x.size
+    cov = np.full((p, p), np.nan)
+    used, ids = np.unique(blocks, return_inverse=True)
+    n_blocks = int(used.size)
+    if n_blocks < p + 2:
+        return cov, n_blocks
+    active = np.any(Jm != 0.0, axis=0)
+    A = Jm[:, active]
+    scores = np.zeros((n_blocks, A.shape[1]))
+    np.add.at(scores, ids, A * rm[:, None])
+    bread = np.linalg.pinv(A.T @ A)
+    meat = scores.T @ scores
+    sub = bread @ meat @ bread * (n_blocks / (n_blocks - p))
+    cov[np.ix_(active, active)] = sub
+    return cov, n_blocks
+
+
+def _report_jacobian(model: Model, x: np.ndarray) -> tuple[list[str], np.ndarray, np.ndarray]:
+    """Reported parameter names, values and d(report)/dx by central differences."""
+    base = model.report(x)
+    names = list(base)
+    values = np.array([base[k] for k in names], float)
+    G = np.zeros((len(names), x.size))
+    lo, hi = model.bounds()
+    steps = 1e-6 * model.scales()
+    for j in range(1, x.size):
+        a, b = x.copy(), x.copy()
+        a[j] = max(x[j] - steps[j], lo[j])
+        b[j] = min(x[j] + steps[j], hi[j])
+        if b[j] == a[j]:
+            continue
+        ra, rb = model.report(a), model.report(b)
+        G[:, j] = [(rb[k] - ra[k]) / (b[j] - a[j]) for k in names]
+    return names, values, G
+
+
+def final_interval(model: Model, recs: Sequence[Recording], x: np.ndarray, *, tied_h: Sequence[float] = (),
+                   extra_low_m: float = 0.0, extra_high_m: float = 0.0, level: float = LEVEL) -> FinalInterval:
+    """Intervals of the final model's h and reported effect parameters (see the module docstring).
+
+    Parameters
+    ----------
+    model : Model
+        The final model.
+    recs : sequence of Recording
+        The analysis' recordings, with the blocks of its paired test.
+    x : ndarray
+        The final fit ``[h, theta...]``.
+    tied_h : sequence of float
+        h of every other admissible explanation the data cannot tell from this one [m].
+    extra_low_m, extra_high_m : float
+        What h's interval is widened by below and above, beyond its statistics [m] (>= 0).
+    level : float
+        Coverage of the intervals.
+
+    Returns
+    -------
+    FinalInterval
+    """
+    from scipy.stats import t as student
+
+    x = np.asarray(x, float)
+    cov, n_blocks = sandwich_covariance(model, recs, x)
+    dof = n_blocks - x.size
+    q = float(student.ppf(0.5 + level / 2, dof)) if dof > 0 else float("inf")
+    h = float(x[0])
+    se = float(math.sqrt(cov[0, 0])) if np.isfinite(cov[0, 0]) and cov[0, 0] >= 0 else float("nan")
+    others = tuple(float(v) for v in tied_h if math.isfinite(v) and float(v) != h)
+    names, values, G = _report_jacobian(model, x)
+    params = {}
+    c = np.where(np.isfinite(cov), cov, 0.0)
+    bad = ~np.isfinite(np.diag(cov))
+    for k, name in enumerate(names):
+        g = G[k]
+        if np.any(g[bad] != 0.0):
+            params[name] = [float("nan"), float("nan")]
+            continue
+        s = float(math.sqrt(max(g @ c @ g, 0.0)))
+        params[name] = [float(values[k] - q * s), float(values[k] + q * s)]
+    return FinalInterval(h, se, q, params, n_blocks, others).widened(extra_low_m, extra_high_m)

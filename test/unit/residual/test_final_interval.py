@@ -1,0 +1,62 @@
+"""The final model's intervals (h and the effect parameters) against the spread of independent rides.
+
+Ten simulated rides (:mod:`euc_ros.core.ridesim`, consecutive seeds) with a 2 deg ground slope: the
+block-robust standard errors the analysis reports must match the scatter of the estimates over the
+rides. The ratio of the sample standard deviation of 10 estimates to the true one lies, for normal
+estimates, within ``sqrt(chi2(9) / 9)``'s 99 % band [0.44, 1.62]; the reported errors vary a little per
+ride, so their RMS stands for the true one.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.stats import chi2
+
+from euc_ros.cli.residual import base_widening, final_interval_text
+from euc_ros.core.model.effects import make_candidates
+from euc_ros.core.residual.analysis import analyze
+from euc_ros.testing import load_module
+
+P = load_module(Path(__file__).with_name("test_plausible.py"), "plausible_rides")
+SEEDS = range(20, 30)
+
+
+@pytest.fixture(scope="module")
+def slope_results():
+    return [analyze(*P.ride({"ground_slope": {"alpha_deg": 2.0}}, seed=s),
+                    candidates=make_candidates(["ground_slope"]), discover=False).to_json() for s in SEEDS]
+
+
+def test_standard_errors_match_the_scatter_over_rides(slope_results):
+    n = len(slope_results)
+    lo, hi = np.sqrt(chi2.ppf([0.005, 0.995], n - 1) / (n - 1))
+    h = np.array([o["h_after_m"] for o in slope_results])
+    se_h = np.array([o["h_after_uncertainty"]["h_se_m"] for o in slope_results])
+    alpha = np.array([o["effect_parameters"]["alpha_deg"] for o in slope_results])
+    q = np.array([o["h_after_uncertainty"]["t_quantile"] for o in slope_results])
+    se_alpha = np.array([(o["effect_parameters_ci95"]["alpha_deg"][1] - o["effect_parameters_ci95"]["alpha_deg"][0])
+                         / 2 for o in slope_results]) / q
+    for est, se in ((h, se_h), (alpha, se_alpha)):
+        ratio = est.std(ddof=1) / np.sqrt(np.mean(se ** 2))
+        assert lo < ratio < hi, (ratio, est, se)
+
+
+def test_the_intervals_are_centred_on_their_estimates_and_said(slope_results):
+    o = slope_results[0]
+    assert o["effect"] == "ground_slope"
+    a, b = o["h_after_ci95_m"]
+    se, q = o["h_after_uncertainty"]["h_se_m"], o["h_after_uncertainty"]["t_quantile"]
+    assert a == pytest.approx(o["h_after_m"] - q * se) and b == pytest.approx(o["h_after_m"] + q * se)
+    lo, hi = o["effect_parameters_ci95"]["alpha_deg"]
+    assert lo < o["effect_parameters"]["alpha_deg"] < hi
+    assert o["h_after_uncertainty"]["n_blocks"] >= 20
+    text = final_interval_text(o)
+    assert text.startswith("h (final model, ground_slope) = ") and "alpha_deg [" in text
+
+
+def test_the_base_models_bias_terms_widen_the_final_interval():
+    base = {"h_ci95_m": [0.590, 0.625], "uncertainty": {"bootstrap_ci95_m": [0.595, 0.615]}}
+    assert base_widening(base) == pytest.approx((0.005, 0.010))
+    assert base_widening({"h_ci95_m": [None, None], "uncertainty": {}}) == (0.0, 0.0)
