@@ -113,6 +113,7 @@ def npm_tool():
     """``install(tool_dir, marker, script, purpose) -> Path``: a tools/ folder's pinned npm packages
     (``npm ci`` of its lock file, cached by the lock's hash) with its script beside them; skips with the
     reason where node, npm or the registry are absent."""
+    import fcntl
     import hashlib
     import shutil
     import subprocess
@@ -124,17 +125,20 @@ def npm_tool():
         lock = (tool_dir / "package-lock.json").read_bytes()
         cache = Path(os.environ.get("XDG_CACHE_HOME", Path.home() / ".cache")) / "euc_ros" / tool_dir.name / \
             hashlib.sha256(lock).hexdigest()[:16]
-        if not (cache / "node_modules" / marker).is_dir():
-            cache.mkdir(parents=True, exist_ok=True)
-            for name in ("package.json", "package-lock.json"):
-                shutil.copy(tool_dir / name, cache / name)
-            r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=cache,
-                               capture_output=True, text=True, timeout=600)
-            if r.returncode != 0:
-                if any(e in r.stderr for e in NPM_NETWORK_ERRORS):
-                    pytest.skip(f"the npm registry is unreachable: {r.stderr.strip().splitlines()[-1]}")
-                pytest.fail(f"npm ci failed (lock file or packages broken):\n{r.stderr[-3000:]}")
-        shutil.copy(tool_dir / script, cache / script)
+        cache.mkdir(parents=True, exist_ok=True)
+        # one install at a time: the suite's worker processes may ask for the same tool at once
+        with open(cache.parent / f"{cache.name}.lock", "w") as lock:
+            fcntl.flock(lock, fcntl.LOCK_EX)
+            if not (cache / "node_modules" / marker).is_dir():
+                for name in ("package.json", "package-lock.json"):
+                    shutil.copy(tool_dir / name, cache / name)
+                r = subprocess.run([npm, "ci", "--no-audit", "--no-fund", "--ignore-scripts"], cwd=cache,
+                                   capture_output=True, text=True, timeout=600)
+                if r.returncode != 0:
+                    if any(e in r.stderr for e in NPM_NETWORK_ERRORS):
+                        pytest.skip(f"the npm registry is unreachable: {r.stderr.strip().splitlines()[-1]}")
+                    pytest.fail(f"npm ci failed (lock file or packages broken):\n{r.stderr[-3000:]}")
+            shutil.copy(tool_dir / script, cache / script)
         return cache
 
     return install
