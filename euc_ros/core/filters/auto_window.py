@@ -180,6 +180,9 @@ class WindowChoice:
     probe : tuple
         ``(window_s, polyorder)`` of a companion filter whose predicted distortion is about twice
         the chosen one's (see :func:`choose_window`, Notes).
+    probe_ratio : float
+        The probe's predicted RMS distortion of the accelerations over the chosen filter's (about
+        2; NaN when the chosen filter predicts none).
     candidates : list of dict
         Every candidate evaluated, with its total score.
     """
@@ -193,6 +196,7 @@ class WindowChoice:
     acceleration_rms: dict
     band_hz: dict
     probe: tuple
+    probe_ratio: float = float("nan")
     candidates: list = field(repr=False, default_factory=list)
 
     def to_json(self) -> dict:
@@ -200,7 +204,8 @@ class WindowChoice:
         return {"window_s": self.window_s, "window": self.window, "polyorder": self.polyorder,
                 "distortion": {k: list(v) for k, v in self.distortion.items()}, "noise": dict(self.noise),
                 "noise_std": dict(self.noise_std), "acceleration_rms": dict(self.acceleration_rms),
-                "band_hz": {k: list(v) for k, v in self.band_hz.items()}, "probe": list(self.probe)}
+                "band_hz": {k: list(v) for k, v in self.band_hz.items()}, "probe": list(self.probe),
+                "probe_ratio": self.probe_ratio if np.isfinite(self.probe_ratio) else None}
 
 
 def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) -> list[tuple[int, int]]:
@@ -330,13 +335,17 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         cum = np.cumsum(A[n]) / np.sum(A[n])
         band[n] = (float(f[np.searchsorted(cum, 0.90)]), float(f[np.searchsorted(cum, 0.99)]), cutoff[n])
     # companion filter: the same order, the window whose summed distortion is nearest twice the choice's
-    target = 2.0 * sum(best["B2"][n] / P[n] for n in names) ** 0.5
+    def rms_distortion(c):
+        return sum(c["B2"][n] / P[n] for n in names) ** 0.5
+
+    target = 2.0 * rms_distortion(best)
     same = [c for c in cands if c["polyorder"] == p and c["window"] > W]
-    probe = (W * dt, p)
+    probe, ratio = (W * dt, p), float("nan")
     if same:
-        c = min(same, key=lambda c: abs(sum(c["B2"][n] / P[n] for n in names) ** 0.5 - target))
+        c = min(same, key=lambda c: abs(rms_distortion(c) - target))
         probe = (c["window"] * dt, p)
+        ratio = rms_distortion(c) / target * 2.0 if target > 0 else float("nan")
     return WindowChoice(window_s=W * dt, window=W, polyorder=p, distortion=distortion, noise=noise,
-                        noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band, probe=probe,
+                        noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band, probe=probe, probe_ratio=ratio,
                         candidates=[{"window": c["window"], "polyorder": c["polyorder"], "score": c["score"]}
                                     for c in cands])

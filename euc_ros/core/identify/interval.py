@@ -114,7 +114,7 @@ def turning_rms(states) -> float:
 
 def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bias_m: float = float("nan"),
              h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0, turning_ms2: float = 0.0,
-             eiv_bias_err_m: float = 0.0) -> Interval:
+             eiv_bias_err_m: float = 0.0, filter_floor_m: float = 0.0) -> Interval:
     """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
 
     Parameters
@@ -129,6 +129,12 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         Sample period [s].
     eiv_bias_m : float
         SIMEX bias (NaN: not included).
+    eiv_bias_err_m : float
+        Its standard error.
+    filter_floor_m : float
+        Bound on the bias the filter's distortion leaves in h, sign unknown (:func:`~euc_ros.core.
+        identify.cog_height.filter_floor`): both ends move out by it, as a systematic shift of at
+        most that size moves the whole interval.
     """
     h = float(fit.h_m)
     n = sum(c.shape[1] for c in coefs)
@@ -157,6 +163,8 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         # own random error (two standard errors)
         e = 2.0 * (eiv_bias_err_m if np.isfinite(eiv_bias_err_m) else 0.0)
         lo2, hi2 = min(lo2, lo2 - eiv_bias_m) - e, max(hi2, hi2 - eiv_bias_m) + e
+    if np.isfinite(filter_floor_m) and filter_floor_m > 0:
+        lo2, hi2 = lo2 - filter_floor_m, hi2 + filter_floor_m
     if turning_ms2 > MAX_TURNING_MS2:
         reasons.append(f"the ride turns (RMS centripetal acceleration {turning_ms2:.1f} m/s^2 > {MAX_TURNING_MS2:g}): "
                        "the planar model lacks the turning terms; see `euc-ros residual`")
