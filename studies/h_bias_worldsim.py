@@ -34,7 +34,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from euc_ros.core.filters.auto_window import choose_window, savgol_kernel  # noqa: E402
+from euc_ros.core.filters.auto_window import savgol_kernel  # noqa: E402
 from euc_ros.core.worldsim import Capture, simulate_ride, write_ride  # noqa: E402
 from euc_ros.core.worldsim.excitation import PROFILE_KINDS  # noqa: E402
 
@@ -58,7 +58,9 @@ def run_cli(args: list[str]) -> None:
 
 
 def identify(session: Path, csvs: list[Path], out: Path, window=None, uncertainty: bool = True) -> dict:
-    """Run ``euc-ros identify`` and return ``h_m`` and ``h_ci95_m``."""
+    """Run ``euc-ros identify`` (``window`` None: its default, the filter chosen from the data) and return
+    ``h_m``, ``h_ci95_m``, the noise-bias-corrected h (``h_corrected_m`` = ``h_m - eiv_bias_m``), the
+    filter's probe h and floor, and the ``filter`` choice."""
     args = ["identify", str(session), *map(str, csvs), "--json", str(out), "--no-progress"]
     if window is not None:
         args += ["--window-s", repr(float(window[0])), "--polyorder", str(int(window[1]))]
@@ -66,39 +68,11 @@ def identify(session: Path, csvs: list[Path], out: Path, window=None, uncertaint
         args.append("--no-uncertainty")
     run_cli(args)
     d = json.loads(out.read_text(encoding="utf-8"))
-    return {"h_m": d["h_m"], "h_ci95_m": d.get("h_ci95_m"), "identifiable": d.get("identifiable")}
-
-
-def raw_signals(session_path: Path, csvs: list[Path]) -> tuple[float, dict]:
-    """Unfiltered EUC pitch, rider pitch about the hinge and wheel-centre coordinates of recordings.
-
-    The same geometry identify applies before filtering (the project's reader and frame geometry), on
-    each recording's frame grid (missing frames NaN). This is the call to wire into identify.
-    """
-    from euc_ros.core.io.motive_csv import read_motive_csv
-    from euc_ros.core.session import load_session
-    from euc_ros.core.states.geometry import frame_geometry
-
-    session = load_session(session_path)
-    out = {"gamma": [], "phi": [], "C_x": [], "C_y": []}
-    dt = None
-    for csv in csvs:
-        s = read_motive_csv(csv, world_up=session.world_up)
-        geo = frame_geometry(s.position, s.quat, s.tracked, session, s.bodies)
-        n = int(s.frame[-1] - s.frame[0]) + 1
-        k = s.frame - s.frame[0]
-
-        def grid(v, n=n, k=k):
-            g = np.full(n, np.nan)
-            g[k] = v
-            return g
-
-        out["gamma"].append(grid(geo["gamma"]))
-        out["phi"].append(grid(geo["phi_hinge"]))
-        out["C_x"].append(grid(geo["C"][:, 0]))
-        out["C_y"].append(grid(geo["C"][:, 1]))
-        dt = 1.0 / s.rate_hz
-    return dt, out
+    u = d.get("uncertainty") or {}
+    bias = u.get("eiv_bias_m")
+    return {"h_m": d["h_m"], "h_ci95_m": d.get("h_ci95_m"), "identifiable": d.get("identifiable"),
+            "h_corrected_m": d["h_m"] - bias if bias is not None else None, "eiv_bias_m": bias,
+            "h_probe_m": u.get("h_probe_m"), "filter_floor_m": u.get("filter_floor_m"), "filter": d.get("filter")}
 
 
 def power_band(x: np.ndarray, fs: float, q=(0.90, 0.99)) -> list[float]:
@@ -149,22 +123,19 @@ def worldsim_rides(args, work: Path) -> list[dict]:
         for noise, cap in (("clean", CLEAN), ("noisy", NOISY)):
             d = work / f"ws{seed}_{noise}"
             paths = write_ride(ride, d, cap, seed=seed, name=f"ws{seed}")
-            run = {"default": identify(paths["session"], [paths["csv"]], d / "default.json")}
-            dt, sig = raw_signals(paths["session"], [paths["csv"]])
-            choice = choose_window(dt, sig)
-            run["auto_choice"] = choice.to_json()
-            run["auto"] = identify(paths["session"], [paths["csv"]], d / "auto.json",
-                                   window=(choice.window_s, choice.polyorder))
-            run["probe"] = identify(paths["session"], [paths["csv"]], d / "probe.json", window=choice.probe,
-                                    uncertainty=False)
+            run = {"default": identify(paths["session"], [paths["csv"]], d / "default.json", window=DEFAULT_WINDOW)}
+            run["auto"] = identify(paths["session"], [paths["csv"]], d / "auto.json")
+            run["auto_choice"] = run["auto"]["filter"]
+            run["probe"] = {"h_m": run["auto"]["h_probe_m"]}
             if i < args.sweep_seeds:
                 run["sweep"] = {f"{w}": identify(paths["session"], [paths["csv"]], d / f"w{w}.json", window=(w, 6),
                                                  uncertainty=False)["h_m"] for w in SWEEP_WINDOWS}
             for m in ("default", "auto"):
                 run[m]["covered"] = covered(run[m], ride.h)
             row["runs"][noise] = run
+            c = run["auto_choice"]
             log(f"  {noise}: default {1e3 * (run['default']['h_m'] - ride.h):+.2f} mm, auto "
-                f"({choice.window_s:.3f} s, {choice.polyorder}) {1e3 * (run['auto']['h_m'] - ride.h):+.2f} mm")
+                f"({c['window_s']:.3f} s, {c['polyorder']}) {1e3 * (run['auto']['h_m'] - ride.h):+.2f} mm")
         rows.append(row)
     return rows
 
@@ -179,15 +150,13 @@ def project_rides(args, work: Path) -> list[dict]:
         h = float(truth["h_m"])
         csvs = sorted(d.glob("*.csv"))
         row = {"maneuver": maneuver, "h_true_m": h, "recordings": len(csvs)}
-        row["default"] = identify(d / "session.yaml", csvs, d / "default.json")
-        dt, sig = raw_signals(d / "session.yaml", csvs)
-        choice = choose_window(dt, sig)
-        row["auto_choice"] = choice.to_json()
-        row["auto"] = identify(d / "session.yaml", csvs, d / "auto.json", window=(choice.window_s, choice.polyorder))
+        row["default"] = identify(d / "session.yaml", csvs, d / "default.json", window=DEFAULT_WINDOW)
+        row["auto"] = identify(d / "session.yaml", csvs, d / "auto.json")
+        row["auto_choice"] = choice = row["auto"]["filter"]
         for m in ("default", "auto"):
             row[m]["covered"] = covered(row[m], h)
         log(f"project {maneuver}: default {1e3 * (row['default']['h_m'] - h):+.2f} mm, auto "
-            f"({choice.window_s:.3f} s, {choice.polyorder}) {1e3 * (row['auto']['h_m'] - h):+.2f} mm")
+            f"({choice['window_s']:.3f} s, {choice['polyorder']}) {1e3 * (row['auto']['h_m'] - h):+.2f} mm")
         rows.append(row)
     return rows
 
