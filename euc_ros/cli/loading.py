@@ -50,7 +50,15 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         from euc_ros.core.states.filter_choice import choose_filter
 
         bar = [(path, load_recording(path, session.world_up)) for path in bar]
-        choice = choose_filter([s for _, s in bar], session, phi_definition=phi_definition)
+        try:
+            choice = choose_filter([s for _, s in bar], session, phi_definition=phi_definition)
+        except InputError:
+            # a recording's own fault (a missing body, nothing tracked) is named by its reconstruction
+            for path, series in bar:
+                check_recording(series, session, path)
+                reconstruct_states(series, session, phi_definition=phi_definition, cog_method=cog_method,
+                                   skeleton=skeleton)
+            raise
         window_s, polyorder = choice.window_s, choice.polyorder
     for item in bar:
         path, series = item if auto else (item, load_recording(item, session.world_up))
