@@ -176,6 +176,10 @@ def format_uncertainty(ident: HIdentification) -> str:
     sharp = "-" if u.get("sharpness") is None else f"{u['sharpness']:.2f}"
     if unc["identifiable"]:
         lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
+        hc, (clo, chi) = unc.get("h_corrected_m"), unc.get("h_corrected_ci95_m", (None, None))
+        if hc is not None:
+            cci = "[-, -]" if clo is None or chi is None else f"[{clo:.3f}, {chi:.3f}]"
+            lines.append(f"h corrected for the noise and the filter's distortion = {hc:.3f} m, 95 % interval {cci} m")
     else:
         lines = [f"h is NOT identifiable from these recordings: {unc['identifiability_reason']}",
                  f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]

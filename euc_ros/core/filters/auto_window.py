@@ -220,7 +220,7 @@ def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) ->
 
 def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[str, float] | None = None, *,
                   orders: Sequence[int] = DEFAULT_ORDERS, max_window_s: float = MAX_WINDOW_S,
-                  segment_s: float = SEGMENT_S) -> WindowChoice:
+                  segment_s: float = SEGMENT_S, noise_power: int = 1) -> WindowChoice:
     """Choose the Savitzky-Golay window and order from a recording's raw signals.
 
     Parameters
@@ -239,6 +239,10 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         Longest candidate window [s].
     segment_s : float
         Welch segment length [s].
+    noise_power : {1, 2}
+        The power of the relative noise variance in the score: 1 for the mean-square error of the
+        accelerations, 2 when the noise's first-order bias of the estimate is removed afterwards
+        (see Notes).
 
     Returns
     -------
@@ -263,7 +267,12 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
 
     the distortion and the noise variance of the filtered acceleration. The choice minimizes the
     summed relative mean-square error ``sum_s (B_s^2 + V_s) / P_s``: with noise-free poses this is
-    the shortest window that resolves the motion, with noisy poses the balance of both. The
+    the shortest window that resolves the motion, with noisy poses the balance of both. With
+    ``noise_power=2`` the score is ``sum_s B_s^2 / P_s + (V_s / P_s)^2``: an estimate whose noise
+    bias is removed by simulation-extrapolation (SIMEX, linear in the noise variance) keeps of the
+    noise only the part of second order in ``V_s / P_s`` (the curvature of the bias in the
+    variance), while the distortion stays whole; the noise then counts less and the window is
+    shorter. The
     distortion the choice leaves is returned per signal and derivative order; as it is a bias of
     the filter, not noise, it does not average out. Since ``B`` grows steeply with the window, a
     companion filter with about twice the predicted distortion (``probe``) gives a model-free
@@ -315,7 +324,7 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         for n in names:
             B[n] = float(np.sum(e2 * A[n]) * df)
             V[n] = sig_used[n] ** 2 * float(k2 @ k2)
-            score += (B[n] + V[n]) / P[n]
+            score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
         cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
     best = min(cands, key=lambda c: (c["score"], c["window"]))
     W, p = best["window"], best["polyorder"]

@@ -96,6 +96,24 @@ def json_float(v) -> float | None:
     return None if v is None or not np.isfinite(v) else float(v)
 
 
+def percentiles95(replicates: np.ndarray, n_blocks: int) -> tuple[float, float]:
+    """The 2.5 and 97.5 % percentiles of bootstrap replicates (unbounded ones, +-inf or NaN, make
+    them infinite); infinite with fewer than 2 blocks."""
+    if n_blocks < 2:
+        return -np.inf, np.inf
+    with np.errstate(invalid="ignore"):      # unbounded replicates (+-inf) make the percentile infinite
+        lo, hi = np.percentile(replicates, [2.5, 97.5])
+    return float(-np.inf if np.isnan(lo) else lo), float(np.inf if np.isnan(hi) else hi)
+
+
+def student_factor(n_blocks: int) -> float:
+    """Widening of a bootstrap interval over ``n_blocks`` blocks: few blocks make the percentiles
+    undercover, so they move out as Student's t quantile does against the normal one (1 below 2 blocks)."""
+    from scipy.stats import t as student
+
+    return float(student.ppf(0.975, max(n_blocks - 1, 1)) / 1.959964) if n_blocks >= 2 else 1.0
+
+
 def turning_rms(states) -> float:
     """RMS centripetal acceleration ``x_dot psi_dot`` over the valid samples [m/s^2]."""
 
@@ -146,17 +164,9 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
     if duration < MIN_DURATION_S:
         reasons.append(f"too short: {duration:.1f} s of usable states (at least {MIN_DURATION_S:g} s needed)")
     hb, length, nb, grid = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
-    if nb >= 2:
-        with np.errstate(invalid="ignore"):      # unbounded replicates (+-inf) make the percentile infinite
-            lo, hi = np.percentile(hb, [2.5, 97.5])
-        lo, hi = (-np.inf if np.isnan(lo) else lo), (np.inf if np.isnan(hi) else hi)
-    else:
-        lo, hi = -np.inf, np.inf
+    lo, hi = percentiles95(hb, nb)
     boot = (float(lo), float(hi))
-    # few blocks: percentiles undercover; widen as Student's t does against the normal quantile
-    from scipy.stats import t as student
-
-    k = float(student.ppf(0.975, max(nb - 1, 1)) / 1.959964) if nb >= 2 else 1.0
+    k = student_factor(nb)
     lo2, hi2 = h - k * (h - boot[0]), h + k * (boot[1] - h)
     if np.isfinite(eiv_bias_m):
         # the interval contains the estimate and the bias-corrected estimate, each with the bias'

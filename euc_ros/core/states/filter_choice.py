@@ -95,7 +95,16 @@ class FilterChoice:
         return out
 
 
-def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hinge") -> FilterChoice:
+#: ``noise_power`` of :func:`~euc_ros.core.filters.auto_window.choose_window` for identification: h's
+#: noise bias is removed by SIMEX (:mod:`euc_ros.core.identify.simex`), so the noise counts by the
+#: square of its relative variance (measured: the default 1 left a filter distortion of -0.79 +- 0.14 mm
+#: in h on 12 noisy generator rides and -9.7 +- 4.0 mm on 8 noisy rides of the project's simulator; 2
+#: left -0.35 +- 0.10 mm and -3.2 +- 1.2 mm, docs/studies/h_bias_worldsim.md).
+NOISE_POWER = 2
+
+
+def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hinge",
+                  noise_power: int = NOISE_POWER) -> FilterChoice:
     """Choose the Savitzky-Golay window and order for recordings from their raw signals.
 
     Parameters
@@ -104,6 +113,9 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
         The recordings (Z-up).
     session : Session
     phi_definition : {"hinge", "eq3"}
+    noise_power : {1, 2}
+        How the noise counts against the distortion (:func:`~euc_ros.core.filters.auto_window.
+        choose_window`); :data:`NOISE_POWER` for an h whose noise bias SIMEX removes.
 
     Returns
     -------
@@ -124,6 +136,6 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
         g = groups.setdefault(rate, {k: [] for k in sig})
         for k, v in sig.items():
             g[k].append(v)
-    per_rate = {rate: choose_window(dts[rate], sig) for rate, sig in groups.items()}
+    per_rate = {rate: choose_window(dts[rate], sig, noise_power=noise_power) for rate, sig in groups.items()}
     used = max(per_rate.values(), key=lambda c: c.window_s)
     return FilterChoice(used, per_rate)
