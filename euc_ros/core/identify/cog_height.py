@@ -220,7 +220,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if measured else (0.0, 0.0)
         corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, filter_choice,
                                          window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
-                                         eiv_bias_err_m=err, shift_m=slide_m, shift_err_m=slide_err,
+                                         eiv_bias_err_m=err, sliding_m=slide_m, sliding_err_m=slide_err,
                                          h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method)
     del coefs, probe                  # per-sample coefficients: not kept through the budget
     out.update(iv.to_json())
@@ -308,8 +308,8 @@ def _probe_ratio(choice) -> float:
 
 
 def distortion_corrected(series_list, session, params: EucParams, coefs, probe_coefs, h: float, choice, *,
-                         window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float, shift_m: float = 0.0,
-                         shift_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
+                         window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float, sliding_m: float = 0.0,
+                         sliding_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
                          phi_definition: str = "hinge", cog_method: str = "segments", n_boot: int = 1000,
                          seed: int = 0) -> dict:
     """h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
@@ -334,8 +334,10 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     eiv_bias_m, eiv_bias_err_m : float
         SIMEX's bias of ``h`` and its standard error [m] (:func:`~euc_ros.core.identify.simex.eiv_bias`;
         NaN: no noise measurable, taken as 0).
-    shift_m, shift_err_m : float
-        A further bias of h with its standard error [m] (the soft-tissue sliding's), subtracted as is.
+    sliding_m, sliding_err_m : float
+        The soft-tissue sliding's bias of h and its standard error [m] (:mod:`.sliding`; 0 when none
+        is seen): not subtracted (a rigid rider's pose noise can pass for sliding), but the interval
+        contains the estimate corrected for it too, as ``h_ci95_m`` does.
     h_bounds, n_boot, seed
         As for :func:`~euc_ros.core.identify.interval.interval` (the same seed pairs the replicates
         with those of ``h_ci95_m``).
@@ -345,7 +347,7 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     dict
         ``h_corrected_m``, ``h_corrected_ci95_m`` (NaN, and NaN ends, without a probe longer than the
         chosen filter), ``probe_eiv_bias_m`` and ``probe_eiv_bias_err_m`` (SIMEX at the probe),
-        ``distortion_correction_m`` (the extrapolation's step, ``h_corrected - (h - eiv_bias - shift)``).
+        ``distortion_correction_m`` (the extrapolation's step, ``h_corrected - (h - eiv_bias)``).
 
     Notes
     -----
@@ -377,7 +379,7 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
         return out
 
     def combine(hc, hp):
-        return (r * (hc - b_c) - (hp - b_p)) / (r - 1.0) - shift_m
+        return (r * (hc - b_c) - (hp - b_p)) / (r - 1.0)
 
     h0 = combine(h, h_probe)
     hb_c, length, nb, _ = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
@@ -386,7 +388,9 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     lo, hi = percentiles95(combine(hb_c, hb_p), nb if nb == nb_p else 0)
     k = student_factor(nb)
     e = 2.0 * float(np.sqrt((r * e_c) ** 2 + e_p ** 2) / (r - 1.0))
-    e = float(np.hypot(e, 2.0 * shift_err_m))
-    out.update(h_corrected_m=h0, h_corrected_ci95_m=(h0 - k * (h0 - lo) - e, h0 + k * (hi - h0) + e),
-               distortion_correction_m=h0 - (h - b_c - shift_m))
+    lo, hi = h0 - k * (h0 - lo), h0 + k * (hi - h0)
+    if np.isfinite(sliding_m) and sliding_m != 0.0:
+        e = float(np.hypot(e, 2.0 * sliding_err_m))
+        lo, hi = min(lo, lo - sliding_m), max(hi, hi - sliding_m)
+    out.update(h_corrected_m=h0, h_corrected_ci95_m=(lo - e, hi + e), distortion_correction_m=h0 - (h - b_c))
     return out
