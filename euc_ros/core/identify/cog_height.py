@@ -316,10 +316,8 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
 
     Parameters
     ----------
-    series_list : sequence of MocapSeries
-        The recordings' poses.
-    session, params
-        As for :func:`identify_h`.
+    series_list, session, params
+        As for :func:`filter_floor`.
     coefs, probe_coefs : sequence of ndarray (6, n_i)
         The recordings' residual coefficients with the chosen filter and with the probe filter
         (:func:`probe_coefficients`).
