@@ -383,7 +383,9 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     hb_c, length, nb, _ = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
     hb_p, _, nb_p, _ = block_bootstrap(probe_coefs, h_probe, window, dt, n_boot=n_boot, seed=seed,
                                        h_bounds=h_bounds, counts=block_counts(coefs, length))
-    lo, hi = percentiles95(combine(hb_c, hb_p), nb if nb == nb_p else 0)
+    with np.errstate(invalid="ignore"):     # unbounded replicates (+-inf at both filters) give NaN: unbounded
+        reps = combine(hb_c, hb_p)
+    lo, hi = percentiles95(reps, nb if nb == nb_p else 0)
     k = student_factor(nb)
     e = 2.0 * float(np.sqrt((r * e_c) ** 2 + e_p ** 2) / (r - 1.0))
     lo, hi = h0 - k * (h0 - lo), h0 + k * (hi - h0)
