@@ -97,9 +97,10 @@ class FilterChoice:
 
 #: ``noise_power`` of :func:`~euc_ros.core.filters.auto_window.choose_window` for identification: h's
 #: noise bias is removed by SIMEX (:mod:`euc_ros.core.identify.simex`), so the noise counts by the
-#: square of its relative variance (measured: the default 1 left a filter distortion of -0.79 +- 0.14 mm
-#: in h on 12 noisy generator rides and -9.7 +- 4.0 mm on 8 noisy rides of the project's simulator; 2
-#: left -0.35 +- 0.10 mm and -3.2 +- 1.2 mm, docs/studies/h_bias_worldsim.md).
+#: square of its relative variance. The distortion this filter leaves in h, measured on the noise-free
+#: twin of noisy rides (docs/studies/h_correction.md): -0.28 +- 0.06 mm on 24 generator rides and
+#: -4.8 +- 2.5 mm on 8 rides of the project's simulator, against -0.68 +- 0.09 and -12.5 +- 5.5 mm with
+#: the mean-square-error choice (1), whose window also reaches the longest candidate on some rides.
 NOISE_POWER = 2
 
 
