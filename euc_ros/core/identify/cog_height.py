@@ -201,24 +201,25 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
             slide = None
     total, total_err = bias, err
-    if slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0:
+    sliding_seen = slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0
+    if sliding_seen:
         total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
         total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
     floor = probe = None
     if filter_choice is not None and np.isfinite(fit.h_m) and all(s is not None for s in series):
         probe = probe_coefficients(series, session, params, filter_choice, phi_definition=phi_definition,
                                    cog_method=cog_method)
+        h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
         floor = filter_floor(series, session, params, fit.h_m, filter_choice, phi_definition=phi_definition,
-                             cog_method=cog_method, h_probe=pooled_fit(probe, DEFAULT_H_GRID).h_m)
+                             cog_method=cog_method, h_probe=h_probe)
     coefs = coefficients_for(states, params, "3dof", None)
     iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
                   h_bounds=h_bounds, turning_ms2=turning_rms(states),
                   filter_floor_m=floor["filter_floor_m"] if floor else 0.0)
     corrected = None
     if probe is not None:
-        measured = slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0
-        slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if measured else (0.0, 0.0)
-        corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, filter_choice,
+        slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
+        corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, h_probe, filter_choice,
                                          window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
                                          eiv_bias_err_m=err, sliding_m=slide_m, sliding_err_m=slide_err,
                                          h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method)
@@ -307,9 +308,9 @@ def _probe_ratio(choice) -> float:
     return float(r) if r is not None and np.isfinite(r) and r > 1.0 else float("nan")
 
 
-def distortion_corrected(series_list, session, params: EucParams, coefs, probe_coefs, h: float, choice, *,
-                         window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float, sliding_m: float = 0.0,
-                         sliding_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
+def distortion_corrected(series_list, session, params: EucParams, coefs, probe_coefs, h: float, h_probe: float,
+                         choice, *, window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float,
+                         sliding_m: float = 0.0, sliding_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
                          phi_definition: str = "hinge", cog_method: str = "segments", n_boot: int = 1000,
                          seed: int = 0) -> dict:
     """h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
@@ -321,8 +322,8 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     coefs, probe_coefs : sequence of ndarray (6, n_i)
         The recordings' residual coefficients with the chosen filter and with the probe filter
         (:func:`probe_coefficients`).
-    h : float
-        The pooled 3-DoF h with the chosen filter [m].
+    h, h_probe : float
+        The pooled 3-DoF h with the chosen filter and with the probe filter [m].
     choice : FilterChoice or WindowChoice
         The chosen filter with its ``probe`` and ``probe_ratio``.
     window : int
@@ -363,7 +364,6 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     """
     w_p, p_p = choice.probe
     r = _probe_ratio(choice)
-    h_probe = pooled_fit(probe_coefs, DEFAULT_H_GRID).h_m
     b_c = float(eiv_bias_m) if np.isfinite(eiv_bias_m) else 0.0
     e_c = float(eiv_bias_err_m) if np.isfinite(eiv_bias_err_m) else 0.0
     b_p, e_p = eiv_bias(series_list, session, params, h_probe, window_s=float(w_p), polyorder=int(p_p),
