@@ -66,10 +66,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--h-min", type=float, default=0.1, metavar="M", help="smallest h of the grid [m] (0.1)")
     parser.add_argument("--h-max", type=float, default=1.2, metavar="M", help="largest h of the grid [m] (1.2)")
     parser.add_argument("--h-step", type=float, default=0.005, metavar="M", help="grid step [m] (0.005)")
-    parser.add_argument("--window-s", type=float, default=DEFAULT_WINDOW_S, metavar="S",
-                        help=f"Savitzky-Golay window [s] ({DEFAULT_WINDOW_S})")
-    parser.add_argument("--polyorder", type=int, default=DEFAULT_SG_POLYORDER,
-                        help=f"Savitzky-Golay polynomial order ({DEFAULT_SG_POLYORDER})")
+    parser.add_argument("--window-s", type=window_arg, default="auto", metavar="S|auto",
+                        help="Savitzky-Golay window [s], or 'auto' (default): window and order chosen from the "
+                             f"recordings' spectra; a number fixes the window (e.g. {DEFAULT_WINDOW_S})")
+    parser.add_argument("--polyorder", type=int, default=None,
+                        help=f"Savitzky-Golay polynomial order with a numeric --window-s ({DEFAULT_SG_POLYORDER})")
     parser.add_argument("--model", choices=("3dof", "2dof"), default=None,
                         help="model heading the JSON output (default: the extended model with --effect, else 3dof)")
     parser.add_argument("--effect", action="append", default=[], metavar="NAME",
@@ -85,6 +86,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "5 mm for h0 and l0, 2 mm for the wheel radius, 1 cm for the segment CoM offsets)")
     parser.add_argument("--no-uncertainty", action="store_true",
                         help="skip the confidence interval, the errors-in-variables bias and the budget (faster)")
+
+
+def window_arg(text: str) -> float | str:
+    """``--window-s``: ``auto`` or a number of seconds."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected 'auto' or seconds, got {text!r}") from None
 
 
 def h_grid_from_args(args: argparse.Namespace) -> np.ndarray:
@@ -158,11 +169,17 @@ def format_uncertainty(ident: HIdentification) -> str:
     h = ident.h
     ci = "[-, -]" if lo is None or hi is None else f"[{lo:.3f}, {hi:.3f}]"
     bias = u.get("eiv_bias_m")
+    floor = u.get("filter_floor_m")
     how = (f"block bootstrap over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
-           + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else ""))
+           + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else "")
+           + (f", filter distortion +-{1e3 * floor:.3f} mm" if floor is not None else ""))
     sharp = "-" if u.get("sharpness") is None else f"{u['sharpness']:.2f}"
     if unc["identifiable"]:
         lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
+        hc, (clo, chi) = unc.get("h_corrected_m"), unc.get("h_corrected_ci95_m", (None, None))
+        if hc is not None:
+            cci = "[-, -]" if clo is None or chi is None else f"[{clo:.3f}, {chi:.3f}]"
+            lines.append(f"h corrected for the noise and the filter's distortion = {hc:.3f} m, 95 % interval {cci} m")
     else:
         lines = [f"h is NOT identifiable from these recordings: {unc['identifiability_reason']}",
                  f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
@@ -175,6 +192,19 @@ def format_uncertainty(ident: HIdentification) -> str:
         lo2, hi2 = b["h_range_m"]
         lines.append(f"  h range for these tolerances: [{lo2:.3f}, {hi2:.3f}] m")
     return "\n".join(lines)
+
+
+def format_filter(info: dict) -> str:
+    """One line: the filter chosen from the data and what it leaves in the accelerations."""
+    worst = max(info["distortion"].items(), key=lambda kv: kv[1][2])
+    noisiest = max(info["noise"].items(), key=lambda kv: kv[1])
+    rates = info.get("per_rate")
+    return (f"filter chosen from the data: Savitzky-Golay {info['window_s']:.3f} s ({info['window']} samples"
+            + (f" at {info['rate_hz']:g} Hz" if info.get("rate_hz") else "") + f"), order {info['polyorder']}; "
+            f"remaining distortion of the accelerations up to {100 * worst[1][2]:.1f} % ({worst[0]}), noise up to "
+            f"{100 * noisiest[1]:.1f} % ({noisiest[0]}) of their RMS"
+            + (" (per rate: " + ", ".join(f"{r} Hz {v['window_s']:.3f} s / {v['polyorder']}" for r, v in rates.items())
+               + "; the longest window is used)" if rates else ""))
 
 
 def format_usage(usage: list[dict]) -> str:
@@ -219,16 +249,24 @@ def format_table(result, identifiable: bool | None = None) -> str:
     return "\n".join(lines)
 
 
-def run_identify(session_path, recordings, *, window_s: float = DEFAULT_WINDOW_S,
-                 polyorder: int = DEFAULT_SG_POLYORDER, phi_definition: str = "hinge", cog_method: str = "segments",
+def run_identify(session_path, recordings, *, window_s: float | str = "auto",
+                 polyorder: int | None = None, phi_definition: str = "hinge", cog_method: str = "segments",
                  h_min: float = 0.1, h_max: float = 1.2, h_step: float = 0.005, effects: dict | None = None,
                  model: str | None = None, uncertainty: bool = True, sliding: bool = True,
                  tolerances: dict | None = None, progress: bool = False):
     """The identification ``euc-ros identify`` runs: ``(HIdentification, JSON document, states, params)``.
 
     The document is the command's ``--json`` output, key for key; :func:`euc_ros.identify` returns it too.
-    Defaults are the command's.
+    Defaults are the command's: ``window_s="auto"`` chooses the filter from the recordings
+    (:func:`~euc_ros.core.states.filter_choice.choose_filter`; the document's ``filter`` key, and the
+    interval's floor for the filter's distortion); a number fixes it (``polyorder`` default
+    :data:`~euc_ros.core.states.kinematics.DEFAULT_SG_POLYORDER`).
     """
+    if window_s == "auto" and polyorder is not None:
+        raise ConfigError("the order is chosen with the window; give a window in seconds to fix it",
+                          key="--polyorder")
+    if window_s != "auto" and polyorder is None:
+        polyorder = DEFAULT_SG_POLYORDER
     grid = h_grid_from_args(argparse.Namespace(h_min=h_min, h_max=h_max, h_step=h_step))
     effects = dict(effects or {})
     session = load_session(session_path)
@@ -238,6 +276,9 @@ def run_identify(session_path, recordings, *, window_s: float = DEFAULT_WINDOW_S
     states = load_states(session, recordings, window_s=window_s, polyorder=polyorder,
                          phi_definition=phi_definition, progress=progress, desc="identify",
                          keep_series=uncertainty, cog_method=cog_method)
+    choice = states[0].meta.get("filter")
+    if choice is not None:
+        window_s, polyorder = choice.window_s, choice.polyorder
     settings = {"session": str(session_path), "recordings": [str(p) for p in recordings],
                 "phi_definition": phi_definition, "cog_method": cog_method, "window_s": window_s,
                 "window_samples": states[0].window, "polyorder": polyorder,
@@ -246,8 +287,11 @@ def run_identify(session_path, recordings, *, window_s: float = DEFAULT_WINDOW_S
     ident = identify_h(states, session, params, h_grid=grid, h_bounds=(h_min, h_max), effects=effects,
                        model=model, settings=settings, uncertainty=uncertainty, sliding=sliding,
                        tolerances=tolerances if tolerances is not None else parse_tolerances([]),
-                       window_s=window_s, polyorder=polyorder, phi_definition=phi_definition, cog_method=cog_method)
+                       window_s=window_s, polyorder=polyorder, phi_definition=phi_definition, cog_method=cog_method,
+                       filter_choice=choice)
     data = ident.to_dict()
+    if choice is not None:
+        data["filter"] = choice.to_json()
     usage = {u["recording"]: u for u in usage_table(states)}
     for rec in data.get("per_recording", []):
         rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
@@ -267,6 +311,8 @@ def main(args: argparse.Namespace) -> int:
         h_step=args.h_step, effects=effects_from_args(args), model=args.model,
         uncertainty=not args.no_uncertainty, sliding=args.sliding_bias, tolerances=parse_tolerances(args.tolerance),
         progress=not args.no_progress)
+    if "filter" in data:
+        print(format_filter(data["filter"]))
     print(format_table(ident.fits, identifiable=ident.identifiable))
     if ident.uncertainty is not None:
         print(format_uncertainty(ident))

@@ -6,14 +6,19 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.core.errors import InputError
+from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.io.recordings import load_recording, recording_kind
 from euc_ros.core.mocap.checks import check_recording
 
 
-def load_states(session, paths, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
+def load_states(session, paths, *, window_s: float | str, polyorder: int | None, phi_definition: str = "hinge",
                 progress: bool = True, desc: str = "read", keep_series: bool = False, cog_method: str = "segments"):
     """Read recordings, check them against the session and reconstruct their states.
+
+    ``window_s="auto"`` (``polyorder`` then ignored): the filter is chosen from the recordings' own
+    spectra (:func:`euc_ros.core.states.filter_choice.choose_filter`) after all are read and before any
+    is reconstructed; the :class:`~euc_ros.core.states.filter_choice.FilterChoice` is kept in every
+    state's ``meta["filter"]``.
 
     Every recording is first checked by :func:`euc_ros.core.mocap.checks.check_recording`; its warnings are
     kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). Names are made unique. With
@@ -31,13 +36,32 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
         from euc_ros.core.states.skeleton import SkeletonModel
 
         skeleton = SkeletonModel.estimate([load_recording(p, session.world_up) for p in paths], session)
+    auto = isinstance(window_s, str)
+    if auto and window_s != "auto":
+        raise ConfigError(f"window must be 'auto' or a number of seconds, got {window_s!r}", key="--window-s")
     states = []
     # no bar on a non-terminal stderr (disable=None) and none for work that ends (or fails) within 0.5 s,
     # so a refusal stays one line
     bar = tqdm(paths, desc=desc, unit="rec", file=sys.stderr, delay=0.5,
                disable=True if (not progress or len(paths) < 2) else None)
-    for path in bar:
-        series = load_recording(path, session.world_up)
+    choice = None
+    if auto:
+        # every recording is read before the filter is chosen from all of them
+        from euc_ros.core.states.filter_choice import choose_filter
+
+        bar = [(path, load_recording(path, session.world_up)) for path in bar]
+        try:
+            choice = choose_filter([s for _, s in bar], session, phi_definition=phi_definition)
+        except InputError:
+            # a recording's own fault (a missing body, nothing tracked) is named by its reconstruction
+            for path, series in bar:
+                check_recording(series, session, path)
+                reconstruct_states(series, session, phi_definition=phi_definition, cog_method=cog_method,
+                                   skeleton=skeleton)
+            raise
+        window_s, polyorder = choice.window_s, choice.polyorder
+    for item in bar:
+        path, series = item if auto else (item, load_recording(item, session.world_up))
         warnings = check_recording(series, session, path)
         st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
                                 polyorder=polyorder, cog_method=cog_method, skeleton=skeleton)
@@ -45,6 +69,8 @@ def load_states(session, paths, *, window_s: float, polyorder: int, phi_definiti
             raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
                              path=path)
         st.name = st.name or Path(path).stem
+        if choice is not None:
+            st.meta["filter"] = choice
         if keep_series:
             # kept for the interval and the noise floor, which use the poses only: the marker errors
             # (an eighth of the recording's bytes at 14 bodies) are dropped for the rest of the run

@@ -180,6 +180,9 @@ class WindowChoice:
     probe : tuple
         ``(window_s, polyorder)`` of a companion filter whose predicted distortion is about twice
         the chosen one's (see :func:`choose_window`, Notes).
+    probe_ratio : float
+        The probe's predicted RMS distortion of the accelerations over the chosen filter's (about
+        2; NaN when the chosen filter predicts none).
     candidates : list of dict
         Every candidate evaluated, with its total score.
     """
@@ -193,6 +196,7 @@ class WindowChoice:
     acceleration_rms: dict
     band_hz: dict
     probe: tuple
+    probe_ratio: float = float("nan")
     candidates: list = field(repr=False, default_factory=list)
 
     def to_json(self) -> dict:
@@ -200,7 +204,8 @@ class WindowChoice:
         return {"window_s": self.window_s, "window": self.window, "polyorder": self.polyorder,
                 "distortion": {k: list(v) for k, v in self.distortion.items()}, "noise": dict(self.noise),
                 "noise_std": dict(self.noise_std), "acceleration_rms": dict(self.acceleration_rms),
-                "band_hz": {k: list(v) for k, v in self.band_hz.items()}, "probe": list(self.probe)}
+                "band_hz": {k: list(v) for k, v in self.band_hz.items()}, "probe": list(self.probe),
+                "probe_ratio": self.probe_ratio if np.isfinite(self.probe_ratio) else None}
 
 
 def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) -> list[tuple[int, int]]:
@@ -215,7 +220,7 @@ def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) ->
 
 def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[str, float] | None = None, *,
                   orders: Sequence[int] = DEFAULT_ORDERS, max_window_s: float = MAX_WINDOW_S,
-                  segment_s: float = SEGMENT_S) -> WindowChoice:
+                  segment_s: float = SEGMENT_S, noise_power: int = 1) -> WindowChoice:
     """Choose the Savitzky-Golay window and order from a recording's raw signals.
 
     Parameters
@@ -234,6 +239,10 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         Longest candidate window [s].
     segment_s : float
         Welch segment length [s].
+    noise_power : {1, 2}
+        The power of the relative noise variance in the score: 1 for the mean-square error of the
+        accelerations, 2 when the noise's first-order bias of the estimate is removed afterwards
+        (see Notes).
 
     Returns
     -------
@@ -258,7 +267,12 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
 
     the distortion and the noise variance of the filtered acceleration. The choice minimizes the
     summed relative mean-square error ``sum_s (B_s^2 + V_s) / P_s``: with noise-free poses this is
-    the shortest window that resolves the motion, with noisy poses the balance of both. The
+    the shortest window that resolves the motion, with noisy poses the balance of both. With
+    ``noise_power=2`` the score is ``sum_s B_s^2 / P_s + (V_s / P_s)^2``: an estimate whose noise
+    bias is removed by simulation-extrapolation (SIMEX, linear in the noise variance) keeps of the
+    noise only the part of second order in ``V_s / P_s`` (the curvature of the bias in the
+    variance), while the distortion stays whole; the noise then counts less and the window is
+    shorter. The
     distortion the choice leaves is returned per signal and derivative order; as it is a bias of
     the filter, not noise, it does not average out. Since ``B`` grows steeply with the window, a
     companion filter with about twice the predicted distortion (``probe``) gives a model-free
@@ -310,7 +324,7 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         for n in names:
             B[n] = float(np.sum(e2 * A[n]) * df)
             V[n] = sig_used[n] ** 2 * float(k2 @ k2)
-            score += (B[n] + V[n]) / P[n]
+            score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
         cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
     best = min(cands, key=lambda c: (c["score"], c["window"]))
     W, p = best["window"], best["polyorder"]
@@ -330,13 +344,17 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         cum = np.cumsum(A[n]) / np.sum(A[n])
         band[n] = (float(f[np.searchsorted(cum, 0.90)]), float(f[np.searchsorted(cum, 0.99)]), cutoff[n])
     # companion filter: the same order, the window whose summed distortion is nearest twice the choice's
-    target = 2.0 * sum(best["B2"][n] / P[n] for n in names) ** 0.5
+    def rms_distortion(c):
+        return sum(c["B2"][n] / P[n] for n in names) ** 0.5
+
+    target = 2.0 * rms_distortion(best)
     same = [c for c in cands if c["polyorder"] == p and c["window"] > W]
-    probe = (W * dt, p)
+    probe, ratio = (W * dt, p), float("nan")
     if same:
-        c = min(same, key=lambda c: abs(sum(c["B2"][n] / P[n] for n in names) ** 0.5 - target))
+        c = min(same, key=lambda c: abs(rms_distortion(c) - target))
         probe = (c["window"] * dt, p)
+        ratio = rms_distortion(c) / target * 2.0 if target > 0 else float("nan")
     return WindowChoice(window_s=W * dt, window=W, polyorder=p, distortion=distortion, noise=noise,
-                        noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band, probe=probe,
+                        noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band, probe=probe, probe_ratio=ratio,
                         candidates=[{"window": c["window"], "polyorder": c["polyorder"], "score": c["score"]}
                                     for c in cands])

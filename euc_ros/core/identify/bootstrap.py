@@ -50,14 +50,20 @@ def block_length(coefs: Sequence[np.ndarray], h: float, window: int) -> int:
     return max(int(window), 2 * k0)
 
 
-def _blocks_of(coefs: Sequence[np.ndarray], length: int) -> list[np.ndarray]:
-    """The blocks of ``length`` consecutive samples of each recording (k blocks of ~length, the rest spread)."""
+def block_counts(coefs: Sequence[np.ndarray], length: int) -> list[int]:
+    """Per recording, the number of blocks of :func:`_blocks_of` (0 for a recording without samples)."""
+    return [max(1, c.shape[1] // length) if c.shape[1] else 0 for c in coefs]
+
+
+def _blocks_of(coefs: Sequence[np.ndarray], length: int, counts: Sequence[int] | None = None) -> list[np.ndarray]:
+    """The blocks of ``length`` consecutive samples of each recording (k blocks of ~length, the rest
+    spread), or ``counts[i]`` blocks of recording ``i`` when given."""
+    counts = block_counts(coefs, length) if counts is None else counts
     out = []
-    for c in coefs:
+    for c, k in zip(coefs, counts, strict=True):
         n = c.shape[1]
-        if n == 0:
+        if n == 0 or k == 0:
             continue
-        k = max(1, n // length)
         edges = np.linspace(0, n, k + 1).astype(int)
         out += [c[:, a:b] for a, b in zip(edges[:-1], edges[1:])]
     return out
@@ -75,8 +81,13 @@ COARSE_EVERY = 10
 
 
 def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: float, *, n_boot: int = 1000,
-                    seed: int = 0, h_bounds=(0.1, 1.2)):
+                    seed: int = 0, h_bounds=(0.1, 1.2), counts: Sequence[int] | None = None):
     """Moving-block bootstrap of h: ``(h replicates, block length [samples], n_blocks, grid)``.
+
+    ``counts``: the number of blocks of each recording (default from the block length,
+    :func:`block_counts`). Two sets of coefficients of the same samples (e.g. filtered with two
+    windows) given the same counts and ``seed`` get the same blocks drawn in every replicate: their
+    replicates are paired.
 
     Replicates whose optimum sits on the fine grid's edge are returned as +-inf (the data do not
     bound h there).
@@ -92,7 +103,7 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
     lo = max(h_bounds[0], h - LOCAL_HALF_WIDTH_M)
     hi = min(h_bounds[1], h + LOCAL_HALF_WIDTH_M)
     grid = np.arange(lo, hi + LOCAL_STEP_M / 2, LOCAL_STEP_M)
-    blocks = _blocks_of(coefs, length)
+    blocks = _blocks_of(coefs, length, counts)
     nb = len(blocks)
     p_blocks = np.full(nb, 1.0 / nb)
     # the replicates' block counts, drawn in chunks of replicates (the same draws as all at once: the

@@ -17,14 +17,23 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.identify.bootstrap import block_bootstrap, block_counts
 from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, budget
 from euc_ros.core.identify.extended import extended_fits
-from euc_ros.core.identify.fit import DEFAULT_H_GRID, MODELS, IdentifyResult, ModelFit, coefficients_for, fit_h
-from euc_ros.core.identify.interval import interval, json_float, turning_rms
+from euc_ros.core.identify.fit import (
+    DEFAULT_H_GRID,
+    MODELS,
+    IdentifyResult,
+    ModelFit,
+    coefficients_for,
+    fit_h,
+    pooled_fit,
+)
+from euc_ros.core.identify.interval import interval, json_float, percentiles95, student_factor, turning_rms
 from euc_ros.core.identify.simex import SimexShare, eiv_bias
 from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates
+from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, reconstruct_states
 
 #: Lowest and highest h the interval may reach [m] (the ends of the default grid).
 H_BOUNDS = (0.1, 1.2)
@@ -51,6 +60,11 @@ class HIdentification:
         Per-recording and pooled fits of every model, with their RMSE curves.
     uncertainty : dict or None
         The interval's details, JSON-ready (:func:`uncertainty_of_h`), or None.
+    h_corrected : float
+        h corrected for the pose noise's bias and the filter's distortion (:func:`distortion_corrected`;
+        the JSON's ``h_corrected_m``) [m]; NaN without a filter chosen from the data, or when not computed.
+    corrected_interval : tuple of float
+        Its own 95 % interval [m] (``h_corrected_ci95_m``; NaN, NaN when not computed).
     """
 
     h: float
@@ -60,6 +74,8 @@ class HIdentification:
     model: str
     fits: IdentifyResult
     uncertainty: dict | None
+    h_corrected: float = float("nan")
+    corrected_interval: tuple[float, float] = (float("nan"), float("nan"))
 
     def to_dict(self) -> dict:
         """The JSON document: the fits headed by :attr:`model`, then the uncertainty (when computed)."""
@@ -80,7 +96,7 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
                settings: dict | None = None, uncertainty: bool = True, with_budget: bool = True,
                sliding: bool = True, tolerances: dict | None = None, window_s: float = DEFAULT_WINDOW_S,
                polyorder: int = DEFAULT_SG_POLYORDER, phi_definition: str = "hinge", cog_method: str = "segments",
-               simex_share: SimexShare | None = None) -> HIdentification:
+               simex_share: SimexShare | None = None, filter_choice=None) -> HIdentification:
     """Identify h from reconstructed recordings, with its interval.
 
     Parameters
@@ -118,6 +134,13 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         How the states were reconstructed (the biases reconstruct the recordings again alike).
     simex_share : SimexShare, optional
         Holds SIMEX's first replicate when the residual's noise floor made it already.
+    filter_choice : FilterChoice or WindowChoice, optional
+        The filter chosen from the data (:func:`~euc_ros.core.states.filter_choice.choose_filter`)
+        that ``window_s`` and ``polyorder`` come from; its ``probe`` gives the interval a floor for the
+        distortion the filter leaves (:func:`filter_floor`), and h corrected for that distortion
+        (:func:`distortion_corrected`: ``h_corrected_m`` with its own interval ``h_corrected_ci95_m``;
+        ``h_m`` and ``h_ci95_m`` stay those of the chosen filter). Without it (a fixed window) there
+        are neither.
 
     Returns
     -------
@@ -141,21 +164,24 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
     unc = uncertainty_of_h(states, session, params, pooled3, window_s=window_s, polyorder=polyorder,
                            phi_definition=phi_definition, cog_method=cog_method, h_bounds=h_bounds,
                            sliding=sliding, tolerances=tolerances, with_budget=with_budget,
-                           simex_share=simex_share)
+                           simex_share=simex_share, filter_choice=filter_choice)
     lo, hi = (float("nan") if v is None else float(v) for v in unc["h_ci95_m"])
+    hc = unc.get("h_corrected_m")
+    clo, chi = (float("nan") if v is None else float(v) for v in unc.get("h_corrected_ci95_m", (None, None)))
     return HIdentification(h, (lo, hi), bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
-                           unc)
+                           unc, float("nan") if hc is None else float(hc), (clo, chi))
 
 
 def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, fit: ModelFit, *, window_s: float,
                      polyorder: int, phi_definition: str = "hinge", cog_method: str = "segments",
                      h_bounds: tuple[float, float] = H_BOUNDS, sliding: bool = True, tolerances: dict | None = None,
-                     with_budget: bool = True, simex_share: SimexShare | None = None) -> dict:
+                     with_budget: bool = True, simex_share: SimexShare | None = None, filter_choice=None) -> dict:
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
     ``fit`` is the pooled 3-DoF fit of ``states``; the other arguments are those of :func:`identify_h`.
     Returns the JSON document's keys ``h_ci95_m``, ``identifiable``, ``identifiability_reason``,
-    ``uncertainty``, ``h_std_m`` and, with the budget, ``h_range_m`` and ``uncertainty_budget``.
+    ``uncertainty``, ``h_std_m``, with ``filter_choice`` ``h_corrected_m`` and ``h_corrected_ci95_m``
+    (:func:`distortion_corrected`), and with the budget ``h_range_m`` and ``uncertainty_budget``.
     """
     tolerances = dict(DEFAULT_TOLERANCES) if tolerances is None else tolerances
     series = [st.meta.get("series") for st in states]
@@ -175,17 +201,40 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
             slide = None
     total, total_err = bias, err
-    if slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0:
+    sliding_seen = slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0
+    if sliding_seen:
         total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
         total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
+    floor = probe = None
+    if filter_choice is not None and np.isfinite(fit.h_m) and all(s is not None for s in series):
+        probe = probe_coefficients(series, session, params, filter_choice, phi_definition=phi_definition,
+                                   cog_method=cog_method)
+        h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
+        floor = filter_floor(series, session, params, fit.h_m, filter_choice, phi_definition=phi_definition,
+                             cog_method=cog_method, h_probe=h_probe)
     coefs = coefficients_for(states, params, "3dof", None)
     iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
-                  h_bounds=h_bounds, turning_ms2=turning_rms(states))
-    del coefs                         # per-sample coefficients: not kept through the budget
+                  h_bounds=h_bounds, turning_ms2=turning_rms(states),
+                  filter_floor_m=floor["filter_floor_m"] if floor else 0.0)
+    corrected = None
+    if probe is not None:
+        slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
+        corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, h_probe, filter_choice,
+                                         window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
+                                         eiv_bias_err_m=err, sliding_m=slide_m, sliding_err_m=slide_err,
+                                         h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method)
+    del coefs, probe                  # per-sample coefficients: not kept through the budget
     out.update(iv.to_json())
+    if corrected is not None:
+        out["h_corrected_m"] = json_float(corrected.pop("h_corrected_m"))
+        out["h_corrected_ci95_m"] = [json_float(v) for v in corrected.pop("h_corrected_ci95_m")]
     if slide is not None:
         out["uncertainty"]["eiv_bias_m"] = json_float(bias)
         out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
+    if floor is not None:
+        out["uncertainty"].update({k: json_float(v) for k, v in floor.items()})
+    if corrected is not None:
+        out["uncertainty"].update({k: json_float(v) for k, v in corrected.items()})
     lo, hi = iv.bootstrap_ci95_m
     out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
     if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
@@ -193,4 +242,155 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
                    phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
         out["h_range_m"] = b["h_range_m"]
         out["uncertainty_budget"] = b
+    return out
+
+
+def probe_coefficients(series_list, session, params: EucParams, choice, *, phi_definition: str = "hinge",
+                       cog_method: str = "segments") -> list[np.ndarray]:
+    """The recordings' 3-DoF residual coefficients with the probe filter ``choice.probe``
+    (:func:`~euc_ros.core.identify.fit.coefficients_for`), each recording's states dropped once reduced."""
+    w, p = choice.probe
+    return [coefficients_for([reconstruct_states(s, session, phi_definition=phi_definition, window_s=float(w),
+                                                 polyorder=int(p), cog_method=cog_method)], params, "3dof", None)[0]
+            for s in series_list]
+
+
+def filter_floor(series_list, session, params: EucParams, h: float, choice, *, phi_definition: str = "hinge",
+                 cog_method: str = "segments", h_probe: float | None = None) -> dict:
+    """Bound on the bias of h the chosen filter's distortion leaves, from h with the probe filter [m].
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings' poses.
+    session, params
+        As for :func:`identify_h`.
+    h : float
+        The pooled 3-DoF h with the chosen filter [m].
+    choice : FilterChoice or WindowChoice
+        The chosen filter; ``probe`` = ``(window_s, polyorder)`` of the companion filter whose RMS
+        distortion of the accelerations is ``probe_ratio`` (about 2) times the chosen one's.
+    h_probe : float, optional
+        h with the probe filter [m], when already fitted (else fitted here).
+
+    Returns
+    -------
+    dict
+        ``h_probe_m`` (h with the probe filter), ``filter_distortion_m`` (``h_probe - h``) and
+        ``filter_floor_m`` (the bound, >= 0).
+
+    Notes
+    -----
+    The filter distorts the accelerations by a relative amount of RMS ``B``; h, a smooth function of
+    the regressors, moves by ``b(B) = a B + c B^2 + ...`` (``b(0) = 0``: an undistorting filter
+    leaves no bias). The probe's distortion is ``r B`` (``r`` = ``probe_ratio``), so
+    ``d = h_probe - h = a (r - 1) B + c (r^2 - 1) B^2``. When the linear and the quadratic term have
+    one sign (attenuated accelerations lower h in both: the measured rides), ``|b(B)| <= |d| / (r - 1)``,
+    with equality for a linear ``b``; this is the floor. Its sign is left open (the interval moves
+    out by it at both ends) because with noisy poses ``d`` also holds the change of the noise's
+    errors-in-variables bias between the two windows. The data cannot settle the distortion any
+    better than this: a noise-free interval (a few micrometres of bootstrap) gets this width.
+    """
+    if h_probe is None:
+        coefs = probe_coefficients(series_list, session, params, choice, phi_definition=phi_definition,
+                                   cog_method=cog_method)
+        h_probe = pooled_fit(coefs, DEFAULT_H_GRID).h_m
+    r = _probe_ratio(choice)
+    r = r if np.isfinite(r) else 2.0
+    d = h_probe - h
+    return {"h_probe_m": h_probe, "filter_distortion_m": d,
+            "filter_floor_m": abs(d) / (r - 1.0) if np.isfinite(d) else float("nan")}
+
+
+def _probe_ratio(choice) -> float:
+    """``choice.probe_ratio`` when it is a number above 1, else NaN."""
+    r = getattr(choice, "probe_ratio", None)
+    return float(r) if r is not None and np.isfinite(r) and r > 1.0 else float("nan")
+
+
+def distortion_corrected(series_list, session, params: EucParams, coefs, probe_coefs, h: float, h_probe: float,
+                         choice, *, window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float,
+                         sliding_m: float = 0.0, sliding_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
+                         phi_definition: str = "hinge", cog_method: str = "segments", n_boot: int = 1000,
+                         seed: int = 0) -> dict:
+    """h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
+
+    Parameters
+    ----------
+    series_list, session, params
+        As for :func:`filter_floor`.
+    coefs, probe_coefs : sequence of ndarray (6, n_i)
+        The recordings' residual coefficients with the chosen filter and with the probe filter
+        (:func:`probe_coefficients`).
+    h, h_probe : float
+        The pooled 3-DoF h with the chosen filter and with the probe filter [m].
+    choice : FilterChoice or WindowChoice
+        The chosen filter with its ``probe`` and ``probe_ratio``.
+    window : int
+        The chosen filter's window [samples] (the bootstrap's shortest block).
+    dt : float
+        Sample period [s].
+    eiv_bias_m, eiv_bias_err_m : float
+        SIMEX's bias of ``h`` and its standard error [m] (:func:`~euc_ros.core.identify.simex.eiv_bias`;
+        NaN: no noise measurable, taken as 0).
+    sliding_m, sliding_err_m : float
+        The soft-tissue sliding's bias of h and its standard error [m] (:mod:`.sliding`; 0 when none
+        is seen): not subtracted (a rigid rider's pose noise can pass for sliding), but the interval
+        contains the estimate corrected for it too, as ``h_ci95_m`` does.
+    h_bounds, n_boot, seed
+        As for :func:`~euc_ros.core.identify.interval.interval` (the same seed pairs the replicates
+        with those of ``h_ci95_m``).
+
+    Returns
+    -------
+    dict
+        ``h_corrected_m``, ``h_corrected_ci95_m`` (NaN, and NaN ends, without a probe longer than the
+        chosen filter), ``probe_eiv_bias_m`` and ``probe_eiv_bias_err_m`` (SIMEX at the probe),
+        ``distortion_correction_m`` (the extrapolation's step, ``h_corrected - (h - eiv_bias)``).
+
+    Notes
+    -----
+    SIMEX removes the noise's bias at each filter: ``h_c = h - b_c`` with the chosen filter,
+    ``h_p = h_probe - b_p`` with the probe, whose RMS distortion of the accelerations is ``r`` times
+    the chosen one's. The distortion moves h by ``a B`` to first order in the distortion ``B``, so
+    Richardson's extrapolation to ``B = 0`` is ``h_0 = h_c - (h_p - h_c) / (r - 1)
+    = (r h_c - h_p) / (r - 1)`` (what remains is of second order: ``-c r B^2`` for a bias
+    ``a B + c B^2``). Its random error comes from the same data at both filters, so the interval is
+    a paired block bootstrap: every replicate draws the same blocks of samples for both filters
+    (:func:`~euc_ros.core.identify.bootstrap.block_bootstrap` with the same block counts and seed)
+    and combines its two optima alike; the percentiles are widened as for ``h_ci95_m`` (Student's t
+    for few blocks) and by twice the standard error of the combined SIMEX corrections (the two
+    taken independent, which their common draws only make smaller).
+    """
+    w_p, p_p = choice.probe
+    r = _probe_ratio(choice)
+    b_c = float(eiv_bias_m) if np.isfinite(eiv_bias_m) else 0.0
+    e_c = float(eiv_bias_err_m) if np.isfinite(eiv_bias_err_m) else 0.0
+    b_p, e_p = eiv_bias(series_list, session, params, h_probe, window_s=float(w_p), polyorder=int(p_p),
+                        phi_definition=phi_definition, with_error=True, cog_method=cog_method)
+    nan = float("nan")
+    out = {"probe_eiv_bias_m": b_p, "probe_eiv_bias_err_m": e_p, "h_corrected_m": nan,
+           "h_corrected_ci95_m": (nan, nan), "distortion_correction_m": nan}
+    b_p = float(b_p) if np.isfinite(b_p) else 0.0
+    e_p = float(e_p) if np.isfinite(e_p) else 0.0
+    if not (np.isfinite(r) and np.isfinite(h) and np.isfinite(h_probe)) or float(w_p) <= float(choice.window_s):
+        return out
+
+    def combine(hc, hp):
+        return (r * (hc - b_c) - (hp - b_p)) / (r - 1.0)
+
+    h0 = combine(h, h_probe)
+    hb_c, length, nb, _ = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
+    hb_p, _, nb_p, _ = block_bootstrap(probe_coefs, h_probe, window, dt, n_boot=n_boot, seed=seed,
+                                       h_bounds=h_bounds, counts=block_counts(coefs, length))
+    with np.errstate(invalid="ignore"):     # unbounded replicates (+-inf at both filters) give NaN: unbounded
+        reps = combine(hb_c, hb_p)
+    lo, hi = percentiles95(reps, nb if nb == nb_p else 0)
+    k = student_factor(nb)
+    e = 2.0 * float(np.sqrt((r * e_c) ** 2 + e_p ** 2) / (r - 1.0))
+    lo, hi = h0 - k * (h0 - lo), h0 + k * (hi - h0)
+    if np.isfinite(sliding_m) and sliding_m != 0.0:
+        e = float(np.hypot(e, 2.0 * sliding_err_m))
+        lo, hi = min(lo, lo - sliding_m), max(hi, hi - sliding_m)
+    out.update(h_corrected_m=h0, h_corrected_ci95_m=(lo - e, hi + e), distortion_correction_m=h0 - (h - b_c))
     return out

@@ -96,6 +96,24 @@ def json_float(v) -> float | None:
     return None if v is None or not np.isfinite(v) else float(v)
 
 
+def percentiles95(replicates: np.ndarray, n_blocks: int) -> tuple[float, float]:
+    """The 2.5 and 97.5 % percentiles of bootstrap replicates (unbounded ones, +-inf or NaN, make
+    them infinite); infinite with fewer than 2 blocks."""
+    if n_blocks < 2:
+        return -np.inf, np.inf
+    with np.errstate(invalid="ignore"):      # unbounded replicates (+-inf) make the percentile infinite
+        lo, hi = np.percentile(replicates, [2.5, 97.5])
+    return float(-np.inf if np.isnan(lo) else lo), float(np.inf if np.isnan(hi) else hi)
+
+
+def student_factor(n_blocks: int) -> float:
+    """Widening of a bootstrap interval over ``n_blocks`` blocks: few blocks make the percentiles
+    undercover, so they move out as Student's t quantile does against the normal one (1 below 2 blocks)."""
+    from scipy.stats import t as student
+
+    return float(student.ppf(0.975, max(n_blocks - 1, 1)) / 1.959964) if n_blocks >= 2 else 1.0
+
+
 def turning_rms(states) -> float:
     """RMS centripetal acceleration ``x_dot psi_dot`` over the valid samples [m/s^2]."""
 
@@ -114,7 +132,7 @@ def turning_rms(states) -> float:
 
 def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bias_m: float = float("nan"),
              h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0, turning_ms2: float = 0.0,
-             eiv_bias_err_m: float = 0.0) -> Interval:
+             eiv_bias_err_m: float = 0.0, filter_floor_m: float = 0.0) -> Interval:
     """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
 
     Parameters
@@ -129,6 +147,12 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         Sample period [s].
     eiv_bias_m : float
         SIMEX bias (NaN: not included).
+    eiv_bias_err_m : float
+        Its standard error.
+    filter_floor_m : float
+        Bound on the bias the filter's distortion leaves in h, sign unknown (:func:`~euc_ros.core.
+        identify.cog_height.filter_floor`): both ends move out by it, as a systematic shift of at
+        most that size moves the whole interval.
     """
     h = float(fit.h_m)
     n = sum(c.shape[1] for c in coefs)
@@ -140,23 +164,17 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
     if duration < MIN_DURATION_S:
         reasons.append(f"too short: {duration:.1f} s of usable states (at least {MIN_DURATION_S:g} s needed)")
     hb, length, nb, grid = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
-    if nb >= 2:
-        with np.errstate(invalid="ignore"):      # unbounded replicates (+-inf) make the percentile infinite
-            lo, hi = np.percentile(hb, [2.5, 97.5])
-        lo, hi = (-np.inf if np.isnan(lo) else lo), (np.inf if np.isnan(hi) else hi)
-    else:
-        lo, hi = -np.inf, np.inf
+    lo, hi = percentiles95(hb, nb)
     boot = (float(lo), float(hi))
-    # few blocks: percentiles undercover; widen as Student's t does against the normal quantile
-    from scipy.stats import t as student
-
-    k = float(student.ppf(0.975, max(nb - 1, 1)) / 1.959964) if nb >= 2 else 1.0
+    k = student_factor(nb)
     lo2, hi2 = h - k * (h - boot[0]), h + k * (boot[1] - h)
     if np.isfinite(eiv_bias_m):
         # the interval contains the estimate and the bias-corrected estimate, each with the bias'
         # own random error (two standard errors)
         e = 2.0 * (eiv_bias_err_m if np.isfinite(eiv_bias_err_m) else 0.0)
         lo2, hi2 = min(lo2, lo2 - eiv_bias_m) - e, max(hi2, hi2 - eiv_bias_m) + e
+    if np.isfinite(filter_floor_m) and filter_floor_m > 0:
+        lo2, hi2 = lo2 - filter_floor_m, hi2 + filter_floor_m
     if turning_ms2 > MAX_TURNING_MS2:
         reasons.append(f"the ride turns (RMS centripetal acceleration {turning_ms2:.1f} m/s^2 > {MAX_TURNING_MS2:g}): "
                        "the planar model lacks the turning terms; see `euc-ros residual`")

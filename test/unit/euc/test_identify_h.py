@@ -84,7 +84,9 @@ def test_the_command_writes_what_the_library_returns(ride, tmp_path):
     session_file = tmp_path / "ride" / "session.yaml"
     csvs = sorted(str(p) for p in (tmp_path / "ride").glob("*.csv"))
     out = tmp_path / "identify.json"
-    assert main(["identify", str(session_file), *csvs, "--json", str(out), "--no-progress", "--no-sliding-bias"]) == 0
+    # the library call below uses the fixed filter, so the command is given the same
+    assert main(["identify", str(session_file), *csvs, "--json", str(out), "--no-progress", "--no-sliding-bias",
+                 "--window-s", "1.2"]) == 0
     written = json.loads(out.read_text())
     session = load_session(session_file)
     states = load_states(session, csvs, window_s=1.2, polyorder=6, progress=False, keep_series=True)

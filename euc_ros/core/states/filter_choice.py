@@ -1,0 +1,142 @@
+"""The Savitzky-Golay filter of a set of recordings, chosen from their own spectra.
+
+:func:`choose_filter` reads the unfiltered signals the states are differentiated from (EUC pitch
+``gamma``, rider pitch ``phi`` and the wheel centre's horizontal coordinates) off each recording's
+frame geometry, puts them on the recording's frame grid (missing frames NaN) and hands them to
+:func:`~euc_ros.core.filters.auto_window.choose_window`, which balances the filter's distortion of
+the accelerations against the noise it passes. Recordings of different frame rates are chosen for
+per rate; one filter (the longest window of the rates' choices) then serves them all, because h,
+SIMEX and the interval use a single ``window_s`` and a longer window only adds distortion, which the
+interval's probe term (:func:`~euc_ros.core.identify.cog_height.identify_h`) measures.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.filters.auto_window import WindowChoice, choose_window
+from euc_ros.core.states.geometry import block_geometry
+from euc_ros.core.states.kinematics import PHI_DEFINITIONS
+
+
+def raw_signals(series, session, phi_definition: str = "hinge") -> dict[str, np.ndarray]:
+    """Unfiltered ``gamma``, ``phi``, ``C_x``, ``C_y`` of a recording on its frame grid.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        Z-up poses.
+    session : Session
+    phi_definition : {"hinge", "eq3"}
+        Which rider pitch the states use.
+
+    Returns
+    -------
+    dict of ndarray (n,)
+        ``n`` = last frame - first frame + 1; frames not in the recording, or without the bodies a
+        signal needs, are NaN (no bridging: an interpolated gap has no spectrum of its own).
+    """
+    geo, _, _ = block_geometry(series, session, 0)
+    frame = np.asarray(series.frame, dtype=np.int64)
+    n = int(frame[-1] - frame[0]) + 1 if frame.size else 0
+    k = frame - frame[0] if frame.size else frame
+    phi = geo["phi_hinge"] if phi_definition == "hinge" else geo["phi_eq3"]
+    out = {}
+    for name, v in (("gamma", geo["gamma"]), ("phi", phi), ("C_x", geo["C"][:, 0]), ("C_y", geo["C"][:, 1])):
+        g = np.full(n, np.nan)
+        g[k] = v
+        out[name] = g
+    return out
+
+
+@dataclass(frozen=True)
+class FilterChoice:
+    """The filter :func:`choose_filter` chose, with the per-rate choices behind it.
+
+    Attributes
+    ----------
+    choice : WindowChoice
+        The filter used (``window_s``, ``polyorder``, its diagnostics and ``probe``).
+    per_rate : dict of float to WindowChoice
+        Frame rate [Hz] -> the choice for the recordings of that rate.
+    """
+
+    choice: WindowChoice
+    per_rate: dict = field(default_factory=dict)
+
+    @property
+    def window_s(self) -> float:
+        return self.choice.window_s
+
+    @property
+    def polyorder(self) -> int:
+        return self.choice.polyorder
+
+    @property
+    def probe(self) -> tuple:
+        return self.choice.probe
+
+    @property
+    def probe_ratio(self) -> float:
+        return self.choice.probe_ratio
+
+    def to_json(self) -> dict:
+        """``choice.to_json()`` plus ``rate_hz`` (the rate it was chosen at) and, for several rates,
+        ``per_rate`` (each rate's own choice: window and order)."""
+        out = dict(self.choice.to_json())
+        rate = next((r for r, c in self.per_rate.items() if c is self.choice), None)
+        out["rate_hz"] = rate
+        if len(self.per_rate) > 1:
+            out["per_rate"] = {f"{r:g}": {"window_s": c.window_s, "polyorder": c.polyorder}
+                               for r, c in sorted(self.per_rate.items())}
+        return out
+
+
+#: ``noise_power`` of :func:`~euc_ros.core.filters.auto_window.choose_window` for identification: h's
+#: noise bias is removed by SIMEX (:mod:`euc_ros.core.identify.simex`), so the noise counts by the
+#: square of its relative variance. The distortion this filter leaves in h, measured on the noise-free
+#: twin of noisy rides (docs/studies/h_correction.md): -0.28 +- 0.06 mm on 24 generator rides and
+#: -4.8 +- 2.5 mm on 8 rides of the project's simulator, against -0.68 +- 0.09 and -12.5 +- 5.5 mm with
+#: the mean-square-error choice (1), whose window also reaches the longest candidate on some rides.
+NOISE_POWER = 2
+
+
+def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hinge",
+                  noise_power: int = NOISE_POWER) -> FilterChoice:
+    """Choose the Savitzky-Golay window and order for recordings from their raw signals.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings (Z-up).
+    session : Session
+    phi_definition : {"hinge", "eq3"}
+    noise_power : {1, 2}
+        How the noise counts against the distortion (:func:`~euc_ros.core.filters.auto_window.
+        choose_window`); :data:`NOISE_POWER` for an h whose noise bias SIMEX removes.
+
+    Returns
+    -------
+    FilterChoice
+        The noise floor of every signal is estimated from the top of its spectrum
+        (:func:`~euc_ros.core.filters.auto_window.choose_window`); recordings are grouped by frame
+        rate (rounded to 0.1 Hz) and the longest window of the groups' choices is used.
+    """
+    if phi_definition not in PHI_DEFINITIONS:
+        raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
+                          key="phi_definition")
+    groups: dict[float, dict[str, list]] = {}
+    dts: dict[float, float] = {}
+    for s in series_list:
+        rate = round(float(s.rate_hz), 1)
+        dts.setdefault(rate, 1.0 / float(s.rate_hz))        # the spacing the states are filtered with
+        sig = raw_signals(s, session, phi_definition)
+        g = groups.setdefault(rate, {k: [] for k in sig})
+        for k, v in sig.items():
+            g[k].append(v)
+    per_rate = {rate: choose_window(dts[rate], sig, noise_power=noise_power) for rate, sig in groups.items()}
+    used = max(per_rate.values(), key=lambda c: c.window_s)
+    return FilterChoice(used, per_rate)
