@@ -170,7 +170,7 @@ def format_uncertainty(ident: HIdentification) -> str:
     ci = "[-, -]" if lo is None or hi is None else f"[{lo:.3f}, {hi:.3f}]"
     bias = u.get("eiv_bias_m")
     floor = u.get("filter_floor_m")
-    how = (f"block bootstrap over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
+    how = (f"{u.get('method', 'block bootstrap')} over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
            + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else "")
            + (f", filter distortion +-{1e3 * floor:.3f} mm" if floor is not None else ""))
     sharp = "-" if u.get("sharpness") is None else f"{u['sharpness']:.2f}"

@@ -19,7 +19,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.bootstrap import block_bootstrap, block_counts
 from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, budget
-from euc_ros.core.identify.extended import extended_fits
+from euc_ros.core.identify.extended import extended_fits, extended_interval
 from euc_ros.core.identify.fit import (
     DEFAULT_H_GRID,
     MODELS,
@@ -165,11 +165,57 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
                            phi_definition=phi_definition, cog_method=cog_method, h_bounds=h_bounds,
                            sliding=sliding, tolerances=tolerances, with_budget=with_budget,
                            simex_share=simex_share, filter_choice=filter_choice)
+    if head != "3dof" and effects and head in fits.pooled:
+        unc = extended_uncertainty(unc, states, params, effects, float(fits.pooled[head].h_m), base_h=h)
+        h = float(fits.pooled[head].h_m)
     lo, hi = (float("nan") if v is None else float(v) for v in unc["h_ci95_m"])
     hc = unc.get("h_corrected_m")
     clo, chi = (float("nan") if v is None else float(v) for v in unc.get("h_corrected_ci95_m", (None, None)))
     return HIdentification(h, (lo, hi), bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
                            unc, float("nan") if hc is None else float(hc), (clo, chi))
+
+
+#: Keys of the base model's uncertainty that belong to the base model only (moved under ``base_model``
+#: when the JSON is headed by an extended model).
+BASE_ONLY_KEYS = ("h_ci95_m", "identifiable", "identifiability_reason", "uncertainty", "h_std_m", "h_corrected_m",
+                  "h_corrected_ci95_m", "h_range_m", "uncertainty_budget")
+#: Block length of the extended model's interval when the base model's bootstrap gives none [s].
+DEFAULT_BLOCK_S = 2.0
+
+
+def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h: float, *,
+                         base_h: float = float("nan")) -> dict:
+    """The uncertainty keys of a JSON headed by the extended model of ``effects`` (fitted h ``h``).
+
+    The head's ``h_ci95_m`` is the extended model's own: its block-robust statistical interval
+    (:func:`~.extended.extended_interval`, blocks as long as the base model's bootstrap blocks), widened
+    as identify widens the base model's: it contains ``h - bias`` (the base model's noise and sliding
+    biases, the same states filtered alike) and reaches ``filter_floor_m`` beyond on both sides. The
+    errors of those bias estimates are not added. Everything computed for the 3-DoF model goes under
+    ``base_model`` with that model's name and h (``base_h``), so no interval stands beside another
+    model's h.
+    """
+    u = base.get("uncertainty") or {}
+    block_s = u.get("block_s") or DEFAULT_BLOCK_S
+    lo, hi, se, nb = extended_interval(states, params, effects, h, float(block_s))
+    bias = sum(v for v in (u.get("eiv_bias_m"), u.get("sliding_bias_m")) if v is not None)
+    floor = u.get("filter_floor_m") or 0.0
+    if np.isfinite(lo) and np.isfinite(hi):
+        lo, hi = min(lo, lo - bias) - floor, max(hi, hi - bias) + floor
+    reasons = []
+    if nb < 4:
+        reasons.append(f"too few independent blocks ({nb} of {float(block_s):.1f} s)")
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        reasons.append("the extended model's residual does not bound h")
+    out = {k: v for k, v in base.items() if k not in BASE_ONLY_KEYS}
+    out["base_model"] = {"model": "3dof", "h_m": json_float(base_h),
+                         **{k: base[k] for k in BASE_ONLY_KEYS if k in base}}
+    out.update({"h_ci95_m": [json_float(lo), json_float(hi)], "identifiable": not reasons,
+                "identifiability_reason": "; ".join(reasons) or None, "h_std_m": json_float(se),
+                "uncertainty": {"method": "block sandwich (effects fixed)", "n_blocks": nb, "block_s": float(block_s),
+                                "eiv_bias_m": json_float(bias), "filter_floor_m": json_float(floor),
+                                "sharpness": None}})
+    return out
 
 
 def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, fit: ModelFit, *, window_s: float,

@@ -110,3 +110,42 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
     pooled = fit_from_sse(lambda h: sum(sse_rec(k, h) for k in range(len(inputs))), h_grid,
                            int(sum(m.sum() for m in masks)), model.name)
     return model.name, per, pooled
+
+
+def extended_interval(states, params, effects: dict, h: float, block_s: float, *, level: float = 0.95
+                      ) -> tuple[float, float, float, int]:
+    """The statistical interval of the extended model's h: ``(low, high, standard error, blocks)``.
+
+    The effects' parameters are fixed, so h is a one-parameter least-squares fit of the residual
+    ``r(h)``; its block-robust (sandwich) standard error is ``sqrt(sum_b s_b^2) / sum J^2`` with
+    ``J = dr/dh`` (central differences) and ``s_b`` the sum of ``J r`` over a block of ``block_s``
+    seconds of one recording (blocks about as long as the base model's bootstrap blocks, so nearly
+    independent), times ``B / (B - 1)``; the interval uses Student's t with ``B - 1`` degrees of freedom.
+    """
+    from scipy.stats import t as student
+
+    model = ExtendedModel(params, effects)
+    inputs = extended_inputs(states, params, effects)
+    step = 1e-5
+    jr, jj, blocks = [], [], []
+    for k, (arrays, extras) in enumerate(inputs):
+        def res(hh, arrays=arrays, extras=extras):
+            m1, m2 = model.torques(**arrays, h=hh, extras=extras)
+            return np.asarray(m1 - m2, float)
+
+        r0, rp, rm = res(h), res(h + step), res(h - step)
+        J = (rp - rm) / (2 * step)
+        ok = np.isfinite(r0) & np.isfinite(J)
+        t = np.asarray(arrays["t"], float)[ok]
+        jr.append((J * r0)[ok])
+        jj.append(float(np.dot(J[ok], J[ok])))
+        blocks.append(k * 10_000_000 + np.floor((t - (t[0] if t.size else 0.0)) / block_s).astype(np.int64))
+    ids, inv = np.unique(np.concatenate(blocks), return_inverse=True) if blocks else (np.zeros(0), None)
+    nb = int(ids.size)
+    den = float(sum(jj))
+    if nb < 3 or not den > 0:
+        return float("nan"), float("nan"), float("nan"), nb
+    scores = np.bincount(inv, weights=np.concatenate(jr), minlength=nb)
+    se = float(np.sqrt(np.sum(scores ** 2) * nb / (nb - 1)) / den)
+    q = float(student.ppf(0.5 + level / 2, nb - 1))
+    return h - q * se, h + q * se, se, nb

@@ -157,6 +157,14 @@ def test_identify_with_the_selected_effect_recovers_h(sloped, tmp_path, capsys):
     assert js["settings"]["effects"] == {"ground_slope": {"alpha_deg": 3.0}}
     curve = np.array(js["models"]["3dof+ground_slope"]["rmse_curve_nm"])
     assert np.nanmin(curve) >= js["rmse_nm"] - 1e-9              # the refined optimum is at least as good
+    # the interval beside the extended h is the extended model's, and holds the truth; the 3-DoF
+    # model's (biased by the slope) is under base_model with its own h
+    lo, hi = js["h_ci95_m"]
+    assert lo < H_TRUE < hi and hi - lo < 0.05, (lo, hi)
+    base = js["base_model"]
+    assert base["model"] == "3dof" and base["h_m"] == pytest.approx(plain["h_m"], abs=1e-3)
+    assert js["uncertainty"]["method"].startswith("block sandwich") and "h_corrected_m" not in js
+    assert base["h_ci95_m"] != js["h_ci95_m"] and "uncertainty" in base
 
 
 def test_residual_json_gives_the_same_model_as_the_options(sloped, tmp_path):
