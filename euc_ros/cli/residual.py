@@ -98,6 +98,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         RESIDUAL_WINDOW_S,
         analyze,
     )
+    from euc_ros.core.residual.interval import filter_refit
     from euc_ros.core.residual.noise import make_noise_floor
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -130,7 +131,12 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     if result.final_interval is not None:
-        data.update(result.final_interval.widened(*base_widening(base)).to_json())
+        final = result.final_interval.widened(*base_widening(base))
+        if cog_method == "segments" and all(s is not None for s in series):
+            chosen, probe, ratio = data_filtered(series, session, phi_definition)
+            final = filter_refit(final, result.final_model, result.final_x, chosen, params, probe_states=probe,
+                                 probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
+        data.update(final.to_json())
     data["uncertainty"] = base["uncertainty"]
     if tolerances:   # what the stated tolerances of nominal values do to the base model's h
         data["uncertainty_budget"] = base.get("uncertainty_budget")
@@ -146,6 +152,23 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
     data["cog"] = cog_faults(states)
     return result, data, states, params
+
+
+def data_filtered(series: list, session, phi_definition: str) -> tuple[list, list | None, float]:
+    """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, with its
+    probe filter (None without one), and the probe's distortion ratio."""
+    from euc_ros.core.states.filter_choice import choose_filter
+    from euc_ros.core.states.kinematics import reconstruct_states
+
+    choice = choose_filter(series, session, phi_definition=phi_definition)
+
+    def states(window_s, polyorder):
+        return [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
+                                   polyorder=polyorder) for s in series]
+
+    probe = choice.probe
+    return (states(choice.window_s, choice.polyorder), states(*probe) if probe else None,
+            float(choice.probe_ratio) if probe else float("nan"))
 
 
 def base_widening(base_uncertainty: dict) -> tuple[float, float]:

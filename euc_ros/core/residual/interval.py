@@ -30,8 +30,9 @@ from typing import Sequence
 
 import numpy as np
 
-from euc_ros.core.residual.selection import Model, block_offsets, model_jacobian
-from euc_ros.core.states.contexts import Recording
+from euc_ros.core.residual.folds import with_blocks
+from euc_ros.core.residual.selection import Model, block_offsets, fit_model, model_jacobian
+from euc_ros.core.states.contexts import Recording, prepare
 
 #: Level of the intervals.
 LEVEL = 0.95
@@ -57,6 +58,10 @@ class FinalInterval:
         h of the other admissible explanations the interval covers [m].
     extra_low_m, extra_high_m : float
         Widening beyond the statistics, below and above [m] (:meth:`widened`).
+    filter_h_m : float
+        The same model's h on states filtered with the window chosen from the data (NaN: not measured)
+        [m]; the interval covers it with the same half-width widened by ``filter_floor_m``, the bound on
+        that filter's own distortion (:func:`filter_refit`).
     """
 
     h_m: float
@@ -67,13 +72,19 @@ class FinalInterval:
     tied_h_m: tuple[float, ...] = ()
     extra_low_m: float = 0.0
     extra_high_m: float = 0.0
+    filter_h_m: float = float("nan")
+    filter_floor_m: float = 0.0
 
     @property
     def h_ci95_m(self) -> tuple[float, float]:
         """h's interval: its own, and each tied h with the same half-width, widened by the extras [m]."""
         half = self.quantile * self.h_se_m if math.isfinite(self.h_se_m) else float("inf")
         hs = [self.h_m, *self.tied_h_m]
-        return (min(v - half for v in hs) - self.extra_low_m, max(v + half for v in hs) + self.extra_high_m)
+        lo, hi = min(v - half for v in hs) - self.extra_low_m, max(v + half for v in hs) + self.extra_high_m
+        if math.isfinite(self.filter_h_m):
+            lo = min(lo, self.filter_h_m - half - self.filter_floor_m - self.extra_low_m)
+            hi = max(hi, self.filter_h_m + half + self.filter_floor_m + self.extra_high_m)
+        return lo, hi
 
     def widened(self, extra_low_m: float, extra_high_m: float) -> "FinalInterval":
         """The same intervals with h's widened by ``extra_low_m`` below and ``extra_high_m`` above [m]."""
@@ -85,6 +96,9 @@ class FinalInterval:
         if self.extra_low_m > 0 or self.extra_high_m > 0:
             out.append(f"the base model's bias terms (-{self.extra_low_m * 1e3:.1f} / "
                        f"+{self.extra_high_m * 1e3:.1f} mm)")
+        if math.isfinite(self.filter_h_m):
+            out.append(f"the h with the filter chosen from the data, {self.filter_h_m:.3f} m +- "
+                       f"{self.filter_floor_m * 1e3:.1f} mm (the filters' distortion)")
         if self.tied_h_m:
             out.append("the h of " + ", ".join(f"{v:.3f}" for v in self.tied_h_m) + " m (tied explanations)")
         return out
@@ -98,6 +112,8 @@ class FinalInterval:
                 "effect_parameters_ci95": {k: [f(v) for v in iv] for k, iv in self.parameters_ci95.items()},
                 "h_after_uncertainty": {"method": "block sandwich", "h_se_m": f(self.h_se_m),
                                         "n_blocks": self.n_blocks, "t_quantile": f(self.quantile),
+                                        "h_with_data_filter_m": f(self.filter_h_m),
+                                        "filter_floor_m": f(self.filter_floor_m),
                                         "widened_by": self.widened_by()}}
 
 
@@ -195,3 +211,27 @@ def final_interval(model: Model, recs: Sequence[Recording], x: np.ndarray, *, ti
         s = float(math.sqrt(max(g @ c @ g, 0.0)))
         params[name] = [float(values[k] - q * s), float(values[k] + q * s)]
     return FinalInterval(h, se, q, params, n_blocks, others).widened(extra_low_m, extra_high_m)
+
+
+def filter_refit(interval: FinalInterval, model: Model, x: np.ndarray, states, params, *, probe_states=None,
+                 probe_ratio: float = float("nan"), floor=None, analysis_rate_hz: float | None = None,
+                 block_s: float) -> FinalInterval:
+    """``interval`` also covering the final model's h refitted on ``states`` filtered otherwise.
+
+    The analysis runs on states of a fixed Savitzky-Golay window, which distorts the accelerations of
+    fast motion and moves h (low); ``states`` are the same recordings filtered with the window chosen
+    from their own spectra. The model (its effects as selected and measured) is fitted again on them
+    from ``x``; the interval holds that h too. With ``probe_states`` (the companion filter whose
+    distortion is ``probe_ratio`` times the chosen one's), the chosen filter's own distortion is bounded
+    as identify bounds it, ``|h_probe - h| / (probe_ratio - 1)`` (a bias growing with the distortion),
+    and the interval reaches that far beyond.
+    """
+    def refit(sts) -> float:
+        recs = with_blocks(prepare(sts, params, floor=floor, analysis_rate_hz=analysis_rate_hz), block_s)
+        return float(fit_model(model, recs, float(x[0]), start=np.asarray(x, float)).h)
+
+    h_data = refit(states)
+    floor_m = 0.0
+    if probe_states is not None and probe_ratio > 1:
+        floor_m = abs(refit(probe_states) - h_data) / (probe_ratio - 1)
+    return replace(interval, filter_h_m=h_data, filter_floor_m=floor_m)

@@ -14,9 +14,10 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from euc_ros.cli.residual import base_widening, final_interval_text
+from euc_ros.cli.residual import base_widening, data_filtered, final_interval_text
 from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.residual.analysis import analyze
+from euc_ros.core.residual.interval import filter_refit
 from euc_ros.testing import load_module
 
 P = load_module(Path(__file__).with_name("test_plausible.py"), "plausible_rides")
@@ -24,9 +25,18 @@ SEEDS = range(20, 30)
 
 
 @pytest.fixture(scope="module")
-def slope_results():
-    return [analyze(*P.ride({"ground_slope": {"alpha_deg": 2.0}}, seed=s),
-                    candidates=make_candidates(["ground_slope"]), discover=False).to_json() for s in SEEDS]
+def slope_rides():
+    out = []
+    for s in SEEDS:
+        states, params = P.ride({"ground_slope": {"alpha_deg": 2.0}}, seed=s)
+        out.append((states, params, analyze(states, params, candidates=make_candidates(["ground_slope"]),
+                                            discover=False)))
+    return out
+
+
+@pytest.fixture(scope="module")
+def slope_results(slope_rides):
+    return [r.to_json() for _, _, r in slope_rides]
 
 
 def test_standard_errors_match_the_scatter_over_rides(slope_results):
@@ -60,3 +70,25 @@ def test_the_base_models_bias_terms_widen_the_final_interval():
     base = {"h_ci95_m": [0.590, 0.625], "uncertainty": {"bootstrap_ci95_m": [0.595, 0.615]}}
     assert base_widening(base) == pytest.approx((0.005, 0.010))
     assert base_widening({"h_ci95_m": [None, None], "uncertainty": {}}) == (0.0, 0.0)
+
+
+def test_the_refit_with_the_data_filter_moves_h_towards_the_truth_and_widens_the_interval(slope_rides):
+    """The fixed 1.2 s filter biases h low on these rides; refitted on states filtered with the window
+    chosen from the data, h comes closer to the truth on average, and the interval holds both h with
+    the probe's distortion bound. (These noisy rides choose 1.3-1.6 s windows: the h that remains is
+    still ~6 mm low on average and the interval holds the truth on about half of them; see
+    docs/residual.md.)"""
+    err_fixed, err_data = [], []
+    for states, params, result in slope_rides:
+        series = [st.meta["series"] for st in states]
+        chosen, probe, ratio = data_filtered(series, states[0].meta["session"], "hinge")
+        fi = filter_refit(result.final_interval, result.final_model, result.final_x, chosen, params,
+                          probe_states=probe, probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
+        lo, hi = fi.h_ci95_m
+        plo, phi = result.final_interval.h_ci95_m
+        assert lo <= plo and hi >= phi
+        assert lo < fi.filter_h_m - fi.filter_floor_m and fi.filter_h_m + fi.filter_floor_m < hi
+        assert fi.filter_floor_m >= 0 and "filter chosen from the data" in " ".join(fi.widened_by())
+        err_fixed.append(abs(result.h_after - P.H_TRUE))
+        err_data.append(abs(fi.filter_h_m - P.H_TRUE))
+    assert np.mean(err_data) < np.mean(err_fixed), (err_fixed, err_data)

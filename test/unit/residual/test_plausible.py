@@ -50,7 +50,10 @@ def ride(effects=None, external=(), seed=11):
         res = simulate_ride(RideConfig(maneuver=maneuver, runs=runs, seed=seed + 101 * i, effects=eff,
                                        external=external))
         session = res.session
-        states += [reconstruct_states(r.mocap, session) for r in res.runs]
+        for r in res.runs:
+            st = reconstruct_states(r.mocap, session)
+            st.meta.update(series=r.mocap, session=session)   # the poses, for refits with other filters
+            states.append(st)
     return states, EucParams.from_session(session)
 
 
