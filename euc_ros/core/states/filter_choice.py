@@ -67,21 +67,11 @@ class FilterChoice:
     choice: WindowChoice
     per_rate: dict = field(default_factory=dict)
 
-    @property
-    def window_s(self) -> float:
-        return self.choice.window_s
-
-    @property
-    def polyorder(self) -> int:
-        return self.choice.polyorder
-
-    @property
-    def probe(self) -> tuple:
-        return self.choice.probe
-
-    @property
-    def probe_ratio(self) -> float:
-        return self.choice.probe_ratio
+    def __getattr__(self, name: str):
+        """The chosen filter's own attributes (``window_s``, ``polyorder``, ``probe``, ``probe_ratio``...)."""
+        if name == "choice" or name.startswith("__"):
+            raise AttributeError(name)
+        return getattr(self.choice, name)
 
     def to_json(self) -> dict:
         """``choice.to_json()`` plus ``rate_hz`` (the rate it was chosen at) and, for several rates,
