@@ -102,12 +102,17 @@ class Recorder(Node):
         self._wanted = {self.resolve_topic_name(t) for t in self.config["topics"]}
         self._seen: dict[str, float] = {}    # topic -> when it was first seen without a publisher
         self._unwritten: dict[str, str] = {}  # subscribed topic -> type, until its bag connection exists
+        self._matched: dict[str, int] = {}    # subscribed topic -> publishers matched, as last logged
         self._timer = self.create_timer(self.config["discovery_period"], self._discover)
         self._discover()
         self.get_logger().info(f"recording to {self.path} "
                                f"({'all topics' if self.config['all_topics'] else ', '.join(sorted(self._wanted))})")
 
     def _discover(self) -> None:
+        for topic, count in self._drain.publisher_counts().items():
+            if count != self._matched.get(topic):   # who is recorded, as DDS matched it (not the graph's view)
+                self._matched[topic] = count
+                self.get_logger().info(f"matched {topic}: {count} publisher{'' if count == 1 else 's'}")
         for topic, types in self.get_topic_names_and_types():
             if topic in self._subscribed or topic in _SKIP:
                 continue

@@ -92,6 +92,12 @@ class SubscriptionDrain(Waitable):
                 out.append((topic, type_name, datas))
         return out
 
+    def publisher_counts(self) -> dict[str, int]:
+        """Per subscribed topic, the publishers its subscription has matched."""
+        out = {topic: compat.publisher_count(handle) for topic, _, handle, _ in self.subs}
+        out.update({sub.topic_name: sub.get_publisher_count() for sub in self._public_subs})
+        return out
+
     def destroy(self) -> None:
         """Destroy the subscriptions (after the last :meth:`take_all`)."""
         for _, _, handle, _ in self.subs:

@@ -196,6 +196,12 @@ def take_raw(handle, msg_class):
     return None if got is None else got[0]
 
 
+def publisher_count(handle) -> int:
+    """Publishers matched with an rcl subscription handle (DDS matches, not the graph's view)."""
+    with handle:
+        return int(handle.get_publisher_count())
+
+
 def destroy_handle(handle) -> None:
     """Destroy an rcl subscription handle once nothing uses it."""
     handle.destroy_when_not_in_use()

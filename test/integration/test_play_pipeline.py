@@ -43,7 +43,9 @@ def test_csv_bag_play_ingest_record(ros_domain, short_ride, tmp_path):
                              "input_reliability": "reliable"}),
     ]
     with Launcher(specs, stream=log) as launcher:
-        assert launcher.wait(timeout=30, until=lambda: "subscribed /mocap/frame" in log.getvalue()), log.getvalue()
+        # the recorder's subscription must have matched mocap_ingest's publisher before the first pose
+        assert launcher.wait(timeout=30, until=lambda: "matched /mocap/frame: 1 publisher" in log.getvalue()), \
+            log.getvalue()
         exe = Path(sys.executable).parent / "euc-ros"
         played = subprocess.run([str(exe), "play", str(lab_bag), "--wait-timeout", "20", "--realtime"],
                                 capture_output=True, text=True, timeout=60)
