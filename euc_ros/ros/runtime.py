@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import gc
 import sys
+import warnings
 from typing import Callable
 
 import rclpy
@@ -59,6 +60,9 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
         print(f"{label}: error: {exc}", file=sys.stderr)
         return 2
     realtime_from_env(label)            # before rclpy.init: the middleware's threads inherit it
+    # a stop signal that shuts the context down while a node is being created makes rclpy warn that it could
+    # not finalise the half-made node's rosout publisher: the process is stopping as asked, nothing failed
+    warnings.filterwarnings("ignore", message="Failed to fini rosout publisher", category=RuntimeWarning)
     rclpy.init(args=args)
     startup.running()                   # rclpy's signal handlers from now on (a quiet exit until here)
     nodes: list[Node] = []
