@@ -12,10 +12,29 @@ SHARED = Path(os.environ.get("EUC_ROS_SHARED", REPO.parent / "shared"))
 MOTIVE_REAL = SHARED / "data" / "motive_real"
 
 
+#: Test folders whose tests run ROS nodes against wall-clock timing (discovery, start-up, streams): on the
+#: suite's worker processes (pytest-xdist) they all go to one worker, one at a time, as in a serial run;
+#: the other files are spread over the workers file by file (:func:`pytest_xdist_make_scheduler`).
+ROS_TIMED = ("test/integration/", "test/nodes/")
+
+
 def pytest_collection_modifyitems(config, items):
     for item in items:
         if "shared" in item.keywords and not MOTIVE_REAL.is_dir():
             item.add_marker(pytest.mark.skip(reason=f"{MOTIVE_REAL} is absent (shared data is not part of the repo)"))
+
+
+@pytest.hookimpl(optionalhook=True)      # a hook of pytest-xdist: no error where it is not loaded
+def pytest_xdist_make_scheduler(config, log):
+    """Whole files to the workers, and every :data:`ROS_TIMED` test to one of them."""
+    from xdist.scheduler import LoadScopeScheduling
+
+    class Scheduling(LoadScopeScheduling):
+        def _split_scope(self, nodeid: str) -> str:
+            path = nodeid.split("::", 1)[0]
+            return "ros_timed" if path.startswith(ROS_TIMED) else path
+
+    return Scheduling(config, log)
 
 
 @pytest.fixture(scope="session")
