@@ -11,6 +11,7 @@ import io
 import signal
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -74,22 +75,28 @@ def test_sigint_to_launcher_ends_every_child(ros_domain, looping_launch, tmp_pat
     exe = Path(sys.executable).parent / "euc-ros"
     proc = subprocess.Popen([str(exe), "launch", str(launch_file)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(proc.stdout), daemon=True)
+    reader.start()
     try:
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + 60
         kids = []
+        # the recorder has matched the ingest's publisher (frames from now on are recorded), and both run
         while time.monotonic() < deadline:
             kids = [k for k in _children(proc.pid) if k.name() in ("recorder", "mocap_ingest")
                     or any(n in " ".join(k.cmdline()) for n in ("/recorder", "/mocap_ingest"))]
-            if len(kids) >= 2 and (tmp_path / "bag").exists():
+            if len(kids) >= 2 and any("matched /mocap/frame: 1 publisher" in ln for ln in list(lines)):
                 break
             time.sleep(0.1)
         assert len(kids) >= 2, "children did not start"
-        time.sleep(2.0)  # let frames flow
+        time.sleep(1.0)  # let frames flow
         proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=30)
+        proc.wait(timeout=30)
+        reader.join(timeout=5)
     finally:
         if proc.poll() is None:
             proc.kill()
+    out = "".join(lines)
     assert proc.returncode == 0, out
     gone, alive = psutil.wait_procs(kids, timeout=5)
     assert not alive, f"children still alive after SIGINT: {[p.pid for p in alive]}"

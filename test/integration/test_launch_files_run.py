@@ -68,8 +68,10 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
     csv = ride_dir / "deceleration_01.csv"
     session = ride_dir / "session.yaml"
     first = tmp_path / "first"
+    # start_delay 6 s: the five processes discover each other before the first frame even on a host whose
+    # other core runs the rest of the suite
     r = euc_ros("launch", LAUNCH / "pipeline.launch.xml", f"session:={session}", "h:=0.61", "source:=csv",
-                f"csv_path:={csv}", "exit_when_done:=true", f"bag:={first}")
+                f"csv_path:={csv}", "exit_when_done:=true", f"bag:={first}", "start_delay:=6.0")
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert check_bag(first) == []
     _metadata_check()(first / "metadata.yaml")      # the recorder node's bag is laid out as rosbag2's
@@ -90,7 +92,7 @@ def test_pipeline_then_replay_launch_files(ros_domain, ride, tmp_path):
     frames = counts.get("/mocap/frame", 0)
     assert frames == len(read_motive_csv(csv).t), counts
     # States lose one 1.2 s filter window (144 frames), torques up to two; the ingest waits start_delay
-    # (3 s) so that the five processes have discovered each other before the first frame.
+    # so that the five processes have discovered each other before the first frame.
     # 2: the last ones may race the shutdown; 12 (0.1 s): the first states rider_state publishes (volatile) can
     # precede the recorder's match of its writer on a loaded host (a clean-clone run lost 6 at the start)
     assert counts["/rider/state"] >= frames - 144 - 12, counts["_span"]
