@@ -8,6 +8,8 @@ cases no child may be left after 5 s, and the recorder must have closed its bag 
 from __future__ import annotations
 
 import io
+import os
+import select
 import signal
 import subprocess
 import sys
@@ -52,6 +54,22 @@ def _wait_for(cond, timeout: float, what: str) -> None:
     raise AssertionError(f"timed out waiting for {what}")
 
 
+#: What the recorder says once its subscription has matched the frames' publisher: frames from then on
+#: are recorded.
+MATCHED = b"matched /mocap/frame: 1 publisher"
+
+
+def _wait_for_output(proc: subprocess.Popen, needle: bytes, timeout_s: float) -> None:
+    """Read the process' output (without a thread: the SIGHUP case closes it) until ``needle`` appears."""
+    fd, seen, deadline = proc.stdout.fileno(), b"", time.monotonic() + timeout_s
+    while needle not in seen:
+        left = deadline - time.monotonic()
+        if left <= 0 or proc.poll() is not None:
+            raise AssertionError(f"{needle!r} not in the output:\n{seen.decode(errors='replace')[-3000:]}")
+        if select.select([fd], [], [], min(left, 0.2))[0]:
+            seen += os.read(fd, 1 << 16)
+
+
 def _frames_in(bag: Path) -> int:
     return sum(1 for _ in read_bag(bag, topics=["/mocap/frame"]))
 
@@ -83,7 +101,8 @@ def test_launch_leaves_no_orphans(ros_domain, looping_launch, how):
     try:
         _wait_for(lambda: len(_nodes_of(proc.pid)) >= 2 and bag.exists(), 30, "the nodes to start")
         kids = _nodes_of(proc.pid)
-        time.sleep(2.0)    # frames flow into the bag
+        _wait_for_output(proc, MATCHED, 60)
+        time.sleep(1.0)    # frames flow into the bag
         _end_parent(proc, how)
     finally:
         if proc.poll() is None:
@@ -104,7 +123,8 @@ def test_record_leaves_no_orphans(ros_domain, short_ride, tmp_path, how):
         try:
             _wait_for(lambda: len(_nodes_of(proc.pid)) >= 1 and bag.exists(), 30, "the recorder to start")
             kids = _nodes_of(proc.pid)
-            time.sleep(2.5)
+            _wait_for_output(proc, MATCHED, 60)
+            time.sleep(1.0)    # frames flow into the bag
             _end_parent(proc, how)
         finally:
             if proc.poll() is None:
