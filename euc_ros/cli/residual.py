@@ -98,8 +98,9 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         RESIDUAL_WINDOW_S,
         analyze,
     )
-    from euc_ros.core.residual.interval import filter_refit
+    from euc_ros.core.residual.interval import base_widening, filter_refit
     from euc_ros.core.residual.noise import make_noise_floor
+    from euc_ros.core.states.filter_choice import data_filtered
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
     min_gain = DEFAULT_MIN_GAIN if min_gain is None else min_gain
@@ -152,36 +153,6 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
     data["cog"] = cog_faults(states)
     return result, data, states, params
-
-
-def data_filtered(series: list, session, phi_definition: str) -> tuple[list, list | None, float]:
-    """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, with its
-    probe filter (None without one), and the probe's distortion ratio."""
-    from euc_ros.core.states.filter_choice import choose_filter
-    from euc_ros.core.states.kinematics import reconstruct_states
-
-    choice = choose_filter(series, session, phi_definition=phi_definition)
-
-    def states(window_s, polyorder):
-        return [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
-                                   polyorder=polyorder) for s in series]
-
-    probe = choice.probe
-    return (states(choice.window_s, choice.polyorder), states(*probe) if probe else None,
-            float(choice.probe_ratio) if probe else float("nan"))
-
-
-def base_widening(base_uncertainty: dict) -> tuple[float, float]:
-    """How far identify's interval of the base model reaches beyond its block bootstrap, below and above [m].
-
-    Those are the terms the fit's statistics do not hold (errors in variables, sliding, the filter's
-    distortion, few blocks); the final model is fitted on the same states, so its interval is widened alike.
-    """
-    ci = base_uncertainty.get("h_ci95_m") or [None, None]
-    boot = (base_uncertainty.get("uncertainty") or {}).get("bootstrap_ci95_m") or [None, None]
-    if None in ci or None in boot:
-        return 0.0, 0.0
-    return max(boot[0] - ci[0], 0.0), max(ci[1] - boot[1], 0.0)
 
 
 def main(args: argparse.Namespace) -> int:

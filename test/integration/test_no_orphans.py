@@ -93,13 +93,12 @@ def _assert_no_orphans_and_bag_reads(kids: list[psutil.Process], bag: Path) -> N
     assert _frames_in(bag) > 0
 
 
-@pytest.mark.parametrize("how", ["SIGHUP", "SIGKILL"])
-def test_launch_leaves_no_orphans(ros_domain, looping_launch, how):
-    launch_file, bag = looping_launch
-    proc = subprocess.Popen([EUC_ROS, "launch", str(launch_file)], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            start_new_session=True)
+def _end_while_recording(cmd: list[str], n_nodes: int, bag: Path, how: str) -> None:
+    """Start ``cmd`` (a parent of ``n_nodes`` node processes, one a recorder of ``bag``), end it ``how`` once
+    frames are being recorded, and check that no node outlives it and the bag reads."""
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, start_new_session=True)
     try:
-        _wait_for(lambda: len(_nodes_of(proc.pid)) >= 2 and bag.exists(), 30, "the nodes to start")
+        _wait_for(lambda: len(_nodes_of(proc.pid)) >= n_nodes and bag.exists(), 30, "the nodes to start")
         kids = _nodes_of(proc.pid)
         _wait_for_output(proc, MATCHED, 60)
         time.sleep(1.0)    # frames flow into the bag
@@ -111,6 +110,12 @@ def test_launch_leaves_no_orphans(ros_domain, looping_launch, how):
 
 
 @pytest.mark.parametrize("how", ["SIGHUP", "SIGKILL"])
+def test_launch_leaves_no_orphans(ros_domain, looping_launch, how):
+    launch_file, bag = looping_launch
+    _end_while_recording([EUC_ROS, "launch", str(launch_file)], 2, bag, how)
+
+
+@pytest.mark.parametrize("how", ["SIGHUP", "SIGKILL"])
 def test_record_leaves_no_orphans(ros_domain, short_ride, tmp_path, how):
     ride_dir, _ = short_ride
     bag = tmp_path / "bag"
@@ -118,15 +123,4 @@ def test_record_leaves_no_orphans(ros_domain, short_ride, tmp_path, how):
                       parameters={"csv_path": str(ride_dir / "deceleration_01.csv"), "loop": True,
                                   "start_delay": 0.5, "wait_subscribers": 1})
     with Launcher([ingest], stream=io.StringIO()):
-        proc = subprocess.Popen([EUC_ROS, "record", str(bag), "mocap/frame"], stdout=subprocess.PIPE,
-                                stderr=subprocess.STDOUT, start_new_session=True)
-        try:
-            _wait_for(lambda: len(_nodes_of(proc.pid)) >= 1 and bag.exists(), 30, "the recorder to start")
-            kids = _nodes_of(proc.pid)
-            _wait_for_output(proc, MATCHED, 60)
-            time.sleep(1.0)    # frames flow into the bag
-            _end_parent(proc, how)
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-        _assert_no_orphans_and_bag_reads(kids, bag)
+        _end_while_recording([EUC_ROS, "record", str(bag), "mocap/frame"], 1, bag, how)

@@ -235,3 +235,16 @@ def filter_refit(interval: FinalInterval, model: Model, x: np.ndarray, states, p
     if probe_states is not None and probe_ratio > 1:
         floor_m = abs(refit(probe_states) - h_data) / (probe_ratio - 1)
     return replace(interval, filter_h_m=h_data, filter_floor_m=floor_m)
+
+
+def base_widening(base_uncertainty: dict) -> tuple[float, float]:
+    """How far identify's interval of the base model reaches beyond its block bootstrap, below and above [m].
+
+    Those are the terms the fit's statistics do not hold (errors in variables, sliding, the filter's
+    distortion, few blocks); the final model is fitted on the same states, so its interval is widened alike.
+    """
+    ci = base_uncertainty.get("h_ci95_m") or [None, None]
+    boot = (base_uncertainty.get("uncertainty") or {}).get("bootstrap_ci95_m") or [None, None]
+    if None in ci or None in boot:
+        return 0.0, 0.0
+    return max(boot[0] - ci[0], 0.0), max(ci[1] - boot[1], 0.0)

@@ -19,7 +19,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.auto_window import WindowChoice, choose_window
 from euc_ros.core.states.geometry import block_geometry
-from euc_ros.core.states.kinematics import PHI_DEFINITIONS
+from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states
 
 
 def raw_signals(series, session, phi_definition: str = "hinge") -> dict[str, np.ndarray]:
@@ -130,3 +130,17 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
     per_rate = {rate: choose_window(dts[rate], sig, noise_power=noise_power) for rate, sig in groups.items()}
     used = max(per_rate.values(), key=lambda c: c.window_s)
     return FilterChoice(used, per_rate)
+
+
+def data_filtered(series: list, session, phi_definition: str) -> tuple[list, list | None, float]:
+    """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, with its
+    probe filter (None without one), and the probe's distortion ratio."""
+    choice = choose_filter(series, session, phi_definition=phi_definition)
+
+    def states(window_s, polyorder):
+        return [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
+                                   polyorder=polyorder) for s in series]
+
+    probe = choice.probe
+    return (states(choice.window_s, choice.polyorder), states(*probe) if probe else None,
+            float(choice.probe_ratio) if probe else float("nan"))

@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from euc_ros.cli.residual import base_widening, data_filtered, final_interval_text
+from euc_ros.cli.residual import final_interval_text
 from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.residual.analysis import analyze
-from euc_ros.core.residual.interval import filter_refit
+from euc_ros.core.residual.interval import base_widening, filter_refit
+from euc_ros.core.states.filter_choice import data_filtered
 from euc_ros.testing import load_module
 
 P = load_module(Path(__file__).with_name("test_plausible.py"), "plausible_rides")
