@@ -30,7 +30,7 @@ from euc_ros.core.identify.fit import (
     pooled_fit,
 )
 from euc_ros.core.identify.interval import interval, json_float, percentiles95, student_factor, turning_rms
-from euc_ros.core.identify.simex import SimexShare, eiv_bias
+from euc_ros.core.identify.simex import SimexShare, eiv_bias, eiv_biases
 from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, reconstruct_states
@@ -233,10 +233,20 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     series = [st.meta.get("series") for st in states]
     out = {}
     bias = err = float("nan")
-    if np.isfinite(fit.h_m) and all(s is not None for s in series):
-        bias, err = eiv_bias(series, session, params, fit.h_m, window_s=window_s, polyorder=polyorder,
-                             phi_definition=phi_definition, with_error=True, cog_method=cog_method,
-                             share=simex_share)
+    have_series = np.isfinite(fit.h_m) and all(s is not None for s in series)
+    probe = h_probe = probe_eiv = None
+    if filter_choice is not None and have_series:
+        probe = probe_coefficients(series, session, params, filter_choice, phi_definition=phi_definition,
+                                   cog_method=cog_method)
+        h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
+    if have_series:
+        # SIMEX at the chosen filter, and at the probe from the same re-noised recordings
+        filters = [(window_s, polyorder, fit.h_m)]
+        if probe is not None and float(filter_choice.probe[0]) > float(filter_choice.window_s):
+            filters.append((float(filter_choice.probe[0]), int(filter_choice.probe[1]), h_probe))
+        biases = eiv_biases(series, session, params, filters, phi_definition=phi_definition, cog_method=cog_method,
+                            share=simex_share)
+        (bias, err), probe_eiv = biases[0], (biases[1] if len(biases) > 1 else None)
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
     slide = None
@@ -251,11 +261,8 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     if sliding_seen:
         total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
         total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
-    floor = probe = None
-    if filter_choice is not None and np.isfinite(fit.h_m) and all(s is not None for s in series):
-        probe = probe_coefficients(series, session, params, filter_choice, phi_definition=phi_definition,
-                                   cog_method=cog_method)
-        h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
+    floor = None
+    if probe is not None:
         floor = filter_floor(series, session, params, fit.h_m, filter_choice, phi_definition=phi_definition,
                              cog_method=cog_method, h_probe=h_probe)
     coefs = coefficients_for(states, params, "3dof", None)
@@ -268,7 +275,8 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, h_probe, filter_choice,
                                          window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
                                          eiv_bias_err_m=err, sliding_m=slide_m, sliding_err_m=slide_err,
-                                         h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method)
+                                         h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method,
+                                         probe_eiv=probe_eiv)
     del coefs, probe                  # per-sample coefficients: not kept through the budget
     out.update(iv.to_json())
     if corrected is not None:
@@ -358,7 +366,7 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
                          choice, *, window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float,
                          sliding_m: float = 0.0, sliding_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
                          phi_definition: str = "hinge", cog_method: str = "segments", n_boot: int = 1000,
-                         seed: int = 0) -> dict:
+                         seed: int = 0, probe_eiv: tuple[float, float] | None = None) -> dict:
     """h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
 
     Parameters
@@ -386,6 +394,9 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     h_bounds, n_boot, seed
         As for :func:`~euc_ros.core.identify.interval.interval` (the same seed pairs the replicates
         with those of ``h_ci95_m``).
+    probe_eiv : (float, float), optional
+        SIMEX's bias and standard error at the probe filter, when already measured
+        (:func:`~euc_ros.core.identify.simex.eiv_biases`); else measured here.
 
     Returns
     -------
@@ -412,8 +423,9 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     r = _probe_ratio(choice)
     b_c = float(eiv_bias_m) if np.isfinite(eiv_bias_m) else 0.0
     e_c = float(eiv_bias_err_m) if np.isfinite(eiv_bias_err_m) else 0.0
-    b_p, e_p = eiv_bias(series_list, session, params, h_probe, window_s=float(w_p), polyorder=int(p_p),
-                        phi_definition=phi_definition, with_error=True, cog_method=cog_method)
+    b_p, e_p = probe_eiv if probe_eiv is not None else eiv_bias(
+        series_list, session, params, h_probe, window_s=float(w_p), polyorder=int(p_p), phi_definition=phi_definition,
+        with_error=True, cog_method=cog_method)
     nan = float("nan")
     out = {"probe_eiv_bias_m": b_p, "probe_eiv_bias_err_m": e_p, "h_corrected_m": nan,
            "h_corrected_ci95_m": (nan, nan), "distortion_correction_m": nan}

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.filters.derivatives import window_samples
-from euc_ros.core.identify.fit import pooled_h_of_states
+from euc_ros.core.identify.fit import DEFAULT_H_GRID, coefficients_for, pooled_fit, pooled_h_of_states
 from euc_ros.core.mocap.noise import estimate_pose_noise, pose_noise_draws, pose_noise_series
-from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.kinematics import reconstruct_states, reconstruct_states_filters
 
 #: Re-noised reconstructions of every recording in :func:`eiv_bias`: 2 antithetic pairs. Measured on
 #: 6 simulated 7 s runs (seed 7), the bias' scatter over 8 seeds: 6 independent replicates 0.99 mm
@@ -125,27 +125,58 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     ``share``: a :class:`SimexShare` whose first replicate (made by :func:`first_replicate` with the
     same settings) is used instead of being made again.
     """
+    (bias, err), = eiv_biases(series_list, session, params, [(window_s, polyorder, h)],
+                              phi_definition=phi_definition, replicates=replicates, seed=seed, cog_method=cog_method,
+                              antithetic=antithetic, share=share)
+    return (bias, err) if with_error else bias
 
+
+def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "hinge",
+               replicates: int = SIMEX_REPLICATES, seed: int = SIMEX_SEED, cog_method: str = "segments",
+               antithetic: bool = True, share: SimexShare | None = None) -> list[tuple[float, float]]:
+    """:func:`eiv_bias` with its standard error at several Savitzky-Golay filters, from the same replicates.
+
+    ``filters``: ``(window_s, polyorder, h)`` per filter, ``h`` the h fitted with that filter. Every
+    replicate's noisy recording is made, and its geometry evaluated, once for all filters
+    (:func:`~euc_ros.core.states.kinematics.reconstruct_states_filters`); each filter's result is the
+    one :func:`eiv_bias` gives for it alone, number for number. Returns ``[(bias, standard error), ...]``
+    in the order of ``filters``.
+    """
+    filters = [(float(w), int(p), float(h)) for w, p, h in filters]
     share = share if share is not None else SimexShare()
     noise = share.noise_of(series_list)
+    nan = float("nan")
     if all(not np.isfinite(sp).any() for sp, _ in noise):
-        return (float("nan"), float("nan")) if with_error else float("nan")
+        return [(nan, nan) for _ in filters]
     rng = np.random.default_rng(seed)
-    known = share.lookup(series_list, _share_key(series_list, window_s, polyorder, phi_definition, cog_method, seed,
-                                                 params))
+    known = share.lookup(series_list, _share_key(series_list, filters[0][0], filters[0][1], phi_definition,
+                                                 cog_method, seed, params)) if len(filters) == 1 else None
 
-    def h_of(draws, sign):
-        states = _replicate_states(series_list, noise, draws, sign, session, window_s=window_s, polyorder=polyorder,
-                                   phi_definition=phi_definition, cog_method=cog_method)
-        # fit_h's pooled 3-DoF h, the states dropped once reduced to their coefficients
-        return pooled_h_of_states(states, params)
+    def h_of(draws, sign) -> list[float]:
+        # fit_h's pooled 3-DoF h per filter; each recording's states are reduced to their residual
+        # coefficients as soon as they are made (never two filters' states of a recording at once)
+        coefs: list[list] = [[] for _ in filters]
+        for s, (sp, sr), z in zip(series_list, noise, draws):
+            noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
+            states = reconstruct_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
+                                                phi_definition=phi_definition, cog_method=cog_method)
+            for k in range(len(filters)):
+                coefs[k] += coefficients_for([states[k]], params, "3dof", None)
+                states[k] = None
+            del noisy, states
+        return [float(pooled_fit(c, DEFAULT_H_GRID, "3dof").h_m) for c in coefs]
 
     hs = []
     pairs = antithetic and replicates >= 2
     for k in range(replicates // 2 if pairs else replicates):
         draws = [pose_noise_draws(s, rng) for s in series_list]
-        first = known if (k == 0 and known is not None) else h_of(draws, 1.0)
-        hs.append(0.5 * (first + h_of(draws, -1.0)) if pairs else first)
-    bias = float(np.nanmean(hs) - h)
-    err = float(np.nanstd(hs, ddof=1) / np.sqrt(len(hs))) if len(hs) > 1 else float("nan")
-    return (bias, err) if with_error else bias
+        first = [known] if (k == 0 and known is not None) else h_of(draws, 1.0)
+        hs.append([0.5 * (a + b) for a, b in zip(first, h_of(draws, -1.0))] if pairs else first)
+    hs = np.array(hs, dtype=float)                     # (replicates or pairs, filters)
+    out = []
+    for j, (_, _, h) in enumerate(filters):
+        col = hs[:, j]
+        bias = float(np.nanmean(col) - h)
+        err = float(np.nanstd(col, ddof=1) / np.sqrt(col.size)) if col.size > 1 else nan
+        out.append((bias, err))
+    return out

@@ -19,7 +19,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.auto_window import WindowChoice, choose_window
 from euc_ros.core.states.geometry import block_geometry
-from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states
+from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states_filters
 
 
 def raw_signals(series, session, phi_definition: str = "hinge") -> dict[str, np.ndarray]:
@@ -137,10 +137,10 @@ def data_filtered(series: list, session, phi_definition: str) -> tuple[list, lis
     probe filter (None without one), and the probe's distortion ratio."""
     choice = choose_filter(series, session, phi_definition=phi_definition)
 
-    def states(window_s, polyorder):
-        return [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
-                                   polyorder=polyorder) for s in series]
-
     probe = choice.probe
-    return (states(choice.window_s, choice.polyorder), states(*probe) if probe else None,
+    filters = [(choice.window_s, choice.polyorder)] + ([tuple(probe)] if probe else [])
+    # both filters from one evaluation of each recording's geometry
+    per_rec = [reconstruct_states_filters(s, session, filters, phi_definition=phi_definition) for s in series]
+    chosen = [st[0] for st in per_rec]
+    return (chosen, [st[1] for st in per_rec] if probe else None,
             float(choice.probe_ratio) if probe else float("nan"))

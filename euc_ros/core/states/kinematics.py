@@ -159,6 +159,50 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     ConfigError
         For an unknown ``phi_definition`` or bad filter settings.
     """
+    _check(series, session, phi_definition, cog_method)
+    geo = _geometry(series, session, max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
+    return _filtered_states(series, geo, phi_definition=phi_definition, window_s=window_s, polyorder=polyorder,
+                            max_gap=max_gap, cog_method=cog_method, consume=True)
+
+
+def reconstruct_states_filters(series, session, filters, *, phi_definition: str = "hinge",
+                               max_gap: int = DEFAULT_MAX_GAP, cog_method: str = "segments",
+                               skeleton: SkeletonModel | None = None) -> list[RiderStates]:
+    """:func:`reconstruct_states` with several Savitzky-Golay filters, from one evaluation of the geometry.
+
+    The per-frame geometry (poses to angles, wheel centre and CoG) does not depend on the filter, so a
+    recording analysed at several filters (a chosen filter and its probe; the re-noised recordings of
+    SIMEX at both) needs it once. The states are those :func:`reconstruct_states` gives for each
+    filter, number for number.
+
+    Parameters
+    ----------
+    series, session, phi_definition, max_gap, cog_method, skeleton
+        As for :func:`reconstruct_states` (validated alike).
+    filters : sequence of (float, int)
+        ``(window_s, polyorder)`` of each filter.
+
+    Returns
+    -------
+    list of RiderStates
+        One per filter, in order.
+    """
+    filters = [(float(w), int(p)) for w, p in filters]
+    if not filters:
+        return []
+    if len(filters) == 1:
+        (w, p), = filters
+        return [reconstruct_states(series, session, phi_definition=phi_definition, window_s=w, polyorder=p,
+                                   max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)]
+    _check(series, session, phi_definition, cog_method)
+    geo = _geometry(series, session, max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
+    return [_filtered_states(series, geo, phi_definition=phi_definition, window_s=w, polyorder=p, max_gap=max_gap,
+                             cog_method=cog_method, consume=k == len(filters) - 1)
+            for k, (w, p) in enumerate(filters)]
+
+
+def _check(series, session, phi_definition: str, cog_method: str) -> None:
+    """The refusals of :func:`reconstruct_states` (settings, and bodies the session needs)."""
     if phi_definition not in PHI_DEFINITIONS:
         raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
                           key="phi_definition")
@@ -176,18 +220,34 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
                 f"rider.segments to the recording's Motive names)") if extra else ""
         raise InputError(f"rider segment(s) {', '.join(absent)} of the session not in recording (has: "
                          f"{', '.join(series.bodies)}){hint}", path=src, key="rider.segments")
-    dt = 1.0 / series.rate_hz
+
+
+def _geometry(series, session, *, max_gap: int, cog_method: str, skeleton) -> dict:
+    """The bridged per-frame geometry of a recording, with the bridging counts under ``_bridged``."""
     # each body's short gaps are bridged before any geometry (as the live estimator does); for the
     # segments CoG block by block (blockwise.block_geometry: no copy of the whole recording)
     if cog_method == "skeleton":
-        series, bridged = bridge_series(materialize(series), max_gap)
+        bridged_series, bridged = bridge_series(materialize(series), max_gap)
         if skeleton is None:
-            skeleton = SkeletonModel.estimate([series], session)
-        geo = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies,
-                             cog_method=cog_method, skeleton=skeleton)
-        n_bridged, n_bridged_frames = int(bridged.sum()), int(bridged.any(axis=0).sum())
-    else:
-        geo, n_bridged, n_bridged_frames = block_geometry(series, session, max_gap)
+            skeleton = SkeletonModel.estimate([bridged_series], session)
+        geo = frame_geometry(bridged_series.position, bridged_series.quat, bridged_series.tracked, session,
+                             bridged_series.bodies, cog_method=cog_method, skeleton=skeleton)
+        geo["_bridged"] = (int(bridged.sum()), int(bridged.any(axis=0).sum()))
+        return geo
+    geo, n_bridged, n_bridged_frames = block_geometry(series, session, max_gap)
+    geo["_bridged"] = (n_bridged, n_bridged_frames)
+    return geo
+
+
+def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float, polyorder: int, max_gap: int,
+                     cog_method: str, consume: bool) -> RiderStates:
+    """The states of one Savitzky-Golay filter from the geometry of :func:`_geometry` (``consume``: its
+    arrays may be dropped as they are filtered; else ``geo`` is left as given)."""
+    src = series.meta.get("path", series.name or None)
+    # without ``consume`` the states get arrays of their own (another filter's states share none)
+    geo = geo if consume else {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in geo.items()}
+    n_bridged, n_bridged_frames = geo["_bridged"]
+    dt = 1.0 / series.rate_hz
     frame = np.asarray(series.frame, dtype=np.int64)
     sg = dict(window_s=window_s, polyorder=polyorder, max_gap=max_gap, frame=frame)
     # Order for memory: each filter input is dropped from ``geo`` once filtered (those the states do not

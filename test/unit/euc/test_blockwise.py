@@ -152,3 +152,29 @@ def test_reconstruct_states_of_a_perturbed_series(ride, small_blocks):
     for key in ("gamma", "phi", "phi_ddot", "x_ddot", "C", "G", "valid"):
         np.testing.assert_array_equal(getattr(a, key), getattr(b, key), err_msg=key)
     assert a.meta["bridged_samples"] == b.meta["bridged_samples"] > 0
+
+
+@pytest.mark.parametrize("cog_method", ["segments", "skeleton"])
+def test_several_filters_from_one_geometry_are_each_filter_alone(ride, cog_method):
+    """``reconstruct_states_filters`` gives, per filter, exactly the states of ``reconstruct_states``, and
+    no two filters' states share an array (one may be changed without touching the other)."""
+    from euc_ros.core.states.kinematics import reconstruct_states, reconstruct_states_filters
+
+    series, session = ride
+    filters = [(0.5, 4), (1.2, 6), (0.3, 2)]
+    many = reconstruct_states_filters(series, session, filters, cog_method=cog_method)
+    assert len(many) == len(filters)
+    for (w, p), st in zip(filters, many):
+        alone = reconstruct_states(series, session, window_s=w, polyorder=p, cog_method=cog_method)
+        for f in dataclasses.fields(st):
+            a, b = getattr(st, f.name), getattr(alone, f.name)
+            if isinstance(a, np.ndarray):
+                np.testing.assert_array_equal(a, b, err_msg=f"{f.name} at {(w, p)}")
+            elif f.name == "meta":
+                assert {k: v for k, v in a.items() if k != "cog_fault_bodies"} == \
+                    {k: v for k, v in b.items() if k != "cog_fault_bodies"}
+            else:
+                assert a == b, f.name
+    for f in ("G", "phi_hinge", "psi", "theta", "has_rider"):
+        arrays = [getattr(st, f) for st in many]
+        assert not any(np.shares_memory(arrays[i], arrays[j]) for i in range(3) for j in range(i + 1, 3)), f

@@ -180,3 +180,20 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     moved.h_m = share.h_m + 0.01
     assert eiv_bias(series, ride.session, params, fit.h_m, share=moved, **kw)[0] == pytest.approx(
         shared[0] + 0.0025, abs=1e-12)
+
+
+def test_simex_at_two_filters_is_each_filter_alone():
+    """eiv_biases makes each replicate once for several filters; each filter's bias and error are the ones
+    eiv_bias gives for it alone (same draws), and the two filters' biases differ (the filters matter)."""
+    from euc_ros.core.identify.simex import eiv_biases
+
+    ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=5))
+    params, states, fit = _identify(ride)
+    series = [r.mocap for r in ride.runs]
+    h_short = fit_h([reconstruct_states(s, ride.session, window_s=0.6, polyorder=4) for s in series], params,
+                    models=("3dof",)).pooled["3dof"].h_m
+    both = eiv_biases(series, ride.session, params, [(1.2, 6, fit.h_m), (0.6, 4, h_short)])
+    alone = [eiv_bias(series, ride.session, params, fit.h_m, window_s=1.2, polyorder=6, with_error=True),
+             eiv_bias(series, ride.session, params, h_short, window_s=0.6, polyorder=4, with_error=True)]
+    assert both == alone
+    assert both[0][0] != both[1][0]
