@@ -77,7 +77,7 @@ def identify(session: str | Path, recordings: Sequence[str | Path], **options) -
     **options
         The command's options by their Python names: ``window_s``, ``polyorder``, ``phi_definition``,
         ``cog_method``, ``h_min``, ``h_max``, ``h_step``, ``effects`` (``{name: {parameter: value}}``),
-        ``model``, ``uncertainty``, ``sliding``, ``tolerances``.
+        ``model``, ``uncertainty``, ``sliding``, ``tolerances``, ``sliding_prior_mm``.
     """
     from euc_ros.cli.identify import run_identify
 
@@ -94,7 +94,7 @@ def residual(session: str | Path, recordings: Sequence[str | Path], **options) -
         As for :func:`identify`.
     **options
         ``candidates``, ``alpha``, ``min_gain``, ``max_effects``, ``use_geometry``, ``discover``,
-        ``window_s``, ``polyorder``, ``cog_method``, ``phi_definition``, ``tolerances``.
+        ``window_s``, ``polyorder``, ``cog_method``, ``phi_definition``, ``tolerances``, ``sliding_prior_mm``.
     """
     from euc_ros.cli.residual import run_residual
 

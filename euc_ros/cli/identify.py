@@ -63,6 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "them (swapped/flipped bodies excluded; docs/cog_artefacts.md)")
     parser.add_argument("--no-sliding-bias", dest="sliding_bias", action="store_false",
                         help="leave the soft-tissue sliding's SIMEX bias out of the h interval (faster)")
+    add_sliding_prior_argument(parser)
     parser.add_argument("--h-min", type=float, default=0.1, metavar="M", help="smallest h of the grid [m] (0.1)")
     parser.add_argument("--h-max", type=float, default=1.2, metavar="M", help="largest h of the grid [m] (1.2)")
     parser.add_argument("--h-step", type=float, default=0.005, metavar="M", help="grid step [m] (0.005)")
@@ -86,6 +87,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "5 mm for h0 and l0, 2 mm for the wheel radius, 1 cm for the segment CoM offsets)")
     parser.add_argument("--no-uncertainty", action="store_true",
                         help="skip the confidence interval, the errors-in-variables bias and the budget (faster)")
+
+
+def add_sliding_prior_argument(parser: argparse.ArgumentParser) -> None:
+    """``--sliding-prior-mm``: the soft-tissue sliding all rider bodies share (identify and residual)."""
+    parser.add_argument("--sliding-prior-mm", type=float, default=None, metavar="MM",
+                        help="RMS of the soft-tissue sliding all the rider's bodies share, which no check can see "
+                             "[mm]; its effect on h, found by re-simulation, widens the interval (0: none; "
+                             "default: as large as the sliding the chain's links show; docs/cog_artefacts.md)")
+
+
+def sliding_prior(mm: float | None):
+    """The :class:`~euc_ros.core.identify.sliding_prior.SlidingPrior` of ``--sliding-prior-mm``."""
+    from euc_ros.core.identify.sliding_prior import SlidingPrior
+
+    return SlidingPrior(rms_m=None if mm is None else float(mm) * 1e-3)
 
 
 def window_arg(text: str) -> float | str:
@@ -253,7 +269,7 @@ def run_identify(session_path, recordings, *, window_s: float | str = "auto",
                  polyorder: int | None = None, phi_definition: str = "hinge", cog_method: str = "segments",
                  h_min: float = 0.1, h_max: float = 1.2, h_step: float = 0.005, effects: dict | None = None,
                  model: str | None = None, uncertainty: bool = True, sliding: bool = True,
-                 tolerances: dict | None = None, progress: bool = False):
+                 tolerances: dict | None = None, sliding_prior_mm: float | None = None, progress: bool = False):
     """The identification ``euc-ros identify`` runs: ``(HIdentification, JSON document, states, params)``.
 
     The document is the command's ``--json`` output, key for key; :func:`euc_ros.identify` returns it too.
@@ -288,7 +304,7 @@ def run_identify(session_path, recordings, *, window_s: float | str = "auto",
                        model=model, settings=settings, uncertainty=uncertainty, sliding=sliding,
                        tolerances=tolerances if tolerances is not None else parse_tolerances([]),
                        window_s=window_s, polyorder=polyorder, phi_definition=phi_definition, cog_method=cog_method,
-                       filter_choice=choice)
+                       filter_choice=choice, sliding_prior=sliding_prior(sliding_prior_mm))
     data = ident.to_dict()
     if choice is not None:
         data["filter"] = choice.to_json()
@@ -310,7 +326,7 @@ def main(args: argparse.Namespace) -> int:
         phi_definition=args.phi_definition, cog_method=args.cog_method, h_min=args.h_min, h_max=args.h_max,
         h_step=args.h_step, effects=effects_from_args(args), model=args.model,
         uncertainty=not args.no_uncertainty, sliding=args.sliding_bias, tolerances=parse_tolerances(args.tolerance),
-        progress=not args.no_progress)
+        sliding_prior_mm=args.sliding_prior_mm, progress=not args.no_progress)
     if "filter" in data:
         print(format_filter(data["filter"]))
     print(format_table(ident.fits, identifiable=ident.identifiable))

@@ -39,6 +39,7 @@ HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
+    from euc_ros.cli.identify import add_sliding_prior_argument
     from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (docs/session.md)")
@@ -76,6 +77,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plausible", action="append", default=[], metavar="EFFECT.PARAM=LOW:HIGH",
                         help="plausible range of a library parameter instead of the library's (docs/effects.md), "
                              "e.g. aero_drag.cda_m2=0.2:1.4; a fit outside it is not named (repeatable)")
+    add_sliding_prior_argument(parser)
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
@@ -83,12 +85,13 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
                  min_gain: float | None = None, max_effects: int = 3, use_geometry: bool = True,
                  discover: bool = True, window_s: float | None = None, polyorder: int | None = None,
                  cog_method: str = "segments", phi_definition: str = "hinge", tolerances: dict | None = None,
-                 plausible: dict | None = None, progress: bool = False):
+                 plausible: dict | None = None, sliding_prior_mm: float | None = None, progress: bool = False):
     """The analysis ``euc-ros residual`` runs: ``(result, JSON document, states, params)``.
 
     The document is the command's ``--json`` output, key for key; :func:`euc_ros.residual` returns it too.
     Defaults are the command's.
     """
+    from euc_ros.cli.identify import sliding_prior
     from euc_ros.core.identify.cog_height import identify_h
     from euc_ros.core.identify.simex import SimexShare
     from euc_ros.core.residual.analysis import (
@@ -128,7 +131,8 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     # how well the data determine the base model's h (identify's interval and identifiability)
     budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
     base = identify_h(states, session, params, models=("3dof",), window_s=window_s, polyorder=polyorder,
-                      phi_definition=phi_definition, cog_method=cog_method, simex_share=simex, **budget).uncertainty
+                      phi_definition=phi_definition, cog_method=cog_method, simex_share=simex,
+                      sliding_prior=sliding_prior(sliding_prior_mm), **budget).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     if result.final_interval is not None:
@@ -168,7 +172,8 @@ def main(args: argparse.Namespace) -> int:
         max_effects=args.max_effects, use_geometry=not args.no_geometry, discover=not args.no_discovery,
         window_s=args.window_s, polyorder=args.polyorder, cog_method=args.cog_method,
         phi_definition=args.phi_definition, tolerances=parse_tolerances(args.tolerance) if args.tolerance else None,
-        plausible=parse_plausible(args.plausible), progress=not args.no_progress)
+        plausible=parse_plausible(args.plausible), sliding_prior_mm=args.sliding_prior_mm,
+        progress=not args.no_progress)
     write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     print(format_summary(data))
     if not data["identifiable"]:

@@ -183,6 +183,8 @@ class WindowChoice:
     probe_ratio : float
         The probe's predicted RMS distortion of the accelerations over the chosen filter's (about
         2; NaN when the chosen filter predicts none).
+    noise_model : {"white", "coloured"}
+        How the noise was modelled (:func:`choose_window`, Notes).
     candidates : list of dict
         Every candidate evaluated, with its total score.
     """
@@ -197,6 +199,7 @@ class WindowChoice:
     band_hz: dict
     probe: tuple
     probe_ratio: float = float("nan")
+    noise_model: str = "white"
     candidates: list = field(repr=False, default_factory=list)
 
     def to_json(self) -> dict:
@@ -205,7 +208,53 @@ class WindowChoice:
                 "distortion": {k: list(v) for k, v in self.distortion.items()}, "noise": dict(self.noise),
                 "noise_std": dict(self.noise_std), "acceleration_rms": dict(self.acceleration_rms),
                 "band_hz": {k: list(v) for k, v in self.band_hz.items()}, "probe": list(self.probe),
-                "probe_ratio": self.probe_ratio if np.isfinite(self.probe_ratio) else None}
+                "probe_ratio": self.probe_ratio if np.isfinite(self.probe_ratio) else None,
+                "noise_model": self.noise_model}
+
+
+#: Largest RMS distortion of an acceleration a choice with the white noise floor may predict: beyond it the
+#: noise is taken as coloured (:func:`choose_window`, Notes).
+MAX_WHITE_DISTORTION = 0.3
+#: Width of the band above the cutoff whose median spectrum is the noise level below it [Hz].
+NOISE_LEVEL_HZ = 1.0
+#: Bands per octave over which :func:`_noise_rise_start` averages the acceleration spectrum.
+RISE_BANDS_PER_OCTAVE = 4
+
+
+def _noise_rise_start(f: np.ndarray, S: np.ndarray, n_avg: float, f_min: float) -> float:
+    """Where the noise takes over the spectrum from below: the start of the final stretch over which the
+    acceleration spectrum ``(2 pi f)^4 S(f)`` only rises (within its estimate's scatter) [Hz].
+
+    A motion's acceleration spectrum falls off above its band; pose noise, white or coloured (a first
+    order low-pass: flat, then ``f^-2``), gives an acceleration spectrum rising as ``f^4`` or ``f^2``
+    up to Nyquist. The spectrum is averaged over fractional-octave bands (:data:`RISE_BANDS_PER_OCTAVE`;
+    a band of ``m`` bins scatters by about ``1 / sqrt(n_avg m)``); the motion ends where the final rise
+    begins: every band from there on lies within that scatter (:data:`FLOOR_SIGMAS` of it) of the
+    smallest band at or above it. A motion peak at a high frequency (a fast balance loop) stays inside
+    the band, since the rise that counts is the last one.
+    """
+    ok = np.isfinite(S) & (f >= f_min) & (f > 0)
+    if ok.sum() < 4:
+        return float(f[-1])
+    A = (2 * np.pi * f) ** 4 * np.where(ok, S, 0.0)
+    edges = f_min * 2.0 ** (np.arange(0, 64) / RISE_BANDS_PER_OCTAVE)
+    edges = edges[edges <= f[-1] * (1 + 1e-9)]
+    if edges.size < 3:
+        return float(f[-1])
+    idx = np.digitize(f, edges) - 1                      # band of every bin (-1 below f_min)
+    nb = edges.size - 1
+    use = ok & (idx >= 0) & (idx < nb)
+    count = np.bincount(idx[use], minlength=nb).astype(float)
+    total = np.bincount(idx[use], weights=A[use], minlength=nb)
+    keep = count > 0
+    band_lo = edges[:-1][keep]
+    mean = total[keep] / count[keep]
+    run_min = np.minimum.accumulate(mean[::-1])[::-1]
+    tol = 1.0 + FLOOR_SIGMAS / np.sqrt(np.maximum(n_avg * count[keep], 1.0))
+    rising = mean <= tol * run_min
+    off = np.flatnonzero(~rising)
+    return float(band_lo[off[-1] + 1]) if off.size and off[-1] + 1 < band_lo.size else \
+        (float(f[-1]) if off.size else float(band_lo[0]))
 
 
 def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) -> list[tuple[int, int]]:
@@ -278,6 +327,16 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
     companion filter with about twice the predicted distortion (``probe``) gives a model-free
     estimate of what the distortion does to any quantity ``h`` fitted from the filtered signals:
     to first order ``h(W) - h_true ~ h(W_probe) - h(W)``.
+
+    Coloured pose noise (soft tissue, a tracker's own smoothing) has most of its power below the top
+    of the band, where the white floor is read, so that floor lies far below it and the "motion" left
+    above it is largely noise; the choice then follows it with a short window whose predicted
+    distortion of what it keeps is large. When the chosen filter predicts an RMS distortion above
+    :data:`MAX_WHITE_DISTORTION` for any signal, the noise is taken as coloured: the motion's band ends
+    where the acceleration spectrum's final rise begins (:func:`_noise_rise_start`; noise, white or
+    coloured, gives an acceleration spectrum rising to Nyquist), the noise is the measured spectrum
+    above that and flat below, and its part beyond the white floor counts whole in the score (SIMEX,
+    which adds white noise, does not remove its bias). ``noise_model`` says which was used.
     """
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"sample spacing must be > 0 s, got {dt!r}", key="dt")
@@ -301,32 +360,60 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
     f = specs[names[0]][0]
     df = f[1] - f[0]
     w2 = (2 * np.pi * f) ** 2
-    S_sig, cutoff = {}, {}
-    for n in names:
-        S = np.where(np.isfinite(specs[n][1]), specs[n][1], np.inf)
-        above = S > floors[n] * (1.0 + FLOOR_SIGMAS / np.sqrt(n_avg[n]))
-        # the motion's band: from 0 Hz up to the first bin (past the lowest ones) under the threshold
-        below = np.flatnonzero(~above & (f > 2.0 / segment_s))
-        cutoff[n] = float(f[below[0]]) if below.size else float(f[-1])
-        S_sig[n] = np.where((f < cutoff[n]) & (f > 0), np.maximum(specs[n][1] - floors[n], 0.0), 0.0)
-    A = {n: w2**2 * S_sig[n] for n in names}
-    P = {n: float(np.sum(A[n]) * df) for n in names}
-    if any(v <= 0 for v in P.values()):
-        empty = [n for n, v in P.items() if v <= 0]
-        raise InputError(f"no motion above the noise floor in {', '.join(empty)}", key="signals")
-    cands = []
-    for W, p in _candidate_windows(dt, orders, max_window_s):
-        H2 = savgol_response(W, p, 2, dt, f)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            e2 = np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0)
-        k2 = savgol_kernel(W, p, 2, dt)
-        score, B, V = 0.0, {}, {}
+    def evaluate(coloured: bool):
+        """The candidates scored with the white noise floor (``coloured`` False) or with the noise as
+        measured above the motion's band, which may be coloured (True)."""
+        S_sig, cutoff, S_noise = {}, {}, {}
         for n in names:
-            B[n] = float(np.sum(e2 * A[n]) * df)
-            V[n] = sig_used[n] ** 2 * float(k2 @ k2)
-            score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
-        cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
-    best = min(cands, key=lambda c: (c["score"], c["window"]))
+            S = np.where(np.isfinite(specs[n][1]), specs[n][1], np.inf)
+            above = S > floors[n] * (1.0 + FLOOR_SIGMAS / np.sqrt(n_avg[n]))
+            # the motion's band: from 0 Hz up to the first bin (past the lowest ones) under the threshold
+            below = np.flatnonzero(~above & (f > 2.0 / segment_s))
+            cutoff[n] = float(f[below[0]]) if below.size else float(f[-1])
+            level = floors[n]
+            if coloured:
+                # no further than where the noise's rising acceleration spectrum takes over; the noise as
+                # measured above that, and below it as flat as just above it
+                cutoff[n] = min(cutoff[n], _noise_rise_start(f, specs[n][1], n_avg[n], 2.0 / segment_s))
+                near = (f >= cutoff[n]) & (f <= cutoff[n] + NOISE_LEVEL_HZ)
+                level = max(floors[n], float(np.nanmedian(specs[n][1][near])))
+                S_noise[n] = np.where(f >= cutoff[n], specs[n][1], level)
+                S_noise[n][0] = 0.0
+            S_sig[n] = np.where((f < cutoff[n]) & (f > 0), np.maximum(specs[n][1] - level, 0.0), 0.0)
+        A = {n: w2**2 * S_sig[n] for n in names}
+        P = {n: float(np.sum(A[n]) * df) for n in names}
+        if any(v <= 0 for v in P.values()):
+            empty = [n for n, v in P.items() if v <= 0]
+            raise InputError(f"no motion above the noise floor in {', '.join(empty)}", key="signals")
+        cands = []
+        for W, p in _candidate_windows(dt, orders, max_window_s):
+            H2 = savgol_response(W, p, 2, dt, f)
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e2 = np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0)
+            k2 = savgol_kernel(W, p, 2, dt)
+            h2 = np.abs(H2) ** 2 if coloured else None
+            score, B, V = 0.0, {}, {}
+            for n in names:
+                B[n] = float(np.sum(e2 * A[n]) * df)
+                V[n] = sig_used[n] ** 2 * float(k2 @ k2)
+                score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
+                if coloured:
+                    # the coloured excess over the white noise: SIMEX does not remove its bias, so it counts whole
+                    excess = max(float(np.sum(h2 * S_noise[n]) * df) - V[n], 0.0)
+                    V[n] += excess
+                    score += excess / P[n]
+            cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
+        best = min(cands, key=lambda c: (c["score"], c["window"]))
+        worst = max(np.sqrt(best["B2"][n] / P[n]) for n in names)
+        return cands, best, S_sig, A, P, cutoff, worst
+
+    cands, best, S_sig, A, P, cutoff, worst = evaluate(False)
+    noise_model = "white"
+    if worst > MAX_WHITE_DISTORTION:
+        # a white floor read at the top of the band is far below coloured noise: the "motion" it leaves
+        # is mostly noise, which the choice then follows with a filter that distorts what it keeps
+        cands, best, S_sig, A, P, cutoff, worst = evaluate(True)
+        noise_model = "coloured"
     W, p = best["window"], best["polyorder"]
     distortion, noise, acc_rms, band = {}, {}, {}, {}
     for n in names:
@@ -355,6 +442,7 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         probe = (c["window"] * dt, p)
         ratio = rms_distortion(c) / target * 2.0 if target > 0 else float("nan")
     return WindowChoice(window_s=W * dt, window=W, polyorder=p, distortion=distortion, noise=noise,
-                        noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band, probe=probe, probe_ratio=ratio,
+                        noise_model=noise_model, noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band,
+                        probe=probe, probe_ratio=ratio,
                         candidates=[{"window": c["window"], "polyorder": c["polyorder"], "score": c["score"]}
                                     for c in cands])

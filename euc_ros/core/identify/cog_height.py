@@ -10,6 +10,7 @@ gives the command's JSON document (:meth:`HIdentification.to_dict`).
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 from dataclasses import dataclass
 from typing import Sequence
@@ -29,9 +30,17 @@ from euc_ros.core.identify.fit import (
     fit_h,
     pooled_fit,
 )
-from euc_ros.core.identify.interval import interval, json_float, percentiles95, student_factor, turning_rms
+from euc_ros.core.identify.interval import (
+    extend_by_prior,
+    interval,
+    json_float,
+    percentiles95,
+    student_factor,
+    turning_rms,
+)
 from euc_ros.core.identify.simex import SimexShare, eiv_bias, eiv_biases
-from euc_ros.core.identify.sliding import sliding_bias
+from euc_ros.core.identify.sliding import MIN_SLIDING_M, estimate_sliding, sliding_bias
+from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, reconstruct_states
 
@@ -96,7 +105,8 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
                settings: dict | None = None, uncertainty: bool = True, with_budget: bool = True,
                sliding: bool = True, tolerances: dict | None = None, window_s: float = DEFAULT_WINDOW_S,
                polyorder: int = DEFAULT_SG_POLYORDER, phi_definition: str = "hinge", cog_method: str = "segments",
-               simex_share: SimexShare | None = None, filter_choice=None) -> HIdentification:
+               simex_share: SimexShare | None = None, filter_choice=None,
+               sliding_prior: SlidingPrior | None = None) -> HIdentification:
     """Identify h from reconstructed recordings, with its interval.
 
     Parameters
@@ -141,6 +151,10 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         (:func:`distortion_corrected`: ``h_corrected_m`` with its own interval ``h_corrected_ci95_m``;
         ``h_m`` and ``h_ci95_m`` stay those of the chosen filter). Without it (a fixed window) there
         are neither.
+    sliding_prior : SlidingPrior, optional
+        The soft-tissue sliding all the rider's bodies share, which no link shows
+        (:mod:`.sliding_prior`; default: as large as the sliding the links show); its effect on h
+        extends the intervals.
 
     Returns
     -------
@@ -164,7 +178,7 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
     unc = uncertainty_of_h(states, session, params, pooled3, window_s=window_s, polyorder=polyorder,
                            phi_definition=phi_definition, cog_method=cog_method, h_bounds=h_bounds,
                            sliding=sliding, tolerances=tolerances, with_budget=with_budget,
-                           simex_share=simex_share, filter_choice=filter_choice)
+                           simex_share=simex_share, filter_choice=filter_choice, sliding_prior=sliding_prior)
     if head != "3dof" and effects and head in fits.pooled:
         unc = extended_uncertainty(unc, states, params, effects, float(fits.pooled[head].h_m), base_h=h)
         h = float(fits.pooled[head].h_m)
@@ -190,7 +204,8 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
     The head's ``h_ci95_m`` is the extended model's own: its block-robust statistical interval
     (:func:`~.extended.extended_interval`, blocks as long as the base model's bootstrap blocks), widened
     as identify widens the base model's: it contains ``h - bias`` (the base model's noise and sliding
-    biases, the same states filtered alike) and reaches ``filter_floor_m`` beyond on both sides. The
+    biases, the same states filtered alike), reaches ``filter_floor_m`` beyond on both sides and holds
+    the sliding prior's range. The
     errors of those bias estimates are not added. Everything computed for the 3-DoF model goes under
     ``base_model`` with that model's name and h (``base_h``), so no interval stands beside another
     model's h.
@@ -202,6 +217,7 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
     floor = u.get("filter_floor_m") or 0.0
     if np.isfinite(lo) and np.isfinite(hi):
         lo, hi = min(lo, lo - bias) - floor, max(hi, hi - bias) + floor
+        lo, hi = extend_by_prior(lo, hi, u.get("sliding_prior_range_m") or (0.0, 0.0))
     reasons = []
     if nb < 4:
         reasons.append(f"too few independent blocks ({nb} of {float(block_s):.1f} s)")
@@ -221,7 +237,8 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
 def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, fit: ModelFit, *, window_s: float,
                      polyorder: int, phi_definition: str = "hinge", cog_method: str = "segments",
                      h_bounds: tuple[float, float] = H_BOUNDS, sliding: bool = True, tolerances: dict | None = None,
-                     with_budget: bool = True, simex_share: SimexShare | None = None, filter_choice=None) -> dict:
+                     with_budget: bool = True, simex_share: SimexShare | None = None, filter_choice=None,
+                     sliding_prior: SlidingPrior | None = None) -> dict:
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
     ``fit`` is the pooled 3-DoF fit of ``states``; the other arguments are those of :func:`identify_h`.
@@ -249,13 +266,25 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         (bias, err), probe_eiv = biases[0], (biases[1] if len(biases) > 1 else None)
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
-    slide = None
-    if np.isfinite(fit.h_m) and all(s is not None for s in series) and sliding:
+    slide = measured = None
+    if have_series and sliding:
+        try:
+            measured = estimate_sliding(series, session)
+        except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
+            measured = None
+    if have_series and sliding and measured is not None:
         try:
             slide = sliding_bias(series, session, params, fit.h_m, window_s=window_s, polyorder=polyorder,
-                                 phi_definition=phi_definition, cog_method=cog_method)
-        except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
+                                 phi_definition=phi_definition, cog_method=cog_method, sliding=measured)
+        except ConfigError:      # the chain cannot be estimated from these recordings
             slide = None
+    # the sliding all bodies share, which no link shows: a stated prior, propagated by re-simulation
+    # (its default size is the measured sliding: none when the sliding is left out)
+    prior = sliding_prior or SlidingPrior()
+    if prior.rms_m is None:
+        prior = dataclasses.replace(prior, rms_m=rms_from_sliding(measured, session, MIN_SLIDING_M))
+    spread = prior_spread(states, params, fit.h_m, prior) if np.isfinite(fit.h_m) else None
+    prior_range = tuple(spread["sliding_prior_range_m"]) if spread else (0.0, 0.0)
     total, total_err = bias, err
     sliding_seen = slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0
     if sliding_seen:
@@ -268,7 +297,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     coefs = coefficients_for(states, params, "3dof", None)
     iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
                   h_bounds=h_bounds, turning_ms2=turning_rms(states),
-                  filter_floor_m=floor["filter_floor_m"] if floor else 0.0)
+                  filter_floor_m=floor["filter_floor_m"] if floor else 0.0, prior_range_m=prior_range)
     corrected = None
     if probe is not None:
         slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
@@ -281,12 +310,16 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     out.update(iv.to_json())
     if corrected is not None:
         out["h_corrected_m"] = json_float(corrected.pop("h_corrected_m"))
-        out["h_corrected_ci95_m"] = [json_float(v) for v in corrected.pop("h_corrected_ci95_m")]
+        out["h_corrected_ci95_m"] = [json_float(v) for v in extend_by_prior(*corrected.pop("h_corrected_ci95_m"),
+                                                                              prior_range)]
     if slide is not None:
         out["uncertainty"]["eiv_bias_m"] = json_float(bias)
         out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
     if floor is not None:
         out["uncertainty"].update({k: json_float(v) for k, v in floor.items()})
+    if spread is not None:
+        out["uncertainty"].update({k: ([json_float(x) for x in v] if isinstance(v, list) else json_float(v))
+                                   for k, v in spread.items()})
     if corrected is not None:
         out["uncertainty"].update({k: json_float(v) for k, v in corrected.items()})
     lo, hi = iv.bootstrap_ci95_m

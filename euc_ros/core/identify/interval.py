@@ -91,6 +91,13 @@ class Interval:
                                 "sharpness": f(self.sharpness), **self.extra}}
 
 
+def extend_by_prior(lo: float, hi: float, prior_range_m) -> tuple[float, float]:
+    """``(lo, hi)`` moved out by a prior's range of the change of h (``[p_lo <= 0 <= p_hi]``): the truth
+    may lie at ``h - p_hi`` to ``h - p_lo``; never narrowed."""
+    p_lo, p_hi = (float(v) if v is not None and np.isfinite(v) else 0.0 for v in prior_range_m)
+    return lo - max(p_hi, 0.0), hi + max(-p_lo, 0.0)
+
+
 def json_float(v) -> float | None:
     """``v`` as a JSON number: None for None, NaN and infinities, else a float."""
     return None if v is None or not np.isfinite(v) else float(v)
@@ -132,7 +139,8 @@ def turning_rms(states) -> float:
 
 def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bias_m: float = float("nan"),
              h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0, turning_ms2: float = 0.0,
-             eiv_bias_err_m: float = 0.0, filter_floor_m: float = 0.0) -> Interval:
+             eiv_bias_err_m: float = 0.0, filter_floor_m: float = 0.0,
+             prior_range_m: tuple[float, float] = (0.0, 0.0)) -> Interval:
     """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
 
     Parameters
@@ -153,6 +161,10 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         Bound on the bias the filter's distortion leaves in h, sign unknown (:func:`~euc_ros.core.
         identify.cog_height.filter_floor`): both ends move out by it, as a systematic shift of at
         most that size moves the whole interval.
+    prior_range_m : (float, float)
+        Change of h a stated prior allows, ``lo <= 0 <= hi`` (the common soft-tissue sliding,
+        :func:`~euc_ros.core.identify.sliding_prior.prior_spread`): the truth may lie at ``h - hi`` to
+        ``h - lo``, so the ends move out by ``hi`` (below) and ``-lo`` (above).
     """
     h = float(fit.h_m)
     n = sum(c.shape[1] for c in coefs)
@@ -175,6 +187,7 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         lo2, hi2 = min(lo2, lo2 - eiv_bias_m) - e, max(hi2, hi2 - eiv_bias_m) + e
     if np.isfinite(filter_floor_m) and filter_floor_m > 0:
         lo2, hi2 = lo2 - filter_floor_m, hi2 + filter_floor_m
+    lo2, hi2 = extend_by_prior(lo2, hi2, prior_range_m)
     if turning_ms2 > MAX_TURNING_MS2:
         reasons.append(f"the ride turns (RMS centripetal acceleration {turning_ms2:.1f} m/s^2 > {MAX_TURNING_MS2:g}): "
                        "the planar model lacks the turning terms; see `euc-ros residual`")

@@ -127,3 +127,47 @@ def test_choice_on_a_generated_ride_leaves_under_one_percent():
         est = np.correlate(np.asarray(tr[name]), k2, mode="valid")
         ref = np.asarray(tr[key])[ch.window // 2: -(ch.window // 2)]
         assert np.sqrt(np.mean((est - ref) ** 2) / np.mean(ref**2)) < 0.01
+
+
+def _coloured(rng, n, dt, corner_hz, rms):
+    """First-order low-pass white noise of the given RMS (a tracker's smoothing, soft tissue)."""
+    from scipy.signal import lfilter
+
+    a = np.exp(-2 * np.pi * corner_hz * dt)
+    x = lfilter([1 - a], [1, -a], rng.standard_normal(n + 2000))[2000:]
+    return rms * x / np.std(x)
+
+
+def test_coloured_noise_is_modelled_and_the_choice_follows_the_motion(monkeypatch):
+    """Noise low-passed at 3 Hz hides under a white floor read at the top of the band; the choice must
+    see it (noise_model "coloured") and filter the accelerations better than the white model's choice."""
+    import euc_ros.core.filters.auto_window as aw
+    from euc_ros.core.worldsim import simulate_ride
+
+    ride = simulate_ride(33, 120.0, duration=40.0)
+    tr = ride.truth
+    rng = np.random.default_rng(4)
+    n, dt = tr["gamma"].size, 1 / 120
+    rms = {"gamma": np.radians(0.3), "phi": np.radians(0.3), "x": 1e-3}
+    noisy = {k: np.asarray(tr[k]) + _coloured(rng, n, dt, 3.0, rms[k]) + 1e-5 * rng.standard_normal(n)
+             for k in rms}
+
+    def actual(ch):
+        errs = []
+        k2 = savgol_kernel(ch.window, ch.polyorder, 2, dt)
+        for name, key in (("gamma", "gamma_ddot"), ("phi", "phi_ddot"), ("x", "x_ddot")):
+            est = np.correlate(noisy[name], k2, mode="valid")
+            ref = np.asarray(tr[key])[ch.window // 2: -(ch.window // 2)]
+            errs.append(np.sqrt(np.mean((est - ref) ** 2) / np.mean(ref**2)))
+        return max(errs)
+
+    ch = choose_window(dt, noisy)
+    assert ch.noise_model == "coloured"
+    monkeypatch.setattr(aw, "MAX_WHITE_DISTORTION", np.inf)
+    white = choose_window(dt, noisy)
+    assert white.noise_model == "white" and white.window < ch.window
+    assert actual(ch) < actual(white)
+    # the clean ride itself: white noise only, the choice is unchanged by the guard
+    monkeypatch.undo()
+    clean = {k: np.asarray(tr[k]) + 1e-5 * rng.standard_normal(n) for k in rms}
+    assert choose_window(dt, clean).noise_model == "white"
