@@ -269,7 +269,7 @@ def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) ->
 
 def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[str, float] | None = None, *,
                   orders: Sequence[int] = DEFAULT_ORDERS, max_window_s: float = MAX_WINDOW_S,
-                  segment_s: float = SEGMENT_S, noise_power: int = 1) -> WindowChoice:
+                  segment_s: float = SEGMENT_S, noise_power: int = 1, coloured: bool = False) -> WindowChoice:
     """Choose the Savitzky-Golay window and order from a recording's raw signals.
 
     Parameters
@@ -292,6 +292,9 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         The power of the relative noise variance in the score: 1 for the mean-square error of the
         accelerations, 2 when the noise's first-order bias of the estimate is removed afterwards
         (see Notes).
+    coloured : bool
+        The noise is known to be coloured (e.g. the rigid links between bodies show it): model it so
+        from the start (see Notes).
 
     Returns
     -------
@@ -332,7 +335,8 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
     of the band, where the white floor is read, so that floor lies far below it and the "motion" left
     above it is largely noise; the choice then follows it with a short window whose predicted
     distortion of what it keeps is large. When the chosen filter predicts an RMS distortion above
-    :data:`MAX_WHITE_DISTORTION` for any signal, the noise is taken as coloured: the motion's band ends
+    :data:`MAX_WHITE_DISTORTION` for any signal, or when the caller knows it (``coloured``), the noise
+    is taken as coloured: the motion's band ends
     where the acceleration spectrum's final rise begins (:func:`_noise_rise_start`; noise, white or
     coloured, gives an acceleration spectrum rising to Nyquist), the noise is the measured spectrum
     above that and flat below, and its part beyond the white floor counts whole in the score (SIMEX,
@@ -407,7 +411,7 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         worst = max(np.sqrt(best["B2"][n] / P[n]) for n in names)
         return cands, best, S_sig, A, P, cutoff, worst
 
-    cands, best, S_sig, A, P, cutoff, worst = evaluate(False)
+    cands, best, S_sig, A, P, cutoff, worst = (None,) * 6 + (np.inf,) if coloured else evaluate(False)
     noise_model = "white"
     if worst > MAX_WHITE_DISTORTION:
         # a white floor read at the top of the band is far below coloured noise: the "motion" it leaves

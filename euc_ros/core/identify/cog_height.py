@@ -39,10 +39,11 @@ from euc_ros.core.identify.interval import (
     turning_rms,
 )
 from euc_ros.core.identify.simex import SimexShare, eiv_bias, eiv_biases
-from euc_ros.core.identify.sliding import MIN_SLIDING_M, estimate_sliding, sliding_bias
+from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, reconstruct_states
+from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
 
 #: Lowest and highest h the interval may reach [m] (the ends of the default grid).
 H_BOUNDS = (0.1, 1.2)
@@ -269,7 +270,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     slide = measured = None
     if have_series and sliding:
         try:
-            measured = estimate_sliding(series, session)
+            measured = getattr(filter_choice, "sliding", None) or estimate_sliding(series, session)
         except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
             measured = None
     if have_series and sliding and measured is not None:

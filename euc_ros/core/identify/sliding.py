@@ -1,4 +1,5 @@
-"""Soft-tissue sliding measured on a recording, and the bias it gives h (SIMEX).
+"""Soft-tissue sliding measured on a recording (:mod:`euc_ros.core.states.link_sliding`), and the bias it
+gives h (SIMEX).
 
 White pose noise is measured from high-order differences (:func:`~.uncertainty.estimate_pose_noise`)
 and its bias of h by re-noising (:func:`~.uncertainty.eiv_bias`). Sliding of the markers against the
@@ -6,7 +7,7 @@ bones is smooth, within the band of the motion, so differences do not see it. Th
 does (:mod:`.skeleton_fit`): a link's vector ``R_a^T (p_b - p_a)`` is constant for rigid bones, and
 its deviation from the session's median is the two bodies' sliding (plus their white noise).
 
-:func:`estimate_sliding`
+:func:`~euc_ros.core.states.link_sliding.estimate_sliding`
     Per link, the variance of the deviation minus its white part (third differences) is
     ``q_a + q_b``: the sliding variances of its two bodies (rotation sliding folded into the pivot's,
     E taken as not sliding). Non-negative least squares over the links gives every body's ``q``,
@@ -27,158 +28,12 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-from scipy.optimize import nnls
 
-from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.fit import fit_h
-from euc_ros.core.rotations import quat_rotate, rotation_matrices
+from euc_ros.core.rotations import rotation_matrices
 from euc_ros.core.states.kinematics import reconstruct_states
-from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig, SkeletonModel
-
-#: Below this RMS sliding [m] the bias is not computed (0): white noise and round-off.
-MIN_SLIDING_M = 5e-4
-
-
-def estimate_sliding(series_list, session, skeleton=None) -> dict:
-    """Per-body RMS sliding (3-D) [m] and its normalised power spectrum, measured from the links.
-
-    Parameters
-    ----------
-    series_list : sequence of MocapSeries
-        Recordings of one session (Z-up).
-    session : Session
-    skeleton : SkeletonModel, optional
-        The session's chain (default: estimated from ``series_list``).
-
-    Returns
-    -------
-    dict
-        ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
-        power normalised to sum 1) for :func:`sliding_bias`.
-    """
-    if skeleton is not None:
-        names, euc_body = list(skeleton.bodies), skeleton.euc_body
-        links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
-    else:
-        # the chain's links as SkeletonModel.estimate defines them (vector: the median of R_a^T (p_b - p_a)
-        # over every recording's usable frames; threshold: median + fault_sigmas robust standard deviations of
-        # the distance to it, at least fault_floor_m), made here link by link from the same deviations the
-        # sliding is measured on, without the chain's relative rotations (the sliding does not use them)
-        names_, _, _ = session.segment_arrays()
-        names, euc_body = list(names_), session.euc.body
-        known = set(names) | {euc_body}
-        links = [(a, b, None, None) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
-        if not links:
-            raise ConfigError("no chain link between the session's bodies", key="cog_method")
-    config = SkeletonFitConfig()
-    chain = names + [euc_body]
-    m = len(names)
-    rows, vals = [], []
-    spec_f, spec_p = None, None
-    usable = [_usable(s) for s in series_list]
-    seen = 0
-    for a, b, vector, threshold in links:
-        # one link at a time: its deviation over every recording (no other link's arrays exist meanwhile)
-        devs = [_link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
-                for s, ok in zip(series_list, usable)]
-        if vector is None:
-            v = np.concatenate([d[both] for d, both in devs])
-            if v.shape[0] == 0:
-                continue                                # links never seen together are left out
-            vector = np.median(v, axis=0)
-            e = np.linalg.norm(v - vector, axis=1)
-            med = float(np.median(e))
-            mad = float(np.median(np.abs(e - med)))
-            threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
-            del v, e
-            for d, _ in devs:
-                d -= vector                                 # in place: no second copy of the deviations
-        seen += 1
-        ia, ib = chain.index(a), chain.index(b)
-        for s, (d, both) in zip(series_list, devs):
-            n = s.n_frames
-            if n < 16:
-                continue
-            good = both & (np.linalg.norm(d, axis=1) <= threshold)
-            if good.sum() < 16:
-                continue
-            dg = d[good] - d[good].mean(0)
-            total = float(np.mean(np.sum(dg ** 2, 1)))
-            trip = good[3:] & good[2:-1] & good[1:-2] & good[:-3]
-            d3 = np.diff(d, n=3, axis=0)[trip]
-            white = float(np.sum((1.4826 * np.median(np.abs(d3 - np.median(d3, 0)), 0)) ** 2) / 20.0) \
-                if len(d3) >= 10 else 0.0
-            row = np.zeros(m)
-            for i in (ia, ib):
-                if i < m:
-                    row[i] = 1.0
-            rows.append(row)
-            vals.append(max(total - white, 0.0))
-            x = np.where(good[:, None], d - d[good].mean(0), 0.0)
-            p = np.sum(np.abs(np.fft.rfft(x, axis=0)) ** 2, 1)
-            f = np.fft.rfftfreq(n, 1.0 / s.rate_hz)
-            if spec_f is None or f.size > spec_f.size:
-                # keep the longest recording's grid; others are interpolated onto it
-                spec_p = None if spec_p is None else np.interp(f, spec_f, spec_p)
-                spec_f = f
-            p = np.interp(spec_f, f, p)
-            spec_p = p if spec_p is None else spec_p + p
-        del devs
-    if skeleton is None and not seen:
-        raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
-    if not rows:
-        return {"bodies": list(names), "rms_m": [0.0] * m, "rms_max_m": 0.0, "spectrum": None}
-    q, _ = nnls(np.array(rows), np.array(vals))
-    spectrum = None
-    if spec_p is not None and spec_p.sum() > 0:
-        spectrum = (spec_f, spec_p / spec_p.sum())
-    rms = np.sqrt(q)
-    return {"bodies": list(names), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
-            "spectrum": spectrum}
-
-
-def _usable(series) -> np.ndarray:
-    """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
-
-    Body by body (the temporaries are one body's, never a copy of the recording's quaternions)."""
-    b, n = series.quat.shape[0], series.quat.shape[1]
-    out = np.empty((b, n), dtype=bool)
-    for i in range(b):
-        q = series.quat[i]
-        # a NaN component makes the squared norm NaN, which is not > 0
-        out[i] = (np.einsum("ni,ni->n", q, q) > 0) & np.isfinite(q).all(-1) \
-            & np.isfinite(series.position[i]).all(-1) & series.tracked[i]
-    return out
-
-
-def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):
-    """``R_a^T (p_b - p_a) - vector`` (n, 3) of one link over a recording, and where both bodies are usable.
-
-    Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
-    the caller). Computed block by block with the quaternions (no rotation matrices).
-    """
-    n = series.n_frames
-    d = np.empty((n, 3))
-    if a not in series.bodies or b not in series.bodies:
-        d[:] = -np.asarray(vector, float)
-        return d, np.zeros(n, bool)
-    ja, jb = series.bodies.index(a), series.bodies.index(b)
-    both = np.zeros(n, bool)
-    ident = np.array([0.0, 0.0, 0.0, 1.0])
-    vector = np.asarray(vector, float)
-
-    if usable is None:
-        usable = _usable(series)
-    for lo in range(0, n, block):
-        hi = min(n, lo + block)
-        oka, okb = usable[ja, lo:hi], usable[jb, lo:hi]
-        qa = np.where(oka[:, None], series.quat[ja, lo:hi], ident)
-        qa = qa * np.array([-1.0, -1.0, -1.0, 1.0])                # R_a^T: the conjugate rotation
-        Pa = np.where(oka[:, None], series.position[ja, lo:hi], 0.0)
-        Pb = np.where(okb[:, None], series.position[jb, lo:hi], 0.0)
-        d[lo:hi] = quat_rotate(qa, Pb - Pa) - vector
-        both[lo:hi] = oka & okb
-    return d, both
+from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
+from euc_ros.core.states.skeleton import SkeletonModel
 
 
 def _surrogate(rng: np.random.Generator, n: int, rate_hz: float, spectrum) -> np.ndarray:

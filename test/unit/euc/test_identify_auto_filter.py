@@ -60,3 +60,42 @@ def test_auto_filter_recovers_h_on_project_simulator_rides(tmp_path):
     assert abs(ident.h - h_true) < TOLERANCE_M
     lo, hi = ident.interval
     assert lo <= h_true <= hi, (lo - h_true, hi - h_true)
+
+
+def test_coloured_pose_noise_is_seen_by_the_links_and_h_stays_honest(monkeypatch):
+    """Pose noise low-passed at 5 Hz (the artefact generator's, no sliding) looks like fast motion to the
+    spectra alone: the white model then picks a window of a tenth of a second and h lands some 30 cm
+    low with a narrow interval. The rigid links show the noise; the coloured model's interval holds the
+    truth."""
+    import euc_ros.core.filters.auto_window as aw
+    import euc_ros.core.states.filter_choice as fc
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.states.kinematics import reconstruct_states
+
+    ride = simulate_ride(RideConfig(maneuver="deceleration", runs=3, seed=11))
+    rng = np.random.default_rng(11)
+    series = [apply_artefacts(r.mocap_clean, SoftTissueArtefacts(slide_rms_m=0.0, slide_rot_rms_deg=0.0), rng)[0]
+              for r in ride.runs]
+    params = EucParams.from_session(ride.session)
+
+    def run():
+        choice = fc.choose_filter(series, ride.session)
+        states = []
+        for s in series:
+            st = reconstruct_states(s, ride.session, window_s=choice.window_s, polyorder=choice.polyorder)
+            st.meta["series"] = s
+            states.append(st)
+        return choice, identify_h(states, ride.session, params, models=("3dof",), with_budget=False,
+                                  window_s=choice.window_s, polyorder=choice.polyorder, filter_choice=choice)
+
+    choice, ident = run()
+    assert choice.noise_model == "coloured" and choice.sliding["rms_max_m"] >= fc.COLOURED_LINK_RMS_M
+    lo, hi = ident.uncertainty["h_ci95_m"]
+    assert lo <= 0.61 <= hi, (ident.h, lo, hi)
+    monkeypatch.setattr(fc, "COLOURED_LINK_RMS_M", np.inf)
+    monkeypatch.setattr(aw, "MAX_WHITE_DISTORTION", np.inf)
+    white, wrong = run()
+    assert white.noise_model == "white" and white.window_s < 0.3
+    assert abs(wrong.h - 0.61) > 0.1
