@@ -45,7 +45,7 @@ from euc_ros.core.residual.folds import (
     residual_block_length,
     with_blocks,
 )
-from euc_ros.core.residual.interval import final_interval
+from euc_ros.core.residual.interval import final_interval, sandwich_covariance
 from euc_ros.core.residual.result import CandidateResult, ResidualResult
 from euc_ros.core.residual.selection import (
     DETECTABILITY_TOL,
@@ -623,7 +623,10 @@ def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None
     info.update({"p_value": p_disc, "rmse_after_nm": disc["heldout"].rmse, "threshold_p": rules.alpha,
                  "inadmissible": why})
     d_eff = disc["model"].effects[-1]
-    rows_found = d_eff.describe(disc["x"][-d_eff.n_params:])
+    # the discovered functions' 95 % bands from the block sandwich of the joint fit
+    cov, n_blocks = sandwich_covariance(disc["model"], setup.recs, disc["x"])
+    rows_found = d_eff.describe(disc["x"][-d_eff.n_params:], cov[-d_eff.n_params:, -d_eff.n_params:],
+                                n_blocks - disc["x"].size)
     say(f"discovery: {'; '.join(r['formula'] for r in rows_found)}: held-out RMSE {stage.heldout.rmse:.3f} -> "
         f"{disc['heldout'].rmse:.3f} N m (p = {p_disc:.2g})")
     equal = None
