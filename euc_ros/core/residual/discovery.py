@@ -70,16 +70,16 @@ def _where(point: int) -> str:
 @dataclass(frozen=True)
 class Group:
     """One discovered group: family ``family`` (index into ``Families.families``) at ``level``, at ``point``;
-    ``keep``: the columns fitted (:func:`~euc_ros.core.residual.families.independent_columns`; empty: all)."""
+    ``keep``: the columns fitted (:func:`~euc_ros.core.residual.families.independent_columns`; None: all)."""
 
     family: int
     level: int
     point: int
-    keep: tuple[int, ...] = ()
+    keep: tuple[int, ...] | None = None
 
     def columns(self, basis: Families) -> np.ndarray:
         """Indices of the fitted columns among the family's columns at this level."""
-        return np.array(self.keep, int) if self.keep else np.arange(basis.width(self.family, self.level))
+        return np.array(self.keep, int) if self.keep is not None else np.arange(basis.width(self.family, self.level))
 
 
 def _json(a):
@@ -279,7 +279,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     widths = [basis.width(g.family, g.level) for g in groups]
     edges = np.concatenate([[0], np.cumsum(widths)]).astype(int)
     slices = [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
-    keys = [(g.family, g.point) for g in groups]
+    keys = [g.family for g in groups]    # one point per family: the points are weakly resolved
     offsets = block_offsets(recs)
 
     def with_h(r0, B, hc):
@@ -290,7 +290,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     def path(r0, B, hc, blocks):
         r0p, Bp = with_h(r0, B, hc)
         return group_path(r0p, [Bp[:, sl] for sl in slices], keys, MAX_GROUPS,
-                          n_eff=float(np.unique(blocks).size), n_fixed=1), Bp
+                          n_eff=float(np.unique(blocks).size), n_fixed=1, kinds=[g.family for g in groups]), Bp
 
     def cols_of(chosen, Bp):
         # the chosen groups' columns that add a direction (h projected out)
@@ -301,7 +301,8 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         out = []
         for j in chosen:
             local = cols[(cols >= slices[j].start) & (cols < slices[j].stop)] - slices[j].start
-            out.append(Group(groups[j].family, groups[j].level, groups[j].point, tuple(int(i) for i in local)))
+            if local.size:
+                out.append(Group(groups[j].family, groups[j].level, groups[j].point, tuple(int(i) for i in local)))
         return out
 
     def select(h_lin: float | None):

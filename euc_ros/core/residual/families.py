@@ -70,6 +70,8 @@ DUPLICATE_TOL = 1e-6
 #: already chosen are projected out) is at least this: thinner directions are collinear with the chosen
 #: ones and would fit noise at any scale.
 MIN_NEW_DIRECTION = 1e-2
+#: Sets of each size kept by the beam search of :func:`group_path`.
+BEAM_WIDTH = 4
 #: Points on the report grid of a discovered function.
 GRID_POINTS = 41
 
@@ -327,8 +329,10 @@ def _inside(C: np.ndarray, K: np.ndarray) -> bool:
 
 # ---------------------------------------------------------------------- selection
 def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max_groups: int,
-               n_eff: float | None = None, n_fixed: int = 0) -> list[list[int]]:
-    """Group orthogonal matching pursuit: the groups of 1..max_groups steps that best reduce ``||r0 + B c||``.
+               n_eff: float | None = None, n_fixed: int = 0, beam_width: int | None = None,
+               kinds: Sequence | None = None) -> list[list[int]]:
+    """Group best-subset search by beam (group orthogonal matching pursuit when ``beam_width`` is 1): the sets
+    of 1..max_groups groups that best explain ``r0`` (by the criterion below).
 
     Parameters
     ----------
@@ -344,58 +348,67 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
         Effective number of independent samples (the residual's blocks); default n.
     n_fixed : int
         Parameters fitted besides the groups (h).
+    beam_width : int, optional
+        Sets kept at each size (default :data:`BEAM_WIDTH`).
+    kinds : sequence, optional
+        Each group's family (default: its key): the beam keeps the best set of each combination of
+        families, so it is not filled by one family at several points and levels.
 
     Returns
     -------
     list of list of int
-        The chosen group indices after each step.
+        The best set of each size (group indices in the order they were added).
 
     Notes
     -----
-    Each step adds the group with the lowest Bayesian information criterion of the fit,
-    ``n_eff log(rss / n) + df log(n_eff)``, with ``df`` the directions it adds: an orthonormal basis ``U`` of
-    its columns after the chosen groups are projected out, directions thinner than
+    Each step grows every kept set by every group and keeps the ``beam_width`` sets with the lowest
+    Bayesian information criterion of the fit,
+    ``n_eff log(rss / n) + df log(n_eff)``, with ``df`` the directions of the set: each group adds an
+    orthonormal basis ``U`` of its columns after the set's groups are projected out, directions thinner than
     :data:`MIN_NEW_DIRECTION` dropped. ``n_eff`` counts the residual's blocks, not its samples (the samples
     within a block are correlated: with every sample counted, a 7-column group would need to cut the
     residual by only a few per cent more than a 2-column one). So a group with more columns must explain
     more to be chosen, and a family's complexity level is chosen with the family; the number of steps is
-    left to the held-out error.
+    left to the held-out error. The beam matters where one flexible group explains most of several
+    simpler ones together (a per-run drift against a headwind's heading, speed and cross terms in
+    accelerating runs): greedy selection takes the flexible group first and never recovers.
     """
-    r = np.asarray(r0, float).copy()
-    n = r.size
+    beam_width = BEAM_WIDTH if beam_width is None else max(int(beam_width), 1)
+    kinds = list(keys) if kinds is None else list(kinds)
+    r0 = np.asarray(r0, float)
+    n = r0.size
     n_eff = float(n if n_eff is None else min(max(n_eff, 2.0), n))
     normed = []
     for C in groups:
         nrm = np.linalg.norm(C, axis=0)
         normed.append(C[:, nrm > 0] / nrm[nrm > 0] if np.any(nrm > 0) else np.zeros((n, 0)))
-    Q = np.zeros((n, 0))
-    used: set = set()
-    chosen: list[int] = []
+    # beam of (score, chosen, Q, r, used keys)
+    beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset())]
     out = []
     for _ in range(max_groups):
-        best, best_score, best_U = -1, 0.0, None
-        rss = float(r @ r)
-        for j, C in enumerate(normed):
-            if keys[j] in used or C.shape[1] == 0:
-                continue
-            Cp = C - Q @ (Q.T @ C)
-            U, s, _ = np.linalg.svd(Cp, full_matrices=False)
-            U = U[:, s >= MIN_NEW_DIRECTION]
-            df = U.shape[1]
-            if df == 0 or n - Q.shape[1] - df - n_fixed <= 0:
-                continue
-            z = U.T @ r
-            rss_new = max(rss - float(z @ z), 1e-300)
-            score = n_eff * np.log(rss_new / n) + df * np.log(n_eff)
-            if best < 0 or score < best_score:
-                best, best_score, best_U = j, score, U
-        if best < 0:
+        grown = {}
+        for _, chosen, Q, r, used in beam:
+            rss = float(r @ r)
+            for j, C in enumerate(normed):
+                if keys[j] in used or C.shape[1] == 0:
+                    continue
+                Cp = C - Q @ (Q.T @ C)
+                U, sv, _ = np.linalg.svd(Cp, full_matrices=False)
+                U = U[:, sv >= MIN_NEW_DIRECTION]
+                df = Q.shape[1] + U.shape[1]
+                if U.shape[1] == 0 or n - df - n_fixed <= 0:
+                    continue
+                z = U.T @ r
+                score = n_eff * np.log(max(rss - float(z @ z), 1e-300) / n) + df * np.log(n_eff)
+                key = frozenset(kinds[i] for i in chosen + [j])
+                if key not in grown or score < grown[key][0]:
+                    grown[key] = (score, chosen + [j], Q, r, used, U, z)
+        if not grown:
             break
-        chosen.append(best)
-        used.add(keys[best])
-        r = r - best_U @ (best_U.T @ r)
-        Q = np.concatenate([Q, best_U], axis=1)
-        out.append(list(chosen))
+        best = sorted(grown.values(), key=lambda e: e[0])[:beam_width]
+        beam = [(sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]})
+                for sc, ch, Q, r, used, U, z in best]
+        out.append(list(beam[0][1]))
     return out
 
 
