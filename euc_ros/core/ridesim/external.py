@@ -14,6 +14,10 @@ at distance d from A along the rider ``P = A + d (sin phi, cos phi)``, so
                     ``cda_m2``): ``F = -rho/2 cda |v_rel| v_rel``, ``v_rel = v_G - w``
 ``contact_drag``    a drag growing with the square of speed at the tyre contact (a soft floor mat, a tyre that
                     scrubs): ``F = -c x_dot |x_dot|`` along x at the contact (``c`` = ``c_n_s2_per_m2``)
+``wheel_harmonics``  an out-of-round tyre: radius ``R + e_2 cos(2 x/R) + e_3 cos(3 x/R + phase3_rad)`` under the
+                    normal force N: the centre's path has slope ``dr/dx``, so the floor pushes along travel
+                    with ``F = -N dr/dx = amp2_n sin(2 x/R) + amp3_n sin(3 x/R + phase3_rad)`` at the
+                    contact (``amp_k = N k e_k / R``: 8 N for e_2 = 0.8 mm under 1000 N on R = 0.2 m)
 ``torque_ripple``   motor torque ripple ``amp_nm sin(n x / R)`` (``n`` = ``per_turn``): internal, along
                     the input direction b_d = (1/R, -1, 0): it cannot show in M_d1 - M_d2
 ==================  =====================================================================================
@@ -28,7 +32,8 @@ from euc_ros.core.errors import ConfigError
 
 AIR_DENSITY = 1.2
 KINDS = {"rope": ("k_n_per_m", "anchor_x_m", "hand_m"), "headwind": ("wind_m_per_s", "cda_m2"),
-         "torque_ripple": ("amp_nm", "per_turn"), "contact_drag": ("c_n_s2_per_m2",)}
+         "torque_ripple": ("amp_nm", "per_turn"), "contact_drag": ("c_n_s2_per_m2",),
+         "wheel_harmonics": ("amp2_n", "amp3_n", "phase3_rad")}
 
 
 @dataclass(frozen=True)
@@ -57,6 +62,10 @@ class ExternalForce:
         if self.kind == "torque_ripple":
             tau = p["amp_nm"] * np.sin(p["per_turn"] * x / R)
             return tau / R, -tau, 0.0 * tau
+        if self.kind == "wheel_harmonics":
+            # the floor's reaction along travel at the contact, which moves with x_dot only
+            F = p["amp2_n"] * np.sin(2.0 * x / R) + p["amp3_n"] * np.sin(3.0 * x / R + p["phase3_rad"])
+            return F, 0.0 * F, 0.0 * F
         if self.kind == "contact_drag":
             # the contact point moves with x_dot and does no virtual work through gamma or phi
             F = -p["c_n_s2_per_m2"] * x_dot * np.abs(x_dot)
