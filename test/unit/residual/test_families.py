@@ -235,3 +235,31 @@ def test_drift_is_per_recording():
     f = family_index(basis, "drift")
     cols = basis.columns(ctxs[1])[(f, 1)]
     assert np.all(cols[:, [0, 1, 4, 5]] == 0) and np.any(cols[:, 2:4] != 0)
+
+
+@pytest.mark.slow
+def test_a_draught_over_one_stretch_of_the_lab_is_found_in_the_lab_field():
+    """A horizontal force along lab x on the rider, a Gaussian bump of the wheel's lab x (10 N, centred at
+    x = 10 m, width 4 m): neither constant nor linear in position, so the hand-picked basis (cos(psi),
+    X cos(psi)) could not hold it. The runs are recorded in one lab frame; the forward runs cross the bump."""
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.residual.analysis import analyze
+    from euc_ros.core.residual.noise import make_noise_floor
+    from euc_ros.core.ridesim.external import ExternalForce
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.states.kinematics import reconstruct_states
+
+    external = (ExternalForce("lab_bump", {"amp_n": 10.0, "x0_m": 10.0, "width_m": 4.0}),)
+    states, series, session = [], [], None
+    for i, (maneuver, runs) in enumerate((("acceleration", 3), ("deceleration", 3))):
+        res = simulate_ride(RideConfig(maneuver=maneuver, runs=runs, seed=11 + 101 * i, external=external))
+        session = res.session
+        states += [reconstruct_states(r.mocap, session) for r in res.runs]
+        series += [r.mocap for r in res.runs]
+    params = EucParams.from_session(session)
+    out = analyze(states, params, noise_floor_of=make_noise_floor(series, states, session, params)).to_json()
+    assert out["residual_significant"] and out["discovered"], out["discovery"]
+    assert any(d["family"] == "lab field" and d["argument"] == "lab X" for d in out["discovered"]), out["discovered"]
+    assert out["rmse_after_nm"] <= 0.6 * out["rmse_before_nm"]
+    for d in out["discovered"]:
+        assert len(d["grid"]) == len(d["values"]) or d["curves"]
