@@ -61,7 +61,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--polyorder", type=int, default=RESIDUAL_POLYORDER,
                         help=f"Savitzky-Golay order ({RESIDUAL_POLYORDER})")
     parser.add_argument("--no-discovery", action="store_true",
-                        help="skip the discovery step (sparse basis forces for what no named effect explains)")
+                        help="skip the discovery step (group-sparse forces from function families for what no "
+                             "named effect explains)")
     parser.add_argument("--no-geometry", action="store_true",
                         help="do not compare the wheel-centre height with the session's wheel radius (for recordings "
                              "whose world z is not height over the floor)")

@@ -15,8 +15,8 @@
    plausible range is refused as a name; candidates the data cannot tell from the selected one (held out,
    or confounded in shape) are its ties;
 5. :func:`radius_step`: a rolling radius measured on a flat floor is a wheel_radius_error by geometry;
-6. :func:`discovery_alternative` and :func:`discovery_step`: sparse basis forces for what the named
-   effects leave, against and after them;
+6. :func:`discovery_alternative` and :func:`discovery_step`: group-sparse forces from function families for
+   what the named effects leave, against and after them;
 7. :func:`conclude`: the noise floor, the h range of the tied models and the result.
 
 What passes between the steps are the frozen records below (:class:`Setup`, :class:`Stage`,
@@ -312,7 +312,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         alternative = discovery_alternative(setup, stage, rules, journal)
     found = Discovery(alternative.stage, alternative.stage, {"run": False}, [], 1.0)
     if discover:
-        say("discovery: sparse basis forces on what the named effects leave")
+        say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, rules, journal, say)
     return conclude(setup, base, found, geometry, noise_floor_of, rules, journal)
 
