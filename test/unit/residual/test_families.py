@@ -263,3 +263,33 @@ def test_a_draught_over_one_stretch_of_the_lab_is_found_in_the_lab_field():
     assert out["rmse_after_nm"] <= 0.6 * out["rmse_before_nm"]
     for d in out["discovered"]:
         assert len(d["grid"]) == len(d["values"]) or d["curves"]
+
+
+def test_discovered_rows_carry_the_function_with_its_band_and_draw(tmp_path):
+    """describe(): one row per group with the function on a grid over its argument's range and a 95 % band
+    that holds the values (a drift: one curve per recording); the CLI's figure passes the layout checks."""
+    from euc_ros.cli import plots
+    from euc_ros.cli.residual import discovered_figure
+    from euc_ros.core.residual.discovery import DiscoveredEffect, Group
+
+    rng = np.random.default_rng(5)
+    ctxs = [fake_ctx(rng, f"r{i}") for i in range(3)]
+    basis = Families(ctxs)
+    groups = [Group(family_index(basis, "lab", ("X", "1")), 1, 1), Group(family_index(basis, "drift"), 1, 0),
+              Group(family_index(basis, "dyn", ("x_dot",)), 0, 3)]
+    eff = DiscoveredEffect(basis, groups, np.ones(60))
+    theta = rng.normal(size=eff.n_params)
+    A = rng.normal(size=(eff.n_params, eff.n_params))
+    rows = eff.describe(theta, 0.01 * A @ A.T, dof=40)
+    assert [r["family"] for r in rows] == ["lab field", "drift", "dynamics"]
+    assert rows[2]["point"] == "rider" and rows[2]["coordinate"] == "pitch" and rows[2]["unit"] == "N m/(m/s)"
+    for r in rows:
+        v, lo, hi = (np.array(r[k], float) for k in ("values", "band_lo", "band_hi"))
+        ok = np.isfinite(v)
+        assert np.all(lo[ok] <= v[ok]) and np.all(v[ok] <= hi[ok]) and np.any(hi[ok] > lo[ok])
+    assert len(rows[1]["curves"]) == 3 and np.array(rows[1]["values"], float).shape == (3, len(rows[1]["grid"]))
+    plots.configure(strict=True)
+    try:
+        assert discovered_figure(rows, tmp_path / "discovered_functions.png").is_file()
+    finally:
+        plots.configure()
