@@ -62,7 +62,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--polyorder", type=int, default=RESIDUAL_POLYORDER,
                         help=f"Savitzky-Golay order ({RESIDUAL_POLYORDER})")
     parser.add_argument("--no-discovery", action="store_true",
-                        help="skip the discovery step (sparse basis forces for what no named effect explains)")
+                        help="skip the discovery step (group-sparse forces from function families for what no "
+                             "named effect explains)")
     parser.add_argument("--no-geometry", action="store_true",
                         help="do not compare the wheel-centre height with the session's wheel radius (for recordings "
                              "whose world z is not height over the floor)")
@@ -350,9 +351,35 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
     return "\n".join(out)
 
 
+def discovered_figure(rows: list[dict], path: Path) -> Path:
+    """Each discovered function over its argument's observed range with its 95 % band (one panel per row of
+    the residual JSON's ``discovered``; a drift has one curve per recording)."""
+    plt = pyplot()
+    fig, axes = plt.subplots(len(rows), 1, figsize=(7.5, 2.6 * len(rows) + 0.4), squeeze=False)
+    for ax, d in zip(axes[:, 0], rows):
+        grid = np.asarray(d["grid"], float)
+        values = np.asarray(d["values"], float).reshape(-1, grid.size)
+        lo = np.asarray([np.nan if v is None else v for v in np.ravel(d["band_lo"])], float).reshape(values.shape)
+        hi = np.asarray([np.nan if v is None else v for v in np.ravel(d["band_hi"])], float).reshape(values.shape)
+        names = d.get("curves") or [""]
+        for k in range(values.shape[0]):
+            line, = ax.plot(grid, values[k], lw=1.2, label=names[k] or "fitted")
+            if np.any(np.isfinite(lo[k])):
+                ax.fill_between(grid, lo[k], hi[k], color=line.get_color(), alpha=0.2, lw=0,
+                                label="95 % band" if k == 0 else None)
+        ax.axhline(0.0, color="k", lw=0.6)
+        ax.set_xlabel(f"{d['argument']} [{d['argument_unit']}]")
+        ax.set_ylabel(f"[{d['unit']}]")
+        ax.set_title(f"{d['family']}: {d['function']} on {d['coordinate']} at the {d['point']}", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=7, loc="best", ncols=2)
+    return save_figure(fig, path)
+
+
 def write_plots(result, states, params, out_dir: Path) -> list[Path]:
     """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png, floor.png (the
-    floor measured from the contact path) and h_range.png (h of every model the data cannot tell apart)."""
+    floor measured from the contact path), h_range.png (h of every model the data cannot tell apart) and
+    discovered_functions.png (each discovered function with its 95 % band)."""
     from euc_ros.core.residual.selection import Model
     from euc_ros.core.states.contexts import prepare
     from euc_ros.core.states.floor import contact_heights
@@ -459,6 +486,9 @@ def write_plots(result, states, params, out_dir: Path) -> list[Path]:
         ax.text(i, v, f"{v:.3f}", ha="center", va="bottom")
     ax.set_ylabel("held-out RMSE of M_d1 - M_d2 [N m]")
     paths.append(save_figure(fig, out_dir / "rmse_before_after.png"))
+
+    if result.discovered:
+        paths.append(discovered_figure(result.discovered, out_dir / "discovered_functions.png"))
 
     data = result.to_json()
     rows = [[c["effect"], "undetectable" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}",

@@ -15,8 +15,8 @@
    plausible range is refused as a name; candidates the data cannot tell from the selected one (held out,
    or confounded in shape) are its ties;
 5. :func:`radius_step`: a rolling radius measured on a flat floor is a wheel_radius_error by geometry;
-6. :func:`discovery_alternative` and :func:`discovery_step`: sparse basis forces for what the named
-   effects leave, against and after them;
+6. :func:`discovery_alternative` and :func:`discovery_step`: group-sparse forces from function families for
+   what the named effects leave, against and after them;
 7. :func:`conclude`: the noise floor, the h range of the tied models and the result.
 
 What passes between the steps are the frozen records below (:class:`Setup`, :class:`Stage`,
@@ -45,7 +45,7 @@ from euc_ros.core.residual.folds import (
     residual_block_length,
     with_blocks,
 )
-from euc_ros.core.residual.interval import final_interval
+from euc_ros.core.residual.interval import final_interval, sandwich_covariance
 from euc_ros.core.residual.result import CandidateResult, ResidualResult
 from euc_ros.core.residual.selection import (
     DETECTABILITY_TOL,
@@ -312,7 +312,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         alternative = discovery_alternative(setup, stage, rules, journal)
     found = Discovery(alternative.stage, alternative.stage, {"run": False}, [], 1.0)
     if discover:
-        say("discovery: sparse basis forces on what the named effects leave")
+        say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, rules, journal, say)
     return conclude(setup, base, found, geometry, noise_floor_of, rules, journal)
 
@@ -623,7 +623,10 @@ def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None
     info.update({"p_value": p_disc, "rmse_after_nm": disc["heldout"].rmse, "threshold_p": rules.alpha,
                  "inadmissible": why})
     d_eff = disc["model"].effects[-1]
-    rows_found = d_eff.describe(disc["x"][-d_eff.n_params:])
+    # the discovered functions' 95 % bands from the block sandwich of the joint fit
+    cov, n_blocks = sandwich_covariance(disc["model"], setup.recs, disc["x"])
+    rows_found = d_eff.describe(disc["x"][-d_eff.n_params:], cov[-d_eff.n_params:, -d_eff.n_params:],
+                                n_blocks - disc["x"].size)
     say(f"discovery: {'; '.join(r['formula'] for r in rows_found)}: held-out RMSE {stage.heldout.rmse:.3f} -> "
         f"{disc['heldout'].rmse:.3f} N m (p = {p_disc:.2g})")
     equal = None

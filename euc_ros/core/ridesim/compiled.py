@@ -50,7 +50,7 @@ MODEL_PLANAR, MODEL_FLOOR, MODEL_PEDAL = 0, 1, 2
 #: Floor components (rows of :attr:`RunParams.floor`: code, then the parameters of :mod:`.floors`).
 FLOOR_RAMP, FLOOR_RAMP_FROM, FLOOR_BUMP, FLOOR_STEP = 0, 1, 2, 3
 #: External forces (rows of :attr:`RunParams.external`: code, then the parameters of :mod:`.external`).
-EXT_TORQUE_RIPPLE, EXT_ROPE, EXT_HEADWIND, EXT_CONTACT_DRAG = 0, 1, 2, 3
+EXT_TORQUE_RIPPLE, EXT_ROPE, EXT_HEADWIND, EXT_CONTACT_DRAG, EXT_WHEEL_HARMONICS, EXT_LAB_BUMP = 0, 1, 2, 3, 4, 5
 #: Order of the arm-swing profile tables in :attr:`RunParams.arm_c` (:meth:`.ArmKinematics._tables`).
 ARM_TABLES = ("h", "h1", "h2", "beta", "dJ", "J1", "K", "P")
 
@@ -165,6 +165,10 @@ def pack(dyn) -> RunParams:
             ext_rows.append((EXT_ROPE, q["k_n_per_m"], q["anchor_x_m"], q["hand_m"]))
         elif f.kind == "contact_drag":
             ext_rows.append((EXT_CONTACT_DRAG, q["c_n_s2_per_m2"], 0.0, 0.0))
+        elif f.kind == "lab_bump":
+            ext_rows.append((EXT_LAB_BUMP, q["amp_n"], q["x0_m"], q["width_m"]))
+        elif f.kind == "wheel_harmonics":
+            ext_rows.append((EXT_WHEEL_HARMONICS, q["amp2_n"], q["amp3_n"], q["phase3_rad"]))
         else:
             ext_rows.append((EXT_HEADWIND, q["wind_m_per_s"], q["cda_m2"], 0.0))
     external = np.array(ext_rows, float).reshape(-1, 4)
@@ -290,6 +294,14 @@ def _external(p, x, gam, phi, xd, gd, pd, h, X, psi):
             q2 += c * math.cos(phi) * F
         elif code == EXT_CONTACT_DRAG:
             q0 += -a * xd * abs(xd)
+        elif code == EXT_LAB_BUMP:
+            u = (X - b) / c
+            F = a * math.exp(-0.5 * u * u) * math.cos(psi)
+            q0 += F
+            q1 += -l0 * math.cos(gam) * F
+            q2 += h * math.cos(phi) * F
+        elif code == EXT_WHEEL_HARMONICS:
+            q0 += a * math.sin(2.0 * x / R) + b * math.sin(3.0 * x / R + c)
         else:
             w = -a * math.cos(psi)
             vx = xd - l0 * math.cos(gam) * gd + h * math.cos(phi) * pd - w

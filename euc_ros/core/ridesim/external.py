@@ -14,6 +14,13 @@ at distance d from A along the rider ``P = A + d (sin phi, cos phi)``, so
                     ``cda_m2``): ``F = -rho/2 cda |v_rel| v_rel``, ``v_rel = v_G - w``
 ``contact_drag``    a drag growing with the square of speed at the tyre contact (a soft floor mat, a tyre that
                     scrubs): ``F = -c x_dot |x_dot|`` along x at the contact (``c`` = ``c_n_s2_per_m2``)
+``wheel_harmonics``  an out-of-round tyre: radius ``R + e_2 cos(2 x/R) + e_3 cos(3 x/R + phase3_rad)`` under the
+                    normal force N: the centre's path has slope ``dr/dx``, so the floor pushes along travel
+                    with ``F = -N dr/dx = amp2_n sin(2 x/R) + amp3_n sin(3 x/R + phase3_rad)`` at the
+                    contact (``amp_k = N k e_k / R``: 8 N for e_2 = 0.8 mm under 1000 N on R = 0.2 m)
+``lab_bump``        a draught across one stretch of the lab (a door, a fan): a horizontal force along lab x on
+                    the rider at G, ``amp_n exp(-((X - x0_m) / width_m)^2 / 2)`` with X the wheel's lab x (a
+                    force that changes with lab position, neither constant nor linear in it)
 ``torque_ripple``   motor torque ripple ``amp_nm sin(n x / R)`` (``n`` = ``per_turn``): internal, along
                     the input direction b_d = (1/R, -1, 0): it cannot show in M_d1 - M_d2
 ==================  =====================================================================================
@@ -28,7 +35,8 @@ from euc_ros.core.errors import ConfigError
 
 AIR_DENSITY = 1.2
 KINDS = {"rope": ("k_n_per_m", "anchor_x_m", "hand_m"), "headwind": ("wind_m_per_s", "cda_m2"),
-         "torque_ripple": ("amp_nm", "per_turn"), "contact_drag": ("c_n_s2_per_m2",)}
+         "torque_ripple": ("amp_nm", "per_turn"), "contact_drag": ("c_n_s2_per_m2",),
+         "wheel_harmonics": ("amp2_n", "amp3_n", "phase3_rad"), "lab_bump": ("amp_n", "x0_m", "width_m")}
 
 
 @dataclass(frozen=True)
@@ -49,7 +57,7 @@ class ExternalForce:
     def lab_fixed(self) -> bool:
         """True when the force depends on lab position (the rope's anchor): the simulator then records every run
         in the same lab frame (no re-centring of the track), so the anchor is one point of the recordings."""
-        return self.kind == "rope"
+        return self.kind in ("rope", "lab_bump")
 
     def generalized(self, *, x, gamma, phi, x_dot, gamma_dot, phi_dot, h, X, psi, R, l0):
         """(dQ_x, dQ_gamma, dQ_phi) at the given states (scalars or arrays)."""
@@ -57,6 +65,14 @@ class ExternalForce:
         if self.kind == "torque_ripple":
             tau = p["amp_nm"] * np.sin(p["per_turn"] * x / R)
             return tau / R, -tau, 0.0 * tau
+        if self.kind == "lab_bump":
+            # along lab x at G; its in-plane component along the heading is F cos(psi)
+            F = p["amp_n"] * np.exp(-0.5 * ((X - p["x0_m"]) / p["width_m"]) ** 2) * np.cos(psi)
+            return F, -l0 * np.cos(gamma) * F, h * np.cos(phi) * F
+        if self.kind == "wheel_harmonics":
+            # the floor's reaction along travel at the contact, which moves with x_dot only
+            F = p["amp2_n"] * np.sin(2.0 * x / R) + p["amp3_n"] * np.sin(3.0 * x / R + p["phase3_rad"])
+            return F, 0.0 * F, 0.0 * F
         if self.kind == "contact_drag":
             # the contact point moves with x_dot and does no virtual work through gamma or phi
             F = -p["c_n_s2_per_m2"] * x_dot * np.abs(x_dot)

@@ -159,5 +159,6 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
         ctx.extras["path_s"] = s_path[valid]
         ctx.extras["lab_x"] = np.nan_to_num(st.C[valid, 0])
         ctx.extras["lab_y"] = np.nan_to_num(st.C[valid, 1])
+        ctx.extras["recording"] = st.name
         out.append(Recording(st.name, ctx, block, np.flatnonzero(valid)))
     return out

@@ -72,12 +72,16 @@ def test_a_headwind_is_discovered_or_named_only_tied_with_the_discovered_terms()
     out = run((ExternalForce("headwind", {"wind_m_per_s": 5.0, "cda_m2": 0.6}),))
     if named(out):
         tied = [a for a in out["ambiguous_with"] if a.startswith("discovered:")]
-        assert tied and "cos(psi)" in tied[0], (out["effect"], out["ambiguous_with"])
+        # the part that flips with the heading: a lab-fixed field as the heading sees it
+        assert tied and "lab field f(X)" in tied[0] and "cos(psi)" in tied[0], (out["effect"], out["ambiguous_with"])
         assert out["discovery"]["alternative_to_named"]["tied_with_named"]
     else:
         assert out["residual_significant"] and out["discovered"], out["discovery"]
-        assert any(d["function"] == "cos(psi)" for d in out["discovered"])   # the part that flips with heading
-        assert all({"formula", "point", "coordinate", "coefficient_unit", "rmse_after_nm"} <= set(d)
+        # the part that flips with the heading: a lab-fixed field along lab x
+        assert any(d["family"] == "lab field" and d["argument"] == "lab X" and d["function"].endswith("cos(psi)")
+                   for d in out["discovered"]), out["discovered"]
+        assert all({"formula", "point", "coordinate", "coefficient_unit", "rmse_after_nm", "family", "argument",
+                    "argument_unit", "grid", "values", "band_lo", "band_hi", "unit"} <= set(d)
                    for d in out["discovered"])
     assert out["rmse_after_nm"] <= 0.6 * out["rmse_before_nm"]
     assert abs(out["h_after_m"] - H_TRUE) < 0.010
@@ -90,8 +94,16 @@ def test_a_rope_in_the_hand_is_discovered_not_named():
     assert out["residual_significant"] and out["discovered"]
     assert out["rmse_after_nm"] <= 0.6 * out["rmse_before_nm"]
     assert abs(out["h_after_m"] - H_TRUE) < 0.010, out["h_after_m"]
-    # the rope's moment about the contact, as a force at the rider CoG growing with lab position
-    assert any(d["function"] == "X cos(psi)" for d in out["discovered"]), out["discovered"]
+    # the rope's moment about the contact, as a lab field along lab x (a force growing with lab position)
+    rows = [d for d in out["discovered"] if d["family"] == "lab field" and d["function"] == "f(X) cos(psi)"]
+    assert rows, out["discovered"]
+    # linear in X with the slope of the rope's moment at the CoG, -k (R - l0 + d) / (R - l0 + h) = -2.37 N/m,
+    # within the 95 % band's half-width at the grid's ends (their difference over the range)
+    r = rows[0]
+    if r["point"] == "rider CoG" and r["coordinate"] == "x":
+        slope = (r["values"][-1] - r["values"][0]) / (r["grid"][-1] - r["grid"][0])
+        half = max(r["band_hi"][0] - r["values"][0], r["band_hi"][-1] - r["values"][-1])
+        assert abs(slope + 2.37) <= 2 * half / (r["grid"][-1] - r["grid"][0]) + 0.05 * 2.37, (slope, half)
     assert out["h_range_m"][0] <= out["h_after_m"] <= out["h_range_m"][1]
     # the range of the tied models is honest: it holds the truth (to the filter's 5-10 mm bias of h)
     assert out["h_range_m"][0] - 0.01 <= H_TRUE <= out["h_range_m"][1] + 0.01, out["h_range_m"]
@@ -111,7 +123,7 @@ def test_pedals_that_flex_name_nothing_and_h_is_measured_from_the_sessions_hinge
 
 def test_swinging_arms_name_nothing():
     """Both arms swinging 10 deg (hands ~9 cm) at 1 Hz: the rider's CoG moves by ~1 mm and the arms' angular
-    momentum puts up to 0.6 N m on the rider's pitch, periodic in time at a frequency the basis has no
+    momentum puts up to 0.6 N m on the rider's pitch, periodic in time at a frequency no family has a
     function for: no library effect, no discovered term, h within 10 mm."""
     out = run(arms=ArmSwing(10.0, 1.0))
     assert named(out) == [] and not out["discovered"], (out["effect"], out["discovery"])
@@ -122,7 +134,7 @@ def test_swinging_arms_name_nothing():
 
 def test_arms_swinging_wide_are_unexplained_not_none():
     """20 deg at 1.5 Hz: the arms' torque leaves the residual well above its noise floor (1.8 floors) with
-    nothing in the library or the basis for it: `unexplained`, never `none`, and h still within 10 mm."""
+    nothing in the library or the families for it: `unexplained`, never `none`, and h still within 10 mm."""
     out = run(arms=ArmSwing(20.0, 1.5))
     assert named(out) == [] and not out["discovered"], (out["effect"], out["discovery"])
     assert out["rmse_after_nm"] > NOISE_FLOOR_FACTOR * out["noise_floor_nm"]

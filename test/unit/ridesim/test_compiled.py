@@ -38,6 +38,8 @@ EXTERNAL_CASES = {
     "headwind": {"wind_m_per_s": 4.0, "cda_m2": 0.6},
     "torque_ripple": {"amp_nm": 3.0, "per_turn": 16.0},
     "contact_drag": {"c_n_s2_per_m2": 3.0},
+    "wheel_harmonics": {"amp2_n": 8.0, "amp3_n": 6.0, "phase3_rad": 0.7},
+    "lab_bump": {"amp_n": 30.0, "x0_m": -3.0, "width_m": 1.0},
 }
 
 

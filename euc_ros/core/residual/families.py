@@ -1,0 +1,457 @@
+"""Flexible function families of the discovery, and the group-sparse selection among them.
+
+A discovered force is a smooth function of measured signals acting at a physical point. Each **family**
+is a group of basis columns (functions of the recording, before the point) at a few complexity
+**levels**; with a point (:data:`POINTS`) it is a **group** of generalized-force columns, chosen or left
+out as a whole (:func:`group_path`). The families (signals of a recording's context; SI units):
+
+==================  ==============================  =========================================================
+family              argument                        columns (level = complexity)
+==================  ==============================  =========================================================
+``lab field``       lab X (lab Y), alone, times     B-splines of the lab position over its observed range,
+                    x_dot or sign(x_dot)            times ``cos(psi)`` (``sin(psi)``): a lab-fixed
+                                                    horizontal force as the heading sees it; levels: linear
+                                                    (2 columns), cubic (4), cubic with 3 knots at the
+                                                    quartiles (7)
+``wheel rotation``  wheel angle s/R                 Fourier series ``sin(k s/R), cos(k s/R)``, k = 1..K,
+                                                    K = 1..4 (an out-of-round or unbalanced tyre)
+``speed``           speed |x_dot|, odd or even      B-splines of ``|x_dot|`` (levels as the lab field), times
+                                                    ``sign(x_dot)`` (odd: viscous, quadratic, Coulomb-like)
+                                                    or not (even)
+``drift``           time t, per recording           Legendre polynomials of degree 0..L (L = 0, 1, 2) over
+                                                    each recording's own time range, zero on the others
+``dynamics``        x_dot, |x_dot|, phi_dot,        the state through causal first-order low-passes
+                    gamma_dot                       ``1 / (tau s + 1)``, tau in :data:`TIME_CONSTANTS_S`
+                                                    (level 1), and their squares (critically damped second
+                                                    order, level 2): a force obeying its own linear
+                                                    dynamics driven by a state
+==================  ==============================  =========================================================
+
+Not in any family: accelerations and pitch angles themselves (the residual is linear in them, so such
+columns cancel the residual's own noise on held-out data; the named mass and inertia candidates test
+them). The longest time constant (3 s) keeps the filtered pitch rates from turning into pitch angles over
+the runs' seconds. Families whose columns span the same space as an earlier one on the recordings (the odd
+and even speed parts when the speed never changes sign, a lab field times sign(x_dot) then, a constant
+lab Y) are dropped (:class:`Families`).
+
+The spline knots, ranges and recording names are fixed from the analysed recordings (the argument's
+observed range, not the residual), so every fold and every re-prepared copy of the recordings shares them;
+outside the range the argument is clipped (constant extrapolation).
+"""
+from __future__ import annotations
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+from numpy.polynomial import legendre
+from scipy import linalg, signal
+from scipy.interpolate import BSpline
+
+#: (coordinate, point) of the forces' directions and points of application.
+POINTS = (("x", "contact"), ("x", "rider CoG"), ("z", "rider CoG"), ("pitch", "rider"))
+#: Unit of each point's generalized force: a force [N], or a torque on the rider's pitch [N m].
+POINT_UNITS = ("N", "N", "N", "N m")
+#: Speed scale of the smooth sign ``tanh(x_dot / SIGN_SPEED)`` [m/s].
+SIGN_SPEED = 0.05
+#: Time constants of the dynamics family [s] (a factor ~3 apart: a first-order law between two of them is
+#: a combination of its neighbours to a few per cent, measured in ``test_families.py``).
+TIME_CONSTANTS_S = (0.1, 0.3, 1.0, 3.0)
+#: Most wheel-angle harmonics.
+MAX_HARMONICS = 4
+#: Spline levels: (degree, interior knots at quantiles of the observed argument).
+SPLINE_LEVELS = ((1, 0), (3, 0), (3, 3))
+#: Highest drift polynomial degree per recording.
+MAX_DRIFT_DEGREE = 2
+#: Columns with less than this relative residual outside another family's span duplicate it on these recordings
+#: (tanh(v / 0.05) and 1 differ by 1e-5 at 0.3 m/s).
+DUPLICATE_TOL = 1e-3
+#: A direction a candidate group adds is kept when its singular value (unit-norm columns, after the groups
+#: already chosen are projected out) is at least this: thinner directions are collinear with the chosen
+#: ones and would fit noise at any scale.
+MIN_NEW_DIRECTION = 1e-2
+#: Sets of each size kept by the beam search of :func:`group_path`.
+BEAM_WIDTH = 4
+#: Points on the report grid of a discovered function.
+GRID_POINTS = 41
+
+
+@dataclass(frozen=True)
+class Family:
+    """One family of basis functions with one argument (a group before its point).
+
+    Attributes
+    ----------
+    kind : str
+        ``lab``, ``wheel``, ``speed``, ``drift`` or ``dyn``.
+    option : tuple
+        The kind's options (lab: coordinate ``X``/``Y`` and modifier ``1``/``speed``/``sign``; speed:
+        ``odd``/``even``; dyn: the state).
+    family, argument, argument_unit : str
+        Names for the report.
+    function : str
+        The force's form, e.g. ``f(X) cos(psi)``.
+    per_unit : str
+        Unit the reported function is per (``1``: a force; ``m/s``: a force per unit speed).
+    """
+
+    kind: str
+    option: tuple
+    family: str
+    argument: str
+    argument_unit: str
+    function: str
+    per_unit: str = "1"
+
+    @property
+    def key(self) -> str:
+        return f"{self.family}: {self.function}"
+
+
+def _family_list() -> list[Family]:
+    out = []
+    for coord, proj in (("X", "cos(psi)"), ("Y", "sin(psi)")):
+        for mod, label, unit in (("1", "", "1"), ("speed", " x_dot", "m/s"), ("sign", " sign(x_dot)", "1")):
+            out.append(Family("lab", (coord, mod), "lab field", f"lab {coord}", "m", f"f({coord}){label} {proj}", unit))
+    out.append(Family("wheel", (), "wheel rotation", "wheel angle s/R", "rad", "f(s/R)"))
+    out.append(Family("speed", ("odd",), "speed", "speed |x_dot|", "m/s", "f(|x_dot|) sign(x_dot)"))
+    out.append(Family("speed", ("even",), "speed", "speed |x_dot|", "m/s", "f(|x_dot|)"))
+    out.append(Family("drift", (), "drift", "time t per recording", "s", "f_run(t)"))
+    for state, unit in (("x_dot", "m/s"), ("|x_dot|", "m/s"), ("phi_dot", "rad/s"), ("gamma_dot", "rad/s")):
+        out.append(Family("dyn", (state,), "dynamics", f"time after a unit step of {state}", "s",
+                          f"G(s) {state}", unit))
+    return out
+
+
+#: Every family before the recordings prune duplicates.
+FAMILIES = tuple(_family_list())
+
+
+def n_levels(fam: Family) -> int:
+    """Complexity levels of a family."""
+    return {"lab": len(SPLINE_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
+            "drift": MAX_DRIFT_DEGREE + 1, "dyn": 2}[fam.kind]
+
+
+def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np.ndarray) -> np.ndarray:
+    """B-spline basis (n, len(interior) + degree + 1) on [lo, hi], ``x`` clipped to it (partition of unity)."""
+    t = np.concatenate([np.full(degree + 1, lo), np.asarray(interior, float), np.full(degree + 1, hi)])
+    xc = np.clip(np.asarray(x, float), lo, hi)
+    return BSpline.design_matrix(xc, t, degree).toarray()
+
+
+def low_pass(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
+    """Causal first-order low-pass ``1 / (tau s + 1)`` of ``u`` sampled every ``dt`` (exact for a signal held
+    over each step), started in its steady state at the first sample."""
+    a = float(np.exp(-dt / tau))
+    b, den = [1.0 - a], [1.0, -a]
+    y, _ = signal.lfilter(b, den, u, zi=signal.lfilter_zi(b, den) * u[0])
+    return y
+
+
+def _signals(ctx) -> dict:
+    v = np.asarray(ctx.x_dot, float)
+    t = np.asarray(ctx.t, float)
+    s = ctx.extras.get("path_s")
+    if s is None:
+        s = np.concatenate([[0.0], np.cumsum(0.5 * (v[1:] + v[:-1]) * np.diff(t))])
+    return {"t": t, "v": v, "s": np.asarray(s, float), "psi": np.asarray(ctx.psi, float),
+            "X": np.asarray(ctx.extras.get("lab_x", np.zeros_like(t)), float),
+            "Y": np.asarray(ctx.extras.get("lab_y", np.zeros_like(t)), float),
+            "phi_dot": np.asarray(ctx.phi_dot, float), "gamma_dot": np.asarray(ctx.gamma_dot, float),
+            "R": float(np.mean(ctx.params.R)), "name": ctx.extras.get("recording", "")}
+
+
+def _state(sig: dict, name: str) -> np.ndarray:
+    return {"x_dot": sig["v"], "|x_dot|": np.abs(sig["v"]), "phi_dot": sig["phi_dot"],
+            "gamma_dot": sig["gamma_dot"]}[name]
+
+
+class Families:
+    """The families' basis over a set of recordings: ranges, knots and recording names fixed from them.
+
+    Parameters
+    ----------
+    ctxs : sequence of ModelContext
+        The analysed recordings' contexts (their ``extras``: ``path_s``, ``lab_x``, ``lab_y``, ``recording``).
+    families : sequence of Family, optional
+        Families to consider (default :data:`FAMILIES`); duplicates on these recordings are dropped.
+    """
+
+    CACHE = 64
+
+    def __init__(self, ctxs: Sequence, families: Sequence[Family] = FAMILIES):
+        sigs = [_signals(c) for c in ctxs]
+        cat = {k: np.concatenate([s[k] for s in sigs]) for k in ("X", "Y", "v")}
+        self.ranges: dict[str, tuple[float, float, list[np.ndarray]]] = {}
+        for name, x in (("X", cat["X"]), ("Y", cat["Y"]), ("speed", np.abs(cat["v"]))):
+            lo, hi = (float(np.min(x)), float(np.max(x))) if x.size else (0.0, 0.0)
+            knots = [np.quantile(x, np.linspace(0, 1, k + 2)[1:-1]) if hi > lo else np.zeros(k)
+                     for _, k in SPLINE_LEVELS]
+            self.ranges[name] = (lo, hi, knots)
+        self.runs: dict[str, tuple[float, float]] = {}
+        for s in sigs:
+            lo, hi = self.runs.get(s["name"], (np.inf, -np.inf))
+            self.runs[s["name"]] = (min(lo, float(s["t"].min())), max(hi, float(s["t"].max())))
+        self.run_names = list(self.runs)
+        self._cache: OrderedDict = OrderedDict()
+        self.families: list[Family] = []
+        kept: list[np.ndarray] = []
+        for fam in families:
+            if fam.kind in ("lab", "speed") and self._degenerate(fam):
+                continue
+            top = n_levels(fam) - 1
+            C = np.concatenate([self._columns(fam, top, s) for s in sigs]) if sigs else np.zeros((0, 1))
+            scale = np.linalg.norm(C, axis=0)
+            if not np.any(scale > 0):
+                continue
+            Cn = C[:, scale > 0] / scale[scale > 0]
+            if any(_inside(Cn, K) for K in kept):
+                continue
+            self.families.append(fam)
+            kept.append(Cn)
+
+    def width(self, f: int, level: int) -> int:
+        """Columns of family ``f`` at ``level``."""
+        kind = self.families[f].kind
+        if kind in ("lab", "speed"):
+            degree, interior = SPLINE_LEVELS[level]
+            return degree + interior + 1
+        if kind == "wheel":
+            return 2 * (level + 1)
+        if kind == "drift":
+            return len(self.run_names) * (level + 1)
+        return len(TIME_CONSTANTS_S) * (level + 1)
+
+    def _degenerate(self, fam: Family) -> bool:
+        lo, hi, _ = self.ranges[fam.option[0] if fam.kind == "lab" else "speed"]
+        return not hi > lo
+
+    # ------------------------------------------------------------------ columns
+    def _spline(self, name: str, x: np.ndarray, level: int) -> np.ndarray:
+        lo, hi, knots = self.ranges[name]
+        degree, _ = SPLINE_LEVELS[level]
+        return bspline_basis(x, lo, hi, degree, knots[level])
+
+    def _columns(self, fam: Family, level: int, sig: dict) -> np.ndarray:
+        """The family's columns (n, m) at ``level`` on one recording's signals."""
+        v = sig["v"]
+        if fam.kind == "lab":
+            coord, mod = fam.option
+            proj = np.cos(sig["psi"]) if coord == "X" else np.sin(sig["psi"])
+            factor = {"1": 1.0, "speed": v, "sign": np.tanh(v / SIGN_SPEED)}[mod] * proj
+            return self._spline(coord, sig[coord], level) * factor[:, None]
+        if fam.kind == "wheel":
+            th = sig["s"] / sig["R"]
+            k = np.arange(1, level + 2)
+            return np.concatenate([np.sin(np.outer(th, k)), np.cos(np.outer(th, k))], axis=1)
+        if fam.kind == "speed":
+            B = self._spline("speed", np.abs(v), level)
+            return B * np.tanh(v / SIGN_SPEED)[:, None] if fam.option[0] == "odd" else B
+        if fam.kind == "drift":
+            out = np.zeros((v.size, len(self.run_names) * (level + 1)))
+            if sig["name"] in self.runs:
+                j = self.run_names.index(sig["name"])
+                lo, hi = self.runs[sig["name"]]
+                u = np.clip(2.0 * (sig["t"] - lo) / max(hi - lo, 1e-9) - 1.0, -1.0, 1.0)
+                out[:, j * (level + 1):(j + 1) * (level + 1)] = legendre.legvander(u, level)
+            return out
+        # dynamics
+        u = _state(sig, fam.option[0])
+        dt = float(np.median(np.diff(sig["t"]))) if sig["t"].size > 1 else 1.0
+        first = [low_pass(u, tau, dt) for tau in TIME_CONSTANTS_S]
+        cols = first + ([low_pass(y, tau, dt) for y, tau in zip(first, TIME_CONSTANTS_S)] if level >= 1 else [])
+        return np.stack(cols, axis=1)
+
+    def columns(self, ctx) -> dict[tuple[int, int], np.ndarray]:
+        """Every (family index, level) -> its columns (n, m) on ``ctx`` (cached per context arrays)."""
+        arrays = (ctx.t, ctx.x_dot, ctx.psi, ctx.phi_dot, ctx.gamma_dot)
+        key = tuple(id(a) for a in arrays)
+        hit = self._cache.get(key)
+        if hit is not None and all(a is b for a, b in zip(hit[0], arrays)):
+            self._cache.move_to_end(key)
+            return hit[1]
+        sig = _signals(ctx)
+        out = {(f, lv): self._columns(fam, lv, sig) for f, fam in enumerate(self.families)
+               for lv in range(n_levels(fam))}
+        self._cache[key] = (arrays, out)
+        if len(self._cache) > self.CACHE:
+            self._cache.popitem(last=False)
+        return out
+
+    # ------------------------------------------------------------------ report
+    def curve(self, f: int, level: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """The family's function on a grid over its argument's observed range.
+
+        Returns ``(grid, Phi, curves)``: ``Phi`` (curves, grid, m) maps the group's coefficients to the
+        function's values (the force along the family's direction per unit of ``per_unit``); ``curves``
+        names the rows (the recordings of a drift, else one empty name).
+        """
+        fam = self.families[f]
+        g = GRID_POINTS
+        if fam.kind == "lab":
+            lo, hi, _ = self.ranges[fam.option[0]]
+            grid = np.linspace(lo, hi, g)
+            return grid, self._spline(fam.option[0], grid, level)[None], [""]
+        if fam.kind == "wheel":
+            grid = np.linspace(0.0, 2.0 * np.pi, g)
+            k = np.arange(1, level + 2)
+            return grid, np.concatenate([np.sin(np.outer(grid, k)), np.cos(np.outer(grid, k))], axis=1)[None], [""]
+        if fam.kind == "speed":
+            lo, hi, _ = self.ranges["speed"]
+            grid = np.linspace(lo, hi, g)
+            return grid, self._spline("speed", grid, level)[None], [""]
+        if fam.kind == "drift":
+            grid = np.linspace(0.0, max(hi - lo for lo, hi in self.runs.values()), g)
+            rows = []
+            for name in self.run_names:
+                lo, hi = self.runs[name]
+                sig = {"v": np.zeros(g), "t": lo + grid, "name": name}
+                P = self._columns(fam, level, sig)
+                P[lo + grid > hi + 1e-9] = np.nan
+                rows.append(P)
+            return grid, np.stack(rows), list(self.run_names)
+        # dynamics: the response to a unit step of the state
+        grid = np.linspace(0.0, 3.0 * max(TIME_CONSTANTS_S), g)
+        taus = np.array(TIME_CONSTANTS_S)
+        e = np.exp(-grid[:, None] / taus)
+        cols = [1.0 - e] + ([1.0 - (1.0 + grid[:, None] / taus) * e] if level >= 1 else [])
+        return grid, np.concatenate(cols, axis=1)[None], [""]
+
+
+def _inside(C: np.ndarray, K: np.ndarray) -> bool:
+    """True when every column of ``C`` lies in the span of ``K`` (relative residual below DUPLICATE_TOL)."""
+    if C.shape[0] != K.shape[0] or C.shape[1] > K.shape[1]:
+        return False
+    coef, *_ = np.linalg.lstsq(K, C, rcond=None)
+    return bool(np.linalg.norm(C - K @ coef) <= DUPLICATE_TOL * np.linalg.norm(C))
+
+
+# ---------------------------------------------------------------------- selection
+def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max_groups: int,
+               n_eff: float | None = None, n_fixed: int = 0, beam_width: int | None = None,
+               kinds: Sequence | None = None) -> list[list[int]]:
+    """Group best-subset search by beam (group orthogonal matching pursuit when ``beam_width`` is 1): the sets
+    of 1..max_groups groups that best explain ``r0`` (by the criterion below).
+
+    Parameters
+    ----------
+    r0 : ndarray (n,)
+        The residual to explain (anything fitted always, such as h, projected out).
+    groups : sequence of ndarray (n, m_j)
+        Candidate groups of columns (a family at one level and one point).
+    keys : sequence
+        Groups with equal keys exclude each other (the levels of one family at one point).
+    max_groups : int
+        Most steps.
+    n_eff : float, optional
+        Effective number of independent samples (the residual's blocks); default n.
+    n_fixed : int
+        Parameters fitted besides the groups (h).
+    beam_width : int, optional
+        Sets kept at each size (default :data:`BEAM_WIDTH`).
+    kinds : sequence, optional
+        Each group's family (default: its key): the beam keeps the best set of each combination of
+        families, so it is not filled by one family at several points and levels.
+
+    Returns
+    -------
+    list of list of int
+        The best set of each size (group indices in the order they were added).
+
+    Notes
+    -----
+    Each step grows every kept set by every group and keeps the ``beam_width`` sets with the lowest
+    Bayesian information criterion of the fit,
+    ``n_eff log(rss / n) + df log(n_eff)``, with ``df`` the directions of the set: each group adds an
+    orthonormal basis ``U`` of its columns after the set's groups are projected out, directions thinner than
+    :data:`MIN_NEW_DIRECTION` dropped. ``n_eff`` counts the residual's blocks, not its samples (the samples
+    within a block are correlated: with every sample counted, a 7-column group would need to cut the
+    residual by only a few per cent more than a 2-column one). So a group with more columns must explain
+    more to be chosen, and a family's complexity level is chosen with the family; the number of steps is
+    left to the held-out error. The beam matters where one flexible group explains most of several
+    simpler ones together (a per-run drift against a headwind's heading, speed and cross terms in
+    accelerating runs): greedy selection takes the flexible group first and never recovers.
+    """
+    beam_width = BEAM_WIDTH if beam_width is None else max(int(beam_width), 1)
+    kinds = list(keys) if kinds is None else list(kinds)
+    r0 = np.asarray(r0, float)
+    n = r0.size
+    n_eff = float(n if n_eff is None else min(max(n_eff, 2.0), n))
+    normed = []
+    for C in groups:
+        nrm = np.linalg.norm(C, axis=0)
+        normed.append(C[:, nrm > 0] / nrm[nrm > 0] if np.any(nrm > 0) else np.zeros((n, 0)))
+    # beam of (score, chosen, Q, r, used keys)
+    beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset())]
+    out = []
+    for _ in range(max_groups):
+        grown = {}
+        for _, chosen, Q, r, used in beam:
+            rss = float(r @ r)
+            for j, C in enumerate(normed):
+                if keys[j] in used or C.shape[1] == 0:
+                    continue
+                Cp = C - Q @ (Q.T @ C)
+                U, sv, _ = np.linalg.svd(Cp, full_matrices=False)
+                U = U[:, sv >= MIN_NEW_DIRECTION]
+                df = Q.shape[1] + U.shape[1]
+                if U.shape[1] == 0 or n - df - n_fixed <= 0:
+                    continue
+                z = U.T @ r
+                score = n_eff * np.log(max(rss - float(z @ z), 1e-300) / n) + df * np.log(n_eff)
+                key = frozenset(kinds[i] for i in chosen + [j])
+                if key not in grown or score < grown[key][0]:
+                    grown[key] = (score, chosen + [j], Q, r, used, U, z)
+        if not grown:
+            break
+        best = sorted(grown.values(), key=lambda e: e[0])[:beam_width]
+        beam = [(sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]})
+                for sc, ch, Q, r, used, U, z in best]
+        out.append(list(beam[0][1]))
+    return out
+
+
+def independent_columns(A: np.ndarray, tol: float = MIN_NEW_DIRECTION) -> np.ndarray:
+    """Indices (sorted) of a well-conditioned subset of the columns of ``A``: column-pivoted QR of the unit-norm
+    columns, kept while ``|R_kk|`` (the part of a column outside the span of those before it) is at least
+    ``tol``. A chosen group's columns that add no direction on these recordings (a spline piece the data
+    hardly visit, a filter collinear with its neighbours) are left out of the fit, so no coefficient is
+    fitted along a direction the selection did not see."""
+    nrm = np.linalg.norm(A, axis=0)
+    ok = np.flatnonzero(nrm > 0)
+    if ok.size == 0:
+        return ok
+    _, R, piv = linalg.qr(A[:, ok] / nrm[ok], mode="economic", pivoting=True)
+    d = np.abs(np.diag(R))
+    rank = int(np.sum(d >= tol * max(d[0], 1e-300))) if d.size else 0
+    return np.sort(ok[piv[:rank]])
+
+
+def fewest_within_one_se(errors: dict[int, np.ndarray], blocks: np.ndarray) -> int:
+    """The smallest k whose held-out mean square is within one standard error of the best one's.
+
+    ``errors[k]``: the held-out residuals of the model with k groups, on the same samples in the same
+    order; ``blocks``: each sample's block. The standard error is that of the paired difference of the
+    mean squares, from the block sums (the blocks are nearly independent): the one-standard-error rule of
+    cross-validation, so a further group must improve the held-out error by more than its own sampling
+    uncertainty.
+    """
+    ks = sorted(errors)
+    mse = {k: float(np.mean(errors[k] ** 2)) for k in ks}
+    best = min(ks, key=lambda k: (mse[k], k))
+    _, ids = np.unique(blocks, return_inverse=True)
+    nb = int(ids.max()) + 1 if ids.size else 0
+    n = errors[best].size
+    for k in ks:
+        if k >= best:
+            return best
+        d = errors[k] ** 2 - errors[best] ** 2
+        sums = np.bincount(ids, weights=d, minlength=nb)
+        counts = np.bincount(ids, minlength=nb)
+        mean = d.mean()
+        se = np.sqrt(nb / max(nb - 1, 1) * np.sum((sums - counts * mean) ** 2)) / max(n, 1)
+        if mse[k] - mse[best] <= se:
+            return k
+    return best
