@@ -195,6 +195,10 @@ def _open_world_outputs(args, rows: list[dict], out: Path, where: str, wall_s: f
             "duration_s": args.duration or ow.DURATION_S, "rate_hz": args.rate or ow.RATE_HZ,
             "rtol": args.rtol or ow.RTOL,
             "date": time.strftime("%Y-%m-%d"), "machine": ow.machine(), "where": where, "wall_s": wall_s}
+    if args.seeds != "report":
+        meta["note"] = ("A run on the tuning seeds (development and pilots), not the reported study: that is "
+                        "`euc-ros campaign open-world --seeds report --per-family 50 --out DIR "
+                        "--table docs/studies/open_world.md --figure docs/figures/open_world.png`.")
     summ["meta"] = meta
     (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n", encoding="utf-8")
     md = Path(args.table) if args.table else out / "open_world.md"

@@ -16,6 +16,10 @@ by :func:`make_ride`:
    effect along this ride differs from the one along the ride without it (by up to 35 % on tuning
    seeds); the amplitude is corrected once by the ratio of the two and the ride integrated again
    (:data:`REFINE`), which brings the design ratio to the target within :data:`RATIO_TOLERANCE`;
+   A law whose peak along the ride exceeds the rider's weight ``m g`` (or ``m g h`` for a pitch torque:
+   a vertical force at G shows in the residual only through its lever ``h sin(phi)``, so a small effect
+   may need kilonewtons), or under which the ride falls or the integration fails, is replaced by the next
+   draw of the ride's stream, at most :data:`MAX_LAW_DRAWS` times; the row records the draws used;
 5. the ride is written with the same capture noise and artefacts, and ``euc-ros residual`` runs on it.
 
 The ``none`` family (controls) skips 2-3. :func:`run_task` turns a ride into a row of :data:`COLUMNS`;
@@ -57,6 +61,8 @@ REFINE = 1
 #: Bound of |design ratio - target| after :data:`REFINE` corrections: on 40 tuning rides (seeds 10-17, every
 #: family, 20 s) the largest was 0.042 (a wheel law as a pitch torque), the 90th percentile 0.006.
 RATIO_TOLERANCE = 0.05
+#: Laws drawn for a ride before it is a failure (a law under which the ride falls is drawn again).
+MAX_LAW_DRAWS = 5
 #: Second key of the ride's random stream (first: the seed; then the family's index).
 STREAM = 20250
 #: Explained: the held-out RMSE after / before at most this, by a right library name or discovered terms.
@@ -74,7 +80,8 @@ FAMILY_ALIASES = {"lab": "lab_field", "lab_field": "lab_field", "lab field": "la
 
 #: Columns of results.csv.
 COLUMNS = ("task", "family", "seed", "status", "error", "seconds", "ride_seed", "point", "law", "amplitude", "unit",
-           "artefact_mm", "ratio_target", "floor_nm", "effect_target_nm", "effect_truth_nm", "ratio_design",
+           "law_draws", "artefact_mm", "ratio_target", "floor_nm", "effect_target_nm", "effect_truth_nm",
+           "ratio_design",
            "rmse_before_nm", "before_predicted_nm", "rmse_after_nm", "ratio_measured", "effect", "library_names",
            "right_names", "right_name", "false_name", "discovered_terms", "discovered", "discovered_families",
            "family_match", "explained", "h_true_m", "h_after_m", "h_after_lo_m", "h_after_hi_m", "width_mm",
@@ -166,16 +173,32 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
     spec, p = ride0.spec, ride0.spec.plant
     x0 = ride0.stats["x_offset_m"]
     track = (x0 + float(np.min(ride0.truth["x"])), x0 + float(np.max(ride0.truth["x"])))
-    law = F.draw_law(rng, family, R=p.R, track_m=track, duration=duration, stature=spec.info["posture"]["stature"])
-    law, cal = F.calibrate(law, ride0.truth, ride0.t, p, floor, ratio, x0)
-    ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
-    cal["amplitudes"] = [law.amplitude]
-    cal["effects_nm"] = [F.rms(ride.truth["effect"])]
-    for _ in range(refine):
-        law = law.with_amplitude(law.amplitude * cal["effect_target_nm"] / cal["effects_nm"][-1])
-        ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
-        cal["amplitudes"].append(law.amplitude)
-        cal["effects_nm"].append(F.rms(ride.truth["effect"]))
+    rejected = []
+    for _ in range(MAX_LAW_DRAWS):
+        law = F.draw_law(rng, family, R=p.R, track_m=track, duration=duration,
+                         stature=spec.info["posture"]["stature"])
+        try:
+            law, cal = F.calibrate(law, ride0.truth, ride0.t, p, floor, ratio, x0)
+            peak = float(np.max(np.abs(F.values_on(law, ride0.truth, ride0.t, x0))))
+            limit = p.m * p.g * (p.h if law.point.kind == "pitch" else 1.0)
+            if peak > limit:
+                raise ConfigError(f"peak {peak:.0f} {law.point.unit} above the rider's weight ({limit:.0f})",
+                                  key="amplitude")
+            ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
+            cal["amplitudes"] = [law.amplitude]
+            cal["effects_nm"] = [F.rms(ride.truth["effect"])]
+            for _ in range(refine):
+                law = law.with_amplitude(law.amplitude * cal["effect_target_nm"] / cal["effects_nm"][-1])
+                ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
+                cal["amplitudes"].append(law.amplitude)
+                cal["effects_nm"].append(F.rms(ride.truth["effect"]))
+            break
+        except (ConfigError, RuntimeError) as exc:      # the ride falls, or the integration fails
+            rejected.append({"law": law.describe(), "error": str(exc)})
+    else:
+        raise ConfigError(f"seed {seed}: the ride falls or fails under {MAX_LAW_DRAWS} laws of {family!r} "
+                          f"(last: {rejected[-1]['error']})", key="seed")
+    cal["rejected_laws"] = rejected
     ride.spec.info["requested_seed"] = int(seed)
     paths = write_recording(ride, out / "ride", "ride", seed=seed, artefact_mm=artefact_mm)
     info.update(ratio_target=ratio, floor_nm=floor, calibration=cal, law=law,
@@ -266,7 +289,8 @@ def run_task(task) -> dict:
                    floor_nm=r["floor_nm"], effect_truth_nm=r["effect_truth_nm"], h_true_m=float(ride.h),
                    h_after_m=float(data["h_after_m"]))
         if law is not None:
-            row.update(point=json.dumps(law.point.describe()), law=json.dumps(law.params), amplitude=law.amplitude,
+            row.update(law_draws=1 + len(r["calibration"]["rejected_laws"]),
+                       point=json.dumps(law.point.describe()), law=json.dumps(law.params), amplitude=law.amplitude,
                        unit=law.point.unit, effect_target_nm=r["calibration"]["effect_target_nm"],
                        ratio_design=F.ratio_of(r["floor_nm"], r["effect_truth_nm"]),
                        before_predicted_nm=math.hypot(r["floor_nm"], r["effect_truth_nm"]))
@@ -462,6 +486,7 @@ def markdown(summ: dict, rows: list[dict], meta: dict, figure_path: Path | None,
              "application and the amplitude calibration are in `euc_ros/core/worldsim/forces.py`, the study in "
              "`euc_ros/cli/open_world.py`; the seeds were fixed in `euc_ros/core/worldsim/open_world_seeds.py` "
              "before any run.", "",
+             *([f"**{meta['note']}**", ""] if meta.get("note") else []),
              "## How it was run", "",
              f"* command: `{meta['command']}`",
              f"* seeds: `{meta['seed_set']}` set, the first {meta['per_family']} per family "

@@ -452,6 +452,14 @@ def law_states_on(law: ForceLaw, t, xd, gd, pd) -> np.ndarray:
     return np.asarray(z, dtype=float).reshape(t.size, law.n_states)
 
 
+def values_on(law: ForceLaw, truth: dict, t, x_offset: float = 0.0) -> np.ndarray:
+    """The law's value [N or N m] along a recorded ride (see :func:`effect_on`)."""
+    x = np.asarray(truth["x"], float) + x_offset
+    xd, gd, pd = (np.asarray(truth[k], float) for k in ("x_dot", "gamma_dot", "phi_dot"))
+    z = law_states_on(law, t, xd, gd, pd) if law.n_states else None
+    return law.value(t, x, xd, gd, pd, z)
+
+
 def effect_on(law: ForceLaw, truth: dict, t, p: PlantParams, x_offset: float = 0.0) -> np.ndarray:
     """The law's residual contribution [N m] along a recorded ride (its truth), per sample.
 
@@ -520,4 +528,4 @@ def calibrate(law: ForceLaw, truth: dict, t, p: PlantParams, floor_nm: float, ra
 
 
 __all__ = ["FAMILIES", "POINTS", "ForceLaw", "Point", "calibrate", "draw_law", "draw_point", "effect_on",
-           "law_states_on", "ratio_of", "residual_effect", "rms"]
+           "law_states_on", "ratio_of", "residual_effect", "rms", "values_on"]
