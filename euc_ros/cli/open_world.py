@@ -343,6 +343,26 @@ def write_rows(rows: list[dict], path) -> Path:
     return path
 
 
+def read_rows(path) -> list[dict]:
+    """The rows of a results.csv written by :func:`write_rows`, with their types (to redo the table)."""
+    def value(text: str):
+        if text == "":
+            return None
+        try:
+            return json.loads(text)
+        except ValueError:
+            return {"True": True, "False": False}.get(text, text)
+
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = [{k: value(v) for k, v in r.items()} for r in csv.DictReader(f)]
+    for r in rows:   # names and JSON texts stay text
+        for k in ("task", "family", "status", "error", "effect", "unit"):
+            r[k] = None if r[k] is None else str(r[k])
+        for k in ("point", "law"):
+            r[k] = None if r[k] is None else json.dumps(r[k])
+    return rows
+
+
 def _pct(flags) -> float | None:
     flags = [bool(f) for f in flags if f is not None]
     return 100.0 * sum(flags) / len(flags) if flags else None
@@ -462,12 +482,17 @@ def figure(rows: list[dict], summ: dict, path) -> Path:
     for f in fams:
         rr = [r for r in ok if r["family"] == f and r.get("width_mm")]
         if rr:
-            z = [(r["h_after_m"] - r["h_true_m"]) / (0.5 * (r["h_after_hi_m"] - r["h_after_lo_m"])) for r in rr]
+            z = np.clip([(r["h_after_m"] - r["h_true_m"]) / (0.5 * (r["h_after_hi_m"] - r["h_after_lo_m"]))
+                         for r in rr], -4.0, 4.0)
             ax[2].scatter([r["artefact_mm"] for r in rr], z, s=14, color=colors[f], label=f)
     ax[2].axhline(1.0, color="k", lw=0.8, ls="--")
     ax[2].axhline(-1.0, color="k", lw=0.8, ls="--")
+    ax[2].set_ylim(-4.2, 4.2)
     ax[2].set_xlabel("soft-tissue sliding [mm]")
-    ax[2].set_ylabel("(h - true h) / half-width of the 95 % interval")
+    ax[2].set_ylabel("h error / interval half-width")
+    ax[2].set_title("h error in half-widths (clipped at 4)", fontsize=9)
+    ax[1].set_title("calibration and outcome", fontsize=9)
+    ax[0].set_title("per family (goals dashed)", fontsize=9)
     for a in ax:
         a.grid(alpha=0.3)
     fig.tight_layout()
