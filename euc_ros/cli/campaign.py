@@ -4,6 +4,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import time
 from pathlib import Path
 
 from euc_ros.cli import campaign_tasks as cmp
@@ -16,10 +17,17 @@ EPILOG = """examples:
   euc-ros campaign sessions lab_days/ --out results/            # every lab_days/*/session.yaml + recordings
   euc-ros campaign seeds 0:200 --effect ground_slope --residual --out study/   # a coverage/power study
   euc-ros campaign sessions lab_days/ --scheduler tcp://10.0.0.5:8786 --out results/
+  euc-ros campaign open-world --seeds report --per-family 50 --out ow/   # hidden random laws, per-family table
 
 A session folder holds session.yaml and its recordings (Motive .csv, bag folders, .mcap). The results
 are results.csv (one row per task), summary.json and summary.png. A failed task is a row with its
 session or seed and the error; the others go on. Tasks on a worker that dies are run again.
+
+open-world: rides of the independent generator (euc_ros.core.worldsim), each with a random hidden force
+law of a family (lab_field, wheel, speed, drift, dynamic; none for controls), soft-tissue sliding 0-10 mm
+and the paper's pose noise, traced with euc-ros residual. Its seeds are fixed in
+euc_ros/core/worldsim/open_world_seeds.py: "tuning" for development, "report" for the reported table.
+It writes results.csv, summary.json, the Markdown table (--table) and its figure (--figure).
 """
 
 
@@ -52,8 +60,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     z.add_argument("--effect", action="append", default=[], metavar="NAME", help="hidden effect (repeatable)")
     z.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="effect parameter")
     z.add_argument("--no-noise", action="store_true", help="noise-free poses")
+    w = sub.add_parser("open-world", help="hidden random laws in generator rides: a per-family table",
+                       epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    w.add_argument("--seeds", choices=("tuning", "report"), default="tuning",
+                   help="the fixed seed set (euc_ros/core/worldsim/open_world_seeds.py) [tuning]")
+    w.add_argument("--per-family", type=int, default=50, metavar="N", help="rides per family: the set's first N [50]")
+    w.add_argument("--families", type=lambda t: [f.strip() for f in t.split(",") if f.strip()], default=None,
+                   metavar="A,B", help="families (default: none,lab_field,wheel,speed,drift,dynamic)")
+    w.add_argument("--duration", type=float, default=None, metavar="S", help="ride length [s] [20]")
+    w.add_argument("--rate", type=float, default=None, metavar="HZ", help="frame rate [Hz] [120]")
+    w.add_argument("--rtol", type=float, default=None, help="integrator relative tolerance [1e-8]")
+    w.add_argument("--table", default=None, metavar="MD", help="Markdown report [OUT/open_world.md]")
+    w.add_argument("--figure", default=None, metavar="PNG", help="its figure [OUT/open_world.png]")
     for p in (s, z):
         p.add_argument("--residual", action="store_true", help="also run euc-ros residual")
+    for p in (s, z, w):
         p.add_argument("--out", required=True, metavar="DIR", help="results folder (results.csv, summary.*)")
         p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                        help="a running Dask scheduler (tcp://host:8786); default a local cluster")
@@ -63,6 +84,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def tasks_from_args(args) -> list[cmp.Task]:
+    if args.mode == "open-world":
+        from euc_ros.cli import open_world as ow
+
+        return ow.tasks(args.seeds, args.per_family, args.families or ow.FAMILIES,
+                        duration=args.duration or ow.DURATION_S, rate_hz=args.rate or ow.RATE_HZ,
+                        rtol=args.rtol or ow.RTOL)
     if args.mode == "sessions":
         folders = []
         for root in map(Path, args.root):
@@ -109,7 +136,10 @@ def _figure(rows: list[dict], path: Path) -> Path:
 def main(args: argparse.Namespace) -> int:
     """Run the campaign; 0 when every task succeeded, 1 when some failed (they are in the table)."""
     out = Path(args.out)
-    check_outputs([Output("--out", out, "dir")], getattr(args, "root", []))
+    outputs = [Output("--out", out, "dir")]
+    if args.mode == "open-world":
+        outputs += [Output("--table", args.table), Output("--figure", args.figure)]
+    check_outputs(outputs, getattr(args, "root", []))
     tasks = tasks_from_args(args)
     bar = None
     if not args.no_progress:
@@ -126,11 +156,14 @@ def main(args: argparse.Namespace) -> int:
     where = "serially" if args.serial else (args.scheduler or f"a local cluster of {args.workers or 'CPU-count'} "
                                                                "worker processes")
     print(f"campaign: {len(tasks)} task(s) {where}", file=sys.stderr)
+    start = time.perf_counter()
     rows = cmp.run_campaign(tasks, scheduler=args.scheduler, workers=args.workers, serial=args.serial,
                             progress=progress)
     if bar is not None:
         bar.close()
     out.mkdir(parents=True, exist_ok=True)
+    if args.mode == "open-world":
+        return _open_world_outputs(args, rows, out, where, time.perf_counter() - start)
     cmp.write_table(rows, out / "results.csv")
     summ = cmp.summary(rows)
     (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n", encoding="utf-8")
@@ -143,3 +176,37 @@ def main(args: argparse.Namespace) -> int:
                     if summ.get("coverage_95") is not None else ""))
     print(line + f"; results in {out}")
     return 0 if summ["failed"] == 0 else 1
+
+
+def _open_world_outputs(args, rows: list[dict], out: Path, where: str, wall_s: float) -> int:
+    """results.csv, summary.json, the Markdown table and its figure of an open-world run."""
+    from euc_ros.cli import open_world as ow
+    from euc_ros.core.worldsim.open_world_seeds import SEED_SETS
+
+    ow.write_rows(rows, out / "results.csv")
+    summ = ow.summarize(rows)
+    seeds = SEED_SETS[args.seeds][:args.per_family]
+    opts = {"--families": ",".join(args.families) if args.families else None, "--duration": args.duration,
+            "--rate": args.rate, "--rtol": args.rtol, "--workers": args.workers}
+    command = (f"euc-ros campaign open-world --seeds {args.seeds} --per-family {args.per_family} --out {args.out}"
+               + "".join(f" {k} {v}" for k, v in opts.items() if v is not None) + (" --serial" if args.serial else ""))
+    meta = {"command": command, "seed_set": args.seeds, "per_family": args.per_family,
+            "seed_range": f"seeds {seeds[0]}-{seeds[-1]}", "families": args.families or list(ow.FAMILIES),
+            "duration_s": args.duration or ow.DURATION_S, "rate_hz": args.rate or ow.RATE_HZ,
+            "rtol": args.rtol or ow.RTOL,
+            "date": time.strftime("%Y-%m-%d"), "machine": ow.machine(), "where": where, "wall_s": wall_s}
+    if args.seeds != "report":
+        meta["note"] = ("A run on the tuning seeds (development and pilots), not the reported study: that is "
+                        "`euc-ros campaign open-world --seeds report --per-family 50 --out DIR "
+                        "--table docs/studies/open_world.md --figure docs/figures/open_world.png`.")
+    summ["meta"] = meta
+    (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n", encoding="utf-8")
+    md = Path(args.table) if args.table else out / "open_world.md"
+    png = Path(args.figure) if args.figure else out / "open_world.png"
+    fig = ow.figure(rows, summ, png) if any(r["status"] == "ok" for r in rows) else None
+    md.parent.mkdir(parents=True, exist_ok=True)
+    md.write_text(ow.markdown(summ, rows, meta, fig, md), encoding="utf-8")
+    print("\n".join(ow.table_lines(summ)))
+    failed = sum(r["status"] != "ok" for r in rows)
+    print(f"open-world: {len(rows) - failed} of {len(rows)} rides ok; results in {out}, table {md}")
+    return 0 if failed == 0 else 1

@@ -46,16 +46,17 @@ class Task:
     ----------
     name : str
         Unique, sortable name (the session folder, or ``seed_0007``).
-    kind : {"session", "simulate"}
+    kind : {"session", "simulate", "open_world"}
     session : str
         Session file (kind ``session``).
     recordings : tuple of str
         Its recordings (kind ``session``).
     seed : int
-        Seed of the simulated ride (kind ``simulate``).
+        Seed of the simulated ride (kinds ``simulate`` and ``open_world``).
     simulate : dict
         Options of the simulated ride: ``maneuver``, ``runs``, ``duration_s``, ``effects`` (list), ``params``
-        (dict), ``noise`` (bool).
+        (dict), ``noise`` (bool); for ``open_world`` the ``family`` and ``duration_s``, ``rate_hz``, ``rtol``
+        (:mod:`euc_ros.cli.open_world`).
     residual : bool
         Also run ``euc-ros residual``.
     """
@@ -127,7 +128,14 @@ def _simulate(task: Task, out: Path) -> tuple[str, list[str], float]:
 
 
 def run_task(task: Task) -> dict:
-    """Run one task; a row of :data:`COLUMNS` (``status`` ``ok`` or ``failed`` with the error)."""
+    """Run one task; a row of :data:`COLUMNS` (``status`` ``ok`` or ``failed`` with the error).
+
+    An ``open_world`` task gives a row of :data:`euc_ros.cli.open_world.COLUMNS` instead.
+    """
+    if task.kind == "open_world":
+        from euc_ros.cli.open_world import run_task as run_open_world
+
+        return run_open_world(task)
     row = {c: None for c in COLUMNS}
     row.update(task=task.name, kind=task.kind, session=task.session or None,
                seed=task.seed if task.kind == "simulate" else None)
@@ -206,6 +214,8 @@ def run_campaign(tasks: list[Task], *, scheduler: str | None = None, workers: in
                 row = {c: None for c in COLUMNS}
                 row.update(task=task.name, kind=task.kind, session=task.session or None, status="failed",
                            error=f"{type(exc).__name__}: {exc}")
+                if task.kind == "open_world":
+                    row.update(family=task.simulate.get("family"), seed=task.seed)
             rows.append(row)
             if progress:
                 progress(len(rows), len(tasks), row)

@@ -104,7 +104,7 @@ def points(q, p: PlantParams) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     return {"P": (x, np.zeros_like(x)), "C": C, "G0": G0, "A": A, "G": G}
 
 
-def newton_euler_system(q, qd, M_d, M_h, p: PlantParams):
+def newton_euler_system(q, qd, M_d, M_h, p: PlantParams, Q=None):
     """Matrix and right-hand side of the Newton-Euler equations of the three bodies.
 
     Parameters
@@ -116,6 +116,11 @@ def newton_euler_system(q, qd, M_d, M_h, p: PlantParams):
     M_h : array_like (...)
         Ankle torque [N m]: on the EUC body about +y, its reaction on the rider.
     p : PlantParams
+    Q : array_like (..., 3), optional
+        External generalized force ``(Q_x, Q_gamma, Q_phi)`` [N, N m, N m] (an external force's virtual
+        power ``Q . q_dot``, :mod:`euc_ros.core.worldsim.forces`). It is applied as the loads with that
+        virtual power: a horizontal force ``Q_x`` on the wheel at its axle C (C moves at ``x_dot``), an
+        external couple ``Q_gamma`` on the EUC body and a couple ``Q_phi`` on the rider.
 
     Returns
     -------
@@ -156,8 +161,14 @@ def newton_euler_system(q, qd, M_d, M_h, p: PlantParams):
     q = np.asarray(q, dtype=float)
     qd = np.asarray(qd, dtype=float)
     shape = np.broadcast_shapes(q.shape[:-1], qd.shape[:-1], np.shape(M_d), np.shape(M_h))
+    if Q is not None:
+        Q = np.asarray(Q, dtype=float)
+        if Q.shape[-1:] != (3,):
+            raise ValueError(f"Q must have a last axis of 3 (Q_x, Q_gamma, Q_phi), got shape {Q.shape}")
+        shape = np.broadcast_shapes(shape, Q.shape[:-1])
+        Q = (Q[..., 0], Q[..., 1], Q[..., 2])
     rows, rhs = _system_rows(np.sin(q[..., 1]), np.cos(q[..., 1]), np.sin(q[..., 2]), np.cos(q[..., 2]),
-                             qd[..., 1], qd[..., 2], M_d, M_h, p)
+                             qd[..., 1], qd[..., 2], M_d, M_h, p, Q)
     K = np.empty(shape + (9, 9))
     b = np.empty(shape + (9,))
     for i in range(9):
@@ -167,13 +178,15 @@ def newton_euler_system(q, qd, M_d, M_h, p: PlantParams):
     return K, b
 
 
-def _system_rows(sg, cg, sp, cp, gd, pd, M_d, M_h, p: PlantParams):
+def _system_rows(sg, cg, sp, cp, gd, pd, M_d, M_h, p: PlantParams, Q=None):
     """Entries of :func:`newton_euler_system` as nested lists (scalars or arrays), written once.
 
     Unknown order: ``x_ddot, gamma_ddot, phi_ddot, F_t, N, F_Cx, F_Cz, F_Ax, F_Az``. Rows: wheel
     Newton x, z and Euler; body Newton x, z and Euler about G0; rider Newton x, z and Euler about G.
     The lever arms are ``C - G0 = -h_0 e(gamma)``, ``A - G0 = -(h_0 + l_0) e(gamma)``,
-    ``A - G = -h e(phi)``, with ``tau(r, -F) = -r_z F_x + r_x F_z``.
+    ``A - G = -h e(phi)``, with ``tau(r, -F) = -r_z F_x + r_x F_z``. ``Q = (Q_x, Q_gamma, Q_phi)`` (or
+    None) adds the external loads of :func:`newton_euler_system` to the wheel's Newton x row, the body's
+    and the rider's Euler rows.
     """
     m_w, m_0, m, g = p.m_w, p.m_0, p.m, p.g
     h0, l0, h = p.h_0, p.l_0, p.h
@@ -200,21 +213,25 @@ def _system_rows(sg, cg, sp, cp, gd, pd, M_d, M_h, p: PlantParams):
            M_h - M_d,
            m * (-l0 * gd2 * sg + h * pd2 * sp), m * (-l0 * gd2 * cg + h * pd2 * cp) - m * g,
            -M_h]
+    if Q is not None:
+        rhs[0] = rhs[0] + Q[0]
+        rhs[5] = rhs[5] + Q[1]
+        rhs[8] = rhs[8] + Q[2]
     return rows, rhs
 
 
-def solve_one(q, qd, M_d: float, M_h: float, p: PlantParams) -> np.ndarray:
+def solve_one(q, qd, M_d: float, M_h: float, p: PlantParams, Q=None) -> np.ndarray:
     """:func:`solve` for one state, in scalar arithmetic (the integrator's right-hand side).
 
     Same entries as :func:`newton_euler_system` (:func:`_system_rows`); building the matrix from
-    floats costs a third of the broadcasting path on a single state.
+    floats costs a third of the broadcasting path on a single state. ``Q``: three floats or None.
     """
     rows, rhs = _system_rows(math.sin(q[1]), math.cos(q[1]), math.sin(q[2]), math.cos(q[2]),
-                             float(qd[1]), float(qd[2]), float(M_d), float(M_h), p)
+                             float(qd[1]), float(qd[2]), float(M_d), float(M_h), p, Q)
     return np.linalg.solve(np.array(rows), np.array(rhs))
 
 
-def solve(q, qd, M_d, M_h, p: PlantParams) -> np.ndarray:
+def solve(q, qd, M_d, M_h, p: PlantParams, Q=None) -> np.ndarray:
     """Accelerations and constraint forces for given states and torques.
 
     Parameters
@@ -222,6 +239,8 @@ def solve(q, qd, M_d, M_h, p: PlantParams) -> np.ndarray:
     q, qd : array_like (..., 3)
     M_d, M_h : array_like (...)
     p : PlantParams
+    Q : array_like (..., 3), optional
+        External generalized force (:func:`newton_euler_system`).
 
     Returns
     -------
@@ -229,13 +248,13 @@ def solve(q, qd, M_d, M_h, p: PlantParams) -> np.ndarray:
         ``(x_ddot, gamma_ddot, phi_ddot, F_t, N, F_Cx, F_Cz, F_Ax, F_Az)`` [m/s^2, rad/s^2, N].
         ``F_t`` and ``N`` are the ground's tangential and normal force on the wheel.
     """
-    K, b = newton_euler_system(q, qd, M_d, M_h, p)
+    K, b = newton_euler_system(q, qd, M_d, M_h, p, Q)
     return np.linalg.solve(K, b[..., None])[..., 0]
 
 
-def accelerations(q, qd, M_d, M_h, p: PlantParams) -> np.ndarray:
+def accelerations(q, qd, M_d, M_h, p: PlantParams, Q=None) -> np.ndarray:
     """Generalized accelerations ``(x_ddot, gamma_ddot, phi_ddot)`` (..., 3); see :func:`solve`."""
-    return solve(q, qd, M_d, M_h, p)[..., :3]
+    return solve(q, qd, M_d, M_h, p, Q)[..., :3]
 
 
 def energy(q, qd, p: PlantParams) -> np.ndarray:

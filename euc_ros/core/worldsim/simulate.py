@@ -26,8 +26,10 @@ from euc_ros.core.worldsim.excitation import (
     random_band,
     random_speed_profile,
 )
+from euc_ros.core.worldsim.forces import ForceLaw, residual_effect
 
-#: Integrator state: coordinates, rates, the two torques (lagged) and the work of the torques.
+#: Integrator state: coordinates, rates, the two torques (lagged) and the work of the torques. A ride with a
+#: hidden force law (:mod:`.forces`) adds the law's work ``work_ext`` and the law's own states ``z0, z1``.
 STATE = ("x", "gamma", "phi", "x_dot", "gamma_dot", "phi_dot", "M_d", "M_h", "work")
 #: Frame rates the generator writes [Hz].
 RATES_HZ = (100.0, 120.0, 240.0, 360.0)
@@ -35,6 +37,8 @@ RATES_HZ = (100.0, 120.0, 240.0, 360.0)
 FALL_GAMMA, FALL_PHI = np.radians(25.0), np.radians(35.0)
 #: Absolute tolerance scale per state (rtol times these): m, rad, rad, m/s, rad/s, rad/s, N m, N m, J.
 ATOL_SCALE = np.array([1.0, 0.1, 0.1, 1.0, 1.0, 1.0, 10.0, 10.0, 10.0])
+#: Absolute tolerance scale of the law's work [J] and of its states (inputs of order 1 m/s or rad/s).
+ATOL_SCALE_WORK_EXT, ATOL_SCALE_LAW = 10.0, 1.0
 
 
 @dataclass(frozen=True)
@@ -56,6 +60,8 @@ class RideSpec:
         Ride length [s].
     info : dict
         The draws (bands, frequencies, weights), for the truth file.
+    force : ForceLaw, optional
+        A hidden external force law (:mod:`.forces`); None for none.
     """
 
     plant: PlantParams
@@ -69,6 +75,18 @@ class RideSpec:
     dist_v: BandNoise
     duration: float
     info: dict = field(default_factory=dict)
+    force: ForceLaw | None = None
+
+    @property
+    def n_state(self) -> int:
+        """Length of the integrator state: :data:`STATE`, plus ``work_ext`` and the law's states with a law."""
+        return len(STATE) + (0 if self.force is None else 1 + self.force.n_states)
+
+    def atol_scale(self) -> np.ndarray:
+        """Absolute tolerance scale per integrator state."""
+        if self.force is None:
+            return ATOL_SCALE
+        return np.concatenate([ATOL_SCALE, [ATOL_SCALE_WORK_EXT], np.full(self.force.n_states, ATOL_SCALE_LAW)])
 
     def inputs(self, t, y):
         """Commanded torques ``(M_d_cmd, M_h_cmd)`` [N m] at times ``t`` and states ``y`` (..., 9)."""
@@ -102,10 +120,11 @@ class RideSpec:
                 "steady": [float(s) for s in self.rider_loop.steady]}
 
     def rhs(self, t: float, y: np.ndarray) -> np.ndarray:
-        """Right-hand side of the ride's ODE on :data:`STATE` (one state).
+        """Right-hand side of the ride's ODE on :data:`STATE` (one state; :attr:`n_state` with a law).
 
         The same laws as :meth:`inputs`, in scalar arithmetic (tested equal): the integrator calls
-        this some 10^5 times per ride.
+        this some 10^5 times per ride. A hidden law adds its generalized force to the dynamics, its power
+        ``Q . q_dot`` as the rate of ``work_ext``, and its states' rates.
         """
         c = self._scalar
         ph = c["w"] * t
@@ -116,18 +135,28 @@ class RideSpec:
         dv = c["v1"][i] - c["v0"][i]
         v_ref = c["v0"][i] + dv * (tau - math.sin(2 * math.pi * tau) / (2 * math.pi)) + d_v
         a_ref = dv / dur * (1.0 - math.cos(2 * math.pi * tau)) + d_v1
-        x, gam, phi, xd, gd, pd, md, mh, _ = (float(v) for v in y)
+        x, gam, phi, xd, gd, pd, md, mh = (float(v) for v in y[:8])
         euc = self.euc
         md_cmd = euc.k_p * (gam - euc.pitch_reference_one(xd)) + euc.k_d * gd + d_d
         z = (gam, phi, xd, gd, pd, md, mh)
         st, K = c["steady"], c["K"]
         fb = sum(K[j] * (z[j] - st[j] * a_ref - (v_ref if j == 2 else 0.0)) for j in range(7))
         mh_cmd = a_ref * st[6] - fb + d_h
-        acc = solve_one((x, gam, phi), (xd, gd, pd), md, mh, self.plant)
         p = self.plant
+        law = self.force
+        Q = None
+        if law is not None:
+            zl = [float(v) for v in y[10:]]
+            F = law.value_one(t, x, xd, gd, pd, zl)
+            j = law.point.jacobian_one(gam, phi, p)
+            Q = (F * j[0], F * j[1], F * j[2])
+        acc = solve_one((x, gam, phi), (xd, gd, pd), md, mh, p, Q)
         power = md * (xd / p.R - gd) + mh * (gd - pd)
-        return np.array([xd, gd, pd, acc[0], acc[1], acc[2], (md_cmd - md) / euc.tau,
-                         (mh_cmd - mh) / self.rider_loop.tau, power])
+        out = [xd, gd, pd, acc[0], acc[1], acc[2], (md_cmd - md) / euc.tau, (mh_cmd - mh) / self.rider_loop.tau, power]
+        if law is not None:
+            out.append(Q[0] * xd + Q[1] * gd + Q[2] * pd)
+            out.extend(law.state_rates_one(xd, gd, pd, zl))
+        return np.array(out)
 
 
 def draw_spec(seed: int, *, duration: float = 30.0, kind: str = "mixed", euc_hz=(6.0, 15.0), euc_damping=(0.4, 1.0),
@@ -219,7 +248,8 @@ class Ride:
     truth : dict of ndarray (n,)
         ``x, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot`` [m, rad and their
         derivatives], ``M_d, M_h`` [N m] (applied), ``M_d_cmd, M_h_cmd``, ground forces ``F_t, N``
-        [N], ``energy`` and ``work`` [J].
+        [N], ``energy`` and ``work`` [J]; with a hidden law also its value, generalized force, work,
+        residual contribution and states (:func:`simulate`).
     stats : dict
         Integrator statistics (``nfev``, steps, tolerances).
     """
@@ -253,8 +283,9 @@ def integrate(spec: RideSpec, t_eval, *, rtol: float = 1e-9, y0=None, method: st
         Output times [s], increasing, from 0.
     rtol : float
         Relative tolerance; the absolute tolerance is ``rtol * ATOL_SCALE``.
-    y0 : ndarray (9,), optional
-        State at ``-warmup`` (default: upright at the reference speed, torques at their commands).
+    y0 : ndarray (spec.n_state,), optional
+        State at ``-warmup`` (default: upright at the reference speed, torques at their commands, a law's
+        states at rest for that state).
     method : str
         A ``solve_ivp`` explicit method.
     warmup : float
@@ -267,8 +298,13 @@ def integrate(spec: RideSpec, t_eval, *, rtol: float = 1e-9, y0=None, method: st
         y0 = np.array([0.0, 0.0, 0.0, v0, 0.0, 0.0, 0.0, 0.0, 0.0])
         md, mh = spec.inputs(t_start, y0)
         y0[6], y0[7] = md, mh
+        if spec.force is not None:
+            y0 = np.concatenate([y0, [0.0], spec.force.initial_states(v0, 0.0, 0.0)])
+    y0 = np.asarray(y0, dtype=float)
+    if y0.shape != (spec.n_state,):
+        raise ConfigError(f"needs {spec.n_state} states, got shape {y0.shape}", key="y0")
     sol = solve_ivp(spec.rhs, (t_start, float(t_eval[-1])), y0, method=method, t_eval=t_eval,
-                    rtol=rtol, atol=rtol * ATOL_SCALE)
+                    rtol=rtol, atol=rtol * spec.atol_scale())
     if not sol.success:
         raise RuntimeError(f"integration failed: {sol.message}")
     return sol
@@ -298,7 +334,12 @@ def simulate(spec: RideSpec, rate_hz: float = 120.0, *, rtol: float = 1e-9) -> R
     -----
     The accelerations, torques and ground forces are evaluated from the integrated states with the
     same Newton-Euler solve as the right-hand side (vectorized over the samples), so the recorded
-    truth satisfies the equations of motion to round-off at every sample.
+    truth satisfies the equations of motion to round-off at every sample, the hidden law's generalized
+    force included. With a law the truth adds ``F_ext`` (its value [N or N m]), ``Q_x, Q_gamma, Q_phi``,
+    ``work_ext`` (its work [J] from the first sample), ``effect`` (its contribution to ``M_d1 - M_d2``
+    for the true parameters [N m], :func:`~euc_ros.core.worldsim.forces.residual_effect`) and the law's
+    states ``z0`` (``z1``); ``stats["x_offset_m"]`` is the integrator's travel at the first sample (the
+    lab field's coordinate is ``x + x_offset_m``).
     """
     n = int(np.floor(spec.duration * rate_hz + 1e-9)) + 1
     t = np.arange(n) / rate_hz
@@ -308,18 +349,28 @@ def simulate(spec: RideSpec, rate_hz: float = 120.0, *, rtol: float = 1e-9) -> R
         raise ConfigError(f"seed {spec.info.get('seed')}: the ride falls (max |gamma| "
                           f"{np.degrees(np.max(np.abs(y[:, 1]))):.1f} deg, max |phi| "
                           f"{np.degrees(np.max(np.abs(y[:, 2]))):.1f} deg)", key="seed")
+    x_offset = float(y[0, 0])
     y[:, 0] -= y[0, 0]                  # travel and work counted from the first sample
     y[:, 8] -= y[0, 8]
     p = spec.plant
     md_cmd, mh_cmd = spec.inputs(t, y)
-    full = solve(y[:, 0:3], y[:, 3:6], y[:, 6], y[:, 7], p)
+    law, Q, extra = spec.force, None, {}
+    if law is not None:
+        y[:, 9] -= y[0, 9]
+        zl = y[:, 10:]
+        F = law.value(t, y[:, 0] + x_offset, y[:, 3], y[:, 4], y[:, 5], zl)
+        Q = F[:, None] * law.point.jacobian(y[:, 1], y[:, 2], p)
+        extra = {"F_ext": F, "Q_x": Q[:, 0], "Q_gamma": Q[:, 1], "Q_phi": Q[:, 2], "work_ext": y[:, 9],
+                 "effect": residual_effect(Q, y[:, 1], y[:, 2], p),
+                 **{f"z{k}": zl[:, k] for k in range(law.n_states)}}
+    full = solve(y[:, 0:3], y[:, 3:6], y[:, 6], y[:, 7], p, Q)
     truth = {"x": y[:, 0], "x_dot": y[:, 3], "x_ddot": full[:, 0], "gamma": y[:, 1], "gamma_dot": y[:, 4],
              "gamma_ddot": full[:, 1], "phi": y[:, 2], "phi_dot": y[:, 5], "phi_ddot": full[:, 2],
              "M_d": y[:, 6], "M_h": y[:, 7], "M_d_cmd": md_cmd, "M_h_cmd": mh_cmd, "F_t": full[:, 3],
              "N": full[:, 4], "energy": energy(y[:, 0:3], y[:, 3:6], p) - energy(y[:1, 0:3], y[:1, 3:6], p)[0],
              "work": y[:, 8],
-             "v_ref": spec.profile.speed(t) + spec.dist_v(t)}
-    stats = {"nfev": int(sol.nfev), "rtol": rtol, "method": "DOP853",
+             "v_ref": spec.profile.speed(t) + spec.dist_v(t), **extra}
+    stats = {"nfev": int(sol.nfev), "rtol": rtol, "method": "DOP853", "x_offset_m": x_offset,
              "power_check": float(np.max(np.abs(torque_power(y[:, 3:6], y[:, 6], y[:, 7], p))))}
     return Ride(spec, t, truth, stats)
 

@@ -206,6 +206,7 @@ def truth_dict(ride, frames=None) -> dict:
         "rider_loop": {"K": spec.rider_loop.K.tolist(), "tau": spec.rider_loop.tau,
                        "weights": {k: float(v) for k, v in spec.rider_loop.weights.items()}},
         "info": spec.info,
+        "force": spec.force.describe() if spec.force is not None else None,
         "integrator": ride.stats,
         "t": ride.t[keep].tolist(),
         "frame": (np.arange(ride.t.size)[keep]).tolist(),

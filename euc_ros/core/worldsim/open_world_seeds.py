@@ -1,0 +1,21 @@
+"""Seeds of the open-world study, fixed before any tuning.
+
+The study (``euc-ros campaign open-world``) runs one ride per seed and family. A ride's seed draws
+its rider, EUC, controllers and excitation (:func:`euc_ros.core.worldsim.simulate.draw_spec`), and,
+together with the family, the hidden force law, the artefact level and the target residual ratio.
+The same seed in two families is the same rider on the same EUC with a different hidden law.
+
+* :data:`TUNING_SEEDS` may be used while developing the analysis and the study (pilots, checks);
+* :data:`REPORT_SEEDS` are for the reported table only: a report run takes the first ``N`` of them
+  for every family (``--per-family N``). Nothing may be tuned on them.
+"""
+from __future__ import annotations
+
+#: The hidden-law families: ``none`` are the no-effect controls.
+FAMILIES = ("none", "lab_field", "wheel", "speed", "drift", "dynamic")
+#: Seeds for development and pilots.
+TUNING_SEEDS = tuple(range(0, 100))
+#: Seeds of the reported study, per family (the first ``N`` are used).
+REPORT_SEEDS = tuple(range(1000, 2000))
+#: Seed sets by name (the command's ``--seeds``).
+SEED_SETS = {"tuning": TUNING_SEEDS, "report": REPORT_SEEDS}
