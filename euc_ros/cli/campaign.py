@@ -87,9 +87,10 @@ def tasks_from_args(args) -> list[cmp.Task]:
     if args.mode == "open-world":
         from euc_ros.cli import open_world as ow
 
-        return ow.tasks(args.seeds, args.per_family, args.families or ow.FAMILIES,
-                        duration=args.duration or ow.DURATION_S, rate_hz=args.rate or ow.RATE_HZ,
-                        rtol=args.rtol or ow.RTOL)
+        specs = ow.tasks(args.seeds, args.per_family, args.families or ow.FAMILIES,
+                         duration=args.duration or ow.DURATION_S, rate_hz=args.rate or ow.RATE_HZ,
+                         rtol=args.rtol or ow.RTOL)
+        return [cmp.Task(name, "open_world", seed=seed, simulate=opts) for name, seed, opts in specs]
     if args.mode == "sessions":
         folders = []
         for root in map(Path, args.root):

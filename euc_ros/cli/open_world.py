@@ -126,9 +126,9 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
 
 def floor_rmse(session, csv_path) -> float:
     """Held-out RMSE of the base model [N m] (``euc-ros residual`` without candidates or discovery)."""
-    from euc_ros.api import residual
+    from euc_ros.cli.residual import run_residual
 
-    return float(residual(session, [csv_path], candidates=[], discover=False).data["rmse_before_nm"])
+    return float(run_residual(str(session), [str(csv_path)], candidates=[], discover=False)[1]["rmse_before_nm"])
 
 
 def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate_hz: float = RATE_HZ,
@@ -271,7 +271,7 @@ def run_task(task) -> dict:
     ``task.simulate`` holds ``family`` and optionally ``duration_s``, ``rate_hz``, ``rtol``. Returns a row
     of :data:`COLUMNS`; a failure is a row with ``status: failed`` and the error.
     """
-    from euc_ros.api import residual
+    from euc_ros.cli.residual import run_residual
 
     o = task.simulate
     family = o["family"]
@@ -282,7 +282,7 @@ def run_task(task) -> dict:
         with tempfile.TemporaryDirectory(prefix="euc_openworld_") as tmp:
             r = make_ride(task.seed, family, Path(tmp), duration=float(o.get("duration_s", DURATION_S)),
                           rate_hz=float(o.get("rate_hz", RATE_HZ)), rtol=float(o.get("rtol", RTOL)))
-            data = residual(r["session"], [r["csv"]]).data
+            data = run_residual(str(r["session"]), [str(r["csv"])])[1]
         ride, law = r["ride"], r["law"]
         row.update(judge(data, family, law))
         row.update(ride_seed=ride.spec.info.get("seed"), artefact_mm=r["artefact_mm"], ratio_target=r["ratio_target"],
@@ -307,9 +307,9 @@ def run_task(task) -> dict:
 
 
 def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float = DURATION_S,
-          rate_hz: float = RATE_HZ, rtol: float = RTOL) -> list:
-    """One task per family and seed: the first ``per_family`` seeds of ``seed_set`` (``tuning``, ``report``)."""
-    from euc_ros.cli.campaign_tasks import Task
+          rate_hz: float = RATE_HZ, rtol: float = RTOL) -> list[tuple[str, int, dict]]:
+    """One task per family and seed: the first ``per_family`` seeds of ``seed_set`` (``tuning``, ``report``),
+    as ``(name, seed, options)`` (a campaign task of kind ``open_world``)."""
 
     if seed_set not in SEED_SETS:
         raise ConfigError(f"must be one of {tuple(SEED_SETS)}, got {seed_set!r}", key="--seeds")
@@ -324,8 +324,7 @@ def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float 
         raise ConfigError(f"need duration > 0, rate > 0 and 0 < rtol < 1, got {duration}, {rate_hz}, {rtol}",
                           key="--duration")
     opts = {"duration_s": duration, "rate_hz": rate_hz, "rtol": rtol}
-    return [Task(f"{fam}_{s:06d}", "open_world", seed=int(s), simulate={"family": fam, **opts})
-            for fam in families for s in seeds[:per_family]]
+    return [(f"{fam}_{s:06d}", int(s), {"family": fam, **opts}) for fam in families for s in seeds[:per_family]]
 
 
 # --------------------------------------------------------------------------------------------------
