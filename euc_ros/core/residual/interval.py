@@ -31,11 +31,14 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.residual.folds import with_blocks
-from euc_ros.core.residual.selection import Model, block_offsets, fit_model, model_jacobian
+from euc_ros.core.residual.selection import H_BOUNDS, Model, block_offsets, fit_model, model_jacobian
 from euc_ros.core.states.contexts import Recording, prepare
 
 #: Level of the intervals.
 LEVEL = 0.95
+#: An h this close to the edge of the search range (:data:`~euc_ros.core.residual.selection.H_BOUNDS`) is
+#: held by the bound, not by the data: its interval is unbounded [m].
+EDGE_M = 1e-6
 
 
 @dataclass(frozen=True)
@@ -79,6 +82,8 @@ class FinalInterval:
     def h_ci95_m(self) -> tuple[float, float]:
         """h's interval: its own, and each tied h with the same half-width, widened by the extras [m]."""
         half = self.quantile * self.h_se_m if math.isfinite(self.h_se_m) else float("inf")
+        if not math.isfinite(self.h_m) or min(self.h_m - H_BOUNDS[0], H_BOUNDS[1] - self.h_m) < EDGE_M:
+            half = float("inf")         # a fit at the edge of the search range: the data do not bound h
         hs = [self.h_m, *self.tied_h_m]
         lo, hi = min(v - half for v in hs) - self.extra_low_m, max(v + half for v in hs) + self.extra_high_m
         if math.isfinite(self.filter_h_m):
@@ -93,7 +98,9 @@ class FinalInterval:
     def widened_by(self) -> list[str]:
         """What h's interval holds beyond its own statistics, in words."""
         out = []
-        if self.extra_low_m > 0 or self.extra_high_m > 0:
+        if math.isinf(self.extra_low_m) or math.isinf(self.extra_high_m):
+            out.append("the base model's h, which the data do not bound")
+        elif self.extra_low_m > 0 or self.extra_high_m > 0:
             out.append(f"the base model's bias terms (-{self.extra_low_m * 1e3:.1f} / "
                        f"+{self.extra_high_m * 1e3:.1f} mm)")
         if math.isfinite(self.filter_h_m):
@@ -242,9 +249,13 @@ def base_widening(base_uncertainty: dict) -> tuple[float, float]:
 
     Those are the terms the fit's statistics do not hold (errors in variables, sliding, the filter's
     distortion, few blocks); the final model is fitted on the same states, so its interval is widened alike.
+    An end of the base interval the data do not bound (None) is an infinite widening on that side.
     """
     ci = base_uncertainty.get("h_ci95_m") or [None, None]
     boot = (base_uncertainty.get("uncertainty") or {}).get("bootstrap_ci95_m") or [None, None]
+    if "h_ci95_m" in base_uncertainty and None in ci:
+        # the base model's h is not bounded by the data: neither is the final model's, fitted on the same states
+        return float("inf") if ci[0] is None else 0.0, float("inf") if ci[1] is None else 0.0
     if None in ci or None in boot:
         return 0.0, 0.0
     return max(boot[0] - ci[0], 0.0), max(ci[1] - boot[1], 0.0)

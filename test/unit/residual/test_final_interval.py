@@ -70,7 +70,9 @@ def test_the_intervals_are_centred_on_their_estimates_and_said(slope_results):
 def test_the_base_models_bias_terms_widen_the_final_interval():
     base = {"h_ci95_m": [0.590, 0.625], "uncertainty": {"bootstrap_ci95_m": [0.595, 0.615]}}
     assert base_widening(base) == pytest.approx((0.005, 0.010))
-    assert base_widening({"h_ci95_m": [None, None], "uncertainty": {}}) == (0.0, 0.0)
+    # a base h the data do not bound leaves the final one unbounded too; no base interval at all, no widening
+    assert base_widening({"h_ci95_m": [None, None], "uncertainty": {}}) == (float("inf"), float("inf"))
+    assert base_widening({}) == (0.0, 0.0)
 
 
 def test_the_refit_with_the_data_filter_moves_h_towards_the_truth_and_widens_the_interval(slope_rides):
@@ -93,3 +95,23 @@ def test_the_refit_with_the_data_filter_moves_h_towards_the_truth_and_widens_the
         err_fixed.append(abs(result.h_after - P.H_TRUE))
         err_data.append(abs(fi.filter_h_m - P.H_TRUE))
     assert np.mean(err_data) < np.mean(err_fixed), (err_fixed, err_data)
+
+
+def test_an_h_the_data_do_not_bound_gets_no_bounded_interval():
+    from euc_ros.core.residual.interval import FinalInterval, base_widening
+    from euc_ros.core.residual.selection import H_BOUNDS
+
+    fi = FinalInterval(h_m=0.6, h_se_m=0.005, quantile=2.0, parameters_ci95={}, n_blocks=20)
+    assert fi.h_ci95_m == pytest.approx((0.59, 0.61))
+    # the fit held by the search range's edge: the statistics of a bound say nothing
+    at_edge = FinalInterval(h_m=H_BOUNDS[0], h_se_m=0.005, quantile=2.0, parameters_ci95={}, n_blocks=20)
+    assert at_edge.to_json()["h_after_ci95_m"] == [None, None]
+    # the base model's interval unbounded below: the final one too, on that side
+    lo_open = base_widening({"h_ci95_m": [None, 0.7], "uncertainty": {"bootstrap_ci95_m": [0.5, 0.65]}})
+    assert lo_open == (float("inf"), 0.0)
+    widened = fi.widened(*lo_open)
+    assert widened.to_json()["h_after_ci95_m"][0] is None and widened.to_json()["h_after_ci95_m"][1] == \
+        pytest.approx(0.61)
+    assert "do not bound" in widened.widened_by()[0]
+    assert base_widening({"h_ci95_m": [0.55, 0.68], "uncertainty": {"bootstrap_ci95_m": [0.57, 0.65]}}) == \
+        pytest.approx((0.02, 0.03))
