@@ -4,14 +4,18 @@ Each ride (one seed and one family of :data:`~euc_ros.core.worldsim.open_world_s
 by :func:`make_ride`:
 
 1. the rider, EUC, controllers, excitation and speed profile from the seed
-   (:func:`euc_ros.core.worldsim.simulate_ride`);
-2. the ride is written without a law (the paper's pose noise, 0.2 mm and 0.5 deg, and soft-tissue
-   sliding of a random level 0-10 mm, :func:`write_recording`) and ``euc-ros residual`` measures its
+   (:func:`euc_ros.core.worldsim.simulate_ride`), and :data:`RUNS` runs of that rider over the same floor
+   (the first the seed's own, the others with profiles and disturbances of their own,
+   :func:`euc_ros.core.worldsim.simulate.another_run`): a lab records several runs, and a force fixed in
+   the lab can only be told from a passing gust where the runs meet it again;
+2. the runs are written without a law (the paper's pose noise, 0.2 mm and 0.5 deg, and soft-tissue
+   sliding of a random level 0-10 mm, :func:`write_recording`) and ``euc-ros residual`` measures their
    held-out RMSE, the *floor*;
 3. a random law of the family (:func:`euc_ros.core.worldsim.forces.draw_law`) is scaled so that a
    perfect model would cut the RMSE to a random ratio 0.2-0.5 (``floor / sqrt(floor^2 + effect^2)``,
-   the effect's RMS evaluated along the ride without the law, :func:`~euc_ros.core.worldsim.forces.calibrate`);
-4. the ride is integrated again with the law (same seed: same rider, controllers and disturbances). The
+   the effect's RMS evaluated along the first run without the law, as the analysis' filter passes it:
+   :func:`seen_effect`, :func:`~euc_ros.core.worldsim.forces.calibrate`);
+4. the first run is integrated again with the law (same seed: same rider, controllers and disturbances). The
    controllers respond to the law (a speed-dependent force changes the speed it depends on), so the
    effect along this ride differs from the one along the ride without it (by up to 35 % on tuning
    seeds); the amplitude is corrected once by the ratio of the two and the ride integrated again
@@ -20,7 +24,8 @@ by :func:`make_ride`:
    a vertical force at G shows in the residual only through its lever ``h sin(phi)``, so a small effect
    may need kilonewtons), or under which the ride falls or the integration fails, is replaced by the next
    draw of the ride's stream, at most :data:`MAX_LAW_DRAWS` times; the row records the draws used;
-5. the ride is written with the same capture noise and artefacts, and ``euc-ros residual`` runs on it.
+5. the other runs are integrated with the final law, all are written with the same capture noise and
+   artefacts, and ``euc-ros residual`` runs on them.
 
 The ``none`` family (controls) skips 2-3. :func:`run_task` turns a ride into a row of :data:`COLUMNS`;
 :func:`summarize` makes the per-family table and its goals, :func:`markdown` the report.
@@ -54,8 +59,12 @@ ARTEFACT_MM = (0.0, 10.0)
 ARTEFACT_DEG_PER_MM = 0.4
 #: Rides with less sliding than this are "clean" in the table [mm].
 CLEAN_MM = 1.0
-#: Defaults of a study ride: length [s], rate [Hz], integrator tolerance.
-DURATION_S, RATE_HZ, RTOL = 20.0, 120.0, 1e-8
+#: Defaults of a study ride: length of each run [s], rate [Hz], integrator tolerance.
+DURATION_S, RATE_HZ, RTOL = 10.0, 120.0, 1e-8
+#: Runs of a ride: a lab records several runs of one rider over the same floor, so what is fixed in the lab
+#: is met again and the analysis' folds hold out whole runs (one pass over a field can be told from a
+#: passing gust by nothing).
+RUNS = 3
 #: Corrections of the amplitude along the ride with the law (each one integration more).
 REFINE = 1
 #: Bound of |design ratio - target| after :data:`REFINE` corrections: on 40 tuning rides (seeds 10-17, every
@@ -124,15 +133,53 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
     return paths
 
 
-def floor_rmse(session, csv_path) -> float:
+def floor_rmse(session, csv_paths) -> float:
     """Held-out RMSE of the base model [N m] (``euc-ros residual`` without candidates or discovery)."""
     from euc_ros.cli.residual import run_residual
 
-    return float(run_residual(str(session), [str(csv_path)], candidates=[], discover=False)[1]["rmse_before_nm"])
+    paths = [csv_paths] if isinstance(csv_paths, (str, Path)) else list(csv_paths)
+    data = run_residual(str(session), [str(c) for c in paths], candidates=[], discover=False)[1]
+    return float(data["rmse_before_nm"])
+
+
+def seen_effect(effect, rate_hz: float) -> np.ndarray:
+    """A law's contribution to ``M_d1 - M_d2`` as the analysis sees it: through the Savitzky-Golay filter its
+    states are smoothed with (:data:`~euc_ros.core.residual.analysis.RESIDUAL_WINDOW_S`, order
+    :data:`~euc_ros.core.residual.analysis.RESIDUAL_POLYORDER`). The residual is linear in the accelerations,
+    which the filter smooths, so a law faster than the filter passes (a tyre's harmonics at speed) reaches
+    the residual attenuated; a perfect model can only explain what reaches it."""
+    from scipy.signal import savgol_filter
+
+    from euc_ros.core.filters.derivatives import window_samples
+    from euc_ros.core.residual.analysis import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
+
+    e = np.asarray(effect, dtype=float)
+    w = window_samples(1.0 / rate_hz, RESIDUAL_WINDOW_S, None, RESIDUAL_POLYORDER)
+    return savgol_filter(e, w, RESIDUAL_POLYORDER, mode="interp") if e.size > w else e
+
+
+def _runs(seed: int, family: str, spec, n: int, rate_hz: float, rtol: float, force=None) -> list:
+    """The ride's ``n`` runs: the seed's own draw first, then :func:`~euc_ros.core.worldsim.simulate.another_run`s
+    (same rider, EUC, controllers and place; their own profiles and disturbances), with ``force``."""
+    from euc_ros.core.worldsim.simulate import another_run, simulate
+
+    specs = [spec] + [another_run(spec, [int(seed), FAMILIES.index(family), STREAM, 100 + k]) for k in range(1, n)]
+    return [simulate(dataclasses.replace(sp, force=force), rate_hz, rtol=rtol) for sp in specs]
+
+
+def _write_runs(rides: list, out: Path, seed: int, artefact_mm: float) -> dict:
+    paths = [write_recording(r, out / f"run_{k + 1:02d}", f"run_{k + 1:02d}", seed=int(seed) * 100 + k,
+                             artefact_mm=artefact_mm) for k, r in enumerate(rides)]
+    return {"session": paths[0]["session"], "csvs": [p["csv"] for p in paths], "truths": [p["truth"] for p in paths],
+            "csv": paths[0]["csv"], "truth": paths[0]["truth"]}
+
+
+def _seen_rms(rides: list, rate_hz: float) -> float:
+    return F.rms(np.concatenate([seen_effect(r.truth["effect"], rate_hz) for r in rides]))
 
 
 def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate_hz: float = RATE_HZ,
-              rtol: float = RTOL, floor_fn=floor_rmse, refine: int = REFINE) -> dict:
+              rtol: float = RTOL, floor_fn=floor_rmse, refine: int = REFINE, runs: int = RUNS) -> dict:
     """Simulate and write one study ride (module docstring); return its files and truth.
 
     Parameters
@@ -141,20 +188,23 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
     family : str
         One of :data:`FAMILIES` (``none``: no law).
     out : str or Path
-        Folder (the ride without the law goes to ``out/floor``, the analysed ride to ``out/ride``).
+        Folder (the runs without the law go to ``out/floor``, the analysed runs to ``out/ride``).
     duration, rate_hz, rtol : float
-        Ride length [s], rate [Hz] and integrator tolerance.
+        Length of each run [s], rate [Hz] and integrator tolerance.
     floor_fn : callable
-        ``floor_fn(session, csv) -> RMSE [N m]`` of the ride without the law.
+        ``floor_fn(session, csvs) -> RMSE [N m]`` of the runs without the law.
     refine : int
-        Corrections of the amplitude along the ride with the law (module docstring, step 4).
+        Corrections of the amplitude along the first run with the law (module docstring, step 4).
+    runs : int
+        Runs of the rider over the same floor (:data:`RUNS`).
 
     Returns
     -------
     dict
-        ``session``, ``csv``, ``truth`` (paths), ``ride`` (the analysed :class:`Ride`), ``law``
-        (:class:`ForceLaw` or None), ``artefact_mm``, ``ratio_target``, ``floor_nm``, ``calibration``,
-        ``effect_truth_nm`` (RMS of the law's residual contribution along the analysed ride).
+        ``session``, ``csvs``, ``truths`` (paths; ``csv`` and ``truth`` the first run's), ``ride`` (the first
+        analysed :class:`Ride`), ``rides``, ``law`` (:class:`ForceLaw` or None), ``artefact_mm``,
+        ``ratio_target``, ``floor_nm``, ``calibration``, ``effect_truth_nm`` (RMS over the runs of the law's
+        residual contribution as the analysis' filter passes it, :func:`seen_effect`).
     """
     from euc_ros.core.worldsim.simulate import simulate, simulate_ride
 
@@ -163,14 +213,15 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
     artefact_mm = float(rng.uniform(*ARTEFACT_MM))
     ratio = float(rng.uniform(*F.RATIO_RANGE))
     ride0 = simulate_ride(int(seed), rate_hz, duration=duration, rtol=rtol)
+    spec, p = ride0.spec, ride0.spec.plant
+    rides0 = [ride0] + _runs(seed, family, spec, runs, rate_hz, rtol)[1:]
     info = {"artefact_mm": artefact_mm, "ratio_target": None, "floor_nm": None, "calibration": None, "law": None,
             "effect_truth_nm": 0.0}
     if family == "none":
-        paths = write_recording(ride0, out / "ride", "ride", seed=seed, artefact_mm=artefact_mm)
-        return {**paths, "ride": ride0, **info}
-    p0 = write_recording(ride0, out / "floor", "ride", seed=seed, artefact_mm=artefact_mm)
-    floor = float(floor_fn(p0["session"], p0["csv"]))
-    spec, p = ride0.spec, ride0.spec.plant
+        paths = _write_runs(rides0, out / "ride", seed, artefact_mm)
+        return {**paths, "ride": ride0, "rides": rides0, **info}
+    p0 = _write_runs(rides0, out / "floor", seed, artefact_mm)
+    floor = float(floor_fn(p0["session"], p0["csvs"]))
     x0 = ride0.stats["x_offset_m"]
     track = (x0 + float(np.min(ride0.truth["x"])), x0 + float(np.max(ride0.truth["x"])))
     rejected = []
@@ -178,7 +229,8 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
         law = F.draw_law(rng, family, R=p.R, track_m=track, duration=duration,
                          stature=spec.info["posture"]["stature"])
         try:
-            law, cal = F.calibrate(law, ride0.truth, ride0.t, p, floor, ratio, x0)
+            law, cal = F.calibrate(law, ride0.truth, ride0.t, p, floor, ratio, x0,
+                                   view=lambda e: seen_effect(e, rate_hz))
             peak = float(np.max(np.abs(F.values_on(law, ride0.truth, ride0.t, x0))))
             limit = p.m * p.g * (p.h if law.point.kind == "pitch" else 1.0)
             if peak > limit:
@@ -186,24 +238,25 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
                                   key="amplitude")
             ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
             cal["amplitudes"] = [law.amplitude]
-            cal["effects_nm"] = [F.rms(ride.truth["effect"])]
+            cal["effects_nm"] = [_seen_rms([ride], rate_hz)]
             for _ in range(refine):
                 law = law.with_amplitude(law.amplitude * cal["effect_target_nm"] / cal["effects_nm"][-1])
                 ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
                 cal["amplitudes"].append(law.amplitude)
-                cal["effects_nm"].append(F.rms(ride.truth["effect"]))
+                cal["effects_nm"].append(_seen_rms([ride], rate_hz))
+            rides = [ride] + _runs(seed, family, spec, runs, rate_hz, rtol, force=law)[1:]
             break
-        except (ConfigError, RuntimeError) as exc:      # the ride falls, or the integration fails
+        except (ConfigError, RuntimeError) as exc:      # a run falls, or the integration fails
             rejected.append({"law": law.describe(), "error": str(exc)})
     else:
         raise ConfigError(f"seed {seed}: the ride falls or fails under {MAX_LAW_DRAWS} laws of {family!r} "
                           f"(last: {rejected[-1]['error']})", key="seed")
     cal["rejected_laws"] = rejected
     ride.spec.info["requested_seed"] = int(seed)
-    paths = write_recording(ride, out / "ride", "ride", seed=seed, artefact_mm=artefact_mm)
+    paths = _write_runs(rides, out / "ride", seed, artefact_mm)
     info.update(ratio_target=ratio, floor_nm=floor, calibration=cal, law=law,
-                effect_truth_nm=F.rms(ride.truth["effect"]))
-    return {**paths, "ride": ride, **info}
+                effect_truth_nm=_seen_rms(rides, rate_hz))
+    return {**paths, "ride": ride, "rides": rides, **info}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -282,7 +335,7 @@ def run_task(task) -> dict:
         with tempfile.TemporaryDirectory(prefix="euc_openworld_") as tmp:
             r = make_ride(task.seed, family, Path(tmp), duration=float(o.get("duration_s", DURATION_S)),
                           rate_hz=float(o.get("rate_hz", RATE_HZ)), rtol=float(o.get("rtol", RTOL)))
-            data = run_residual(str(r["session"]), [str(r["csv"])])[1]
+            data = run_residual(str(r["session"]), [str(c) for c in r["csvs"]])[1]
         ride, law = r["ride"], r["law"]
         row.update(judge(data, family, law))
         row.update(ride_seed=ride.spec.info.get("seed"), artefact_mm=r["artefact_mm"], ratio_target=r["ratio_target"],
@@ -294,10 +347,13 @@ def run_task(task) -> dict:
                        unit=law.point.unit, effect_target_nm=r["calibration"]["effect_target_nm"],
                        ratio_design=F.ratio_of(r["floor_nm"], r["effect_truth_nm"]),
                        before_predicted_nm=math.hypot(r["floor_nm"], r["effect_truth_nm"]))
-        ci = data.get("h_after_ci95_m") or [None, None]
-        if ci[0] is not None and ci[1] is not None:
-            row.update(h_after_lo_m=float(ci[0]), h_after_hi_m=float(ci[1]), width_mm=1e3 * (ci[1] - ci[0]),
-                       covered=bool(ci[0] <= ride.h <= ci[1]))
+        if "h_after_ci95_m" in data:
+            # an end the data do not bound (None) is open: it holds the truth on its side, and the width is infinite
+            ci = data.get("h_after_ci95_m") or [None, None]
+            lo = -math.inf if ci[0] is None else float(ci[0])
+            hi = math.inf if ci[1] is None else float(ci[1])
+            row.update(h_after_lo_m=ci[0], h_after_hi_m=ci[1], width_mm=1e3 * (hi - lo),
+                       covered=bool(lo <= ride.h <= hi))
         row["status"] = "ok"
     except Exception as exc:       # a ride's failure is its row, never the study's end
         row["status"] = "failed"
@@ -368,7 +424,8 @@ def _pct(flags) -> float | None:
 
 
 def _median(values) -> float | None:
-    v = [float(x) for x in values if x is not None and math.isfinite(float(x))]
+    """Median of the given numbers (an infinite width, an unbounded interval, counts as the largest)."""
+    v = [float(x) for x in values if x is not None and not math.isnan(float(x))]
     return float(np.median(v)) if v else None
 
 
@@ -420,6 +477,8 @@ def summarize(rows: list[dict]) -> dict:
 
 
 def _fmt(v, spec: str = ".0f", unit: str = "") -> str:
+    if v is not None and math.isinf(v):
+        return "unbounded"
     return "-" if v is None else f"{v:{spec}}{unit}"
 
 
@@ -479,7 +538,8 @@ def figure(rows: list[dict], summ: dict, path) -> Path:
     ax[1].set_ylabel("measured RMSE after / before")
     ax[1].legend(fontsize=7)
     for f in fams:
-        rr = [r for r in ok if r["family"] == f and r.get("width_mm")]
+        rr = [r for r in ok if r["family"] == f and r.get("width_mm") and r.get("h_after_lo_m") is not None
+              and r.get("h_after_hi_m") is not None]
         if rr:
             z = np.clip([(r["h_after_m"] - r["h_true_m"]) / (0.5 * (r["h_after_hi_m"] - r["h_after_lo_m"]))
                          for r in rr], -4.0, 4.0)

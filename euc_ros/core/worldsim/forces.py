@@ -485,7 +485,7 @@ def ratio_of(floor: float, effect: float) -> float:
 
 
 def calibrate(law: ForceLaw, truth: dict, t, p: PlantParams, floor_nm: float, ratio: float,
-              x_offset: float = 0.0) -> tuple[ForceLaw, dict]:
+              x_offset: float = 0.0, view=None) -> tuple[ForceLaw, dict]:
     """Scale a law so that ``floor / sqrt(floor^2 + effect^2) = ratio`` on a ride.
 
     Parameters
@@ -501,6 +501,8 @@ def calibrate(law: ForceLaw, truth: dict, t, p: PlantParams, floor_nm: float, ra
         Target ratio, in (0, 1).
     x_offset : float
         See :func:`effect_on`.
+    view : callable, optional
+        ``view(effect) -> effect`` as the analysis sees it (e.g. through its filter); default as is.
 
     Returns
     -------
@@ -519,7 +521,8 @@ def calibrate(law: ForceLaw, truth: dict, t, p: PlantParams, floor_nm: float, ra
     if not floor_nm > 0:
         raise ConfigError(f"must be > 0 N m, got {floor_nm}", key="floor_nm")
     unit = law.with_amplitude(1.0)
-    e1 = rms(effect_on(unit, truth, t, p, x_offset))
+    e1 = effect_on(unit, truth, t, p, x_offset)
+    e1 = rms(view(e1) if view is not None else e1)
     if not e1 > 0:
         raise ConfigError("the law has no effect on the residual along this ride (e.g. a lab field off the "
                           "track, or a speed law on a ride at rest)", key="law")

@@ -5,6 +5,7 @@ the same ride on every machine (up to the floating-point reproducibility of nump
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from bisect import bisect_right
 from dataclasses import dataclass, field
@@ -219,21 +220,56 @@ def draw_spec(seed: int, *, duration: float = 30.0, kind: str = "mixed", euc_hz=
     lam = np.linalg.eigvals(K.closed_loop_matrix(plant, euc, rider_loop))
     if not np.all(lam.real < 0):
         raise ConfigError(f"seed {seed}: the linearized closed loop is unstable (eigenvalues {lam})", key="seed")
-    period = duration + 10.0
-    profile = random_speed_profile(rng, duration, kind=kind, v_max=v_max)
-    bands, dists = {}, {}
-    for name, (lo, hi), limits in (("dist_h", (2.0, 8.0), BAND_LIMITS_HZ), ("dist_d", (0.5, 3.0), BAND_LIMITS_HZ),
-                                   ("dist_v", (0.05, 0.2), SPEED_BAND_HZ)):
-        f_lo, f_hi = random_band(rng, limits)
-        rms = disturbance_scale * rng.uniform(lo, hi)
-        dists[name] = band_noise(rng, period, f_lo, f_hi, rms) if rms > 0 else BandNoise.zero()
-        bands[name] = {"f_lo_hz": f_lo, "f_hi_hz": f_hi, "rms": rms}
+    profile, dists, bands = _draw_excitation(rng, duration, kind, v_max, disturbance_scale)
     info = {"seed": int(seed), "kind": kind, "posture": {k: float(v) for k, v in vars(posture).items()},
             "euc_design_hz": f_e, "euc_damping": zeta, "closed_loop_eigenvalues": [[float(v.real), float(v.imag)]
                                                                                  for v in lam],
             "pitch_mode_hz": K.pitch_mode_hz(plant, euc, rider_loop), "disturbances": bands}
     return RideSpec(plant, rider, place, euc, rider_loop, profile, dists["dist_h"], dists["dist_d"],
                     dists["dist_v"], float(duration), info)
+
+
+#: rms ranges and band limits of the disturbances :func:`draw_spec` draws: (name, rms range, band limits).
+DISTURBANCES = (("dist_h", (2.0, 8.0), "band"), ("dist_d", (0.5, 3.0), "band"), ("dist_v", (0.05, 0.2), "speed"))
+
+
+def _draw_excitation(rng: np.random.Generator, duration: float, kind: str, v_max: float,
+                     disturbance_scale: float) -> tuple[SpeedProfile, dict, dict]:
+    """A speed profile and the three disturbances, as :func:`draw_spec` draws them."""
+    period = duration + 10.0
+    profile = random_speed_profile(rng, duration, kind=kind, v_max=v_max)
+    bands, dists = {}, {}
+    for name, (lo, hi), which in DISTURBANCES:
+        f_lo, f_hi = random_band(rng, BAND_LIMITS_HZ if which == "band" else SPEED_BAND_HZ)
+        rms = disturbance_scale * rng.uniform(lo, hi)
+        dists[name] = band_noise(rng, period, f_lo, f_hi, rms) if rms > 0 else BandNoise.zero()
+        bands[name] = {"f_lo_hz": f_lo, "f_hi_hz": f_hi, "rms": rms}
+    return profile, dists, bands
+
+
+def another_run(spec: "RideSpec", seed: int, *, kind: str | None = None, v_max: float = 4.0,
+                disturbance_scale: float = 1.0) -> "RideSpec":
+    """The same rider, EUC, controllers and place, with a speed profile and disturbances of their own.
+
+    A lab records several runs of one rider over the same floor: each run starts at the same place in the
+    lab (the integrator's travel 0 at the start of its warm-up), so what is fixed in the lab is met again.
+
+    Parameters
+    ----------
+    spec : RideSpec
+    seed : int or sequence of int
+        Seed of the run's draws.
+    kind : str, optional
+        Speed-profile kind (default: the spec's).
+    v_max, disturbance_scale : float
+        As for :func:`draw_spec`.
+    """
+    rng = np.random.default_rng(seed)
+    kind = kind or spec.info.get("kind", "mixed")
+    profile, dists, bands = _draw_excitation(rng, spec.duration, kind, v_max, disturbance_scale)
+    info = dict(spec.info, disturbances=bands, run_seed=seed if isinstance(seed, int) else list(seed))
+    return dataclasses.replace(spec, profile=profile, dist_h=dists["dist_h"], dist_d=dists["dist_d"],
+                               dist_v=dists["dist_v"], info=info)
 
 
 @dataclass
