@@ -151,6 +151,14 @@ def low_pass(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
 
 
 def _signals(ctx) -> dict:
+    full = ctx.extras.get("full")
+    if full is not None and len(full["index"]) == np.shape(ctx.t)[0]:
+        # every sample of the recording: the columns are made there and passed through the states' filter
+        return {"t": np.asarray(full["t"], float), "v": np.asarray(full["v"], float), "s": np.asarray(full["s"], float),
+                "psi": full["psi"], "X": full["X"], "Y": full["Y"], "phi_dot": full["phi_dot"],
+                "gamma_dot": full["gamma_dot"], "R": float(np.mean(ctx.params.R)),
+                "name": ctx.extras.get("recording", ""), "index": np.asarray(full["index"]),
+                "smooth": savgol_kernel(full["window"], full["polyorder"])}
     v = np.asarray(ctx.x_dot, float)
     t = np.asarray(ctx.t, float)
     s = ctx.extras.get("path_s")
@@ -161,6 +169,24 @@ def _signals(ctx) -> dict:
             "Y": np.asarray(ctx.extras.get("lab_y", np.zeros_like(t)), float),
             "phi_dot": np.asarray(ctx.phi_dot, float), "gamma_dot": np.asarray(ctx.gamma_dot, float),
             "R": float(np.mean(ctx.params.R)), "name": ctx.extras.get("recording", "")}
+
+
+def savgol_kernel(window: int, polyorder: int) -> np.ndarray:
+    """The Savitzky-Golay smoothing weights (value at the window's centre) of ``window`` samples."""
+    return signal.savgol_coeffs(int(window), int(polyorder), deriv=0, use="dot")
+
+
+def _as_seen(C: np.ndarray, sig: dict) -> np.ndarray:
+    """Columns made on every sample, smoothed by the states' Savitzky-Golay filter and taken at the analysed
+    samples: an extra force moves the residual through the filtered accelerations, so a force faster than the
+    filter's passband (a tyre's harmonics at speed, a short bump passed quickly) reaches it smoothed alike."""
+    if "smooth" not in sig:
+        return C
+    k = sig["smooth"]
+    h = k.size // 2
+    Cp = np.pad(C, ((h, h), (0, 0)), mode="edge")
+    S = signal.oaconvolve(Cp, k[::-1, None], mode="valid", axes=0)
+    return S[sig["index"]]
 
 
 def _state(sig: dict, name: str) -> np.ndarray:
@@ -183,7 +209,10 @@ class Families:
 
     def __init__(self, ctxs: Sequence, families: Sequence[Family] = FAMILIES):
         sigs = [_signals(c) for c in ctxs]
-        cat = {k: np.concatenate([s[k] for s in sigs]) for k in ("X", "Y", "v")}
+        # ranges and knots from the analysed samples
+        at = [{k: (np.asarray(v)[s["index"]] if "index" in s and k in ("X", "Y", "v") else v) for k, v in s.items()}
+              for s in sigs]
+        cat = {k: np.concatenate([s[k] for s in at]) for k in ("X", "Y", "v")}
         self.ranges: dict[str, tuple[float, float, list[np.ndarray]]] = {}
         for name, x in (("X", cat["X"]), ("Y", cat["Y"]), ("speed", np.abs(cat["v"]))):
             lo, hi = (float(np.min(x)), float(np.max(x))) if x.size else (0.0, 0.0)
@@ -202,7 +231,7 @@ class Families:
             if fam.kind in ("lab", "speed") and self._degenerate(fam):
                 continue
             top = n_levels(fam) - 1
-            C = np.concatenate([self._columns(fam, top, s) for s in sigs]) if sigs else np.zeros((0, 1))
+            C = np.concatenate([_as_seen(self._columns(fam, top, s), s) for s in sigs]) if sigs else np.zeros((0, 1))
             scale = np.linalg.norm(C, axis=0)
             if not np.any(scale > 0):
                 continue
@@ -273,7 +302,7 @@ class Families:
             self._cache.move_to_end(key)
             return hit[1]
         sig = _signals(ctx)
-        out = {(f, lv): self._columns(fam, lv, sig) for f, fam in enumerate(self.families)
+        out = {(f, lv): _as_seen(self._columns(fam, lv, sig), sig) for f, fam in enumerate(self.families)
                for lv in range(n_levels(fam))}
         self._cache[key] = (arrays, out)
         if len(self._cache) > self.CACHE:

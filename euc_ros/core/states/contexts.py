@@ -160,5 +160,11 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
         ctx.extras["lab_x"] = np.nan_to_num(st.C[valid, 0])
         ctx.extras["lab_y"] = np.nan_to_num(st.C[valid, 1])
         ctx.extras["recording"] = st.name
+        # the full-rate signals and the states' filter, for basis functions made as the states were
+        # (:mod:`euc_ros.core.residual.families`: a force reaches the residual through that filter)
+        ctx.extras["full"] = {"t": st.t - st.t[0], "v": xd, "s": s_path, "psi": np.nan_to_num(np.unwrap(st.psi)),
+                              "X": np.nan_to_num(st.C[:, 0]), "Y": np.nan_to_num(st.C[:, 1]),
+                              "phi_dot": np.nan_to_num(st.phi_dot), "gamma_dot": np.nan_to_num(st.gamma_dot),
+                              "index": np.flatnonzero(valid), "window": int(window), "polyorder": int(st.polyorder)}
         out.append(Recording(st.name, ctx, block, np.flatnonzero(valid)))
     return out
