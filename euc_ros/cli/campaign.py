@@ -72,6 +72,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     w.add_argument("--rtol", type=float, default=None, help="integrator relative tolerance [1e-8]")
     w.add_argument("--table", default=None, metavar="MD", help="Markdown report [OUT/open_world.md]")
     w.add_argument("--figure", default=None, metavar="PNG", help="its figure [OUT/open_world.png]")
+    w.add_argument("--reuse", action="append", default=[], metavar="RESULTS.csv",
+                   help="rows of an earlier run (its results.csv, or rows.jsonl of a run cut short) kept instead of "
+                        "running their rides again: a run "
+                        "cut short, or a larger --per-family than before, continues (rows are pure functions of "
+                        "seed and family; repeatable)")
     for p in (s, z):
         p.add_argument("--residual", action="store_true", help="also run euc-ros residual")
     for p in (s, z, w):
@@ -142,13 +147,34 @@ def main(args: argparse.Namespace) -> int:
         outputs += [Output("--table", args.table), Output("--figure", args.figure)]
     check_outputs(outputs, getattr(args, "root", []))
     tasks = tasks_from_args(args)
+    kept = []
+    if getattr(args, "reuse", None):
+        from euc_ros.cli import open_world as ow
+
+        names = {t.name for t in tasks}
+        earlier = {}
+        for path in args.reuse:
+            if not Path(path).is_file():
+                raise ConfigError(f"{path}: no such results file", key="--reuse")
+            rows_then = ([json.loads(line) for line in Path(path).read_text(encoding="utf-8").splitlines() if line]
+                         if str(path).endswith(".jsonl") else ow.read_rows(path))
+            earlier.update({r["task"]: r for r in rows_then if r["status"] == "ok" and r["task"] in names})
+        kept = [earlier[n] for n in sorted(earlier)]
+        tasks = [t for t in tasks if t.name not in earlier]
     bar = None
     if not args.no_progress:
         from tqdm import tqdm
 
         bar = tqdm(total=len(tasks), desc="campaign", unit="task", file=sys.stderr)
 
+    # every row as it comes (a run cut short keeps what it made: --reuse reads this file too)
+    out.mkdir(parents=True, exist_ok=True)
+    partial = out / "rows.jsonl"
+    partial.write_text("", encoding="utf-8")
+
     def progress(done, total, row):
+        with open(partial, "a", encoding="utf-8") as f:
+            f.write(json.dumps(row, default=str) + "\n")
         if bar is not None:
             bar.update(1)
         if row["status"] != "ok":
@@ -159,7 +185,10 @@ def main(args: argparse.Namespace) -> int:
     print(f"campaign: {len(tasks)} task(s) {where}", file=sys.stderr)
     start = time.perf_counter()
     rows = cmp.run_campaign(tasks, scheduler=args.scheduler, workers=args.workers, serial=args.serial,
-                            progress=progress)
+                            progress=progress) if tasks else []
+    if kept:
+        rows = sorted(kept + rows, key=lambda r: r["task"])
+        print(f"campaign: {len(kept)} row(s) reused from {', '.join(args.reuse)}", file=sys.stderr)
     if bar is not None:
         bar.close()
     out.mkdir(parents=True, exist_ok=True)

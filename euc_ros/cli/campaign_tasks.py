@@ -216,6 +216,9 @@ def run_campaign(tasks: list[Task], *, scheduler: str | None = None, workers: in
                            error=f"{type(exc).__name__}: {exc}")
                 if task.kind == "open_world":
                     row.update(family=task.simulate.get("family"), seed=task.seed)
+            # the row is here: its result on the worker is let go, so a worker lost later does not make the
+            # cluster compute the task again ahead of those still waiting
+            fut.release()
             rows.append(row)
             if progress:
                 progress(len(rows), len(tasks), row)

@@ -70,6 +70,8 @@ REFINE = 1
 #: Bound of |design ratio - target| after :data:`REFINE` corrections: on 40 tuning rides (seeds 10-17, every
 #: family, 20 s) the largest was 0.042 (a wheel law as a pitch torque), the 90th percentile 0.006.
 RATIO_TOLERANCE = 0.05
+#: Excitations drawn for a further run before the ride is a failure (a run that falls is drawn again).
+MAX_RUN_DRAWS = 5
 #: Laws drawn for a ride before it is a failure (a law under which the ride falls is drawn again).
 MAX_LAW_DRAWS = 5
 #: Second key of the ride's random stream (first: the seed; then the family's index).
@@ -159,12 +161,24 @@ def seen_effect(effect, rate_hz: float) -> np.ndarray:
 
 
 def _runs(seed: int, family: str, spec, n: int, rate_hz: float, rtol: float, force=None) -> list:
-    """The ride's ``n`` runs: the seed's own draw first, then :func:`~euc_ros.core.worldsim.simulate.another_run`s
-    (same rider, EUC, controllers and place; their own profiles and disturbances), with ``force``."""
+    """The ride's further ``n - 1`` runs (the first is the seed's own draw):
+    :func:`~euc_ros.core.worldsim.simulate.another_run` (runs of the same rider, EUC, controllers and place; their own
+    profiles and disturbances), with ``force``."""
     from euc_ros.core.worldsim.simulate import another_run, simulate
 
-    specs = [spec] + [another_run(spec, [int(seed), FAMILIES.index(family), STREAM, 100 + k]) for k in range(1, n)]
-    return [simulate(dataclasses.replace(sp, force=force), rate_hz, rtol=rtol) for sp in specs]
+    out = []
+    for k in range(1, n):
+        # a run that falls is drawn again (its own sub-seeds), as simulate_ride does for the first
+        for attempt in range(MAX_RUN_DRAWS):
+            key = [int(seed), FAMILIES.index(family), STREAM, 100 + k] + ([attempt] if attempt else [])
+            sp = another_run(spec, key)
+            try:
+                out.append(simulate(dataclasses.replace(sp, force=force), rate_hz, rtol=rtol))
+                break
+            except ConfigError:
+                if attempt == MAX_RUN_DRAWS - 1:
+                    raise
+    return out
 
 
 def _write_runs(rides: list, out: Path, seed: int, artefact_mm: float) -> dict:
@@ -214,7 +228,7 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
     ratio = float(rng.uniform(*F.RATIO_RANGE))
     ride0 = simulate_ride(int(seed), rate_hz, duration=duration, rtol=rtol)
     spec, p = ride0.spec, ride0.spec.plant
-    rides0 = [ride0] + _runs(seed, family, spec, runs, rate_hz, rtol)[1:]
+    rides0 = [ride0] + _runs(seed, family, spec, runs, rate_hz, rtol)
     info = {"artefact_mm": artefact_mm, "ratio_target": None, "floor_nm": None, "calibration": None, "law": None,
             "effect_truth_nm": 0.0}
     if family == "none":
@@ -244,7 +258,7 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
                 ride = simulate(dataclasses.replace(spec, force=law), rate_hz, rtol=rtol)
                 cal["amplitudes"].append(law.amplitude)
                 cal["effects_nm"].append(_seen_rms([ride], rate_hz))
-            rides = [ride] + _runs(seed, family, spec, runs, rate_hz, rtol, force=law)[1:]
+            rides = [ride] + _runs(seed, family, spec, runs, rate_hz, rtol, force=law)
             break
         except (ConfigError, RuntimeError) as exc:      # a run falls, or the integration fails
             rejected.append({"law": law.describe(), "error": str(exc)})
@@ -403,6 +417,8 @@ def read_rows(path) -> list[dict]:
     def value(text: str):
         if text == "":
             return None
+        if text in ("inf", "-inf", "nan"):
+            return float(text)
         try:
             return json.loads(text)
         except ValueError:
@@ -477,7 +493,7 @@ def summarize(rows: list[dict]) -> dict:
 
 
 def _fmt(v, spec: str = ".0f", unit: str = "") -> str:
-    if v is not None and math.isinf(v):
+    if isinstance(v, (int, float)) and math.isinf(v):
         return "unbounded"
     return "-" if v is None else f"{v:{spec}}{unit}"
 
