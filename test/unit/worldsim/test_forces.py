@@ -321,7 +321,8 @@ def test_campaign_open_world_runs_end_to_end(tmp_path):
     # a larger run continues from this one: its rows are kept, only the new ride is made
     more = tmp_path / "ow2"
     code = main(["campaign", "open-world", "--seeds", "tuning", "--per-family", "2", "--families", "none",
-                 "--duration", "8", "--serial", "--no-progress", "--out", str(more), "--reuse", str(out / "results.csv")])
+                 "--duration", "8", "--serial", "--no-progress", "--out", str(more),
+                 "--reuse", str(out / "results.csv")])
     rows2 = list(csv.DictReader(open(more / "results.csv", encoding="utf-8")))
     assert code == 0 and [r["task"] for r in rows2] == ["none_000000", "none_000001"]
     assert rows2[0] == rows[1]                         # reused as it was, seconds included
