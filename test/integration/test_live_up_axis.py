@@ -53,8 +53,10 @@ def _launch(session: Path, csv: Path, *extra: str, timeout: float = 120) -> subp
 
 
 def _identify_h(session: Path, recording: Path, out: Path) -> float:
-    subprocess.run([EUC_ROS, "identify", str(session), str(recording), "--json", str(out), "--no-progress"],
-                   check=True, capture_output=True, text=True, timeout=120)
+    # a fixed filter: the up axis is what is compared (a wrong one moves h by decimetres); the filter chosen from
+    # the data may take another window when a loaded host's bag misses the first frames, and h with it
+    subprocess.run([EUC_ROS, "identify", str(session), str(recording), "--json", str(out), "--no-progress",
+                    "--window-s", "1.2"], check=True, capture_output=True, text=True, timeout=120)
     return json.loads(out.read_text())["h_m"]
 
 
