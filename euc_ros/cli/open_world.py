@@ -87,7 +87,8 @@ NOT_LIBRARY = ("none", "discovered", "unexplained")
 FAMILY_ALIASES = {"lab": "lab_field", "lab_field": "lab_field", "lab field": "lab_field", "position": "lab_field",
                   "field": "lab_field", "wheel": "wheel", "wheel_angle": "wheel", "wheel angle": "wheel",
                   "periodic": "wheel", "speed": "speed", "velocity": "speed", "drift": "drift", "time": "drift",
-                  "dynamic": "dynamic", "dynamics": "dynamic", "lag": "dynamic", "filter": "dynamic"}
+                  "dynamic": "dynamic", "dynamics": "dynamic", "lag": "dynamic", "filter": "dynamic",
+                 "wheel rotation": "wheel"}
 
 #: Columns of results.csv.
 COLUMNS = ("task", "family", "seed", "status", "error", "seconds", "ride_seed", "point", "law", "amplitude", "unit",

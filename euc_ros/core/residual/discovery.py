@@ -46,12 +46,17 @@ from euc_ros.core.residual.families import (
     POINT_UNITS,
     POINTS,
     Families,
+    align_wheel_phases,
     fewest_within_one_se,
     group_path,
     independent_columns,
     n_levels,
+    support_mask,
+    wheel_phase_mix,
 )
+from euc_ros.core.residual.folds import SAMPLES_PER_BLOCK
 from euc_ros.core.residual.selection import H_BOUNDS, HeldOut, Model, block_offsets, fit_model, held_out
+from euc_ros.core.residual.shrinkage import fit_with_free
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
 from euc_ros.core.states.contexts import Recording
 
@@ -76,10 +81,31 @@ class Group:
     level: int
     point: int
     keep: tuple[int, ...] | None = None
+    phases: tuple[float, ...] | None = None
+
+    def mix(self) -> np.ndarray | None:
+        """For the aligned wheel family with its phase offsets: the matrix from the family's raw columns to the
+        group's (:func:`~euc_ros.core.residual.families.wheel_phase_mix`); else None."""
+        return None if self.phases is None else wheel_phase_mix(np.asarray(self.phases, float), self.level + 1)
 
     def columns(self, basis: Families) -> np.ndarray:
-        """Indices of the fitted columns among the family's columns at this level."""
-        return np.array(self.keep, int) if self.keep is not None else np.arange(basis.width(self.family, self.level))
+        """Indices of the fitted columns among the group's columns (the family's at this level, or their
+        phase-aligned combinations)."""
+        if self.keep is not None:
+            return np.array(self.keep, int)
+        M = self.mix()
+        return np.arange(M.shape[1] if M is not None else basis.width(self.family, self.level))
+
+    def of(self, basis: Families, C: np.ndarray) -> np.ndarray:
+        """The group's fitted columns from the family's raw columns ``C`` (..., raw)."""
+        M = self.mix()
+        return (C if M is None else C @ M)[..., self.columns(basis)]
+
+
+def is_aligned(basis: Families, g: Group) -> bool:
+    """True for a group of the wheel family with a phase offset per recording."""
+    fam = basis.families[g.family]
+    return fam.kind == "wheel" and bool(fam.option)
 
 
 def _json(a):
@@ -135,7 +161,7 @@ class DiscoveredEffect(Candidate):
         dQ = np.zeros((n, 3))
         jx = jz = None
         for g, sl in zip(self.groups, self.slices()):
-            f = cols[(g.family, g.level)][:, g.columns(self.basis)] @ np.asarray(theta[sl], float)
+            f = g.of(self.basis, cols[(g.family, g.level)]) @ np.asarray(theta[sl], float)
             if g.point == 0:
                 dQ[:, 0] += f
             elif g.point == 3:
@@ -180,7 +206,7 @@ class DiscoveredEffect(Candidate):
         for k, (g, sl) in enumerate(zip(self.groups, self.slices())):
             fam = self.basis.families[g.family]
             grid, Phi, curves = self.basis.curve(g.family, g.level)
-            Phi = Phi[:, :, g.columns(self.basis)]
+            Phi = g.of(self.basis, Phi)
             c = theta[sl]
             values = Phi @ c
             if cov is not None and np.all(np.isfinite(cov[sl, sl])) and np.isfinite(q):
@@ -281,29 +307,85 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     slices = [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
     keys = [g.family for g in groups]    # one point per family: the points are weakly resolved
     offsets = block_offsets(recs)
+    args = [basis.arguments(r.ctx) for r in recs]
+    # the aligned wheel family: its groups' phases are fitted (one offset per recording but the first)
+    n_runs = len(basis.run_names)
+    aligned = [j for j, g in enumerate(groups) if is_aligned(basis, g)]
+    tops = {groups[j].point: j for j in aligned if groups[j].level == n_levels(basis.families[groups[j].family]) - 1}
+    extra_df = [float(n_runs - 1) if j in aligned else 0.0 for j in range(len(groups))]
+
+    def ones(n):
+        return np.ones(n, bool)
 
     def with_h(r0, B, hc):
         # h is always in the model: the groups are chosen for, and fitted with, the h column projected out
         u = hc / max(np.linalg.norm(hc), 1e-300)
         return r0 - u * (u @ r0), B - np.outer(u, u @ B)
 
-    def path(r0, B, hc, blocks):
+    def layout(r0, B, hc):
+        """The candidate groups' columns as the selection sees them: an aligned wheel group's raw per-recording
+        columns turned into one function with a phase offset per recording, the offsets fitted to ``r0`` (h
+        projected out) at the group's point with every harmonic (the offsets are the recordings' tyre angles,
+        the same at every level). Returns ``(B', slices', phases per group or None, turn)``: ``turn(Bt)`` makes
+        the same columns of other rows."""
         r0p, Bp = with_h(r0, B, hc)
-        return group_path(r0p, [Bp[:, sl] for sl in slices], keys, MAX_GROUPS,
-                          n_eff=float(np.unique(blocks).size), n_fixed=1, kinds=[g.family for g in groups]), Bp
+        phases: list = [None] * len(groups)
+        mixes: dict[int, np.ndarray] = {}
+        at_point: dict[int, np.ndarray] = {}
+        for j in aligned:
+            g = groups[j]
+            if g.point not in at_point:
+                top = tops[g.point]
+                at_point[g.point] = align_wheel_phases(Bp[:, slices[top]], r0p, groups[top].level + 1, n_runs)
+            phases[j] = tuple(float(d) for d in at_point[g.point])
+            mixes[j] = wheel_phase_mix(at_point[g.point], g.level + 1)
 
-    def cols_of(chosen, Bp):
+        def turn(X):
+            return np.concatenate([X[:, sl] @ mixes[j] if j in mixes else X[:, sl] for j, sl in enumerate(slices)],
+                                  axis=1)
+
+        widths_ = [mixes[j].shape[1] if j in mixes else sl.stop - sl.start for j, sl in enumerate(slices)]
+        e = np.concatenate([[0], np.cumsum(widths_)]).astype(int)
+        return turn(B), [slice(a, b) for a, b in zip(e[:-1], e[1:])], phases, turn
+
+    def path(r0, B, hc, blocks, sls):
+        r0p, Bp = with_h(r0, B, hc)
+        return group_path(r0p, [Bp[:, sl] for sl in sls], keys, MAX_GROUPS,
+                          n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), n_fixed=1,
+                          kinds=[g.family for g in groups], extra_df=extra_df), Bp
+
+    def cols_of(chosen, Bp, sls):
         # the chosen groups' columns that add a direction (h projected out)
-        cols = np.concatenate([np.arange(slices[j].start, slices[j].stop) for j in chosen])
+        cols = np.concatenate([np.arange(sls[j].start, sls[j].stop) for j in chosen])
         return cols[independent_columns(Bp[:, cols])]
 
-    def as_groups(chosen, cols):
+    def as_groups(chosen, cols, sls, phases):
         out = []
         for j in chosen:
-            local = cols[(cols >= slices[j].start) & (cols < slices[j].stop)] - slices[j].start
+            local = cols[(cols >= sls[j].start) & (cols < sls[j].stop)] - sls[j].start
             if local.size:
-                out.append(Group(groups[j].family, groups[j].level, groups[j].point, tuple(int(i) for i in local)))
+                out.append(Group(groups[j].family, groups[j].level, groups[j].point, tuple(int(i) for i in local),
+                                 phases[j]))
         return out
+
+    def fold_support(tr_rows, te_rows) -> dict[int, np.ndarray]:
+        # per family with an argument (lab position, speed): the test samples inside the training samples'
+        # range of it (a drift extrapolates by design: its held-out test is the rest of its recording)
+        out = {}
+        for f, fam in enumerate(basis.families):
+            if f in args[0] and fam.kind != "drift":
+                out[f] = support_mask(np.concatenate([args[i][f][rw] for i, rw in tr_rows]),
+                                      np.concatenate([args[i][f][rw] for i, rw in te_rows]))
+        return out
+
+    def group_scales(B, sls):
+        out = np.empty(B.shape[1])
+        for sl in sls:
+            out[sl] = np.sqrt(np.mean(np.sum(B[:, sl] ** 2, axis=0))) if sl.stop > sl.start else 1.0
+        return out
+
+    def family_of_columns(sls):
+        return np.concatenate([np.full(sl.stop - sl.start, groups[j].family) for j, sl in enumerate(sls)])
 
     def select(h_lin: float | None):
         # h_lin None: linearised at the current model's fit (in each fold its own h); else at h_lin, with h
@@ -320,6 +402,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         hcol = [(current.residual(r, x1)[0] - b[0]) / dh for r, b in zip(recs, base)]
         per_k: dict[int, list[np.ndarray]] = {}
         test_blocks = []
+
         for fold, x_fold in zip(folds, current_ho.params):
             x_fold = np.array(x_fold, float)
             if h_lin is not None:
@@ -329,13 +412,13 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             idx = [i for i, f in enumerate(fres) if f is not None]
             tr_rows = [(i, np.asarray(fold.train[i], bool) & fres[i][1]) for i in idx]
             r0 = np.concatenate([fres[i][0][rw] for i, rw in tr_rows])
-            B = np.concatenate([B_all[i][rw] for i, rw in tr_rows])
             hc = np.concatenate([hcol[i][rw] for i, rw in tr_rows])
+            B, sls, _, turn = layout(r0, np.concatenate([B_all[i][rw] for i, rw in tr_rows]), hc)
             blocks = np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in tr_rows])
-            sets, Bp = path(r0, B, hc, blocks)
+            sets, Bp = path(r0, B, hc, blocks, sls)
             te_rows = [(i, np.asarray(fold.test[i], bool) & fres[i][1]) for i in idx if np.any(fold.test[i])]
             r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
-            Bt = np.concatenate([B_all[i][rw] for i, rw in te_rows])
+            Bt = turn(np.concatenate([B_all[i][rw] for i, rw in te_rows]))
             hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
             test_blocks.append(np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in te_rows]))
             if h_lin is None:
@@ -343,11 +426,18 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             else:
                 c0 = -(hc @ r0) / max(hc @ hc, 1e-300)
                 per_k.setdefault(0, []).append(r0t + hct * c0)
+            inside = fold_support(tr_rows, te_rows)
+            col_family = family_of_columns(sls)
+            # the prior's scale: a group's columns alike (a spline piece the training rows hardly visit is held
+            # to the size of its neighbours, not to its own few samples)
+            scale = group_scales(B, sls)
             for k, chosen in enumerate(sets, start=1):
-                cols = cols_of(chosen, Bp)
-                A = np.column_stack([hc, B[:, cols]])
-                c, *_ = np.linalg.lstsq(A, -r0, rcond=None)
-                per_k.setdefault(k, []).append(r0t + np.column_stack([hct, Bt[:, cols]]) @ c)
+                cols = cols_of(chosen, Bp, sls)
+                c = fit_with_free(hc, B[:, cols], -r0, n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size),
+                                  norms=scale[cols])
+                # outside the range its training data covered, a group predicts nothing (no extrapolation)
+                W = np.column_stack([inside.get(col_family[j], ones(hct.size)) for j in cols])
+                per_k.setdefault(k, []).append(r0t + hct * c[0] + (Bt[:, cols] * W) @ c[1:])
         complete = {k: np.concatenate(v) for k, v in per_k.items() if len(v) == len(folds)}
         rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
         # parsimony: the fewest groups within one standard error of the best held-out error
@@ -356,16 +446,16 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             return rmse, 0, complete, None, None, 0.0
         rows = [b[1] for b in base]
         r0 = np.concatenate([b[0][m] for b, m in zip(base, rows)])
-        B = np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)])
         hc = np.concatenate([h[m] for h, m in zip(hcol, rows)])
+        B, sls, phases, _ = layout(r0, np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)]), hc)
         blocks = np.concatenate([r.block[m] + o for r, m, o in zip(recs, rows, offsets)])
-        sets, Bp = path(r0, B, hc, blocks)
+        sets, Bp = path(r0, B, hc, blocks, sls)
         if not sets:
             return rmse, 0, complete, None, None, 0.0
         chosen = sets[min(best_k, len(sets)) - 1]
-        cols = cols_of(chosen, Bp)
+        cols = cols_of(chosen, Bp, sls)
         c, *_ = np.linalg.lstsq(np.column_stack([hc, B[:, cols]]), -r0, rcond=None)
-        return rmse, best_k, complete, as_groups(chosen, cols), c[1:], float(c[0])
+        return rmse, best_k, complete, as_groups(chosen, cols, sls, phases), c[1:], float(c[0])
 
     def finalize(sel, h_lin):
         """The chosen groups fitted jointly with h and all parameters, and their held-out residual."""
@@ -377,8 +467,58 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         start = np.concatenate([current_x, c])
         start[0] = float(np.clip(h_lin + dhh, *H_BOUNDS))
         full = fit_model(model, recs, h0, start=start)
-        return {"model": model, "x": full.x, "heldout": held_out(model, recs, h0, folds, start=full.x),
+        ho = structure_heldout(model, chosen, float(np.clip(full.x[0], *H_BOUNDS)))
+        return {"model": model, "x": full.x, "heldout": ho if ho is not None else held_out(model, recs, h0, folds,
+                                                                                            start=full.x),
                 "sel": sel, "h_lin": h_lin, "k": int(c.size)}
+
+    def structure_heldout(model: Model, chosen: list[Group], h_lin: float) -> HeldOut | None:
+        """Held-out residual of the chosen groups as the selection judged them: in each fold h and the groups'
+        coefficients fitted on the training rows (linearised at ``h_lin``, the coefficients shrunk,
+        :func:`~euc_ros.core.residual.shrinkage.fit_with_free`) and each group predicting only where its
+        training rows went. A plain refit of many flexible columns in each fold (Gauss-Newton from the fit on
+        all data) is as ill-determined as the selection's would be without the prior: a lab field's spline
+        piece a fold hardly visits gets any size. None when the samples do not pair with the current model's
+        held-out ones."""
+        x_lin = np.array(current_x, float)
+        x_lin[0] = h_lin
+        L = force_map(current, recs, x_lin)
+        cols = []
+        for r, Li in zip(recs, L):
+            gains = point_gains(r.ctx, Li)
+            raw = basis.columns(r.ctx)
+            cols.append(np.concatenate([g.of(basis, gains[:, g.point, None] * raw[(g.family, g.level)])
+                                        for g in chosen], axis=1))
+        fam = np.concatenate([np.full(g.columns(basis).size, g.family) for g in chosen])
+        width = [g.columns(basis).size for g in chosen]
+        res = []
+        for fold, x_fold in zip(folds, current_ho.params):
+            x_fold = np.array(x_fold, float)
+            x_fold[0] = h_lin
+            x1 = x_fold.copy()
+            x1[0] += 1e-3
+            fres = [current.residual(r, x_fold) for r in recs]
+            hcol = [(current.residual(r, x1)[0] - f[0]) / 1e-3 for r, f in zip(recs, fres)]
+            tr_rows = [(i, np.asarray(fold.train[i], bool) & fres[i][1]) for i in range(len(recs))]
+            te_rows = [(i, np.asarray(fold.test[i], bool) & fres[i][1]) for i in range(len(recs))
+                       if np.any(fold.test[i])]
+            r0 = np.concatenate([fres[i][0][rw] for i, rw in tr_rows])
+            hc = np.concatenate([hcol[i][rw] for i, rw in tr_rows])
+            B = np.concatenate([cols[i][rw] for i, rw in tr_rows])
+            blocks = np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in tr_rows])
+            e = np.concatenate([[0], np.cumsum(width)]).astype(int)
+            scale = group_scales(B, [slice(a, b) for a, b in zip(e[:-1], e[1:])])
+            c = fit_with_free(hc, B, -r0, n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), norms=scale)
+            r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
+            hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
+            Bt = np.concatenate([cols[i][rw] for i, rw in te_rows])
+            inside = fold_support(tr_rows, te_rows)
+            W = np.column_stack([inside.get(f, ones(hct.size)) for f in fam])
+            res.append(r0t + hct * c[0] + (Bt * W) @ c[1:])
+        residual = np.concatenate(res) if res else np.zeros(0)
+        if residual.shape != current_ho.residual.shape:
+            return None
+        return HeldOut(model, residual, current_ho.block, [], current_ho.index)
 
     def preferred(a, b):
         """The better of two discovered models by held-out error; a tie (the better not significantly better,

@@ -60,8 +60,13 @@ SIGN_SPEED = 0.05
 TIME_CONSTANTS_S = (0.1, 0.3, 1.0, 3.0)
 #: Most wheel-angle harmonics.
 MAX_HARMONICS = 4
-#: Spline levels: (degree, interior knots at quantiles of the observed argument).
+#: Spline levels of the speed: (degree, interior knots at quantiles of the observed argument).
 SPLINE_LEVELS = ((1, 0), (3, 0), (3, 3))
+#: Levels of a lab field: (degree, knot spacing [m]; None: no interior knot). A force fixed in the lab has
+#: features of its own size wherever they are (a mat, a door's draught, a ramp: about 1-5 m), so its finer
+#: levels space their knots evenly in metres over the lab range the recordings visit, not at quantiles
+#: of where the rider happened to be.
+LAB_LEVELS = ((1, None), (3, None), (3, 4.0), (3, 2.0), (3, 1.0))
 #: Highest drift polynomial degree per recording.
 MAX_DRIFT_DEGREE = 2
 #: Columns with less than this relative residual outside another family's span duplicate it on these recordings
@@ -115,6 +120,8 @@ def _family_list() -> list[Family]:
         for mod, label, unit in (("1", "", "1"), ("speed", " x_dot", "m/s"), ("sign", " sign(x_dot)", "1")):
             out.append(Family("lab", (coord, mod), "lab field", f"lab {coord}", "m", f"f({coord}){label} {proj}", unit))
     out.append(Family("wheel", (), "wheel rotation", "wheel angle s/R", "rad", "f(s/R)"))
+    out.append(Family("wheel", ("aligned",), "wheel rotation", "wheel angle s/R (+ a phase per recording)", "rad",
+                      "f(s/R + delta_run)"))
     out.append(Family("speed", ("odd",), "speed", "speed |x_dot|", "m/s", "f(|x_dot|) sign(x_dot)"))
     out.append(Family("speed", ("even",), "speed", "speed |x_dot|", "m/s", "f(|x_dot|)"))
     out.append(Family("drift", (), "drift", "time t per recording", "s", "f_run(t)"))
@@ -130,7 +137,7 @@ FAMILIES = tuple(_family_list())
 
 def n_levels(fam: Family) -> int:
     """Complexity levels of a family."""
-    return {"lab": len(SPLINE_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
+    return {"lab": len(LAB_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
             "drift": MAX_DRIFT_DEGREE + 1, "dyn": 2}[fam.kind]
 
 
@@ -139,6 +146,15 @@ def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np
     t = np.concatenate([np.full(degree + 1, lo), np.asarray(interior, float), np.full(degree + 1, hi)])
     xc = np.clip(np.asarray(x, float), lo, hi)
     return BSpline.design_matrix(xc, t, degree).toarray()
+
+
+def uniform_knots(lo: float, hi: float, spacing: float | None) -> np.ndarray:
+    """Interior knots every ``spacing`` (about: the range divided into equal pieces no longer than it) on
+    [lo, hi]; none for ``spacing`` None or an empty range."""
+    if spacing is None or not hi > lo:
+        return np.zeros(0)
+    pieces = max(int(np.ceil((hi - lo) / spacing)), 1)
+    return np.linspace(lo, hi, pieces + 1)[1:-1]
 
 
 def low_pass(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
@@ -216,8 +232,11 @@ class Families:
         self.ranges: dict[str, tuple[float, float, list[np.ndarray]]] = {}
         for name, x in (("X", cat["X"]), ("Y", cat["Y"]), ("speed", np.abs(cat["v"]))):
             lo, hi = (float(np.min(x)), float(np.max(x))) if x.size else (0.0, 0.0)
-            knots = [np.quantile(x, np.linspace(0, 1, k + 2)[1:-1]) if hi > lo else np.zeros(k)
-                     for _, k in SPLINE_LEVELS]
+            if name == "speed":
+                knots = [np.quantile(x, np.linspace(0, 1, k + 2)[1:-1]) if hi > lo else np.zeros(k)
+                         for _, k in SPLINE_LEVELS]
+            else:
+                knots = [uniform_knots(lo, hi, sp) for _, sp in LAB_LEVELS]
             self.ranges[name] = (lo, hi, knots)
         self.runs: dict[str, tuple[float, float]] = {}
         for s in sigs:
@@ -245,10 +264,11 @@ class Families:
         """Columns of family ``f`` at ``level``."""
         kind = self.families[f].kind
         if kind in ("lab", "speed"):
-            degree, interior = SPLINE_LEVELS[level]
-            return degree + interior + 1
+            name = self.families[f].option[0] if kind == "lab" else "speed"
+            degree = (LAB_LEVELS if kind == "lab" else SPLINE_LEVELS)[level][0]
+            return degree + len(self.ranges[name][2][level]) + 1
         if kind == "wheel":
-            return 2 * (level + 1)
+            return 2 * (level + 1) * (len(self.run_names) if self.families[f].option else 1)
         if kind == "drift":
             return len(self.run_names) * (level + 1)
         return len(TIME_CONSTANTS_S) * (level + 1)
@@ -260,7 +280,7 @@ class Families:
     # ------------------------------------------------------------------ columns
     def _spline(self, name: str, x: np.ndarray, level: int) -> np.ndarray:
         lo, hi, knots = self.ranges[name]
-        degree, _ = SPLINE_LEVELS[level]
+        degree = (SPLINE_LEVELS if name == "speed" else LAB_LEVELS)[level][0]
         return bspline_basis(x, lo, hi, degree, knots[level])
 
     def _columns(self, fam: Family, level: int, sig: dict) -> np.ndarray:
@@ -274,7 +294,17 @@ class Families:
         if fam.kind == "wheel":
             th = sig["s"] / sig["R"]
             k = np.arange(1, level + 2)
-            return np.concatenate([np.sin(np.outer(th, k)), np.cos(np.outer(th, k))], axis=1)
+            F = np.concatenate([np.sin(np.outer(th, k)), np.cos(np.outer(th, k))], axis=1)
+            if not fam.option:
+                return F
+            # the tyre's angle when a recording starts is not measured: the raw columns are the recording's own
+            # (zero on the others); the selection turns them into one function with a phase per recording
+            # (wheel_phase_mix)
+            out = np.zeros((v.size, len(self.run_names) * F.shape[1]))
+            if sig["name"] in self.runs:
+                j = self.run_names.index(sig["name"])
+                out[:, j * F.shape[1]:(j + 1) * F.shape[1]] = F
+            return out
         if fam.kind == "speed":
             B = self._spline("speed", np.abs(v), level)
             return B * np.tanh(v / SIGN_SPEED)[:, None] if fam.option[0] == "odd" else B
@@ -309,6 +339,22 @@ class Families:
             self._cache.popitem(last=False)
         return out
 
+    def arguments(self, ctx) -> dict[int, np.ndarray]:
+        """Each family's argument at the analysed samples of ``ctx`` (lab X or Y, speed, time), for the families
+        whose fit can only be trusted inside the range its training data covered (:func:`support_mask`); the
+        wheel angle (periodic) and the dynamics (driven by the states) are not among them."""
+        sig = _signals(ctx)
+        at = (lambda a: np.asarray(a, float)[sig["index"]]) if "index" in sig else (lambda a: np.asarray(a, float))
+        out = {}
+        for f, fam in enumerate(self.families):
+            if fam.kind == "lab":
+                out[f] = at(sig[fam.option[0]])
+            elif fam.kind == "speed":
+                out[f] = np.abs(at(sig["v"]))
+            elif fam.kind == "drift":
+                out[f] = at(sig["t"])
+        return out
+
     # ------------------------------------------------------------------ report
     def curve(self, f: int, level: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """The family's function on a grid over its argument's observed range.
@@ -326,7 +372,15 @@ class Families:
         if fam.kind == "wheel":
             grid = np.linspace(0.0, 2.0 * np.pi, g)
             k = np.arange(1, level + 2)
-            return grid, np.concatenate([np.sin(np.outer(grid, k)), np.cos(np.outer(grid, k))], axis=1)[None], [""]
+            F = np.concatenate([np.sin(np.outer(grid, k)), np.cos(np.outer(grid, k))], axis=1)
+            if not fam.option:
+                return grid, F[None], [""]
+            rows = []
+            for j, _ in enumerate(self.run_names):
+                P = np.zeros((g, len(self.run_names) * F.shape[1]))
+                P[:, j * F.shape[1]:(j + 1) * F.shape[1]] = F
+                rows.append(P)
+            return grid, np.stack(rows), list(self.run_names)
         if fam.kind == "speed":
             lo, hi, _ = self.ranges["speed"]
             grid = np.linspace(lo, hi, g)
@@ -349,6 +403,109 @@ class Families:
         return grid, np.concatenate(cols, axis=1)[None], [""]
 
 
+#: Grid of a recording's wheel phase offset (then refined on a grid of a tenth of its step) [rad].
+PHASE_GRID = 72
+#: Sweeps of the coordinate-wise search of the phase offsets.
+PHASE_SWEEPS = 2
+
+
+def phase_rotations(deltas: np.ndarray, harmonics: int) -> np.ndarray:
+    """Per offset ``d`` (m,), the (2 K, 2 K) block taking ``sin(k theta), cos(k theta)`` (k = 1..K, in that
+    order) to ``sin(k (theta + d)), cos(k (theta + d))``: (m, 2 K, 2 K)."""
+    d = np.atleast_1d(np.asarray(deltas, float))
+    K = int(harmonics)
+    k = np.arange(K)
+    ang = np.outer(d, k + 1.0)
+    c, s = np.cos(ang), np.sin(ang)
+    R = np.zeros((d.size, 2 * K, 2 * K))
+    R[:, k, k] = c                  # sin(k(theta+d)) = sin(k theta) cos(k d) + cos(k theta) sin(k d)
+    R[:, K + k, k] = s
+    R[:, k, K + k] = -s             # cos(k(theta+d)) = cos(k theta) cos(k d) - sin(k theta) sin(k d)
+    R[:, K + k, K + k] = c
+    return R
+
+
+def wheel_phase_mix(deltas: np.ndarray, harmonics: int) -> np.ndarray:
+    """Matrix (2 K n_runs, 2 K) turning the per-recording Fourier columns of the ``aligned`` wheel family into
+    one function of the wheel angle with a phase offset per recording: ``f(theta + delta_r)``.
+
+    The raw columns of recording r are ``sin(k theta), cos(k theta)`` (k = 1..K, in that order) and zero on
+    the others, so the group's columns are the raw ones times the stacked blocks of :func:`phase_rotations`.
+    """
+    return phase_rotations(deltas, harmonics).reshape(-1, 2 * int(harmonics))
+
+
+def align_wheel_phases(B: np.ndarray, r: np.ndarray, harmonics: int, n_runs: int) -> np.ndarray:
+    """Phase offsets (n_runs,) of the ``aligned`` wheel family that let one function of the wheel angle explain
+    ``r`` best (least squares on ``B`` (n, 2 K n_runs), the family's raw columns as they act on ``r``).
+
+    A tyre's angle when a recording starts is not measured, so a function shared by the recordings is out of
+    phase between them, and one free function per recording fits half-runs and predicts nothing. The first
+    recording with data is the reference (offset 0). With several harmonics the fit is multimodal in the
+    offsets, so each recording is first aligned with the reference alone (a global search on a grid of
+    :data:`PHASE_GRID` offsets, the two recordings' columns only), then all are refined together, one at a
+    time near their offsets (:data:`PHASE_SWEEPS` sweeps on a grid a tenth of the step).
+    """
+    B = np.asarray(B, float)
+    r = np.asarray(r, float)
+    K = int(harmonics)
+    w = 2 * K
+    G = B.T @ B
+    g = B.T @ r
+    live = [q for q in range(n_runs) if np.any(np.diag(G)[q * w:(q + 1) * w] > 0)]
+    deltas = np.zeros(n_runs)
+    if len(live) < 2:
+        return deltas
+    ridge = 1e-12 * max(float(np.trace(G)), 1e-300) * np.eye(w)
+
+    def blk(u, v):
+        return G[u * w:(u + 1) * w, v * w:(v + 1) * w]
+
+    def scores(runs: list[int], q: int, grid: np.ndarray) -> np.ndarray:
+        # M^T G M and M^T g with the other runs' rotations fixed and run q's over the grid
+        others = [u for u in runs if u != q]
+        Ro = {u: phase_rotations(deltas[u], K)[0] for u in others}
+        C = sum(Ro[u].T @ blk(u, v) @ Ro[v] for u in others for v in others)
+        P = sum(blk(q, v) @ Ro[v] for v in others)
+        c0 = sum(Ro[u].T @ g[u * w:(u + 1) * w] for u in others)
+        Rq = phase_rotations(grid, K)                                  # (m, w, w)
+        RqT = Rq.transpose(0, 2, 1)
+        A = C + RqT @ P + (RqT @ P).transpose(0, 2, 1) + RqT @ blk(q, q) @ Rq + ridge
+        b = c0 + RqT @ g[q * w:(q + 1) * w]
+        return np.einsum("mi,mi->m", b, np.linalg.solve(A, b[..., None])[..., 0])
+
+    step = 2.0 * np.pi / PHASE_GRID
+    coarse = np.arange(PHASE_GRID) * step
+    ref = live[0]
+
+    def refine(runs, q, around):
+        fine = around + np.linspace(-step, step, 21)
+        return float(np.mod(fine[int(np.argmax(scores(runs, q, fine)))], 2.0 * np.pi))
+
+    for q in live[1:]:
+        pair = [ref, q]
+        deltas[q] = refine(pair, q, coarse[int(np.argmax(scores(pair, q, coarse)))])
+    for _ in range(PHASE_SWEEPS):
+        for q in live[1:]:
+            deltas[q] = refine(live, q, deltas[q])
+    return deltas
+
+
+def support_mask(train: np.ndarray, test: np.ndarray) -> np.ndarray:
+    """Test samples whose argument lies inside the range of the training samples' (closed interval).
+
+    A flexible function fitted on one range and evaluated outside it extrapolates (a global cubic of the lab
+    position, a drift polynomial past its training half, a speed spline above the fastest trained speed):
+    the held-out error would then judge the extrapolation, not the family. Outside the support a fold's
+    prediction leaves the group out, which is the model without it there.
+    """
+    train = np.asarray(train, float)
+    test = np.asarray(test, float)
+    if train.size == 0:
+        return np.zeros(test.shape, bool)
+    return (test >= np.min(train)) & (test <= np.max(train))
+
+
 def _inside(C: np.ndarray, K: np.ndarray) -> bool:
     """True when every column of ``C`` lies in the span of ``K`` (relative residual below DUPLICATE_TOL)."""
     if C.shape[0] != K.shape[0] or C.shape[1] > K.shape[1]:
@@ -360,7 +517,7 @@ def _inside(C: np.ndarray, K: np.ndarray) -> bool:
 # ---------------------------------------------------------------------- selection
 def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max_groups: int,
                n_eff: float | None = None, n_fixed: int = 0, beam_width: int | None = None,
-               kinds: Sequence | None = None) -> list[list[int]]:
+               kinds: Sequence | None = None, extra_df: Sequence[float] | None = None) -> list[list[int]]:
     """Group best-subset search by beam (group orthogonal matching pursuit when ``beam_width`` is 1): the sets
     of 1..max_groups groups that best explain ``r0`` (by the criterion below).
 
@@ -383,6 +540,9 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
     kinds : sequence, optional
         Each group's family (default: its key): the beam keeps the best set of each combination of
         families, so it is not filled by one family at several points and levels.
+    extra_df : sequence of float, optional
+        Parameters a group fitted besides its columns (the aligned wheel family's phase offsets), counted in
+        its degrees of freedom (default 0).
 
     Returns
     -------
@@ -405,6 +565,7 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
     """
     beam_width = BEAM_WIDTH if beam_width is None else max(int(beam_width), 1)
     kinds = list(keys) if kinds is None else list(kinds)
+    extra = [0.0] * len(groups) if extra_df is None else [float(e) for e in extra_df]
     r0 = np.asarray(r0, float)
     n = r0.size
     n_eff = float(n if n_eff is None else min(max(n_eff, 2.0), n))
@@ -413,31 +574,70 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
         nrm = np.linalg.norm(C, axis=0)
         normed.append(C[:, nrm > 0] / nrm[nrm > 0] if np.any(nrm > 0) else np.zeros((n, 0)))
     # beam of (score, chosen, Q, r, used keys)
+    # every group's columns side by side and their Gram blocks, so each candidate is scored in its own m x m
+    # space: with Q the chosen directions, the projected Gram is C'C - (Q'C)'(Q'C), its eigenvectors V and
+    # singular values sv give the new directions U = (C - Q Q'C) V / sv, and U'r = V'C'r / sv (r is already
+    # orthogonal to Q); groups of one width are scored together (batched eigh)
+    sizes = np.array([C.shape[1] for C in normed], int)
+    edges = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
+    allC = np.concatenate(normed, axis=1) if normed else np.zeros((n, 0))
+    kind_ids = {k: i for i, k in enumerate(dict.fromkeys(kinds))}
+    kind_of = np.array([kind_ids[k] for k in kinds], int)
+    extra_a = np.asarray(extra, float)
+    classes = []
+    for m in sorted(set(sizes.tolist()) - {0}):
+        js = np.flatnonzero(sizes == m)
+        cols = np.concatenate([np.arange(edges[j], edges[j + 1]) for j in js]).reshape(js.size, m)
+        classes.append((js, cols, np.stack([normed[j].T @ normed[j] for j in js])))
+
+    def directions(j, Q, r):
+        C = normed[j]
+        A = Q.T @ C
+        ev, V = np.linalg.eigh(C.T @ C - A.T @ A)
+        sv = np.sqrt(np.maximum(ev, 0.0))
+        keep = sv >= MIN_NEW_DIRECTION
+        U = ((C - Q @ A) @ V[:, keep]) / sv[keep]
+        return U, U.T @ r
+
     beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset())]
     out = []
     for _ in range(max_groups):
         grown = {}
         for _, chosen, Q, r, used in beam:
             rss = float(r @ r)
-            for j, C in enumerate(normed):
-                if keys[j] in used or C.shape[1] == 0:
+            QtC = Q.T @ allC
+            Ctr = allC.T @ r
+            base_df = Q.shape[1] + sum(extra[i] for i in chosen)
+            best_j, best_score = {}, {}
+            for js, cols, grams in classes:
+                ok = np.array([keys[j] not in used for j in js], bool)
+                if not ok.any():
                     continue
-                Cp = C - Q @ (Q.T @ C)
-                U, sv, _ = np.linalg.svd(Cp, full_matrices=False)
-                U = U[:, sv >= MIN_NEW_DIRECTION]
-                df = Q.shape[1] + U.shape[1]
-                if U.shape[1] == 0 or n - df - n_fixed <= 0:
-                    continue
-                z = U.T @ r
-                score = n_eff * np.log(max(rss - float(z @ z), 1e-300) / n) + df * np.log(n_eff)
+                js, cols, grams = js[ok], cols[ok], grams[ok]
+                A = QtC[:, cols].transpose(1, 0, 2)                          # (J, q, m)
+                ev, V = np.linalg.eigh(grams - np.einsum("jqm,jqk->jmk", A, A))
+                sv = np.sqrt(np.maximum(ev, 0.0))
+                keep = sv >= MIN_NEW_DIRECTION
+                proj = np.einsum("jmk,jm->jk", V, Ctr[cols]) / np.where(keep, sv, 1.0)
+                zz = np.sum(np.where(keep, proj * proj, 0.0), axis=1)
+                df = base_df + keep.sum(axis=1) + extra_a[js]
+                valid = keep.any(axis=1) & (n - df - n_fixed > 0)
+                score = n_eff * np.log(np.maximum(rss - zz, 1e-300) / n) + df * np.log(n_eff)
+                for i in np.flatnonzero(valid):
+                    kd = int(kind_of[js[i]])
+                    if kd not in best_score or score[i] < best_score[kd]:
+                        best_score[kd], best_j[kd] = float(score[i]), int(js[i])
+            for kd, j in best_j.items():
                 key = frozenset(kinds[i] for i in chosen + [j])
-                if key not in grown or score < grown[key][0]:
-                    grown[key] = (score, chosen + [j], Q, r, used, U, z)
+                if key not in grown or best_score[kd] < grown[key][0]:
+                    grown[key] = (best_score[kd], chosen + [j], Q, r, used)
         if not grown:
             break
         best = sorted(grown.values(), key=lambda e: e[0])[:beam_width]
-        beam = [(sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]})
-                for sc, ch, Q, r, used, U, z in best]
+        beam = []
+        for sc, ch, Q, r, used in best:
+            U, z = directions(ch[-1], Q, r)
+            beam.append((sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]}))
         out.append(list(beam[0][1]))
     return out
 

@@ -240,7 +240,10 @@ def write_ride(ride, out_dir, capture: Capture = Capture(), *, seed: int = 0, na
     rate = 1.0 / float(ride.t[1] - ride.t[0])
     rate = float(np.round(rate, 6))
     tr = ride.truth
-    pz = poses(tr["x"], tr["gamma"], tr["phi"], spec.rider, spec.plant.R, spec.plant.l_0, spec.place)
+    # the wheel starts at the placement's origin at the start of the warm-up; the recording starts after it, so
+    # its lab positions are the integrator's travel (a law fixed in the lab is met where the recording says)
+    x_lab = np.asarray(tr["x"], float) + float(ride.stats.get("x_offset_m", 0.0))
+    pz = poses(x_lab, tr["gamma"], tr["phi"], spec.rider, spec.plant.R, spec.plant.l_0, spec.place)
     rng = np.random.default_rng([int(seed), 7])
     pos, quat, keep = capture_poses(pz["position"], pz["quat"], capture, rng)
     if capture.world_up == "y":

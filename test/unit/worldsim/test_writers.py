@@ -36,7 +36,9 @@ def test_the_projects_reader_gives_back_the_poses(ride, tmp_path, world_up):
     series = read_motive_csv(paths["csv"], world_up=world_up)
     tr = ride.truth
     sp = ride.spec
-    ref = poses(tr["x"], tr["gamma"], tr["phi"], sp.rider, sp.plant.R, sp.plant.l_0, sp.place)
+    # the recording's lab position is the integrator's travel: the warm-up's travel before the first frame too
+    x_lab = tr["x"] + ride.stats["x_offset_m"]
+    ref = poses(x_lab, tr["gamma"], tr["phi"], sp.rider, sp.plant.R, sp.plant.l_0, sp.place)
     assert list(series.bodies) == list(ref["bodies"])
     assert np.array_equal(series.frame, np.arange(ride.t.size))
     assert np.allclose(series.t, ride.t, rtol=0, atol=1e-12)
