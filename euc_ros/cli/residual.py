@@ -105,6 +105,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     from euc_ros.core.residual.interval import base_widening, filter_refit
     from euc_ros.core.residual.noise import make_noise_floor
     from euc_ros.core.states.filter_choice import data_filtered
+    from euc_ros.core.states.time_offset import measure_time_offset
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
     min_gain = DEFAULT_MIN_GAIN if min_gain is None else min_gain
@@ -115,12 +116,18 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     if not 0 <= min_gain < 1:
         raise ConfigError(f"--min-gain must be in [0, 1), got {min_gain}", key="--min-gain")
     session = load_session(session_path)
-    cands = make_candidates(candidates, plausible)
     states = load_states(session, recordings, window_s=window_s, polyorder=polyorder, phi_definition=phi_definition,
                          progress=progress, keep_series=True, cog_method=cog_method)
     params = EucParams.from_session(session)
     say = (lambda m: print(m, file=sys.stderr, flush=True)) if progress else None
     series = [st.meta.get("series") for st in states]
+    # the rider-to-EUC time offset measured from the ankles on the pedals bounds the name mocap_time_offset
+    # (unless the user set its range)
+    offset = measure_time_offset(series, session) if all(s is not None for s in series) else None
+    ranges = dict(plausible or {})
+    if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
+        ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
+    cands = make_candidates(candidates, ranges)
     # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
     simex = SimexShare()
     noise_of = make_noise_floor(series, states, session, params, share=simex) \
@@ -156,6 +163,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         data["settings"]["phi_definition"] = phi_definition
     if plausible:
         data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
+    data["time_offset_measured"] = offset
     data["cog"] = cog_faults(states)
     return result, data, states, params
 

@@ -51,7 +51,6 @@ from euc_ros.core.residual.families import (
     group_path,
     independent_columns,
     n_levels,
-    support_mask,
     wheel_phase_mix,
 )
 from euc_ros.core.residual.folds import SAMPLES_PER_BLOCK
@@ -307,15 +306,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     slices = [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
     keys = [g.family for g in groups]    # one point per family: the points are weakly resolved
     offsets = block_offsets(recs)
-    args = [basis.arguments(r.ctx) for r in recs]
     # the aligned wheel family: its groups' phases are fitted (one offset per recording but the first)
     n_runs = len(basis.run_names)
     aligned = [j for j, g in enumerate(groups) if is_aligned(basis, g)]
     tops = {groups[j].point: j for j in aligned if groups[j].level == n_levels(basis.families[groups[j].family]) - 1}
     extra_df = [float(n_runs - 1) if j in aligned else 0.0 for j in range(len(groups))]
-
-    def ones(n):
-        return np.ones(n, bool)
 
     def with_h(r0, B, hc):
         # h is always in the model: the groups are chosen for, and fitted with, the h column projected out
@@ -368,24 +363,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
                                  phases[j]))
         return out
 
-    def fold_support(tr_rows, te_rows) -> dict[int, np.ndarray]:
-        # per family with an argument (lab position, speed): the test samples inside the training samples'
-        # range of it (a drift extrapolates by design: its held-out test is the rest of its recording)
-        out = {}
-        for f, fam in enumerate(basis.families):
-            if f in args[0] and fam.kind != "drift":
-                out[f] = support_mask(np.concatenate([args[i][f][rw] for i, rw in tr_rows]),
-                                      np.concatenate([args[i][f][rw] for i, rw in te_rows]))
-        return out
-
     def group_scales(B, sls):
         out = np.empty(B.shape[1])
         for sl in sls:
             out[sl] = np.sqrt(np.mean(np.sum(B[:, sl] ** 2, axis=0))) if sl.stop > sl.start else 1.0
         return out
-
-    def family_of_columns(sls):
-        return np.concatenate([np.full(sl.stop - sl.start, groups[j].family) for j, sl in enumerate(sls)])
 
     def select(h_lin: float | None):
         # h_lin None: linearised at the current model's fit (in each fold its own h); else at h_lin, with h
@@ -426,8 +408,6 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             else:
                 c0 = -(hc @ r0) / max(hc @ hc, 1e-300)
                 per_k.setdefault(0, []).append(r0t + hct * c0)
-            inside = fold_support(tr_rows, te_rows)
-            col_family = family_of_columns(sls)
             # the prior's scale: a group's columns alike (a spline piece the training rows hardly visit is held
             # to the size of its neighbours, not to its own few samples)
             scale = group_scales(B, sls)
@@ -435,9 +415,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
                 cols = cols_of(chosen, Bp, sls)
                 c = fit_with_free(hc, B[:, cols], -r0, n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size),
                                   norms=scale[cols])
-                # outside the range its training data covered, a group predicts nothing (no extrapolation)
-                W = np.column_stack([inside.get(col_family[j], ones(hct.size)) for j in cols])
-                per_k.setdefault(k, []).append(r0t + hct * c[0] + (Bt[:, cols] * W) @ c[1:])
+                per_k.setdefault(k, []).append(r0t + hct * c[0] + Bt[:, cols] @ c[1:])
         complete = {k: np.concatenate(v) for k, v in per_k.items() if len(v) == len(folds)}
         rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
         # parsimony: the fewest groups within one standard error of the best held-out error
@@ -475,11 +453,10 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     def structure_heldout(model: Model, chosen: list[Group], h_lin: float) -> HeldOut | None:
         """Held-out residual of the chosen groups as the selection judged them: in each fold h and the groups'
         coefficients fitted on the training rows (linearised at ``h_lin``, the coefficients shrunk,
-        :func:`~euc_ros.core.residual.shrinkage.fit_with_free`) and each group predicting only where its
-        training rows went. A plain refit of many flexible columns in each fold (Gauss-Newton from the fit on
-        all data) is as ill-determined as the selection's would be without the prior: a lab field's spline
-        piece a fold hardly visits gets any size. None when the samples do not pair with the current model's
-        held-out ones."""
+        :func:`~euc_ros.core.residual.shrinkage.fit_with_free`). A plain refit of many flexible columns in
+        each fold (Gauss-Newton from the fit on all data) is as ill-determined as the selection's would be
+        without the prior: a lab field's spline piece a fold hardly visits gets any size. None when the
+        samples do not pair with the current model's held-out ones."""
         x_lin = np.array(current_x, float)
         x_lin[0] = h_lin
         L = force_map(current, recs, x_lin)
@@ -489,7 +466,6 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             raw = basis.columns(r.ctx)
             cols.append(np.concatenate([g.of(basis, gains[:, g.point, None] * raw[(g.family, g.level)])
                                         for g in chosen], axis=1))
-        fam = np.concatenate([np.full(g.columns(basis).size, g.family) for g in chosen])
         width = [g.columns(basis).size for g in chosen]
         res = []
         for fold, x_fold in zip(folds, current_ho.params):
@@ -512,9 +488,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
             hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
             Bt = np.concatenate([cols[i][rw] for i, rw in te_rows])
-            inside = fold_support(tr_rows, te_rows)
-            W = np.column_stack([inside.get(f, ones(hct.size)) for f in fam])
-            res.append(r0t + hct * c[0] + (Bt * W) @ c[1:])
+            res.append(r0t + hct * c[0] + Bt @ c[1:])
         residual = np.concatenate(res) if res else np.zeros(0)
         if residual.shape != current_ho.residual.shape:
             return None

@@ -339,22 +339,6 @@ class Families:
             self._cache.popitem(last=False)
         return out
 
-    def arguments(self, ctx) -> dict[int, np.ndarray]:
-        """Each family's argument at the analysed samples of ``ctx`` (lab X or Y, speed, time), for the families
-        whose fit can only be trusted inside the range its training data covered (:func:`support_mask`); the
-        wheel angle (periodic) and the dynamics (driven by the states) are not among them."""
-        sig = _signals(ctx)
-        at = (lambda a: np.asarray(a, float)[sig["index"]]) if "index" in sig else (lambda a: np.asarray(a, float))
-        out = {}
-        for f, fam in enumerate(self.families):
-            if fam.kind == "lab":
-                out[f] = at(sig[fam.option[0]])
-            elif fam.kind == "speed":
-                out[f] = np.abs(at(sig["v"]))
-            elif fam.kind == "drift":
-                out[f] = at(sig["t"])
-        return out
-
     # ------------------------------------------------------------------ report
     def curve(self, f: int, level: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """The family's function on a grid over its argument's observed range.
@@ -489,21 +473,6 @@ def align_wheel_phases(B: np.ndarray, r: np.ndarray, harmonics: int, n_runs: int
         for q in live[1:]:
             deltas[q] = refine(live, q, deltas[q])
     return deltas
-
-
-def support_mask(train: np.ndarray, test: np.ndarray) -> np.ndarray:
-    """Test samples whose argument lies inside the range of the training samples' (closed interval).
-
-    A flexible function fitted on one range and evaluated outside it extrapolates (a global cubic of the lab
-    position, a drift polynomial past its training half, a speed spline above the fastest trained speed):
-    the held-out error would then judge the extrapolation, not the family. Outside the support a fold's
-    prediction leaves the group out, which is the model without it there.
-    """
-    train = np.asarray(train, float)
-    test = np.asarray(test, float)
-    if train.size == 0:
-        return np.zeros(test.shape, bool)
-    return (test >= np.min(train)) & (test <= np.max(train))
 
 
 def _inside(C: np.ndarray, K: np.ndarray) -> bool:
