@@ -60,6 +60,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     z.add_argument("--effect", action="append", default=[], metavar="NAME", help="hidden effect (repeatable)")
     z.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="effect parameter")
     z.add_argument("--no-noise", action="store_true", help="noise-free poses")
+    from euc_ros.cli.open_world import DURATION_S as OW_DURATION_S
+    from euc_ros.cli.open_world import RATE_HZ as OW_RATE_HZ
+    from euc_ros.cli.open_world import RTOL as OW_RTOL
+
     w = sub.add_parser("open-world", help="hidden random laws in generator rides: a per-family table",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     w.add_argument("--seeds", choices=("tuning", "report"), default="tuning",
@@ -67,9 +71,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     w.add_argument("--per-family", type=int, default=50, metavar="N", help="rides per family: the set's first N [50]")
     w.add_argument("--families", type=lambda t: [f.strip() for f in t.split(",") if f.strip()], default=None,
                    metavar="A,B", help="families (default: none,lab_field,wheel,speed,drift,dynamic)")
-    w.add_argument("--duration", type=float, default=None, metavar="S", help="ride length [s] [20]")
-    w.add_argument("--rate", type=float, default=None, metavar="HZ", help="frame rate [Hz] [120]")
-    w.add_argument("--rtol", type=float, default=None, help="integrator relative tolerance [1e-8]")
+    w.add_argument("--duration", type=float, default=None, metavar="S",
+                   help=f"length of each of a ride's runs [s] [{OW_DURATION_S:g}]")
+    w.add_argument("--rate", type=float, default=None, metavar="HZ", help=f"frame rate [Hz] [{OW_RATE_HZ:g}]")
+    w.add_argument("--rtol", type=float, default=None, help=f"integrator relative tolerance [{OW_RTOL:g}]")
     w.add_argument("--table", default=None, metavar="MD", help="Markdown report [OUT/open_world.md]")
     w.add_argument("--figure", default=None, metavar="PNG", help="its figure [OUT/open_world.png]")
     w.add_argument("--reuse", action="append", default=[], metavar="RESULTS.csv",

@@ -58,11 +58,11 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
     m = len(names)
     rows, vals = [], []
     spec_f, spec_p = None, None
-    usable = [_usable(s) for s in series_list]
+    usable = [usable_poses(s) for s in series_list]
     seen = 0
     for a, b, vector, threshold in links:
         # one link at a time: its deviation over every recording (no other link's arrays exist meanwhile)
-        devs = [_link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
+        devs = [link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
                 for s, ok in zip(series_list, usable)]
         if vector is None:
             v = np.concatenate([d[both] for d, both in devs])
@@ -120,7 +120,7 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
             "spectrum": spectrum}
 
 
-def _usable(series) -> np.ndarray:
+def usable_poses(series) -> np.ndarray:
     """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
 
     Body by body (the temporaries are one body's, never a copy of the recording's quaternions)."""
@@ -134,7 +134,7 @@ def _usable(series) -> np.ndarray:
     return out
 
 
-def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):
+def link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):
     """``R_a^T (p_b - p_a) - vector`` (n, 3) of one link over a recording, and where both bodies are usable.
 
     Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
@@ -151,7 +151,7 @@ def _link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 <
     vector = np.asarray(vector, float)
 
     if usable is None:
-        usable = _usable(series)
+        usable = usable_poses(series)
     for lo in range(0, n, block):
         hi = min(n, lo + block)
         oka, okb = usable[ja, lo:hi], usable[jb, lo:hi]

@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.rotations import quat_rotate
-from euc_ros.core.states.link_sliding import _link_deviation, _usable
+from euc_ros.core.states.link_sliding import link_deviation, usable_poses
 from euc_ros.core.states.skeleton import DEFAULT_LINKS
 
 #: Jackknife block length [s].
@@ -56,14 +56,14 @@ def measure_time_offset(series_list, session) -> dict | None:
     for s in series_list:
         if euc not in s.bodies:
             continue
-        usable = _usable(s)
+        usable = usable_poses(s)
         dt = 1.0 / float(s.rate_hz)
         je = s.bodies.index(euc)
         for b in links:
             if b not in s.bodies:
                 continue
             jb = s.bodies.index(b)
-            d, both = _link_deviation(s, euc, b, np.zeros(3), usable=usable)
+            d, both = link_deviation(s, euc, b, np.zeros(3), usable=usable)
             p = s.position[jb]
             v = np.full_like(p, np.nan)
             v[1:-1] = (p[2:] - p[:-2]) / (2.0 * dt)
