@@ -28,11 +28,11 @@ TREND_WINDOWS = 16.0
 #: blocks' log ratios -0.04); below half a window a block holds 3-4 correlated samples at the analysis rate and
 #: its mean square can come near 0 (log ratios of -10), which costs power.
 MIN_BLOCK_WINDOWS = 0.5
-#: Effective independent samples per block: a block is twice the residual noise's integrated autocorrelation
-#: time (:func:`residual_block_length`), and a correlated series of duration T holds T / tau_int effective
-#: samples, two per block (fewer where the block was lengthened to its minimum): what the discovery's
-#: information criterion and shrinkage count.
-SAMPLES_PER_BLOCK = 2.0
+#: Effective independent samples per block counted by the discovery's information criterion and shrinkage. A
+#: block is twice the residual noise's integrated autocorrelation time, so a series of duration T holds about two
+#: effective samples per block; counting two let the discovery fit coloured pose noise (a 1 Hz corner) with a
+#: low-passed pitch rate, whose column carries that same noise (test_artefacts_residual.py), so one is counted.
+SAMPLES_PER_BLOCK = 1.0
 
 
 @dataclass
