@@ -323,7 +323,6 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         projected out) at the group's point with every harmonic (the offsets are the recordings' tyre angles,
         the same at every level). Returns ``(B', slices', phases per group or None, turn)``: ``turn(Bt)`` makes
         the same columns of other rows."""
-        r0p, Bp = with_h(r0, B, hc)
         phases: list = [None] * len(groups)
         mixes: dict[int, np.ndarray] = {}
         at_point: dict[int, np.ndarray] = {}
@@ -331,7 +330,9 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             g = groups[j]
             if g.point not in at_point:
                 top = tops[g.point]
-                at_point[g.point] = align_wheel_phases(Bp[:, slices[top]], r0p, groups[top].level + 1, n_runs)
+                # h projected out of the columns the offsets are fitted on only (the rest are projected by path)
+                r0p, Bp = with_h(r0, B[:, slices[top]], hc)
+                at_point[g.point] = align_wheel_phases(Bp, r0p, groups[top].level + 1, n_runs)
             phases[j] = tuple(float(d) for d in at_point[g.point])
             mixes[j] = wheel_phase_mix(at_point[g.point], g.level + 1)
 
