@@ -105,6 +105,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     from euc_ros.core.residual.interval import base_widening, filter_refit
     from euc_ros.core.residual.noise import make_noise_floor
     from euc_ros.core.states.filter_choice import data_filtered
+    from euc_ros.core.states.link_sliding import sliding_or_none
     from euc_ros.core.states.time_offset import measure_time_offset
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -138,15 +139,17 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
     budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
+    # what the rigid links show (measured once: the interval's sliding terms and the filter choice)
+    links = sliding_or_none(series, session) if all(s is not None for s in series) else None
     base = identify_h(states, session, params, models=("3dof",), window_s=window_s, polyorder=polyorder,
                       phi_definition=phi_definition, cog_method=cog_method, simex_share=simex,
-                      sliding_prior=sliding_prior(sliding_prior_mm), **budget).uncertainty
+                      sliding_prior=sliding_prior(sliding_prior_mm), link_sliding=links, **budget).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     if result.final_interval is not None:
         final = result.final_interval.widened(*base_widening(base))
         if cog_method == "segments" and all(s is not None for s in series):
-            chosen, probe, ratio = data_filtered(series, session, phi_definition)
+            chosen, probe, ratio = data_filtered(series, session, phi_definition, sliding=links)
             final = filter_refit(final, result.final_model, result.final_x, chosen, params, probe_states=probe,
                                  probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
         data.update(final.to_json())

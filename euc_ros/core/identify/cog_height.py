@@ -107,7 +107,7 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
                sliding: bool = True, tolerances: dict | None = None, window_s: float = DEFAULT_WINDOW_S,
                polyorder: int = DEFAULT_SG_POLYORDER, phi_definition: str = "hinge", cog_method: str = "segments",
                simex_share: SimexShare | None = None, filter_choice=None,
-               sliding_prior: SlidingPrior | None = None) -> HIdentification:
+               sliding_prior: SlidingPrior | None = None, link_sliding: dict | None = None) -> HIdentification:
     """Identify h from reconstructed recordings, with its interval.
 
     Parameters
@@ -156,6 +156,9 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         The soft-tissue sliding all the rider's bodies share, which no link shows
         (:mod:`.sliding_prior`; default: as large as the sliding the links show); its effect on h
         extends the intervals.
+    link_sliding : dict, optional
+        What the rigid links show (:func:`~euc_ros.core.states.link_sliding.estimate_sliding` of the
+        recordings) when the caller measured it already (default: ``filter_choice``'s, else measured here).
 
     Returns
     -------
@@ -179,7 +182,8 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
     unc = uncertainty_of_h(states, session, params, pooled3, window_s=window_s, polyorder=polyorder,
                            phi_definition=phi_definition, cog_method=cog_method, h_bounds=h_bounds,
                            sliding=sliding, tolerances=tolerances, with_budget=with_budget,
-                           simex_share=simex_share, filter_choice=filter_choice, sliding_prior=sliding_prior)
+                           simex_share=simex_share, filter_choice=filter_choice, sliding_prior=sliding_prior,
+                           link_sliding=link_sliding)
     if head != "3dof" and effects and head in fits.pooled:
         unc = extended_uncertainty(unc, states, params, effects, float(fits.pooled[head].h_m), base_h=h)
         h = float(fits.pooled[head].h_m)
@@ -239,7 +243,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
                      polyorder: int, phi_definition: str = "hinge", cog_method: str = "segments",
                      h_bounds: tuple[float, float] = H_BOUNDS, sliding: bool = True, tolerances: dict | None = None,
                      with_budget: bool = True, simex_share: SimexShare | None = None, filter_choice=None,
-                     sliding_prior: SlidingPrior | None = None) -> dict:
+                     sliding_prior: SlidingPrior | None = None, link_sliding: dict | None = None) -> dict:
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
     ``fit`` is the pooled 3-DoF fit of ``states``; the other arguments are those of :func:`identify_h`.
@@ -270,7 +274,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     slide = measured = None
     if have_series and sliding:
         try:
-            measured = getattr(filter_choice, "sliding", None) or estimate_sliding(series, session)
+            measured = link_sliding or getattr(filter_choice, "sliding", None) or estimate_sliding(series, session)
         except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
             measured = None
     if have_series and sliding and measured is not None:

@@ -336,24 +336,34 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             phases[j] = tuple(float(d) for d in at_point[g.point])
             mixes[j] = wheel_phase_mix(at_point[g.point], g.level + 1)
 
-        def turn(X):
-            return np.concatenate([X[:, sl] @ mixes[j] if j in mixes else X[:, sl] for j, sl in enumerate(slices)],
-                                  axis=1)
-
         widths_ = [mixes[j].shape[1] if j in mixes else sl.stop - sl.start for j, sl in enumerate(slices)]
         e = np.concatenate([[0], np.cumsum(widths_)]).astype(int)
-        return turn(B), [slice(a, b) for a, b in zip(e[:-1], e[1:])], phases, turn
+        new = [slice(a, b) for a, b in zip(e[:-1], e[1:])]
+
+        def turn(X):
+            out = np.empty((X.shape[0], int(e[-1])))
+            for j, (sl, to) in enumerate(zip(slices, new)):
+                if j in mixes:
+                    np.matmul(X[:, sl], mixes[j], out=out[:, to])
+                else:
+                    out[:, to] = X[:, sl]
+            return out
+
+        return turn(B), new, phases, turn
 
     def path(r0, B, hc, blocks, sls):
-        r0p, Bp = with_h(r0, B, hc)
-        return group_path(r0p, [Bp[:, sl] for sl in sls], keys, MAX_GROUPS,
+        # the columns with h projected out, as rows (group_path's layout; it normalises them in place)
+        u = hc / max(np.linalg.norm(hc), 1e-300)
+        BpT = np.empty((B.shape[1], B.shape[0]))
+        np.subtract(B.T, np.outer(u @ B, u), out=BpT)
+        return group_path(r0 - u * (u @ r0), (BpT, [sl.stop - sl.start for sl in sls]), keys, MAX_GROUPS,
                           n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), n_fixed=1,
-                          kinds=[g.family for g in groups], extra_df=extra_df), Bp
+                          kinds=[g.family for g in groups], extra_df=extra_df), BpT
 
-    def cols_of(chosen, Bp, sls):
-        # the chosen groups' columns that add a direction (h projected out)
+    def cols_of(chosen, BpT, sls):
+        # the chosen groups' columns that add a direction (h projected out; BpT: as rows, any scale)
         cols = np.concatenate([np.arange(sls[j].start, sls[j].stop) for j in chosen])
-        return cols[independent_columns(Bp[:, cols])]
+        return cols[independent_columns(BpT[cols].T)]
 
     def as_groups(chosen, cols, sls, phases):
         out = []
@@ -365,9 +375,10 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         return out
 
     def group_scales(B, sls):
+        sq = np.einsum("ij,ij->j", B, B)
         out = np.empty(B.shape[1])
         for sl in sls:
-            out[sl] = np.sqrt(np.mean(np.sum(B[:, sl] ** 2, axis=0))) if sl.stop > sl.start else 1.0
+            out[sl] = np.sqrt(np.mean(sq[sl])) if sl.stop > sl.start else 1.0
         return out
 
     def select(h_lin: float | None):

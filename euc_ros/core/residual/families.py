@@ -46,7 +46,7 @@ from typing import Sequence
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy import linalg, signal
+from scipy import signal
 from scipy.interpolate import BSpline
 
 #: (coordinate, point) of the forces' directions and points of application.
@@ -494,8 +494,9 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
     ----------
     r0 : ndarray (n,)
         The residual to explain (anything fitted always, such as h, projected out).
-    groups : sequence of ndarray (n, m_j)
-        Candidate groups of columns (a family at one level and one point).
+    groups : sequence of ndarray (n, m_j), or (ndarray (sum m_j, n), widths)
+        Candidate groups of columns (a family at one level and one point); as a tuple, the groups' columns as
+        the rows of one matrix (transposed, the groups one after the other), which is normalised in place.
     keys : sequence
         Groups with equal keys exclude each other (the levels of one family at one point).
     max_groups : int
@@ -538,18 +539,27 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
     r0 = np.asarray(r0, float)
     n = r0.size
     n_eff = float(n if n_eff is None else min(max(n_eff, 2.0), n))
-    normed = []
-    for C in groups:
-        nrm = np.linalg.norm(C, axis=0)
-        normed.append(C[:, nrm > 0] / nrm[nrm > 0] if np.any(nrm > 0) else np.zeros((n, 0)))
-    # beam of (score, chosen, Q, r, used keys)
-    # every group's columns side by side and their Gram blocks, so each candidate is scored in its own m x m
-    # space: with Q the chosen directions, the projected Gram is C'C - (Q'C)'(Q'C), its eigenvectors V and
-    # singular values sv give the new directions U = (C - Q Q'C) V / sv, and U'r = V'C'r / sv (r is already
-    # orthogonal to Q); groups of one width are scored together (batched eigh)
-    sizes = np.array([C.shape[1] for C in normed], int)
+    # every group's columns side by side, unit norm (a column of zeros is dropped), and their Gram blocks, so
+    # each candidate is scored in its own m x m space: with Q the chosen directions, the projected Gram is
+    # C'C - (Q'C)'(Q'C), its eigenvectors V and singular values sv give the new directions
+    # U = (C - Q Q'C) V / sv, and U'r = V'C'r / sv (r is already orthogonal to Q); groups of one width are
+    # scored together (batched eigh). Q'C and C'r are carried along the beam: a step adds U'C and takes
+    # (U'C)'z off C'r.
+    # the columns as rows (P, n): a group's columns are contiguous rows
+    if isinstance(groups, tuple):             # (transposed matrix, widths): the groups stacked, the matrix ours
+        CT, raw_sizes = np.asarray(groups[0], float), np.asarray(groups[1], int)
+    else:
+        CT = np.concatenate([np.asarray(C, float).T for C in groups], axis=0) if len(groups) else np.zeros((0, n))
+        raw_sizes = np.array([C.shape[1] for C in groups], int)
+    nrm = np.sqrt(np.einsum("ij,ij->i", CT, CT))
+    live = nrm > 0
+    if not live.all():
+        CT = CT[live]
+    CT /= nrm[live, None]
+    sizes = np.array([int(np.count_nonzero(live[a:a + m])) for a, m in
+                      zip(np.concatenate([[0], np.cumsum(raw_sizes)[:-1]]).astype(int), raw_sizes)], int)
     edges = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
-    allC = np.concatenate(normed, axis=1) if normed else np.zeros((n, 0))
+    normed = [CT[edges[j]:edges[j + 1]] for j in range(sizes.size)]          # (m, n) each
     kind_ids = {k: i for i, k in enumerate(dict.fromkeys(kinds))}
     kind_of = np.array([kind_ids[k] for k in kinds], int)
     extra_a = np.asarray(extra, float)
@@ -557,25 +567,24 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
     for m in sorted(set(sizes.tolist()) - {0}):
         js = np.flatnonzero(sizes == m)
         cols = np.concatenate([np.arange(edges[j], edges[j + 1]) for j in js]).reshape(js.size, m)
-        classes.append((js, cols, np.stack([normed[j].T @ normed[j] for j in js])))
+        classes.append((js, cols, np.stack([normed[j] @ normed[j].T for j in js])))
 
-    def directions(j, Q, r):
-        C = normed[j]
-        A = Q.T @ C
+    def directions(j, Q, QtC, r):
+        C = normed[j].T
+        A = QtC[:, edges[j]:edges[j + 1]]
         ev, V = np.linalg.eigh(C.T @ C - A.T @ A)
         sv = np.sqrt(np.maximum(ev, 0.0))
         keep = sv >= MIN_NEW_DIRECTION
         U = ((C - Q @ A) @ V[:, keep]) / sv[keep]
         return U, U.T @ r
 
-    beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset())]
+    # beam of (score, chosen, Q, r, used keys, Q'C, C'r)
+    beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset(), np.zeros((0, CT.shape[0])), CT @ r0)]
     out = []
-    for _ in range(max_groups):
+    for step in range(max_groups):
         grown = {}
-        for _, chosen, Q, r, used in beam:
+        for _, chosen, Q, r, used, QtC, Ctr in beam:
             rss = float(r @ r)
-            QtC = Q.T @ allC
-            Ctr = allC.T @ r
             base_df = Q.shape[1] + sum(extra[i] for i in chosen)
             best_j, best_score = {}, {}
             for js, cols, grams in classes:
@@ -599,32 +608,64 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
             for kd, j in best_j.items():
                 key = frozenset(kinds[i] for i in chosen + [j])
                 if key not in grown or best_score[kd] < grown[key][0]:
-                    grown[key] = (best_score[kd], chosen + [j], Q, r, used)
+                    grown[key] = (best_score[kd], chosen + [j], Q, r, used, QtC, Ctr)
         if not grown:
             break
         best = sorted(grown.values(), key=lambda e: e[0])[:beam_width]
+        if step == max_groups - 1:                  # the last step's directions are not needed
+            out.append(list(best[0][1]))
+            break
         beam = []
-        for sc, ch, Q, r, used in best:
-            U, z = directions(ch[-1], Q, r)
-            beam.append((sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]}))
+        new = [directions(e[1][-1], e[2], e[5], e[3]) for e in best]
+        # every set's new directions against every column in one pass over the columns
+        CtU = CT @ np.concatenate([U for U, _ in new], axis=1)
+        at = np.concatenate([[0], np.cumsum([U.shape[1] for U, _ in new])]).astype(int)
+        for (sc, ch, Q, r, used, QtC, Ctr), (U, z), a, b in zip(best, new, at[:-1], at[1:]):
+            beam.append((sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]},
+                         np.concatenate([QtC, CtU[:, a:b].T], axis=0), Ctr - CtU[:, a:b] @ z))
         out.append(list(beam[0][1]))
     return out
 
 
+#: Relative difference of two columns' remaining norms below which :func:`independent_columns` takes them as
+#: equal and pivots on the first (unit-norm columns tie exactly where they are orthogonal, e.g. spline pieces
+#: with disjoint support; a pivot chosen by round-off would make the kept subset, and the fit, machine-dependent).
+PIVOT_TIE = 1e-9
+
+
 def independent_columns(A: np.ndarray, tol: float = MIN_NEW_DIRECTION) -> np.ndarray:
-    """Indices (sorted) of a well-conditioned subset of the columns of ``A``: column-pivoted QR of the unit-norm
-    columns, kept while ``|R_kk|`` (the part of a column outside the span of those before it) is at least
-    ``tol``. A chosen group's columns that add no direction on these recordings (a spline piece the data
-    hardly visit, a filter collinear with its neighbours) are left out of the fit, so no coefficient is
-    fitted along a direction the selection did not see."""
-    nrm = np.linalg.norm(A, axis=0)
+    """Indices (sorted) of a well-conditioned subset of the columns of ``A``: column-pivoted Gram-Schmidt of the
+    unit-norm columns (pivoted Cholesky of their Gram matrix; ties within :data:`PIVOT_TIE` go to the first
+    column), kept while ``|R_kk|`` (the part of a column outside the span of those before it) is at least
+    ``tol`` times the first. A chosen group's columns that add no direction on these recordings (a spline
+    piece the data hardly visit, a filter collinear with its neighbours) are left out of the fit, so no
+    coefficient is fitted along a direction the selection did not see."""
+    A = np.asarray(A, float)
+    nrm = np.sqrt(np.einsum("ij,ij->j", A, A))
     ok = np.flatnonzero(nrm > 0)
     if ok.size == 0:
         return ok
-    _, R, piv = linalg.qr(A[:, ok] / nrm[ok], mode="economic", pivoting=True)
-    d = np.abs(np.diag(R))
-    rank = int(np.sum(d >= tol * max(d[0], 1e-300))) if d.size else 0
-    return np.sort(ok[piv[:rank]])
+    X = A[:, ok] / nrm[ok]
+    G = X.T @ X
+    m = G.shape[0]
+    d = np.diag(G).copy()                      # the columns' squared norms outside the span chosen so far
+    L = np.zeros((m, m))
+    free = np.ones(m, bool)
+    kept: list[int] = []
+    first = None
+    for k in range(m):
+        top = float(np.max(np.where(free, d, -np.inf)))
+        if first is None:
+            first = top
+        if not top > 0 or np.sqrt(top) < tol * np.sqrt(first):
+            break
+        j = int(np.flatnonzero(free & (d >= top * (1.0 - PIVOT_TIE)))[0])
+        col = (G[:, j] - L[:, :k] @ L[j, :k]) / np.sqrt(d[j])
+        L[:, k] = col
+        free[j] = False
+        d = d - col * col
+        kept.append(j)
+    return np.sort(ok[np.array(kept, int)])
 
 
 def fewest_within_one_se(errors: dict[int, np.ndarray], blocks: np.ndarray) -> int:

@@ -20,7 +20,7 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.auto_window import WindowChoice, choose_window
 from euc_ros.core.states.geometry import block_geometry
 from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states_filters
-from euc_ros.core.states.link_sliding import estimate_sliding
+from euc_ros.core.states.link_sliding import sliding_or_none
 
 
 def raw_signals(series, session, phi_definition: str = "hinge") -> dict[str, np.ndarray]:
@@ -108,7 +108,7 @@ COLOURED_LINK_RMS_M = 1.5e-3
 
 
 def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hinge",
-                  noise_power: int = NOISE_POWER) -> FilterChoice:
+                  noise_power: int = NOISE_POWER, sliding: dict | None = None) -> FilterChoice:
     """Choose the Savitzky-Golay window and order for recordings from their raw signals.
 
     Parameters
@@ -120,6 +120,9 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
     noise_power : {1, 2}
         How the noise counts against the distortion (:func:`~euc_ros.core.filters.auto_window.
         choose_window`); :data:`NOISE_POWER` for an h whose noise bias SIMEX removes.
+    sliding : dict, optional
+        :func:`~euc_ros.core.states.link_sliding.estimate_sliding` of ``series_list`` when the caller has it
+        (default: measured here).
 
     Returns
     -------
@@ -145,10 +148,8 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
             g[k].append(v)
     # the links between the rider's bodies: rigid, so what they show beyond white noise is coloured
     # noise or soft tissue, which the spectra of the signals alone can take for motion
-    try:
-        sliding = estimate_sliding(list(series_list), session)
-    except ConfigError:
-        sliding = None
+    if sliding is None:
+        sliding = sliding_or_none(list(series_list), session)
     coloured = sliding is not None and float(sliding.get("rms_max_m") or 0.0) >= COLOURED_LINK_RMS_M
     per_rate = {rate: choose_window(dts[rate], sig, noise_power=noise_power, coloured=coloured)
                 for rate, sig in groups.items()}
@@ -156,10 +157,11 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
     return FilterChoice(used, per_rate, sliding)
 
 
-def data_filtered(series: list, session, phi_definition: str) -> tuple[list, list | None, float]:
+def data_filtered(series: list, session, phi_definition: str,
+                  sliding: dict | None = None) -> tuple[list, list | None, float]:
     """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, with its
-    probe filter (None without one), and the probe's distortion ratio."""
-    choice = choose_filter(series, session, phi_definition=phi_definition)
+    probe filter (None without one), and the probe's distortion ratio (``sliding``: as :func:`choose_filter`)."""
+    choice = choose_filter(series, session, phi_definition=phi_definition, sliding=sliding)
 
     probe = choice.probe
     filters = [(choice.window_s, choice.polyorder)] + ([tuple(probe)] if probe else [])

@@ -120,6 +120,15 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
             "spectrum": spectrum}
 
 
+def sliding_or_none(series_list, session) -> dict | None:
+    """:func:`estimate_sliding` with the session's default chain, None when the chain has no link between the
+    recorded bodies."""
+    try:
+        return estimate_sliding(series_list, session)
+    except ConfigError:
+        return None
+
+
 def usable_poses(series) -> np.ndarray:
     """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
 

@@ -293,3 +293,17 @@ def test_discovered_rows_carry_the_function_with_its_band_and_draw(tmp_path):
         assert discovered_figure(rows, tmp_path / "discovered_functions.png").is_file()
     finally:
         plots.configure()
+
+
+def test_independent_columns_ignores_round_off_in_the_pivots():
+    # two orthogonal unit columns and their mean direction: any two span the three, and all three tie on
+    # their norms, so the kept pair must not follow round-off (ties go to the first column)
+    rng = np.random.default_rng(3)
+    Q, _ = np.linalg.qr(rng.standard_normal((200, 2)))
+    A = np.column_stack([Q[:, 0], Q[:, 1], (Q[:, 0] + Q[:, 1]) / np.sqrt(2.0)])
+    for _ in range(20):
+        noisy = A * (1.0 + 1e-13 * rng.standard_normal(A.shape))
+        assert independent_columns(noisy).tolist() == [0, 1]
+    # a column scaled by round-off still ties; one that adds a real direction is kept
+    B = np.column_stack([A, rng.standard_normal(200)])
+    assert independent_columns(B).tolist() == [0, 1, 3]
