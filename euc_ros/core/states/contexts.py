@@ -68,12 +68,28 @@ def _phi_about_hinge(G: np.ndarray, A: np.ndarray, psi: np.ndarray, theta: np.nd
     return out
 
 
+def _phi_about_hinge_turned(G: np.ndarray, A: np.ndarray, trig: tuple) -> np.ndarray:
+    """:func:`_phi_about_hinge` with the moving frame's ``(cos psi, sin psi, cos theta, sin theta)`` given (the
+    arithmetic of :func:`~euc_ros.core.states.geometry.to_moving_frame`, so the same numbers)."""
+    cp, sp, ct, st = trig
+    n = G.shape[0]
+    out = np.empty(n)
+    for lo in range(0, n, _SHIFT_BLOCK):
+        hi = min(n, lo + _SHIFT_BLOCK)
+        v = G[lo:hi] - A[lo:hi]
+        x1 = cp[lo:hi] * v[:, 0] + sp[lo:hi] * v[:, 1]
+        y1 = -sp[lo:hi] * v[:, 0] + cp[lo:hi] * v[:, 1]
+        out[lo:hi] = np.arctan2(x1, -st[lo:hi] * y1 + ct[lo:hi] * v[:, 2])
+    return out
+
+
 def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: int, valid: np.ndarray
                   ) -> Callable[[float], tuple[np.ndarray, np.ndarray, np.ndarray]]:
     """Build dt -> change of (phi, phi_dot, phi_ddot) when the rider CoG G is shifted by dt in time.
 
-    The hinge path and the unshifted pitch (4 numbers a sample) are made on the first call and kept:
-    every recording is prepared (the noise floor's re-noised ones too), few are shifted.
+    The hinge path, the unshifted pitch and the moving frame's sines and cosines (8 numbers a sample) are
+    made on the first call and kept: every recording is prepared (the noise floor's re-noised ones too), few
+    are shifted, and a fit shifts one many times.
     """
     t = st.t
     psi, theta = st.psi, st.theta
@@ -85,17 +101,18 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
         if not base:
             A = hinge_path(st, params.l0)
             base["A"], base["phi0"] = A, _phi_about_hinge(st.G, A, psi, theta)
+            base["trig"] = (np.cos(psi), np.sin(psi), np.cos(theta), np.sin(theta))
             uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
                 and np.isfinite(st.dt)
             # the filter's centre weights evaluated only at the samples the analysis uses (valid samples lie at
             # least half a window inside their stretch, so the centre weights are the ones the full filter uses)
             base["weights"] = savgol_coefficients(window, polyorder, st.dt, [half])[:, 0, :] if uniform else None
-        return base["A"], base["phi0"], base["weights"]
+        return base["A"], base["phi0"], base["weights"], base["trig"]
 
     def shift(dt: float):
-        A, phi0, weights = geometry()
+        A, phi0, weights, trig = geometry()
         Gs = np.stack([np.interp(t + dt, t, st.G[:, k], left=np.nan, right=np.nan) for k in range(3)], axis=1)
-        d = _phi_about_hinge(Gs, A, psi, theta)
+        d = _phi_about_hinge_turned(Gs, A, trig)
         d -= phi0
         if weights is not None:
             W = np.lib.stride_tricks.sliding_window_view(np.pad(d, half, constant_values=np.nan), window)[idx]

@@ -34,6 +34,7 @@ from euc_ros.core.mocap.blocks import pose_block
 from euc_ros.core.mocap.bridging import bridge_series
 from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import quat_rotate, rotation_matrices, yaw_tilt_pitch_from_quat
+from euc_ros.core.states.geometry_compiled import segments_geometry
 from euc_ros.core.states.skeleton import COG_METHODS, SkeletonModel, skeleton_cog
 
 #: Outputs of :func:`frame_geometry` the states are made of.
@@ -65,8 +66,8 @@ def block_geometry(series, session, max_gap: int, *, block: int | None = None) -
                             quat=quat, tracked=trk, mean_marker_error=np.empty((len(series.bodies), 0)))
         bridged_piece, bridged = bridge_series(piece, max_gap)
         core = slice(a - lo, b - lo)
-        geo = frame_geometry(bridged_piece.position[:, core], bridged_piece.quat[:, core],
-                             bridged_piece.tracked[:, core], session, series.bodies)
+        geo = _compiled_geometry(bridged_piece.position[:, core], bridged_piece.quat[:, core],
+                                 bridged_piece.tracked[:, core], session, list(series.bodies))
         del bridged_piece, pos, quat, trk
         for key in GEOMETRY_KEYS:
             v = np.asarray(geo[key])
@@ -76,6 +77,20 @@ def block_geometry(series, session, max_gap: int, *, block: int | None = None) -
         n_samples += int(bridged[:, core].sum())
         n_frames += int(bridged[:, core].any(axis=0).sum())
     return out, n_samples, n_frames
+
+
+def _compiled_geometry(position, quat, tracked, session, bodies: list) -> dict:
+    """:func:`frame_geometry` (``segments``) of many frames, the :data:`GEOMETRY_KEYS` only, in one compiled
+    loop (:func:`~euc_ros.core.states.geometry_compiled.segments_geometry`: the same formulas, equal to
+    round-off)."""
+    idx, frac, off, total, complete = _segment_table(session, tuple(bodies))
+    euc = session.euc
+    psi, theta, gamma, eq3, hinge, C, G, has_euc, has_rider = segments_geometry(
+        np.asarray(position, dtype=float), np.asarray(quat, dtype=float), np.asarray(tracked, dtype=bool),
+        bodies.index(euc.body) if euc.body in bodies else -1, np.asarray(euc.pivot_to_wheel_center, dtype=float),
+        float(euc.l0), np.asarray(idx, dtype=np.int64), frac, off, float(total), bool(complete))
+    return {"psi": psi, "theta": theta, "gamma": gamma, "phi_eq3": eq3, "phi_hinge": hinge, "C": C, "G": G,
+            "has_euc": has_euc, "has_rider": has_rider, "n_faults": np.zeros(psi.shape[0], dtype=int)}
 
 
 def to_moving_frame(v, psi, theta) -> np.ndarray:
