@@ -321,8 +321,9 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         """The candidate groups' columns as the selection sees them: an aligned wheel group's raw per-recording
         columns turned into one function with a phase offset per recording, the offsets fitted to ``r0`` (h
         projected out) at the group's point with every harmonic (the offsets are the recordings' tyre angles,
-        the same at every level). Returns ``(B', slices', phases per group or None, turn)``: ``turn(Bt)`` makes
-        the same columns of other rows."""
+        the same at every level). Returns ``(slices', phases per group or None, turn_t, turn_cols)``:
+        ``turn_t(X)`` the turned columns of raw rows ``X`` as rows (transposed), ``turn_cols(X, cols)`` only
+        the turned columns ``cols``."""
         phases: list = [None] * len(groups)
         mixes: dict[int, np.ndarray] = {}
         at_point: dict[int, np.ndarray] = {}
@@ -340,25 +341,32 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         e = np.concatenate([[0], np.cumsum(widths_)]).astype(int)
         new = [slice(a, b) for a, b in zip(e[:-1], e[1:])]
 
-        def turn(X):
-            out = np.empty((X.shape[0], int(e[-1])))
+        def turn_t(X):
+            out = np.empty((int(e[-1]), X.shape[0]))
             for j, (sl, to) in enumerate(zip(slices, new)):
-                if j in mixes:
-                    np.matmul(X[:, sl], mixes[j], out=out[:, to])
-                else:
-                    out[:, to] = X[:, sl]
+                out[to] = (X[:, sl] @ mixes[j]).T if j in mixes else X[:, sl].T
             return out
 
-        return turn(B), new, phases, turn
+        def turn_cols(X, cols):
+            out = np.empty((X.shape[0], len(cols)))
+            cols = np.asarray(cols, int)
+            for j, (sl, to) in enumerate(zip(slices, new)):
+                at = np.flatnonzero((cols >= to.start) & (cols < to.stop))
+                if at.size:
+                    local = cols[at] - to.start
+                    out[:, at] = X[:, sl] @ mixes[j][:, local] if j in mixes else X[:, sl.start + local]
+            return out
 
-    def path(r0, B, hc, blocks, sls):
-        # the columns with h projected out, as rows (group_path's layout; it normalises them in place)
+        return new, phases, turn_t, turn_cols
+
+    def path(r0, BT, hc, blocks, sls):
+        """The group search on the turned columns as rows ``BT`` (h projected out here, then normalised by
+        group_path: both in place)."""
         u = hc / max(np.linalg.norm(hc), 1e-300)
-        BpT = np.empty((B.shape[1], B.shape[0]))
-        np.subtract(B.T, np.outer(u @ B, u), out=BpT)
-        return group_path(r0 - u * (u @ r0), (BpT, [sl.stop - sl.start for sl in sls]), keys, MAX_GROUPS,
+        BT -= np.outer(BT @ u, u)
+        return group_path(r0 - u * (u @ r0), (BT, [sl.stop - sl.start for sl in sls]), keys, MAX_GROUPS,
                           n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), n_fixed=1,
-                          kinds=[g.family for g in groups], extra_df=extra_df), BpT
+                          kinds=[g.family for g in groups], extra_df=extra_df)
 
     def cols_of(chosen, BpT, sls):
         # the chosen groups' columns that add a direction (h projected out; BpT: as rows, any scale)
@@ -374,9 +382,10 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
                                  phases[j]))
         return out
 
-    def group_scales(B, sls):
-        sq = np.einsum("ij,ij->j", B, B)
-        out = np.empty(B.shape[1])
+    def group_scales(BT, sls):
+        # a group's columns alike: the root mean square of its columns' norms (BT: the columns as rows)
+        sq = np.einsum("ij,ij->i", BT, BT)
+        out = np.empty(BT.shape[0])
         for sl in sls:
             out[sl] = np.sqrt(np.mean(sq[sl])) if sl.stop > sl.start else 1.0
         return out
@@ -407,12 +416,17 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             tr_rows = [(i, np.asarray(fold.train[i], bool) & fres[i][1]) for i in idx]
             r0 = np.concatenate([fres[i][0][rw] for i, rw in tr_rows])
             hc = np.concatenate([hcol[i][rw] for i, rw in tr_rows])
-            B, sls, _, turn = layout(r0, np.concatenate([B_all[i][rw] for i, rw in tr_rows]), hc)
+            Braw = np.concatenate([B_all[i][rw] for i, rw in tr_rows])
+            sls, _, turn_t, turn_cols = layout(r0, Braw, hc)
             blocks = np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in tr_rows])
-            sets, Bp = path(r0, B, hc, blocks, sls)
+            BT = turn_t(Braw)
+            # the prior's scale: a group's columns alike (a spline piece the training rows hardly visit is held
+            # to the size of its neighbours, not to its own few samples)
+            scale = group_scales(BT, sls)
+            sets = path(r0, BT, hc, blocks, sls)
             te_rows = [(i, np.asarray(fold.test[i], bool) & fres[i][1]) for i in idx if np.any(fold.test[i])]
             r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
-            Bt = turn(np.concatenate([B_all[i][rw] for i, rw in te_rows]))
+            Braw_t = np.concatenate([B_all[i][rw] for i, rw in te_rows])
             hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
             test_blocks.append(np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in te_rows]))
             if h_lin is None:
@@ -420,14 +434,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             else:
                 c0 = -(hc @ r0) / max(hc @ hc, 1e-300)
                 per_k.setdefault(0, []).append(r0t + hct * c0)
-            # the prior's scale: a group's columns alike (a spline piece the training rows hardly visit is held
-            # to the size of its neighbours, not to its own few samples)
-            scale = group_scales(B, sls)
             for k, chosen in enumerate(sets, start=1):
-                cols = cols_of(chosen, Bp, sls)
-                c = fit_with_free(hc, B[:, cols], -r0, n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size),
-                                  norms=scale[cols])
-                per_k.setdefault(k, []).append(r0t + hct * c[0] + Bt[:, cols] @ c[1:])
+                cols = cols_of(chosen, BT, sls)
+                c = fit_with_free(hc, turn_cols(Braw, cols), -r0,
+                                  n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), norms=scale[cols])
+                per_k.setdefault(k, []).append(r0t + hct * c[0] + turn_cols(Braw_t, cols) @ c[1:])
         complete = {k: np.concatenate(v) for k, v in per_k.items() if len(v) == len(folds)}
         rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
         # parsimony: the fewest groups within one standard error of the best held-out error
@@ -437,14 +448,16 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         rows = [b[1] for b in base]
         r0 = np.concatenate([b[0][m] for b, m in zip(base, rows)])
         hc = np.concatenate([h[m] for h, m in zip(hcol, rows)])
-        B, sls, phases, _ = layout(r0, np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)]), hc)
+        Braw = np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)])
+        sls, phases, turn_t, turn_cols = layout(r0, Braw, hc)
         blocks = np.concatenate([r.block[m] + o for r, m, o in zip(recs, rows, offsets)])
-        sets, Bp = path(r0, B, hc, blocks, sls)
+        BT = turn_t(Braw)
+        sets = path(r0, BT, hc, blocks, sls)
         if not sets:
             return rmse, 0, complete, None, None, 0.0
         chosen = sets[min(best_k, len(sets)) - 1]
-        cols = cols_of(chosen, Bp, sls)
-        c, *_ = np.linalg.lstsq(np.column_stack([hc, B[:, cols]]), -r0, rcond=None)
+        cols = cols_of(chosen, BT, sls)
+        c, *_ = np.linalg.lstsq(np.column_stack([hc, turn_cols(Braw, cols)]), -r0, rcond=None)
         return rmse, best_k, complete, as_groups(chosen, cols, sls, phases), c[1:], float(c[0])
 
     def finalize(sel, h_lin):
@@ -495,7 +508,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             B = np.concatenate([cols[i][rw] for i, rw in tr_rows])
             blocks = np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in tr_rows])
             e = np.concatenate([[0], np.cumsum(width)]).astype(int)
-            scale = group_scales(B, [slice(a, b) for a, b in zip(e[:-1], e[1:])])
+            scale = group_scales(B.T, [slice(a, b) for a, b in zip(e[:-1], e[1:])])
             c = fit_with_free(hc, B, -r0, n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), norms=scale)
             r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
             hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])

@@ -210,6 +210,15 @@ def _state(sig: dict, name: str) -> np.ndarray:
             "gamma_dot": sig["gamma_dot"]}[name]
 
 
+def _arrays(ctx) -> tuple:
+    """The context arrays the columns are made from (their identity keys the caches)."""
+    return (ctx.t, ctx.x_dot, ctx.psi, ctx.phi_dot, ctx.gamma_dot)
+
+
+def _arrays_key(ctx) -> tuple:
+    return tuple(id(a) for a in _arrays(ctx))
+
+
 class Families:
     """The families' basis over a set of recordings: ranges, knots and recording names fixed from them.
 
@@ -246,11 +255,16 @@ class Families:
         self._cache: OrderedDict = OrderedDict()
         self.families: list[Family] = []
         kept: list[np.ndarray] = []
+        # each recording's top-level columns, made here for the duplicate test, are kept for columns()
+        self._top: dict[tuple, tuple] = {}
         for fam in families:
             if fam.kind in ("lab", "speed") and self._degenerate(fam):
                 continue
             top = n_levels(fam) - 1
-            C = np.concatenate([_as_seen(self._columns(fam, top, s), s) for s in sigs]) if sigs else np.zeros((0, 1))
+            per = [_as_seen(self._columns(fam, top, s), s) for s in sigs]
+            for c, C in zip(ctxs, per):
+                self._top[(id(fam), _arrays_key(c))] = (_arrays(c), C)
+            C = np.concatenate(per) if sigs else np.zeros((0, 1))
             scale = np.linalg.norm(C, axis=0)
             if not np.any(scale > 0):
                 continue
@@ -284,13 +298,17 @@ class Families:
         return bspline_basis(x, lo, hi, degree, knots[level])
 
     def _columns(self, fam: Family, level: int, sig: dict) -> np.ndarray:
-        """The family's columns (n, m) at ``level`` on one recording's signals."""
+        """The family's columns (n, m) at ``level`` on one recording's signals (a lab coordinate's spline basis
+        is made once per signals and level, for every modifier)."""
         v = sig["v"]
         if fam.kind == "lab":
             coord, mod = fam.option
             proj = np.cos(sig["psi"]) if coord == "X" else np.sin(sig["psi"])
             factor = {"1": 1.0, "speed": v, "sign": np.tanh(v / SIGN_SPEED)}[mod] * proj
-            return self._spline(coord, sig[coord], level) * factor[:, None]
+            memo = sig.setdefault("_splines", {})
+            if (coord, level) not in memo:
+                memo[(coord, level)] = self._spline(coord, sig[coord], level)
+            return memo[(coord, level)] * factor[:, None]
         if fam.kind == "wheel":
             th = sig["s"] / sig["R"]
             k = np.arange(1, level + 2)
@@ -325,15 +343,21 @@ class Families:
 
     def columns(self, ctx) -> dict[tuple[int, int], np.ndarray]:
         """Every (family index, level) -> its columns (n, m) on ``ctx`` (cached per context arrays)."""
-        arrays = (ctx.t, ctx.x_dot, ctx.psi, ctx.phi_dot, ctx.gamma_dot)
-        key = tuple(id(a) for a in arrays)
+        arrays = _arrays(ctx)
+        key = _arrays_key(ctx)
         hit = self._cache.get(key)
         if hit is not None and all(a is b for a, b in zip(hit[0], arrays)):
             self._cache.move_to_end(key)
             return hit[1]
         sig = _signals(ctx)
-        out = {(f, lv): _as_seen(self._columns(fam, lv, sig), sig) for f, fam in enumerate(self.families)
-               for lv in range(n_levels(fam))}
+
+        def made(f: int, fam: Family, lv: int) -> np.ndarray:
+            top = self._top.get((id(fam), key)) if lv == n_levels(fam) - 1 else None
+            if top is not None and all(a is b for a, b in zip(top[0], arrays)):
+                return top[1]
+            return _as_seen(self._columns(fam, lv, sig), sig)
+
+        out = {(f, lv): made(f, fam, lv) for f, fam in enumerate(self.families) for lv in range(n_levels(fam))}
         self._cache[key] = (arrays, out)
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)

@@ -29,11 +29,8 @@ def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
     above 0. The log ratio weighs every block alike, so a few loud blocks cannot dominate, and is
     symmetric under exchange of the two models.
     """
-    ub = np.unique(base.block)
-    mb = np.array([np.mean(base.residual[base.block == b] ** 2) for b in ub])
-    mc = np.array([np.mean(cand.residual[cand.block == b] ** 2) if np.any(cand.block == b) else np.nan for b in ub])
-    ok = np.isfinite(mc) & (mb > 0) & (mc > 0)
-    d = np.log(mb[ok] / mc[ok])
+    d = _block_log_ratios(base, [cand])[0]
+    d = d[np.isfinite(d)]
     if d.size < 3 or np.allclose(d, 0):
         return 1.0
     return float(stats.ttest_1samp(d, 0.0, alternative="greater").pvalue)

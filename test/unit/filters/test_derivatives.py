@@ -186,3 +186,30 @@ def test_trim_edges_in_frames_and_stretches():
     frames = np.array([0, 1, 2, 4, 5, 6, 20, 21, 22, 23, 24])
     out = trim_edges(np.ones(11, bool), 2, frames, max_gap=2)
     assert out.tolist() == [False, False, True, True, False, False, False, False, True, False, False]
+
+
+@pytest.mark.parametrize("window,polyorder,columns", [(145, 3, 3), (31, 2, 1), (9, 3, None)])
+def test_fft_filtering_of_long_stretches_equals_the_direct_correlation(monkeypatch, window, polyorder, columns):
+    # a random walk far from the origin (lab coordinates) with a fast component; the direct correlation is the
+    # reference. Round-off bound: each output sums `window` products of the offset-free signal (scale `span`)
+    # with the weights, so both paths are exact to a few eps * sum|weights| * span.
+    from euc_ros.core.filters import derivatives as dv
+
+    rng = np.random.default_rng(window)
+    n = 40 * window + 7
+    shape = (n,) if columns is None else (n, columns)
+    y = 12.0 + np.cumsum(rng.standard_normal(shape), axis=0) * 1e-3 + 0.01 * rng.standard_normal(shape)
+    dt = 1.0 / 120.0
+    calls = []
+    real = dv._oaconvolve()
+    monkeypatch.setattr(dv, "_oaconvolve", lambda: lambda *a, **k: calls.append(1) or real(*a, **k))
+    fast = dv._filter_stretch(y, window, polyorder, dt)
+    assert calls, "a stretch of 40 windows is filtered by FFT"
+    monkeypatch.setattr(dv, "FFT_MIN_WINDOWS", 10 ** 9)
+    direct = dv._filter_stretch(y, window, polyorder, dt)
+    coeffs = dv._stretch_coefficients(window, polyorder, dt)[:, 0]
+    span = float(np.max(np.abs(y - y[n // 2])))
+    for d in range(3):
+        eps = np.finfo(float).eps
+        bound = 64 * eps * np.sum(np.abs(coeffs[d])) * span + (4 * eps * 12.0 if d == 0 else 0.0)
+        np.testing.assert_allclose(fast[d], direct[d], rtol=0, atol=bound)

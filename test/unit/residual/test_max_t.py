@@ -88,3 +88,26 @@ def test_blocks_a_candidate_lacks_are_left_out_of_its_statistic():
     t_obs = _t(dd)
     expected = np.mean([_t(np.array(s) * dd) >= t_obs - 1e-9 for s in itertools.product([1, -1], repeat=nb - 1)])
     assert max_t_adjusted(base, [part])[0] == pytest.approx(expected, abs=1e-12)
+
+
+def test_paired_block_test_matches_a_block_by_block_t_test():
+    # blocks of uneven size in shuffled order, a block the candidate lacks and one where it is exactly 0
+    rng = np.random.default_rng(11)
+    nb = 60
+    sizes = rng.integers(3, 12, nb)
+    block = rng.permutation(np.repeat(np.arange(nb) * 7 + 3, sizes))
+    base = HeldOut(Model(), rng.standard_normal(block.size) * 1.3, block, [])
+    res = rng.standard_normal(block.size)
+    res[block == block[0]] = 0.0
+    keep = block != block[1]
+    cand = HeldOut(Model(), res[keep], block[keep], [])
+    d = []
+    for b in np.unique(block):
+        if not np.any(cand.block == b):
+            continue
+        mb, mc = np.mean(base.residual[base.block == b] ** 2), np.mean(cand.residual[cand.block == b] ** 2)
+        if mb > 0 and mc > 0:
+            d.append(np.log(mb / mc))
+    assert len(d) == nb - 2
+    want = stats.ttest_1samp(d, 0.0, alternative="greater").pvalue
+    assert paired_block_test(base, cand) == pytest.approx(want, rel=1e-9)
