@@ -115,15 +115,17 @@ class BlockNoise:
         self._cache[k] = z
         return z
 
-    def draw(self, lo: int, hi: int) -> np.ndarray:
-        """The draws of frames ``lo:hi``: (rows, hi - lo, width) float64."""
+    def draw(self, lo: int, hi: int, dtype=float) -> np.ndarray:
+        """The draws of frames ``lo:hi``: (rows, hi - lo, width) float64 (``dtype`` None: as drawn, float32,
+        possibly a view of a cached block)."""
         k0, k1 = block_span(lo, hi)
         first = k0 * BLOCK_FRAMES
         if k1 - k0 == 1:
             z = self._block(k0)
         else:
             z = np.concatenate([self._block(k) for k in range(k0, k1)], axis=1)
-        return z[:, lo - first:hi - first].astype(float)
+        z = z[:, lo - first:hi - first]
+        return z if dtype is None else z.astype(dtype)
 
 
 def block_span(lo: int, hi: int, block: int | None = None) -> tuple[int, int]:

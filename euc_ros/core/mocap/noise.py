@@ -22,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.mocap.blocks import BlockNoise, PerturbedSeries
+from euc_ros.core.mocap.noise_compiled import perturb_poses
 
 
 def _mad_pooled(v: np.ndarray) -> float:
@@ -116,38 +117,13 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
     sr_col = (float(sign) * np.where(has_r, sr, 0.0))[:, None, None]
 
     def perturb(lo: int, hi: int):
-        z = noise.draw(lo, hi)                                   # (b, m, 6): position, rotation
-        pos = series.position[:, lo:hi] + sp_col * z[..., :3]
-        q = np.asarray(series.quat[:, lo:hi], dtype=float)
-        return pos, _rotate_by_rotvec(q, sr_col * z[..., 3:], has_r)
+        z = noise.draw(lo, hi, dtype=None)                       # (b, m, 6): position, rotation (as drawn)
+        # contiguous inputs: one compiled specialisation
+        return perturb_poses(np.ascontiguousarray(series.position[:, lo:hi], dtype=float),
+                             np.ascontiguousarray(series.quat[:, lo:hi], dtype=float), np.ascontiguousarray(z),
+                             sp_col[:, 0, 0].copy(), sr_col[:, 0, 0].copy(), np.ascontiguousarray(has_r))
 
     return PerturbedSeries(series, perturb)
-
-
-def _rotate_by_rotvec(q: np.ndarray, r: np.ndarray, apply: np.ndarray) -> np.ndarray:
-    """``q dq`` (b, m, 4) with ``dq`` the unit quaternion of the rotation vectors ``r`` (b, m, 3), ``q``
-    normalised first, for the bodies in ``apply`` (b,) and the finite quaternions; the others as given.
-
-    :func:`~euc_ros.core.rotations.quat_from_rotvec` and :func:`~euc_ros.core.rotations.quat_multiply`
-    written out per component (the same arithmetic without the intermediate (b, m, 4) stacks).
-    """
-    rx, ry, rz = r[..., 0], r[..., 1], r[..., 2]
-    angle = np.sqrt(rx * rx + ry * ry + rz * rz)
-    half = 0.5 * angle
-    small = angle <= 1e-6
-    k = np.where(small, 0.5 - angle * angle / 48.0, np.sin(half) / np.where(small, 1.0, angle))
-    bx, by, bz, bw = k * rx, k * ry, k * rz, np.cos(half)
-    norm = np.sqrt(np.einsum("...i,...i->...", q, q))
-    x, y, zq, w = (q[..., i] / norm for i in range(4))
-    out = np.empty_like(q)
-    out[..., 0] = w * bx + bw * x + (y * bz - zq * by)
-    out[..., 1] = w * by + bw * y + (zq * bx - x * bz)
-    out[..., 2] = w * bz + bw * zq + (x * by - y * bx)
-    out[..., 3] = w * bw - (x * bx + y * by + zq * bz)
-    keep = ~(np.all(np.isfinite(q), axis=-1) & apply[:, None])
-    if keep.any():
-        out[keep] = q[keep]
-    return out
 
 
 def pose_noise_draws(series, rng):

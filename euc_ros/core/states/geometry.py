@@ -85,8 +85,10 @@ def _compiled_geometry(position, quat, tracked, session, bodies: list) -> dict:
     round-off)."""
     idx, frac, off, total, complete = _segment_table(session, tuple(bodies))
     euc = session.euc
+    # contiguous inputs: one compiled specialisation
     psi, theta, gamma, eq3, hinge, C, G, has_euc, has_rider = segments_geometry(
-        np.asarray(position, dtype=float), np.asarray(quat, dtype=float), np.asarray(tracked, dtype=bool),
+        np.ascontiguousarray(position, dtype=float), np.ascontiguousarray(quat, dtype=float),
+        np.ascontiguousarray(tracked, dtype=bool),
         bodies.index(euc.body) if euc.body in bodies else -1, np.asarray(euc.pivot_to_wheel_center, dtype=float),
         float(euc.l0), np.asarray(idx, dtype=np.int64), frac, off, float(total), bool(complete))
     return {"psi": psi, "theta": theta, "gamma": gamma, "phi_eq3": eq3, "phi_hinge": hinge, "C": C, "G": G,
