@@ -116,12 +116,14 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
     sp_col = (float(sign) * np.where(has_p, sp, 0.0))[:, None, None]
     sr_col = (float(sign) * np.where(has_r, sr, 0.0))[:, None, None]
 
+    position = np.ascontiguousarray(series.position, dtype=float)
+    quat = np.ascontiguousarray(series.quat, dtype=float)
+
     def perturb(lo: int, hi: int):
         z = noise.draw(lo, hi, dtype=None)                       # (b, m, 6): position, rotation (as drawn)
-        # contiguous inputs: one compiled specialisation
-        return perturb_poses(np.ascontiguousarray(series.position[:, lo:hi], dtype=float),
-                             np.ascontiguousarray(series.quat[:, lo:hi], dtype=float), np.ascontiguousarray(z),
-                             sp_col[:, 0, 0].copy(), sr_col[:, 0, 0].copy(), np.ascontiguousarray(has_r))
+        # the recording's whole arrays and the draws, contiguous: one compiled specialisation, no copies
+        return perturb_poses(position, quat, np.ascontiguousarray(z), sp_col[:, 0, 0].copy(),
+                             sr_col[:, 0, 0].copy(), np.ascontiguousarray(has_r), lo)
 
     return PerturbedSeries(series, perturb)
 

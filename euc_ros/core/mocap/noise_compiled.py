@@ -16,22 +16,24 @@ _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 
 @_jit
-def perturb_poses(position, quat, z, pos_scale, rot_scale, rotate):
-    """``(position + pos_scale z[..., :3], quat turned by rot_scale z[..., 3:])`` for (b, m) frames.
+def perturb_poses(position, quat, z, pos_scale, rot_scale, rotate, first):
+    """``(position + pos_scale z[..., :3], quat turned by rot_scale z[..., 3:])`` for the frames
+    ``first .. first + m - 1`` of ``position`` (b, n, 3) and ``quat`` (b, n, 4), ``m`` the draws' frames.
 
     ``z`` (b, m, 6) the draws (any float type); ``pos_scale``, ``rot_scale`` (b,) per body (the sign of
     antithetic noise included); ``rotate`` (b,) bool: bodies whose quaternions are turned. A quaternion is
     normalised first; one that is not finite, or of a body not turned, is copied as given.
     """
-    b, m = position.shape[0], position.shape[1]
+    b, m = position.shape[0], z.shape[1]
     pos_o = np.empty((b, m, 3))
     quat_o = np.empty((b, m, 4))
     for i in range(b):
         ps, rs, turn = pos_scale[i], rot_scale[i], rotate[i]
         for j in range(m):
+            f = first + j
             for c in range(3):
-                pos_o[i, j, c] = position[i, j, c] + ps * np.float64(z[i, j, c])
-            x, y, zq, w = quat[i, j, 0], quat[i, j, 1], quat[i, j, 2], quat[i, j, 3]
+                pos_o[i, j, c] = position[i, f, c] + ps * np.float64(z[i, j, c])
+            x, y, zq, w = quat[i, f, 0], quat[i, f, 1], quat[i, f, 2], quat[i, f, 3]
             finite = (x - x == 0.0) and (y - y == 0.0) and (zq - zq == 0.0) and (w - w == 0.0)
             if not (finite and turn):
                 quat_o[i, j, 0], quat_o[i, j, 1], quat_o[i, j, 2], quat_o[i, j, 3] = x, y, zq, w

@@ -58,31 +58,50 @@ def block_geometry(series, session, max_gap: int, *, block: int | None = None) -
     frame = np.asarray(series.frame)
     out: dict[str, np.ndarray] = {}
     n_samples = n_frames = 0
+    in_place = getattr(series, "pose_block", None) is None and all(
+        np.asarray(v).flags.c_contiguous and np.asarray(v).dtype == dt
+        for v, dt in ((series.position, float), (series.quat, float), (series.tracked, bool)))
     for a in range(0, max(n, 1), block):
         b = min(n, a + block)
         lo, hi = max(0, a - margin), min(n, b + margin)
         pos, quat, trk = pose_block(series, lo, hi)
-        piece = MocapSeries(t=series.t[lo:hi], frame=frame[lo:hi], bodies=list(series.bodies), position=pos,
-                            quat=quat, tracked=trk, mean_marker_error=np.empty((len(series.bodies), 0)))
-        bridged_piece, bridged = bridge_series(piece, max_gap)
         core = slice(a - lo, b - lo)
-        geo = _compiled_geometry(bridged_piece.position[:, core], bridged_piece.quat[:, core],
-                                 bridged_piece.tracked[:, core], session, list(series.bodies))
-        del bridged_piece, pos, quat, trk
+        bridged = None
+        if max_gap > 0 and not _complete(pos, quat, trk):
+            piece = MocapSeries(t=series.t[lo:hi], frame=frame[lo:hi], bodies=list(series.bodies), position=pos,
+                                quat=quat, tracked=trk, mean_marker_error=np.empty((len(series.bodies), 0)))
+            bridged_piece, bridged = bridge_series(piece, max_gap)
+            geo = _compiled_geometry(bridged_piece.position, bridged_piece.quat, bridged_piece.tracked, session,
+                                     list(series.bodies), core)
+            del bridged_piece, piece
+        elif in_place:
+            # nothing to bridge, the recording's own contiguous arrays: the block's frames read where they are
+            geo = _compiled_geometry(series.position, series.quat, series.tracked, session, list(series.bodies),
+                                     slice(a, b))
+        else:                                   # nothing to bridge: the block as read
+            geo = _compiled_geometry(pos, quat, trk, session, list(series.bodies), core)
+        del pos, quat, trk
         for key in GEOMETRY_KEYS:
             v = np.asarray(geo[key])
             if key not in out:
                 out[key] = np.empty((n,) + v.shape[1:], dtype=v.dtype)
             out[key][a:b] = v
-        n_samples += int(bridged[:, core].sum())
-        n_frames += int(bridged[:, core].any(axis=0).sum())
+        if bridged is not None:
+            n_samples += int(bridged[:, core].sum())
+            n_frames += int(bridged[:, core].any(axis=0).sum())
     return out, n_samples, n_frames
 
 
-def _compiled_geometry(position, quat, tracked, session, bodies: list) -> dict:
-    """:func:`frame_geometry` (``segments``) of many frames, the :data:`GEOMETRY_KEYS` only, in one compiled
-    loop (:func:`~euc_ros.core.states.geometry_compiled.segments_geometry`: the same formulas, equal to
-    round-off)."""
+def _complete(position, quat, tracked) -> bool:
+    """Every pose of the block tracked and finite (nothing to bridge)."""
+    return bool(tracked.all() and np.isfinite(position).all() and np.isfinite(quat).all())
+
+
+def _compiled_geometry(position, quat, tracked, session, bodies: list, frames: slice | None = None) -> dict:
+    """:func:`frame_geometry` (``segments``) of the frames ``frames`` (default all) of (b, n) poses, the
+    :data:`GEOMETRY_KEYS` only, in one compiled loop
+    (:func:`~euc_ros.core.states.geometry_compiled.segments_geometry`: the same formulas, equal to round-off)."""
+    first, stop, _ = (frames or slice(None)).indices(np.shape(position)[1])
     idx, frac, off, total, complete = _segment_table(session, tuple(bodies))
     euc = session.euc
     # contiguous inputs: one compiled specialisation
@@ -90,7 +109,7 @@ def _compiled_geometry(position, quat, tracked, session, bodies: list) -> dict:
         np.ascontiguousarray(position, dtype=float), np.ascontiguousarray(quat, dtype=float),
         np.ascontiguousarray(tracked, dtype=bool),
         bodies.index(euc.body) if euc.body in bodies else -1, np.asarray(euc.pivot_to_wheel_center, dtype=float),
-        float(euc.l0), np.asarray(idx, dtype=np.int64), frac, off, float(total), bool(complete))
+        float(euc.l0), np.asarray(idx, dtype=np.int64), frac, off, float(total), bool(complete), first, stop)
     return {"psi": psi, "theta": theta, "gamma": gamma, "phi_eq3": eq3, "phi_hinge": hinge, "C": C, "G": G,
             "has_euc": has_euc, "has_rider": has_rider, "n_faults": np.zeros(psi.shape[0], dtype=int)}
 

@@ -41,15 +41,16 @@ def _finite(a, b, c):
 
 @_jit
 def segments_geometry(position, quat, tracked, euc_row, pivot_to_wheel, l0, seg_rows, seg_frac, seg_off, total,
-                      complete):
-    """Per frame of ``position`` (b, n, 3), ``quat`` (b, n, 4), ``tracked`` (b, n): ``psi, theta, gamma,
-    phi_eq3, phi_hinge`` (n,), ``C, G`` (n, 3), ``has_euc, has_rider`` (n,).
+                      complete, first, stop):
+    """Per frame ``first .. stop - 1`` of ``position`` (b, n, 3), ``quat`` (b, n, 4), ``tracked`` (b, n):
+    ``psi, theta, gamma, phi_eq3, phi_hinge`` (stop - first,), ``C, G`` (stop - first, 3),
+    ``has_euc, has_rider`` (stop - first,).
 
     ``euc_row``: the EUC body's row (-1: absent); ``pivot_to_wheel`` (3,), ``l0``: the EUC's geometry;
     ``seg_rows, seg_frac, seg_off`` (k,), (k,), (k, 3): the weighted segments present, ``total`` the sum of
     all weighted fractions, ``complete`` whether every weighted segment is present.
     """
-    n = position.shape[1]
+    n = stop - first
     nan = math.nan
     psi_o = np.empty(n)
     theta_o = np.empty(n)
@@ -61,7 +62,8 @@ def segments_geometry(position, quat, tracked, euc_row, pivot_to_wheel, l0, seg_
     has_euc_o = np.empty(n, np.bool_)
     has_rider_o = np.empty(n, np.bool_)
     px, py, pz = pivot_to_wheel[0], pivot_to_wheel[1], pivot_to_wheel[2]
-    for j in range(n):
+    for o in range(n):
+        j = first + o
         he = False
         if euc_row >= 0:
             he = (tracked[euc_row, j] and _finite(position[euc_row, j, 0], position[euc_row, j, 1],
@@ -111,8 +113,8 @@ def segments_geometry(position, quat, tracked, euc_row, pivot_to_wheel, l0, seg_
         vx, vy, vz = gx - ax, gy - ay, gz - az
         x1, y1 = cp * vx + sp * vy, -sp * vx + cp * vy
         hinge = math.atan2(x1, -st * y1 + ct * vz)
-        psi_o[j], theta_o[j], gamma_o[j], eq3_o[j], hinge_o[j] = psi, theta, gamma, eq3, hinge
-        C_o[j, 0], C_o[j, 1], C_o[j, 2] = cx, cy, cz
-        G_o[j, 0], G_o[j, 1], G_o[j, 2] = gx, gy, gz
-        has_euc_o[j], has_rider_o[j] = he, hr
+        psi_o[o], theta_o[o], gamma_o[o], eq3_o[o], hinge_o[o] = psi, theta, gamma, eq3, hinge
+        C_o[o, 0], C_o[o, 1], C_o[o, 2] = cx, cy, cz
+        G_o[o, 0], G_o[o, 1], G_o[o, 2] = gx, gy, gz
+        has_euc_o[o], has_rider_o[o] = he, hr
     return psi_o, theta_o, gamma_o, eq3_o, hinge_o, C_o, G_o, has_euc_o, has_rider_o

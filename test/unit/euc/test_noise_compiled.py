@@ -21,7 +21,11 @@ def test_perturb_poses_equals_the_rotation_algebra():
     pos_scale = np.array([2e-4, -2e-4, 1e-3, 0.0])
     rot_scale = np.array([0.01, -0.01, 0.2, 0.05])
     rotate = np.array([True, True, True, False])
-    pos, q = perturb_poses(position, quat, z, pos_scale, rot_scale, rotate)
+    pos, q = perturb_poses(position, quat, z, pos_scale, rot_scale, rotate, 0)
+    # frames further on: the same arithmetic on those frames
+    pos2, q2 = perturb_poses(position, quat, z[:, 1000:], pos_scale, rot_scale, rotate, 1000)
+    np.testing.assert_array_equal(pos2, pos[:, 1000:])
+    np.testing.assert_array_equal(q2, q[:, 1000:])
 
     z64 = z.astype(float)
     np.testing.assert_array_equal(pos, position + pos_scale[:, None, None] * z64[..., :3])
