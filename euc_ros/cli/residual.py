@@ -105,7 +105,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     from euc_ros.core.residual.interval import base_widening, filter_refit
     from euc_ros.core.residual.noise import make_noise_floor
     from euc_ros.core.states.filter_choice import data_filtered
-    from euc_ros.core.states.link_sliding import sliding_or_none
+    from euc_ros.core.states.link_sliding import sliding_or_none, usable_poses
     from euc_ros.core.states.time_offset import measure_time_offset
 
     alpha = DEFAULT_ALPHA if alpha is None else alpha
@@ -124,7 +124,9 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     series = [st.meta.get("series") for st in states]
     # the rider-to-EUC time offset measured from the ankles on the pedals bounds the name mocap_time_offset
     # (unless the user set its range)
-    offset = measure_time_offset(series, session) if all(s is not None for s in series) else None
+    # which poses the links can use (the time offset's pedal links and the sliding's chain)
+    usable = [usable_poses(s) for s in series] if all(s is not None for s in series) else None
+    offset = measure_time_offset(series, session, usable) if usable is not None else None
     ranges = dict(plausible or {})
     if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
         ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
@@ -140,7 +142,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     # how well the data determine the base model's h (identify's interval and identifiability)
     budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
     # what the rigid links show (measured once: the interval's sliding terms and the filter choice)
-    links = sliding_or_none(series, session) if all(s is not None for s in series) else None
+    links = sliding_or_none(series, session, usable) if usable is not None else None
     base = identify_h(states, session, params, models=("3dof",), window_s=window_s, polyorder=polyorder,
                       phi_definition=phi_definition, cog_method=cog_method, simex_share=simex,
                       sliding_prior=sliding_prior(sliding_prior_mm), link_sliding=links, **budget).uncertainty

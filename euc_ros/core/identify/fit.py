@@ -29,6 +29,7 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.identify.fit_compiled import sse_curve
 from euc_ros.core.model.terms import EucParams, bias_terms, gravity_forces, mass_matrix
 
 #: Default grid of CoG heights [m] (0.1 to 1.2 m in 5 mm steps).
@@ -37,7 +38,6 @@ DEFAULT_H_GRID = np.linspace(0.1, 1.2, 221)
 MODELS = ("3dof", "2dof")
 #: Step [m] used for the sharpness of an RMSE(h) curve (relative RMSE increase at h* +- this).
 SHARPNESS_STEP_M = 0.1
-_CHUNK_ELEMENTS = 1 << 20
 
 
 def model_params(params: EucParams, model: str) -> EucParams:
@@ -110,30 +110,12 @@ def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: 
 
 
 def sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Sum of squared residuals for every h (chunked over samples, in place to spare memory traffic)."""
-    h = np.asarray(h, dtype=float).reshape(-1)
-    n = coef.shape[1]
-    sse = np.zeros(h.size)
-    if n == 0:
-        return sse
-    c, a0, a1, a2, d0, d1 = coef
-    H = h[:, None]
-    step = max(1, min(n, _CHUNK_ELEMENTS // h.size))
-    num_buf = np.empty((h.size, step))
-    den_buf = np.empty((h.size, step))
-    for s in range(0, n, step):
-        e = min(n, s + step)
-        # c a_k of the chunk only (elementwise: the same numbers as made for all samples at once)
-        cs = c[s:e]
-        num = np.multiply(H, cs * a2[s:e], out=num_buf[:, :e - s])
-        num += cs * a1[s:e]
-        num *= H
-        num += cs * a0[s:e]
-        den = np.multiply(H, d1[s:e], out=den_buf[:, :e - s])
-        den += d0[s:e]
-        num /= den
-        sse += np.einsum("gn,gn->g", num, num)
-    return sse
+    """Sum of squared residuals for every h (one compiled pass over the samples:
+    :func:`~euc_ros.core.identify.fit_compiled.sse_curve`)."""
+    h = np.ascontiguousarray(h, dtype=float).reshape(-1)
+    if coef.shape[1] == 0:
+        return np.zeros(h.size)
+    return sse_curve(np.ascontiguousarray(coef, dtype=float), h)
 
 
 def _as_list(states) -> list:

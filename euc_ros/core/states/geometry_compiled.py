@@ -118,3 +118,34 @@ def segments_geometry(position, quat, tracked, euc_row, pivot_to_wheel, l0, seg_
         G_o[o, 0], G_o[o, 1], G_o[o, 2] = gx, gy, gz
         has_euc_o[o], has_rider_o[o] = he, hr
     return psi_o, theta_o, gamma_o, eq3_o, hinge_o, C_o, G_o, has_euc_o, has_rider_o
+
+
+@_jit
+def link_vectors(position, quat, usable, ja, jb, vector):
+    """``R_a^T (p_b - p_a) - vector`` (n, 3) of the link from body row ``ja`` to ``jb`` of ``position``
+    (b, n, 3), ``quat`` (b, n, 4), and where both bodies are ``usable`` (b, n); an unusable pose counts as a
+    zero pivot with the identity rotation (masked out by the caller).
+    :func:`~euc_ros.core.rotations.quat_rotate`'s arithmetic with the conjugate of ``a``'s quaternion."""
+    n = position.shape[1]
+    d = np.empty((n, 3))
+    both = np.empty(n, np.bool_)
+    for j in range(n):
+        oka, okb = usable[ja, j], usable[jb, j]
+        if oka:
+            x, y, z, w = -quat[ja, j, 0], -quat[ja, j, 1], -quat[ja, j, 2], quat[ja, j, 3]
+            ax, ay, az = position[ja, j, 0], position[ja, j, 1], position[ja, j, 2]
+        else:
+            x, y, z, w = -0.0, -0.0, -0.0, 1.0
+            ax = ay = az = 0.0
+        if okb:
+            vx, vy, vz = position[jb, j, 0] - ax, position[jb, j, 1] - ay, position[jb, j, 2] - az
+        else:
+            vx, vy, vz = 0.0 - ax, 0.0 - ay, 0.0 - az
+        nq = math.sqrt(x * x + y * y + z * z + w * w)
+        x, y, z, w = x / nq, y / nq, z / nq, w / nq
+        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+        d[j, 0] = vx + w * tx + (y * tz - z * ty) - vector[0]
+        d[j, 1] = vy + w * ty + (z * tx - x * tz) - vector[1]
+        d[j, 2] = vz + w * tz + (x * ty - y * tx) - vector[2]
+        both[j] = oka and okb
+    return d, both

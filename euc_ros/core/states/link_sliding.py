@@ -15,14 +15,14 @@ import numpy as np
 from scipy.optimize import nnls
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.rotations import quat_rotate
+from euc_ros.core.states.geometry_compiled import link_vectors
 from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig
 
 #: Below this RMS sliding [m] the bias is not computed (0): white noise and round-off.
 MIN_SLIDING_M = 5e-4
 
 
-def estimate_sliding(series_list, session, skeleton=None) -> dict:
+def estimate_sliding(series_list, session, skeleton=None, usable: list | None = None) -> dict:
     """Per-body RMS sliding (3-D) [m] and its normalised power spectrum, measured from the links.
 
     Parameters
@@ -32,6 +32,8 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
     session : Session
     skeleton : SkeletonModel, optional
         The session's chain (default: estimated from ``series_list``).
+    usable : list of ndarray, optional
+        Per recording, :func:`usable_poses` (default: made here).
 
     Returns
     -------
@@ -58,7 +60,7 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
     m = len(names)
     rows, vals = [], []
     spec_f, spec_p = None, None
-    usable = [usable_poses(s) for s in series_list]
+    usable = [usable_poses(s) for s in series_list] if usable is None else list(usable)
     seen = 0
     for a, b, vector, threshold in links:
         # one link at a time: its deviation over every recording (no other link's arrays exist meanwhile)
@@ -120,11 +122,11 @@ def estimate_sliding(series_list, session, skeleton=None) -> dict:
             "spectrum": spectrum}
 
 
-def sliding_or_none(series_list, session) -> dict | None:
+def sliding_or_none(series_list, session, usable: list | None = None) -> dict | None:
     """:func:`estimate_sliding` with the session's default chain, None when the chain has no link between the
     recorded bodies."""
     try:
-        return estimate_sliding(series_list, session)
+        return estimate_sliding(series_list, session, usable=usable)
     except ConfigError:
         return None
 
@@ -143,31 +145,19 @@ def usable_poses(series) -> np.ndarray:
     return out
 
 
-def link_deviation(series, a: str, b: str, vector: np.ndarray, block: int = 1 << 14, usable=None):
+def link_deviation(series, a: str, b: str, vector: np.ndarray, usable=None):
     """``R_a^T (p_b - p_a) - vector`` (n, 3) of one link over a recording, and where both bodies are usable.
 
     Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
-    the caller). Computed block by block with the quaternions (no rotation matrices).
+    the caller). Computed frame by frame in one compiled loop
+    (:func:`~euc_ros.core.states.geometry_compiled.link_vectors`: the quaternions, no rotation matrices).
     """
     n = series.n_frames
-    d = np.empty((n, 3))
     if a not in series.bodies or b not in series.bodies:
-        d[:] = -np.asarray(vector, float)
-        return d, np.zeros(n, bool)
-    ja, jb = series.bodies.index(a), series.bodies.index(b)
-    both = np.zeros(n, bool)
-    ident = np.array([0.0, 0.0, 0.0, 1.0])
-    vector = np.asarray(vector, float)
-
+        return np.broadcast_to(-np.asarray(vector, float), (n, 3)).copy(), np.zeros(n, bool)
     if usable is None:
         usable = usable_poses(series)
-    for lo in range(0, n, block):
-        hi = min(n, lo + block)
-        oka, okb = usable[ja, lo:hi], usable[jb, lo:hi]
-        qa = np.where(oka[:, None], series.quat[ja, lo:hi], ident)
-        qa = qa * np.array([-1.0, -1.0, -1.0, 1.0])                # R_a^T: the conjugate rotation
-        Pa = np.where(oka[:, None], series.position[ja, lo:hi], 0.0)
-        Pb = np.where(okb[:, None], series.position[jb, lo:hi], 0.0)
-        d[lo:hi] = quat_rotate(qa, Pb - Pa) - vector
-        both[lo:hi] = oka & okb
-    return d, both
+    return link_vectors(np.ascontiguousarray(series.position, dtype=float),
+                        np.ascontiguousarray(series.quat, dtype=float), np.ascontiguousarray(usable),
+                        series.bodies.index(a), series.bodies.index(b), np.asarray(vector, dtype=float))
+

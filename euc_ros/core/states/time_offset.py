@@ -32,7 +32,7 @@ RANGE_SE = 3.0
 MIN_FRAMES = 32
 
 
-def measure_time_offset(series_list, session) -> dict | None:
+def measure_time_offset(series_list, session, usable: list | None = None) -> dict | None:
     """The rider bodies' lag behind the EUC body [ms] from the ankles on the pedals (module docstring).
 
     Parameters
@@ -40,6 +40,8 @@ def measure_time_offset(series_list, session) -> dict | None:
     series_list : sequence of MocapSeries
         Recordings of one session (Z-up, SI).
     session : Session
+    usable : list of ndarray, optional
+        Per recording, :func:`~euc_ros.core.states.link_sliding.usable_poses` (default: made here).
 
     Returns
     -------
@@ -53,17 +55,17 @@ def measure_time_offset(series_list, session) -> dict | None:
     links = [b for a, b in DEFAULT_LINKS if a == "E" and b in names]
     rows_d, rows_v, rows_blk, used = [], [], [], []
     nblk = 0
-    for s in series_list:
+    for k, s in enumerate(series_list):
         if euc not in s.bodies:
             continue
-        usable = usable_poses(s)
+        usable_s = usable_poses(s) if usable is None else usable[k]
         dt = 1.0 / float(s.rate_hz)
         je = s.bodies.index(euc)
         for b in links:
             if b not in s.bodies:
                 continue
             jb = s.bodies.index(b)
-            d, both = link_deviation(s, euc, b, np.zeros(3), usable=usable)
+            d, both = link_deviation(s, euc, b, np.zeros(3), usable=usable_s)
             p = s.position[jb]
             v = np.full_like(p, np.nan)
             v[1:-1] = (p[2:] - p[:-2]) / (2.0 * dt)

@@ -91,3 +91,20 @@ def test_block_geometry_uses_the_compiled_path_with_the_recordings_numbers(sessi
     ref = frame_geometry(series.position, series.quat, series.tracked, session, series.bodies)
     for key in ("phi_hinge", "gamma", "C", "G"):
         np.testing.assert_allclose(geo[key], ref[key], rtol=0.0, atol=ULPS * (40.0 if key in ("C", "G") else np.pi))
+
+
+def test_link_vectors_are_the_pivot_difference_in_the_first_body_frame():
+    from euc_ros.core.rotations import rotation_matrices
+    from euc_ros.core.states.geometry_compiled import link_vectors
+
+    rng = np.random.default_rng(9)
+    pos = rng.uniform(-20.0, 20.0, (3, 4000, 3))
+    quat = rng.standard_normal((3, 4000, 4))
+    usable = rng.random((3, 4000)) > 0.1
+    vector = np.array([0.1, -0.2, 0.45])
+    d, both = link_vectors(pos, quat, usable, 2, 0, vector)
+    np.testing.assert_array_equal(both, usable[2] & usable[0])
+    # independent: the rotation matrix of body 2 transposed times the pivot difference
+    R = rotation_matrices(quat[2])
+    want = np.einsum("nji,nj->ni", R, pos[0] - pos[2]) - vector
+    np.testing.assert_allclose(d[both], want[both], rtol=0, atol=ULPS * 80.0)
