@@ -354,11 +354,23 @@ class TimeVaryingH(Candidate):
     def starts(self):
         return [np.array([0.0, 0.0, T]) for T in self.PERIOD_STARTS]
 
+    def __getstate__(self):
+        state = dict(self.__dict__)
+        state.pop("_last_profile", None)          # a cache of arrays: not part of the candidate
+        return state
+
     def _profile(self, t, theta):
-        a, b, T = theta
+        # modify and force of one evaluation ask for the same profile: the last one is kept (with its t)
+        key = tuple(float(v) for v in theta)
+        last = getattr(self, "_last_profile", None)
+        if last is not None and last[0] is t and last[1] == key:
+            return last[2]
+        a, b, T = key
         w = 2 * np.pi / T
         s, c = np.sin(w * t), np.cos(w * t)
-        return a * s + b * c, w * (a * c - b * s), -w * w * (a * s + b * c)
+        out = (a * s + b * c, w * (a * c - b * s), -w * w * (a * s + b * c))
+        self._last_profile = (t, key, out)
+        return out
 
     def modify(self, ctx, theta):
         dh, _, _ = self._profile(ctx.t, theta)
@@ -367,8 +379,9 @@ class TimeVaryingH(Candidate):
     def force(self, ctx, theta):
         p = ctx.p()
         _, hd, hdd = self._profile(ctx.t, theta)
-        ax = hdd * np.sin(ctx.phi) + 2 * hd * ctx.phi_dot * np.cos(ctx.phi)
-        az = hdd * np.cos(ctx.phi) - 2 * hd * ctx.phi_dot * np.sin(ctx.phi)
+        sphi, cphi = np.sin(ctx.phi), np.cos(ctx.phi)
+        ax = hdd * sphi + 2 * hd * ctx.phi_dot * cphi
+        az = hdd * cphi - 2 * hd * ctx.phi_dot * sphi
         jx, jz = jacobian_G(ctx, p)
         return -p.m * (jx * ax[:, None] + jz * az[:, None])
 
