@@ -1489,8 +1489,11 @@ def _frames_fast(msgs, topic: str, bag: Path) -> MocapSeries | None:
     order = np.argsort(stamps, kind="stable")
     trk_t = trk[order].T                                       # (k, n)
     vals_t = vals[order].transpose(1, 0, 2)                    # (k, n, 7)
-    position = np.where(trk_t[..., None], vals_t[..., :3], np.nan)
-    quat = np.where(trk_t[..., None], vals_t[..., 3:], np.nan)
+    # C-ordered (body, frame, component) like every other reader's arrays (the analyses read them by block)
+    position = np.full((k, n, 3), np.nan)
+    np.copyto(position, vals_t[..., :3], where=trk_t[..., None])
+    quat = np.full((k, n, 4), np.nan)
+    np.copyto(quat, vals_t[..., 3:], where=trk_t[..., None])
     stamps_arr = stamps[order]
     return MocapSeries(np.zeros(n), numbers[order], list(lay["names"]), position, quat, trk_t.copy(),
                        np.ascontiguousarray(err[order].T), name=bag.name,
