@@ -25,6 +25,7 @@ from euc_ros.cli.main import main as cli_main
 from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.model.effects import LIBRARY
+from euc_ros.core.residual.names import library_effects
 from euc_ros.ros.launcher import NodeSpec, run
 
 HELP = "run the main job end to end: simulate, stream live, record, identify, trace the residual, steer"
@@ -151,8 +152,8 @@ def main(args: argparse.Namespace) -> int:
     _step(7, "the extended model: identify again, and stream live with the effect configured")
     _cli(["identify", str(session), *map(str, csvs), "--from-residual", str(out / "residual.json"),
           "--json", str(out / "identify_extended.json"), "--no-progress"])
-    if not args.skip_live and residual["effect"] != "none":
-        effects = residual["effect"].split("+")
+    effects = library_effects(residual["effect"])
+    if not args.skip_live and effects:
         assignments = [f"{e}.{k}={v}" for e in effects for k, v in residual["effect_parameters"].items()
                        if _belongs(e, k)]
         bag2 = _live(out / "live_bag_extended", csvs[0], session, residual["h_after_m"], args.rate_factor,

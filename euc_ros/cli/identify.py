@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -41,6 +42,7 @@ from euc_ros.core.identify.cog_height import HIdentification, identify_h
 from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques
+from euc_ros.core.residual.names import has_discovered, library_effects
 from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.states.skeleton import COG_METHODS
@@ -131,7 +133,8 @@ def h_grid_from_args(args: argparse.Namespace) -> np.ndarray:
 def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
     """The extended model's effects ``{name: {parameter: value}}`` of ``--from-residual``, ``--effect``, ``--param``.
 
-    ``--from-residual`` contributes its ``effect`` (names joined by ``+``; ``none`` adds nothing) with
+    ``--from-residual`` contributes its ``effect`` (names joined by ``+``; the outcome markers of
+    :data:`~euc_ros.core.residual.names.OUTCOME_MARKERS` add nothing) with
     its flat ``effect_parameters``; ``--effect`` adds effects and ``--param`` sets or overrides
     parameters of any of them.
 
@@ -157,7 +160,12 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
         values = data.get("effect_parameters", {})
         if not isinstance(values, dict) or not all(isinstance(v, (int, float)) for v in values.values()):
             raise InputError("expected a mapping of parameter names to numbers", path=path, key="effect_parameters")
-        names = [n.strip() for n in data["effect"].split("+") if n.strip() and n.strip() != "none"]
+        names = library_effects(data["effect"])
+        if has_discovered(data["effect"]):
+            # the discovery's terms are functions fitted on the residual's own recordings: not a model here
+            print(f"euc-ros identify: note: {path}: the discovered terms are not refitted here (the residual's "
+                  "h_after_m and h_after_ci95_m are the h of the model with them); the named effects are",
+                  file=sys.stderr)
         for n in names:
             effects[n] = {k: float(v) for k, v in values.items()}
     added = [e for e in getattr(args, "effect", []) or [] if e]

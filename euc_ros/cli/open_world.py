@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.residual.names import OUTCOME_MARKERS
 from euc_ros.core.worldsim import forces as F
 from euc_ros.core.worldsim.open_world_seeds import FAMILIES, SEED_SETS
 
@@ -85,7 +86,7 @@ EXPLAINED_RATIO = 0.6
 GOALS = {"false_name_pct_max": 5.0, "coverage_pct_min": 90.0, "width_clean_mm_max": 30.0,
          "controls_no_name_pct_min": 95.0}
 #: Names of the analysis' outcome that are not library effects.
-NOT_LIBRARY = ("none", "discovered", "unexplained")
+NOT_LIBRARY = OUTCOME_MARKERS
 #: Spellings a discovered row's ``family`` may use, mapped to the generator's families.
 FAMILY_ALIASES = {"lab": "lab_field", "lab_field": "lab_field", "lab field": "lab_field", "position": "lab_field",
                   "field": "lab_field", "wheel": "wheel", "wheel_angle": "wheel", "wheel angle": "wheel",

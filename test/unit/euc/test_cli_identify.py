@@ -226,3 +226,16 @@ def test_bad_residual_json_exits_2_naming_the_file(sloped, tmp_path, capsys):
     none.write_text(json.dumps({"effect": "none", "effect_parameters": {}}))
     js = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(none)], tmp_path / "n.json")
     assert js["model"] == "3dof" and set(js["models"]) == {"3dof", "2dof"}
+
+
+@pytest.mark.parametrize("marker", ["unexplained", "discovered"])
+def test_residual_json_outcome_markers_add_no_effect(sloped, tmp_path, capsys, marker):
+    # the residual writes 'unexplained' or 'discovered' into `effect` beside the named effects: identify builds
+    # the named ones and says that discovered terms are not refitted
+    d, files = sloped
+    residual = tmp_path / "residual.json"
+    residual.write_text(json.dumps({"effect": f"ground_slope+{marker}", "effect_parameters": {"alpha_deg": 3.0}}))
+    a = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(residual)], tmp_path / "a.json")
+    assert a["model"] == "3dof+ground_slope"
+    err = capsys.readouterr().err
+    assert ("discovered terms are not refitted" in err) == (marker == "discovered")
