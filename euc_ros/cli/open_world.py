@@ -48,7 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.residual.names import OUTCOME_MARKERS
+from euc_ros.core.residual.names import library_effects
 from euc_ros.core.worldsim import forces as F
 from euc_ros.core.worldsim.open_world_seeds import FAMILIES, SEED_SETS
 
@@ -85,8 +85,6 @@ EXPLAINED_RATIO = 0.6
 #: Goals of the table.
 GOALS = {"false_name_pct_max": 5.0, "coverage_pct_min": 90.0, "width_clean_mm_max": 30.0,
          "controls_no_name_pct_min": 95.0}
-#: Names of the analysis' outcome that are not library effects.
-NOT_LIBRARY = OUTCOME_MARKERS
 #: Spellings a discovered row's ``family`` may use, mapped to the generator's families.
 FAMILY_ALIASES = {"lab": "lab_field", "lab_field": "lab_field", "lab field": "lab_field", "position": "lab_field",
                   "field": "lab_field", "wheel": "wheel", "wheel_angle": "wheel", "wheel angle": "wheel",
@@ -315,8 +313,7 @@ def _family_of(row: dict) -> str | None:
 
 def judge(data: dict, family: str, law: F.ForceLaw | None) -> dict:
     """What the analysis' JSON says about a ride with a known hidden law (the row's judged columns)."""
-    parts = [s for s in str(data.get("effect", "none")).split("+") if s]
-    names = [s for s in parts if s not in NOT_LIBRARY]
+    names = library_effects(data.get("effect", "none"))
     right = set(right_library_names(law))
     disc = list(data.get("discovered") or [])
     fams = [_family_of(r) for r in disc]

@@ -29,7 +29,6 @@ import numpy as np
 from scipy.optimize import minimize_scalar
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.identify.fit_compiled import sse_curve
 from euc_ros.core.model.terms import EucParams, bias_terms, gravity_forces, mass_matrix
 
 #: Default grid of CoG heights [m] (0.1 to 1.2 m in 5 mm steps).
@@ -112,6 +111,8 @@ def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: 
 def sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Sum of squared residuals for every h (one compiled pass over the samples:
     :func:`~euc_ros.core.identify.fit_compiled.sse_curve`)."""
+    from euc_ros.core.identify.fit_compiled import sse_curve  # numba: on first use only
+
     h = np.ascontiguousarray(h, dtype=float).reshape(-1)
     if coef.shape[1] == 0:
         return np.zeros(h.size)

@@ -22,7 +22,6 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.mocap.blocks import BlockNoise, PerturbedSeries
-from euc_ros.core.mocap.noise_compiled import perturb_poses
 
 
 def _mad_pooled(v: np.ndarray) -> float:
@@ -113,8 +112,10 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
     sp = np.asarray(sigma_pos, dtype=float)
     sr = np.asarray(sigma_rot, dtype=float)
     has_p, has_r = np.isfinite(sp), np.isfinite(sr)
-    sp_col = (float(sign) * np.where(has_p, sp, 0.0))[:, None, None]
-    sr_col = (float(sign) * np.where(has_r, sr, 0.0))[:, None, None]
+    pos_scale = float(sign) * np.where(has_p, sp, 0.0)           # per body, the sign of the antithetic draw in
+    rot_scale = float(sign) * np.where(has_r, sr, 0.0)
+
+    from euc_ros.core.mocap.noise_compiled import perturb_poses  # numba: on first use only
 
     position = np.ascontiguousarray(series.position, dtype=float)
     quat = np.ascontiguousarray(series.quat, dtype=float)
@@ -122,8 +123,7 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
     def perturb(lo: int, hi: int):
         z = noise.draw(lo, hi, dtype=None)                       # (b, m, 6): position, rotation (as drawn)
         # the recording's whole arrays and the draws, contiguous: one compiled specialisation, no copies
-        return perturb_poses(position, quat, np.ascontiguousarray(z), sp_col[:, 0, 0].copy(),
-                             sr_col[:, 0, 0].copy(), np.ascontiguousarray(has_r), lo)
+        return perturb_poses(position, quat, np.ascontiguousarray(z), pos_scale, rot_scale, has_r, lo)
 
     return PerturbedSeries(series, perturb)
 

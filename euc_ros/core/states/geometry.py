@@ -34,7 +34,6 @@ from euc_ros.core.mocap.blocks import pose_block
 from euc_ros.core.mocap.bridging import bridge_series
 from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import quat_rotate, rotation_matrices, yaw_tilt_pitch_from_quat
-from euc_ros.core.states.geometry_compiled import segments_geometry
 from euc_ros.core.states.skeleton import COG_METHODS, SkeletonModel, skeleton_cog
 
 #: Outputs of :func:`frame_geometry` the states are made of.
@@ -104,6 +103,8 @@ def _compiled_geometry(position, quat, tracked, session, bodies: list, frames: s
     first, stop, _ = (frames or slice(None)).indices(np.shape(position)[1])
     idx, frac, off, total, complete = _segment_table(session, tuple(bodies))
     euc = session.euc
+    from euc_ros.core.states.geometry_compiled import segments_geometry  # numba: not for the live nodes
+
     # contiguous inputs: one compiled specialisation
     psi, theta, gamma, eq3, hinge, C, G, has_euc, has_rider = segments_geometry(
         np.ascontiguousarray(position, dtype=float), np.ascontiguousarray(quat, dtype=float),

@@ -15,7 +15,6 @@ import numpy as np
 from scipy.optimize import nnls
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.states.geometry_compiled import link_vectors
 from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig
 
 #: Below this RMS sliding [m] the bias is not computed (0): white noise and round-off.
@@ -157,6 +156,8 @@ def link_deviation(series, a: str, b: str, vector: np.ndarray, usable=None):
         return np.broadcast_to(-np.asarray(vector, float), (n, 3)).copy(), np.zeros(n, bool)
     if usable is None:
         usable = usable_poses(series)
+    from euc_ros.core.states.geometry_compiled import link_vectors  # numba: on first use only
+
     return link_vectors(np.ascontiguousarray(series.position, dtype=float),
                         np.ascontiguousarray(series.quat, dtype=float), np.ascontiguousarray(usable),
                         series.bodies.index(a), series.bodies.index(b), np.asarray(vector, dtype=float))
