@@ -135,27 +135,22 @@ def _valid_args(st, extra_Q) -> tuple[tuple[np.ndarray, ...], Any]:
 
 
 def _valid_coefficients(st, params: EucParams, model: str, extra_Q) -> np.ndarray:
-    """:func:`residual_coefficients` of the valid samples of ``st`` (6, n_valid), made block by block of
-    the recording (:data:`_COEF_BLOCK` samples), so the valid samples' seven state arrays are never
-    copied whole (56 bytes a sample beside the coefficients' 48). Per-sample arithmetic: the numbers
-    are those of the masked copies. Scalar parameters only."""
-    mask = np.asarray(st.valid, dtype=bool)
+    """:func:`residual_coefficients` of the valid samples of ``st`` (6, n_valid), in one compiled pass over
+    the recording (:func:`~euc_ros.core.identify.fit_compiled.consistency_coefficients`), so the valid
+    samples' seven state arrays are never copied (56 bytes a sample beside the coefficients' 48). The same
+    terms sorted by powers of h: equal to round-off (``test_fit_compiled``). Scalar parameters only."""
+    from euc_ros.core.identify.fit_compiled import consistency_coefficients  # numba: on first use only
+
+    mask = np.ascontiguousarray(st.valid, dtype=bool)
     if extra_Q is not None:
         extra_Q = np.asarray(extra_Q, dtype=float)
         if extra_Q.shape != (st.n, 3):
             raise InputError(f"extra_Q must have shape ({st.n}, 3), got {extra_Q.shape}", key="extra_Q")
-    arrs = st.torque_args()
-    out = np.empty((6, int(np.count_nonzero(mask))))
-    j = 0
-    for lo in range(0, mask.size, _COEF_BLOCK):
-        m = mask[lo:lo + _COEF_BLOCK]
-        k = int(np.count_nonzero(m))
-        if k == 0:
-            continue
-        out[:, j:j + k] = residual_coefficients([np.asarray(a)[lo:lo + _COEF_BLOCK][m] for a in arrs], params, model,
-                                                None if extra_Q is None else extra_Q[lo:lo + _COEF_BLOCK][m])
-        j += k
-    return out
+    p = model_params(params, model)
+    packed = np.array([p.m, p.J, p.m0, p.J0, p.mw, p.Jw, p.R, p.h0, p.l0, p.g], dtype=float)
+    extra = np.zeros((0, 3)) if extra_Q is None else np.ascontiguousarray(extra_Q)
+    args = [np.ascontiguousarray(a, dtype=float) for a in st.torque_args()]
+    return consistency_coefficients(*args, mask, packed, extra)
 
 
 def coefficients_for(states_list, params: EucParams, model: str, extra_Q) -> list[np.ndarray]:

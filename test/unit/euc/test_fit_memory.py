@@ -1,5 +1,5 @@
-"""The memory-lean paths of the h fit give the numbers of the plain ones bit for bit (the SSE grid to the
-round-off of its sum): block-made coefficients, the SSE grid, the pooled h from coefficients with the states
+"""The memory-lean paths of the h fit give the numbers of the plain ones (to round-off where the arithmetic
+differs): the one-pass compiled coefficients, the SSE grid, the pooled h from coefficients with the states
 dropped, and the time-shift hook made lazily and block by block."""
 from __future__ import annotations
 
@@ -22,20 +22,59 @@ def ride():
 
 
 @pytest.mark.parametrize("model", ["3dof", "2dof"])
-def test_block_coefficients_are_the_masked_copies(ride, model, monkeypatch):
+def test_compiled_coefficients_are_the_model_functions(ride, model):
+    """The one-pass coefficients (the model's terms sorted by powers of h) against the model functions
+    evaluated at h = 0, 1, -1 on the masked copies: equal to round-off. Each coefficient is a sum of some
+    twenty products, each rounded once (relative eps) and cancelling at most down to the row's own size;
+    1e-12 of the row's largest magnitude bounds that with two orders of magnitude to spare."""
     _, params, states = ride
-    monkeypatch.setattr(I, "_COEF_BLOCK", 97)      # many blocks, valid samples split across them
+    rng = np.random.default_rng(1)
     for st in states:
-        extra = np.random.default_rng(1).normal(size=(st.n, 3))
-        for ex in (None, extra):
+        for ex in (None, rng.normal(size=(st.n, 3))):
             new = I.coefficients_for([st], params, model, ex)[0]
             args, exm = I._valid_args(st, ex)
-            # the reference: the whole masked arrays at once (the block size made larger than them)
-            monkeypatch.setattr(I, "_COEF_BLOCK", 10**9)
             old = I.residual_coefficients(args, params, model, exm)
-            monkeypatch.setattr(I, "_COEF_BLOCK", 97)
             assert new.shape == old.shape == (6, int(st.valid.sum()))
-            assert np.array_equal(new, old, equal_nan=True)
+            scale = np.max(np.abs(old), axis=1, keepdims=True)
+            assert np.all(np.abs(new - old) <= 1e-12 * scale)
+
+
+def test_compiled_coefficients_on_random_states_and_parameters():
+    """Random angles over whole turns, rates, accelerations and parameters (l0, h0 of either sign): the
+    compiled coefficients are the model functions' (same round-off bound as above)."""
+    from dataclasses import dataclass
+
+    rng = np.random.default_rng(7)
+
+    @dataclass
+    class St:
+        n: int
+        valid: np.ndarray
+        gamma: np.ndarray
+        phi: np.ndarray
+        gamma_dot: np.ndarray
+        phi_dot: np.ndarray
+        x_ddot: np.ndarray
+        gamma_ddot: np.ndarray
+        phi_ddot: np.ndarray
+
+        def torque_args(self, mask=None):
+            arrs = (self.gamma, self.phi, self.gamma_dot, self.phi_dot, self.x_ddot, self.gamma_ddot, self.phi_ddot)
+            return arrs if mask is None else tuple(a[mask] for a in arrs)
+
+    for trial in range(5):
+        n = 4000
+        st = St(n, rng.random(n) < 0.8, *rng.uniform(-np.pi, np.pi, (2, n)), *rng.normal(0, 3, (2, n)),
+                *rng.normal(0, 5, (3, n)))
+        p = EucParams(m=rng.uniform(40, 120), J=rng.uniform(5, 30), m0=rng.uniform(5, 30), J0=rng.uniform(0.1, 2),
+                      mw=rng.uniform(1, 6), Jw=rng.uniform(0.02, 0.4), R=rng.uniform(0.1, 0.3),
+                      h0=rng.uniform(-0.1, 0.2), l0=rng.uniform(-0.1, 0.2), g=rng.uniform(9.7, 9.9))
+        ex = rng.normal(0, 10, (n, 3)) if trial % 2 else None
+        new = I.coefficients_for([st], p, "3dof", ex)[0]
+        args, exm = I._valid_args(st, ex)
+        old = I.residual_coefficients(args, p, "3dof", exm)
+        scale = np.max(np.abs(old), axis=1, keepdims=True)
+        assert np.all(np.abs(new - old) <= 1e-12 * scale), trial
 
 
 def test_sse_grid_is_the_whole_products(ride):
