@@ -61,6 +61,7 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
     spec_f, spec_p = None, None
     usable = [usable_poses(s) for s in series_list] if usable is None else list(usable)
     seen = 0
+    freqs: dict[int, np.ndarray] = {}                   # per recording, its spectrum's frequencies
     for a, b, vector, threshold in links:
         # one link at a time: its deviation over every recording (no other link's arrays exist meanwhile)
         devs = [link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
@@ -69,38 +70,53 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
             v = np.concatenate([d[both] for d, both in devs])
             if v.shape[0] == 0:
                 continue                                # links never seen together are left out
-            vector = np.median(v, axis=0)
-            e = np.linalg.norm(v - vector, axis=1)
+            vector = np.median(np.ascontiguousarray(v.T), axis=1)       # per component, over contiguous memory
+            del v
+            for d, _ in devs:
+                d -= vector                                 # in place: no second copy of the deviations
+            # the distances to the vector over the frames where both bodies are usable, kept per recording
+            dist = [np.linalg.norm(d[both], axis=1) for d, both in devs]
+            e = np.concatenate(dist)
             med = float(np.median(e))
             mad = float(np.median(np.abs(e - med)))
             threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
-            del v, e
-            for d, _ in devs:
-                d -= vector                                 # in place: no second copy of the deviations
+            del e
+        else:
+            dist = [None] * len(devs)
         seen += 1
         ia, ib = chain.index(a), chain.index(b)
-        for s, (d, both) in zip(series_list, devs):
+        for s, (d, both), near in zip(series_list, devs, dist):
             n = s.n_frames
             if n < 16:
                 continue
-            good = both & (np.linalg.norm(d, axis=1) <= threshold)
+            if near is None:
+                good = both & (np.linalg.norm(d, axis=1) <= threshold)
+            else:
+                good = both.copy()
+                good[both] = near <= threshold
             if good.sum() < 16:
                 continue
-            dg = d[good] - d[good].mean(0)
+            centre = d[good].mean(0)
+            dg = d[good] - centre
             total = float(np.mean(np.sum(dg ** 2, 1)))
+            del dg
             trip = good[3:] & good[2:-1] & good[1:-2] & good[:-3]
-            d3 = np.diff(d, n=3, axis=0)[trip]
-            white = float(np.sum((1.4826 * np.median(np.abs(d3 - np.median(d3, 0)), 0)) ** 2) / 20.0) \
-                if len(d3) >= 10 else 0.0
+            # components as rows: the medians select over contiguous memory (the same order statistics)
+            d3 = np.diff(d.T, n=3, axis=1)[:, trip]
+            white = float(np.sum((1.4826 * np.median(np.abs(d3 - np.median(d3, 1, keepdims=True)), 1)) ** 2)
+                          / 20.0) if d3.shape[1] >= 10 else 0.0
+            del d3
             row = np.zeros(m)
             for i in (ia, ib):
                 if i < m:
                     row[i] = 1.0
             rows.append(row)
             vals.append(max(total - white, 0.0))
-            x = np.where(good[:, None], d - d[good].mean(0), 0.0)
+            x = np.where(good[:, None], d - centre, 0.0)
             p = np.sum(np.abs(np.fft.rfft(x, axis=0)) ** 2, 1)
-            f = np.fft.rfftfreq(n, 1.0 / s.rate_hz)
+            f = freqs.get(id(s))
+            if f is None:
+                f = freqs[id(s)] = np.fft.rfftfreq(n, 1.0 / s.rate_hz)
             if spec_f is None or f.size > spec_f.size:
                 # keep the longest recording's grid; others are interpolated onto it
                 spec_p = None if spec_p is None else np.interp(f, spec_f, spec_p)
