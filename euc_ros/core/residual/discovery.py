@@ -252,6 +252,38 @@ def group_sensitivities(basis: Families, ctx, force_map_i: np.ndarray, groups: S
     return np.concatenate([gains[:, g.point, None] * cols[(g.family, g.level)] for g in groups], axis=1)
 
 
+class RowSensitivities:
+    """:func:`group_sensitivities` of some rows of some recordings, made one group at a time on demand.
+
+    The whole matrix (analysed samples x every candidate column, some 700) is never made: the selection reads
+    it group by group into the layout it works on (the columns as rows), so only that copy exists. Each group's
+    block is the same products as :func:`group_sensitivities`' rows (the rows taken first).
+
+    Parameters
+    ----------
+    basis : Families
+    parts : sequence of (ctx, force_map_i, rows)
+        Per recording, its context, its force map (n, 3) and the rows (bool (n,)) taken, in order.
+    groups : sequence of Group
+    """
+
+    def __init__(self, basis: Families, parts, groups: Sequence[Group]) -> None:
+        self.groups = list(groups)
+        self._parts = [(basis.columns(ctx), point_gains(ctx, Li)[rows], rows) for ctx, Li, rows in parts]
+        self._cols: dict[tuple[int, int], list[np.ndarray]] = {}
+        self.n = int(sum(g.shape[0] for _, g, _ in self._parts))
+
+    def block(self, j: int) -> np.ndarray:
+        """Group ``j``'s sensitivities on the rows (rows, its width)."""
+        g = self.groups[j]
+        key = (g.family, g.level)
+        cols = self._cols.get(key)
+        if cols is None:
+            cols = self._cols[key] = [c[key][rows] for c, _, rows in self._parts]
+        out = [gains[:, g.point, None] * c for (_, gains, _), c in zip(self._parts, cols)]
+        return out[0] if len(out) == 1 else np.concatenate(out)
+
+
 def force_map(model: Model, recs: Sequence[Recording], x: np.ndarray) -> list[np.ndarray]:
     """Per recording, the change of the residual per unit extra generalized force along x, gamma and phi
     (n, 3): the residual is linear in an extra force (``-R m11 (w . dQ) / D``), so three evaluations give
@@ -317,13 +349,13 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         u = hc / max(np.linalg.norm(hc), 1e-300)
         return r0 - u * (u @ r0), B - np.outer(u, u @ B)
 
-    def layout(r0, B, hc):
-        """The candidate groups' columns as the selection sees them: an aligned wheel group's raw per-recording
-        columns turned into one function with a phase offset per recording, the offsets fitted to ``r0`` (h
-        projected out) at the group's point with every harmonic (the offsets are the recordings' tyre angles,
-        the same at every level). Returns ``(slices', phases per group or None, turn_t, turn_cols)``:
-        ``turn_t(X)`` the turned columns of raw rows ``X`` as rows (transposed), ``turn_cols(X, cols)`` only
-        the turned columns ``cols``."""
+    def layout(r0, S, hc):
+        """The candidate groups' columns (``S``: their :class:`RowSensitivities`) as the selection sees them: an
+        aligned wheel group's raw per-recording columns turned into one function with a phase offset per
+        recording, the offsets fitted to ``r0`` (h projected out) at the group's point with every harmonic (the
+        offsets are the recordings' tyre angles, the same at every level). Returns ``(slices', phases per group
+        or None, turn_t, turn_cols)``: ``turn_t(S)`` the turned columns of the rows of ``S`` as rows
+        (transposed), ``turn_cols(S, cols)`` only the turned columns ``cols``."""
         phases: list = [None] * len(groups)
         mixes: dict[int, np.ndarray] = {}
         at_point: dict[int, np.ndarray] = {}
@@ -332,7 +364,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             if g.point not in at_point:
                 top = tops[g.point]
                 # h projected out of the columns the offsets are fitted on only (the rest are projected by path)
-                r0p, Bp = with_h(r0, B[:, slices[top]], hc)
+                r0p, Bp = with_h(r0, S.block(top), hc)
                 at_point[g.point] = align_wheel_phases(Bp, r0p, groups[top].level + 1, n_runs)
             phases[j] = tuple(float(d) for d in at_point[g.point])
             mixes[j] = wheel_phase_mix(at_point[g.point], g.level + 1)
@@ -342,19 +374,19 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         new = [slice(a, b) for a, b in zip(e[:-1], e[1:])]
 
         def turn_t(X):
-            out = np.empty((int(e[-1]), X.shape[0]))
-            for j, (sl, to) in enumerate(zip(slices, new)):
-                out[to] = (X[:, sl] @ mixes[j]).T if j in mixes else X[:, sl].T
+            out = np.empty((int(e[-1]), X.n))
+            for j, to in enumerate(new):
+                out[to] = (X.block(j) @ mixes[j]).T if j in mixes else X.block(j).T
             return out
 
         def turn_cols(X, cols):
-            out = np.empty((X.shape[0], len(cols)))
+            out = np.empty((X.n, len(cols)))
             cols = np.asarray(cols, int)
-            for j, (sl, to) in enumerate(zip(slices, new)):
+            for j, to in enumerate(new):
                 at = np.flatnonzero((cols >= to.start) & (cols < to.stop))
                 if at.size:
                     local = cols[at] - to.start
-                    out[:, at] = X[:, sl] @ mixes[j][:, local] if j in mixes else X[:, sl.start + local]
+                    out[:, at] = X.block(j) @ mixes[j][:, local] if j in mixes else X.block(j)[:, local]
             return out
 
         return new, phases, turn_t, turn_cols
@@ -397,7 +429,10 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         if h_lin is not None:
             x_lin[0] = h_lin
         L = force_map(current, recs, x_lin)
-        B_all = [group_sensitivities(basis, r.ctx, Li, groups) for r, Li in zip(recs, L)]
+
+        def sens(rows):
+            return RowSensitivities(basis, [(recs[i].ctx, L[i], rw) for i, rw in rows], groups)
+
         base = [current.residual(r, x_lin) for r in recs]
         dh = 1e-3
         x1 = x_lin.copy()
@@ -416,7 +451,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             tr_rows = [(i, np.asarray(fold.train[i], bool) & fres[i][1]) for i in idx]
             r0 = np.concatenate([fres[i][0][rw] for i, rw in tr_rows])
             hc = np.concatenate([hcol[i][rw] for i, rw in tr_rows])
-            Braw = np.concatenate([B_all[i][rw] for i, rw in tr_rows])
+            Braw = sens(tr_rows)
             sls, _, turn_t, turn_cols = layout(r0, Braw, hc)
             blocks = np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in tr_rows])
             BT = turn_t(Braw)
@@ -426,7 +461,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             sets = path(r0, BT, hc, blocks, sls)
             te_rows = [(i, np.asarray(fold.test[i], bool) & fres[i][1]) for i in idx if np.any(fold.test[i])]
             r0t = np.concatenate([fres[i][0][rw] for i, rw in te_rows])
-            Braw_t = np.concatenate([B_all[i][rw] for i, rw in te_rows])
+            Braw_t = sens(te_rows)
             hct = np.concatenate([hcol[i][rw] for i, rw in te_rows])
             test_blocks.append(np.concatenate([recs[i].block[rw] + offsets[i] for i, rw in te_rows]))
             if h_lin is None:
@@ -448,7 +483,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         rows = [b[1] for b in base]
         r0 = np.concatenate([b[0][m] for b, m in zip(base, rows)])
         hc = np.concatenate([h[m] for h, m in zip(hcol, rows)])
-        Braw = np.concatenate([Bi[m] for Bi, m in zip(B_all, rows)])
+        Braw = sens(list(enumerate(rows)))
         sls, phases, turn_t, turn_cols = layout(r0, Braw, hc)
         blocks = np.concatenate([r.block[m] + o for r, m, o in zip(recs, rows, offsets)])
         BT = turn_t(Braw)

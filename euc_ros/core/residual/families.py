@@ -200,9 +200,19 @@ def _as_seen(C: np.ndarray, sig: dict) -> np.ndarray:
         return C
     k = sig["smooth"]
     h = k.size // 2
-    Cp = np.pad(C, ((h, h), (0, 0)), mode="edge")
-    S = signal.oaconvolve(Cp, k[::-1, None], mode="valid", axes=0)
-    return S[sig["index"]]
+    index = sig["index"]
+    out = np.empty((len(index), C.shape[1]))
+    # a few columns at a time (each column is filtered on its own: the same numbers), so the padded and
+    # filtered copies at the full rate are a block's, not every column's
+    step = max(1, _SEEN_BLOCK // max(C.shape[0], 1))
+    for lo in range(0, C.shape[1], step):
+        Cp = np.pad(C[:, lo:lo + step], ((h, h), (0, 0)), mode="edge")
+        out[:, lo:lo + step] = signal.oaconvolve(Cp, k[::-1, None], mode="valid", axes=0)[index]
+    return out
+
+
+#: Samples x columns filtered at once by :func:`_as_seen` (16 MB per full-rate copy).
+_SEEN_BLOCK = 1 << 21
 
 
 def _state(sig: dict, name: str) -> np.ndarray:
@@ -307,6 +317,9 @@ class Families:
             factor = {"1": 1.0, "speed": v, "sign": np.tanh(v / SIGN_SPEED)}[mod] * proj
             memo = sig.setdefault("_splines", {})
             if (coord, level) not in memo:
+                # one basis kept at a time (at the full rate it is the size of a recording's poses): the
+                # callers make a coordinate's modifiers one after the other at each level
+                memo.clear()
                 memo[(coord, level)] = self._spline(coord, sig[coord], level)
             return memo[(coord, level)] * factor[:, None]
         if fam.kind == "wheel":
@@ -357,7 +370,16 @@ class Families:
                 return top[1]
             return _as_seen(self._columns(fam, lv, sig), sig)
 
-        out = {(f, lv): made(f, fam, lv) for f, fam in enumerate(self.families) for lv in range(n_levels(fam))}
+        keys = [(f, lv) for f, fam in enumerate(self.families) for lv in range(n_levels(fam))]
+
+        def basis_of(k):   # a lab coordinate's modifiers at one level one after the other (one spline basis kept)
+            fam = self.families[k[0]]
+            return (fam.option[0], k[1]) if fam.kind == "lab" else ("", k[0], k[1])
+
+        order = sorted(range(len(keys)), key=lambda i: (basis_of(keys[i]), i))
+        made_ = {keys[i]: made(keys[i][0], self.families[keys[i][0]], keys[i][1]) for i in order}
+        sig.pop("_splines", None)
+        out = {k: made_[k] for k in keys}
         self._cache[key] = (arrays, out)
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)

@@ -307,3 +307,55 @@ def test_independent_columns_ignores_round_off_in_the_pivots():
     # a column scaled by round-off still ties; one that adds a real direction is kept
     B = np.column_stack([A, rng.standard_normal(200)])
     assert independent_columns(B).tolist() == [0, 1, 3]
+
+
+@pytest.fixture(scope="module")
+def prepared_ride():
+    """Two runs of a simulated ride prepared for the analysis (their contexts carry the full-rate signals)."""
+    from euc_ros.core.model.terms import EucParams
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.states.contexts import prepare
+    from euc_ros.core.states.kinematics import reconstruct_states
+
+    ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=4))
+    p = EucParams.from_session(ride.session)
+    return prepare([reconstruct_states(r.mocap, ride.session) for r in ride.runs], p)
+
+
+def test_columns_filtered_a_few_at_a_time_are_the_whole_filter(prepared_ride, monkeypatch):
+    """The families' columns made at the full rate go through the states' filter a few columns at a time
+    and a lab coordinate's spline basis is kept one level at a time: every column equals the whole
+    recording's columns filtered at once (each column is filtered on its own)."""
+    import euc_ros.core.residual.families as fm
+
+    ctx = prepared_ride[0].ctx
+    assert "full" in ctx.extras and len(ctx.extras["full"]["t"]) > len(ctx.t)     # the full-rate path is used
+    monkeypatch.setattr(fm, "_SEEN_BLOCK", 1 << 40)                 # every column at once
+    whole = Families([r.ctx for r in prepared_ride]).columns(ctx)
+    monkeypatch.setattr(fm, "_SEEN_BLOCK", 1)                       # one column at a time
+    basis = Families([r.ctx for r in prepared_ride])
+    parts = basis.columns(ctx)
+    assert list(parts) == list(whole) == [(f, lv) for f, fam in enumerate(basis.families)
+                                          for lv in range(n_levels(fam))]
+    assert any(basis.families[f].kind == "lab" for f, _ in parts)
+    for k in whole:
+        assert parts[k].shape == (len(ctx.t), basis.width(*k)) and np.array_equal(parts[k], whole[k]), k
+
+
+def test_row_sensitivities_are_rows_of_the_whole_matrix(prepared_ride):
+    """The selection's sensitivities, made group by group on some rows of some recordings, are those rows of
+    the whole matrix (group_sensitivities) stacked in order."""
+    from euc_ros.core.residual.discovery import RowSensitivities, candidate_groups, group_sensitivities
+
+    recs = prepared_ride
+    basis = Families([r.ctx for r in recs])
+    groups = candidate_groups(basis)
+    rng = np.random.default_rng(2)
+    L = [rng.normal(size=(r.ctx.t.shape[0], 3)) for r in recs]
+    rows = [rng.random(r.ctx.t.shape[0]) < 0.6 for r in recs]
+    whole = np.concatenate([group_sensitivities(basis, r.ctx, Li, groups)[m] for r, Li, m in zip(recs, L, rows)])
+    S = RowSensitivities(basis, [(r.ctx, Li, m) for r, Li, m in zip(recs, L, rows)], groups)
+    assert S.n == whole.shape[0] == sum(int(m.sum()) for m in rows)
+    edges = np.concatenate([[0], np.cumsum([basis.width(g.family, g.level) for g in groups])])
+    for j in range(len(groups)):
+        assert np.array_equal(S.block(j), whole[:, edges[j]:edges[j + 1]]), j
