@@ -104,7 +104,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     )
     from euc_ros.core.residual.interval import base_widening, filter_refit
     from euc_ros.core.residual.noise import make_noise_floor
-    from euc_ros.core.states.filter_choice import data_filtered
+    from euc_ros.core.states.filter_choice import data_filters
     from euc_ros.core.states.link_sliding import sliding_or_none, usable_poses
     from euc_ros.core.states.time_offset import measure_time_offset
 
@@ -151,7 +151,7 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     if result.final_interval is not None:
         final = result.final_interval.widened(*base_widening(base))
         if cog_method == "segments" and all(s is not None for s in series):
-            chosen, probe, ratio = data_filtered(series, session, phi_definition, sliding=links)
+            chosen, probe, ratio = data_filters(series, session, phi_definition, sliding=links)
             final = filter_refit(final, result.final_model, result.final_x, chosen, params, probe_states=probe,
                                  probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
         data.update(final.to_json())

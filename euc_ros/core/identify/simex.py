@@ -12,8 +12,9 @@ import numpy as np
 
 from euc_ros.core.filters.derivatives import window_samples
 from euc_ros.core.identify.fit import DEFAULT_H_GRID, coefficients_for, pooled_fit, pooled_h_of_states
+from euc_ros.core.memory import release_free_memory
 from euc_ros.core.mocap.noise import estimate_pose_noise, pose_noise_draws, pose_noise_series
-from euc_ros.core.states.kinematics import reconstruct_states, reconstruct_states_filters
+from euc_ros.core.states.kinematics import iter_states_filters, reconstruct_states
 
 #: Re-noised reconstructions of every recording in :func:`eiv_bias`: 2 antithetic pairs. Measured on
 #: 6 simulated 7 s runs (seed 7), the bias' scatter over 8 seeds: 6 independent replicates 0.99 mm
@@ -102,6 +103,7 @@ def first_replicate(series_list, session, params, *, window_s: float, polyorder:
         return states
     out = use(states)
     share.h_m = pooled_h_of_states(states, params)
+    release_free_memory()                   # the replicate's reconstruction
     return out
 
 
@@ -138,9 +140,9 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
 
     ``filters``: ``(window_s, polyorder, h)`` per filter, ``h`` the h fitted with that filter. Every
     replicate's noisy recording is made, and its geometry evaluated, once for all filters
-    (:func:`~euc_ros.core.states.kinematics.reconstruct_states_filters`); each filter's result is the
-    one :func:`eiv_bias` gives for it alone, number for number. Returns ``[(bias, standard error), ...]``
-    in the order of ``filters``.
+    (:func:`~euc_ros.core.states.kinematics.iter_states_filters`: one filter's states at a time); each
+    filter's result is the one :func:`eiv_bias` gives for it alone, number for number. Returns
+    ``[(bias, standard error), ...]`` in the order of ``filters``.
     """
     filters = [(float(w), int(p), float(h)) for w, p, h in filters]
     share = share if share is not None else SimexShare()
@@ -158,12 +160,13 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
         coefs: list[list] = [[] for _ in filters]
         for s, (sp, sr), z in zip(series_list, noise, draws):
             noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
-            states = reconstruct_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
-                                                phi_definition=phi_definition, cog_method=cog_method)
-            for k in range(len(filters)):
-                coefs[k] += coefficients_for([states[k]], params, "3dof", None)
-                states[k] = None
-            del noisy, states
+            made = iter_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
+                                       phi_definition=phi_definition, cog_method=cog_method)
+            for k, states in enumerate(made):
+                coefs[k] += coefficients_for([states], params, "3dof", None)
+                del states
+            del noisy, made
+            release_free_memory()           # the replicate's reconstruction
         return [float(pooled_fit(c, DEFAULT_H_GRID, "3dof").h_m) for c in coefs]
 
     hs = []

@@ -131,6 +131,7 @@ class DiscoveredEffect(Candidate):
         self.basis = basis
         self.groups = list(groups)
         self.widths = [g.columns(basis).size for g in self.groups]
+        self._keys = list(dict.fromkeys((g.family, g.level) for g in self.groups))    # the columns it needs
         n = int(sum(self.widths))
         self._start = np.zeros(n) if start is None else np.asarray(start, float)
         params = []
@@ -155,7 +156,7 @@ class DiscoveredEffect(Candidate):
         return [self._start.copy()]
 
     def force(self, ctx, theta):
-        cols = self.basis.columns(ctx)
+        cols = self.basis.columns(ctx, self._keys)
         n = ctx.t.shape[0]
         dQ = np.zeros((n, 3))
         jx = jz = None
@@ -523,7 +524,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         cols = []
         for r, Li in zip(recs, L):
             gains = point_gains(r.ctx, Li)
-            raw = basis.columns(r.ctx)
+            raw = basis.columns(r.ctx, [(g.family, g.level) for g in chosen])
             cols.append(np.concatenate([g.of(basis, gains[:, g.point, None] * raw[(g.family, g.level)])
                                         for g in chosen], axis=1))
         width = [g.columns(basis).size for g in chosen]

@@ -49,6 +49,8 @@ from numpy.polynomial import legendre
 from scipy import signal
 from scipy.interpolate import BSpline
 
+from euc_ros.core.memory import release_free_memory
+
 #: (coordinate, point) of the forces' directions and points of application.
 POINTS = (("x", "contact"), ("x", "rider CoG"), ("z", "rider CoG"), ("pitch", "rider"))
 #: Unit of each point's generalized force: a force [N], or a torque on the rider's pitch [N m].
@@ -192,12 +194,29 @@ def savgol_kernel(window: int, polyorder: int) -> np.ndarray:
     return signal.savgol_coeffs(int(window), int(polyorder), deriv=0, use="dot")
 
 
-def _as_seen(C: np.ndarray, sig: dict) -> np.ndarray:
+class _Scaled:
+    """The columns ``B * factor[:, None]`` made a block of columns at a time (``C[:, lo:hi]``), or whole
+    (``np.asarray``): a lab coordinate's spline basis times its modifier, without a second full-rate copy."""
+
+    def __init__(self, B: np.ndarray, factor: np.ndarray) -> None:
+        self.B, self.factor = B, factor
+        self.shape = B.shape
+
+    def __getitem__(self, key):
+        rows, cols = key
+        return self.B[rows, cols] * self.factor[rows, None]
+
+    def __array__(self, dtype=None, copy=None):
+        out = self.B * self.factor[:, None]
+        return out if dtype is None else out.astype(dtype)
+
+
+def _as_seen(C, sig: dict) -> np.ndarray:
     """Columns made on every sample, smoothed by the states' Savitzky-Golay filter and taken at the analysed
     samples: an extra force moves the residual through the filtered accelerations, so a force faster than the
     filter's passband (a tyre's harmonics at speed, a short bump passed quickly) reaches it smoothed alike."""
     if "smooth" not in sig:
-        return C
+        return np.asarray(C)
     k = sig["smooth"]
     h = k.size // 2
     index = sig["index"]
@@ -211,8 +230,8 @@ def _as_seen(C: np.ndarray, sig: dict) -> np.ndarray:
     return out
 
 
-#: Samples x columns filtered at once by :func:`_as_seen` (16 MB per full-rate copy).
-_SEEN_BLOCK = 1 << 21
+#: Samples x columns filtered at once by :func:`_as_seen` (4 MB per full-rate copy).
+_SEEN_BLOCK = 1 << 19
 
 
 def _state(sig: dict, name: str) -> np.ndarray:
@@ -283,6 +302,7 @@ class Families:
                 continue
             self.families.append(fam)
             kept.append(Cn)
+        release_free_memory()           # the full-rate columns' temporaries
 
     def width(self, f: int, level: int) -> int:
         """Columns of family ``f`` at ``level``."""
@@ -321,7 +341,7 @@ class Families:
                 # callers make a coordinate's modifiers one after the other at each level
                 memo.clear()
                 memo[(coord, level)] = self._spline(coord, sig[coord], level)
-            return memo[(coord, level)] * factor[:, None]
+            return _Scaled(memo[(coord, level)], factor)
         if fam.kind == "wheel":
             th = sig["s"] / sig["R"]
             k = np.arange(1, level + 2)
@@ -354,14 +374,20 @@ class Families:
         cols = first + ([low_pass(y, tau, dt) for y, tau in zip(first, TIME_CONSTANTS_S)] if level >= 1 else [])
         return np.stack(cols, axis=1)
 
-    def columns(self, ctx) -> dict[tuple[int, int], np.ndarray]:
-        """Every (family index, level) -> its columns (n, m) on ``ctx`` (cached per context arrays)."""
+    def columns(self, ctx, keys=None) -> dict[tuple[int, int], np.ndarray]:
+        """(family index, level) -> its columns (n, m) on ``ctx``: every one, or those of ``keys`` (cached per
+        context arrays; a context asked for some keys keeps only those until it is asked for more)."""
         arrays = _arrays(ctx)
         key = _arrays_key(ctx)
+        every = [(f, lv) for f, fam in enumerate(self.families) for lv in range(n_levels(fam))]
+        want = every if keys is None else list(keys)
         hit = self._cache.get(key)
-        if hit is not None and all(a is b for a, b in zip(hit[0], arrays)):
+        have = hit[1] if hit is not None and all(a is b for a, b in zip(hit[0], arrays)) else {}
+        missing = [k for k in want if k not in have]
+        if hit is not None and have:
             self._cache.move_to_end(key)
-            return hit[1]
+        if not missing:
+            return have if keys is None and len(have) == len(every) else {k: have[k] for k in want}
         sig = _signals(ctx)
 
         def made(f: int, fam: Family, lv: int) -> np.ndarray:
@@ -370,20 +396,21 @@ class Families:
                 return top[1]
             return _as_seen(self._columns(fam, lv, sig), sig)
 
-        keys = [(f, lv) for f, fam in enumerate(self.families) for lv in range(n_levels(fam))]
-
         def basis_of(k):   # a lab coordinate's modifiers at one level one after the other (one spline basis kept)
             fam = self.families[k[0]]
             return (fam.option[0], k[1]) if fam.kind == "lab" else ("", k[0], k[1])
 
-        order = sorted(range(len(keys)), key=lambda i: (basis_of(keys[i]), i))
-        made_ = {keys[i]: made(keys[i][0], self.families[keys[i][0]], keys[i][1]) for i in order}
+        order = sorted(range(len(missing)), key=lambda i: (basis_of(missing[i]), i))
+        made_ = {missing[i]: made(missing[i][0], self.families[missing[i][0]], missing[i][1]) for i in order}
         sig.pop("_splines", None)
-        out = {k: made_[k] for k in keys}
+        merged = {**have, **made_}
+        out = {k: merged[k] for k in every if k in merged}
         self._cache[key] = (arrays, out)
+        self._cache.move_to_end(key)
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)
-        return out
+        release_free_memory()           # the full-rate columns' temporaries
+        return out if keys is None else {k: out[k] for k in want}
 
     # ------------------------------------------------------------------ report
     def curve(self, f: int, level: int) -> tuple[np.ndarray, np.ndarray, list[str]]:

@@ -231,10 +231,13 @@ def filter_refit(interval: FinalInterval, model: Model, x: np.ndarray, states, p
     from ``x``; the interval holds that h too. With ``probe_states`` (the companion filter whose
     distortion is ``probe_ratio`` times the chosen one's), the chosen filter's own distortion is bounded
     as identify bounds it, ``|h_probe - h| / (probe_ratio - 1)`` (a bias growing with the distortion),
-    and the interval reaches that far beyond.
+    and the interval reaches that far beyond. Either states may be given as a function that makes them
+    (:func:`~euc_ros.core.states.filter_choice.data_filters`): then each is made when needed and let go once
+    prepared, so the two filters' states never exist together.
     """
     def refit(sts) -> float:
-        recs = with_blocks(prepare(sts, params, floor=floor, analysis_rate_hz=analysis_rate_hz), block_s)
+        recs = with_blocks(prepare(sts() if callable(sts) else sts, params, floor=floor,
+                                   analysis_rate_hz=analysis_rate_hz), block_s)
         return float(fit_model(model, recs, float(x[0]), start=np.asarray(x, float)).h)
 
     h_data = refit(states)

@@ -19,7 +19,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.auto_window import WindowChoice, choose_window
 from euc_ros.core.states.geometry import block_geometry
-from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states_filters
+from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states, reconstruct_states_filters
 from euc_ros.core.states.link_sliding import sliding_or_none
 
 
@@ -169,4 +169,19 @@ def data_filtered(series: list, session, phi_definition: str,
     per_rec = [reconstruct_states_filters(s, session, filters, phi_definition=phi_definition) for s in series]
     chosen = [st[0] for st in per_rec]
     return (chosen, [st[1] for st in per_rec] if probe else None,
+            float(choice.probe_ratio) if probe else float("nan"))
+
+
+def data_filters(series: list, session, phi_definition: str, sliding: dict | None = None) -> tuple:
+    """:func:`data_filtered` made when asked for: ``(make_chosen, make_probe or None, probe_ratio)``, each
+    ``make_*()`` the recordings' states with that filter (the same states). A caller that reduces the chosen
+    filter's states before asking for the probe's never holds both (each evaluates the geometry anew)."""
+    choice = choose_filter(series, session, phi_definition=phi_definition, sliding=sliding)
+
+    def make(window_s: float, polyorder: int):
+        return lambda: [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
+                                           polyorder=polyorder) for s in series]
+
+    probe = choice.probe
+    return (make(choice.window_s, choice.polyorder), make(*probe) if probe else None,
             float(choice.probe_ratio) if probe else float("nan"))

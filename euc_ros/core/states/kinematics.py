@@ -187,18 +187,28 @@ def reconstruct_states_filters(series, session, filters, *, phi_definition: str 
     list of RiderStates
         One per filter, in order.
     """
+    return list(iter_states_filters(series, session, filters, phi_definition=phi_definition, max_gap=max_gap,
+                                    cog_method=cog_method, skeleton=skeleton))
+
+
+def iter_states_filters(series, session, filters, *, phi_definition: str = "hinge", max_gap: int = DEFAULT_MAX_GAP,
+                        cog_method: str = "segments", skeleton: SkeletonModel | None = None):
+    """:func:`reconstruct_states_filters` one filter at a time: a generator of the states of each filter, in
+    order, each made when asked for (a caller that reduces each before asking for the next never holds two
+    filters' states). The geometry is evaluated once, when the first is asked for."""
     filters = [(float(w), int(p)) for w, p in filters]
     if not filters:
-        return []
+        return
     if len(filters) == 1:
         (w, p), = filters
-        return [reconstruct_states(series, session, phi_definition=phi_definition, window_s=w, polyorder=p,
-                                   max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)]
+        yield reconstruct_states(series, session, phi_definition=phi_definition, window_s=w, polyorder=p,
+                                 max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
+        return
     _check(series, session, phi_definition, cog_method)
     geo = _geometry(series, session, max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
-    return [_filtered_states(series, geo, phi_definition=phi_definition, window_s=w, polyorder=p, max_gap=max_gap,
-                             cog_method=cog_method, consume=k == len(filters) - 1)
-            for k, (w, p) in enumerate(filters)]
+    for k, (w, p) in enumerate(filters):
+        yield _filtered_states(series, geo, phi_definition=phi_definition, window_s=w, polyorder=p, max_gap=max_gap,
+                               cog_method=cog_method, consume=k == len(filters) - 1)
 
 
 def _check(series, session, phi_definition: str, cog_method: str) -> None:

@@ -178,3 +178,45 @@ def test_several_filters_from_one_geometry_are_each_filter_alone(ride, cog_metho
     for f in ("G", "phi_hinge", "psi", "theta", "has_rider"):
         arrays = [getattr(st, f) for st in many]
         assert not any(np.shares_memory(arrays[i], arrays[j]) for i in range(3) for j in range(i + 1, 3)), f
+
+
+def test_states_filter_by_filter_are_made_when_asked_for(ride):
+    """``iter_states_filters`` makes each filter's states when asked for (the geometry once, at the first):
+    a caller that drops each before the next never holds two, and each is the filter's states alone."""
+    import gc
+    import weakref
+
+    from euc_ros.core.states.kinematics import iter_states_filters, reconstruct_states
+
+    series, session = ride
+    filters = [(0.5, 4), (1.2, 6)]
+    made = iter_states_filters(series, session, filters)
+    first = next(made)
+    alive = weakref.ref(first)
+    gamma = first.gamma.copy()
+    del first
+    gc.collect()
+    assert alive() is None                         # nothing else holds the first filter's states
+    second = next(made)
+    with pytest.raises(StopIteration):
+        next(made)
+    np.testing.assert_array_equal(gamma, reconstruct_states(series, session, window_s=0.5, polyorder=4).gamma)
+    np.testing.assert_array_equal(second.phi_ddot,
+                                  reconstruct_states(series, session, window_s=1.2, polyorder=6).phi_ddot)
+
+
+def test_data_filters_make_the_data_filtered_states():
+    """The residual's lazily made states of the data's filter and its probe are data_filtered's."""
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.states.filter_choice import data_filtered, data_filters
+
+    sim = simulate_ride(RideConfig(maneuver="deceleration", runs=1, seed=3))
+    series, session = sim.runs[0].mocap, sim.session
+    chosen, probe, ratio = data_filtered([series], session, "hinge")
+    make_chosen, make_probe, ratio2 = data_filters([series], session, "hinge")
+    assert ratio2 == ratio or (np.isnan(ratio) and np.isnan(ratio2))
+    assert (probe is None) == (make_probe is None)
+    pairs = [(chosen, make_chosen())] + ([(probe, make_probe())] if probe is not None else [])
+    for a, b in pairs:
+        for key in ("gamma", "phi", "phi_ddot", "x_ddot", "C", "G", "valid"):
+            np.testing.assert_array_equal(getattr(a[0], key), getattr(b[0], key), err_msg=key)

@@ -359,3 +359,18 @@ def test_row_sensitivities_are_rows_of_the_whole_matrix(prepared_ride):
     edges = np.concatenate([[0], np.cumsum([basis.width(g.family, g.level) for g in groups])])
     for j in range(len(groups)):
         assert np.array_equal(S.block(j), whole[:, edges[j]:edges[j + 1]]), j
+
+
+def test_columns_asked_for_some_keys_are_those_of_every_column(prepared_ride):
+    """A context asked for some (family, level) columns gets exactly those of the full set, and a later ask
+    for every column completes it (the kept ones unchanged)."""
+    ctx = prepared_ride[0].ctx
+    whole = Families([r.ctx for r in prepared_ride]).columns(ctx)
+    basis = Families([r.ctx for r in prepared_ride])
+    keys = list(whole)[1::3]
+    some = basis.columns(ctx, keys)
+    assert list(some) == keys
+    assert all(np.array_equal(some[k], whole[k]) for k in keys)
+    every = basis.columns(ctx)
+    assert list(every) == list(whole) and all(np.array_equal(every[k], whole[k]) for k in whole)
+    assert all(every[k] is some[k] for k in keys)                 # kept, not made again
