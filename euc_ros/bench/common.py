@@ -368,6 +368,9 @@ class BenchContext:
         The command-line entry point the offline benchmarks run in process, as ``module:function``
         (the function takes the argument list and returns an exit code). The caller names it
         (``euc-ros bench`` gives its own dispatcher), so the benchmarks depend on no command module.
+    campaign : str
+        The module of the campaign runner (``seed_tasks``, ``run_task``, ``run_campaign``), named by the
+        caller for the same reason (``euc-ros bench`` gives ``euc_ros.cli.campaign_tasks``).
     """
 
     quick: bool
@@ -375,6 +378,7 @@ class BenchContext:
     tmp_dir: Path
     realtime: int | None = None
     command: str = ""
+    campaign: str = ""
     log: Callable[[str], None] = field(default=lambda s: print(s, file=sys.stderr, flush=True))
 
     def isolated(self, target: str, timeout_s: float = 600.0, **kwargs) -> dict:

@@ -59,7 +59,7 @@ def run_benchmarks(names, *, quick: bool, cache_dir: Path, tmp_dir: Path, log=No
     from domain_coordinator import domain_id
 
     ctx = BenchContext(quick=quick, cache_dir=Path(cache_dir), tmp_dir=Path(tmp_dir), realtime=realtime,
-                       command="euc_ros.cli.main:main")
+                       command="euc_ros.cli.main:main", campaign="euc_ros.cli.campaign_tasks")
     if log is not None:
         ctx.log = log
     ctx.cache_dir.mkdir(parents=True, exist_ok=True)
