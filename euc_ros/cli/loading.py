@@ -27,6 +27,7 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
     """
     from tqdm import tqdm
 
+    from euc_ros.core.memory import release_free_memory
     from euc_ros.core.states.kinematics import reconstruct_states
 
     for path in paths:
@@ -90,6 +91,7 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         seen[st.name] = k + 1
         if k:
             st.name = f"{st.name}#{k + 1}"
+    release_free_memory()           # the readers' and the reconstruction's temporaries
     return states
 
 

@@ -257,18 +257,24 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     bias = err = float("nan")
     have_series = np.isfinite(fit.h_m) and all(s is not None for s in series)
     probe = h_probe = probe_eiv = None
-    if filter_choice is not None and have_series:
+    with_probe = filter_choice is not None and have_series
+    biases = []
+    if have_series:
+        # SIMEX at the chosen filter, and at the probe from the same re-noised recordings; the probe's own h is
+        # fitted after (its replicates' h do not depend on it: the bias is their mean minus it), so its
+        # coefficients are not held through the replicates
+        filters = [(window_s, polyorder, fit.h_m)]
+        if with_probe and float(filter_choice.probe[0]) > float(filter_choice.window_s):
+            filters.append((float(filter_choice.probe[0]), int(filter_choice.probe[1]), 0.0))
+        biases = eiv_biases(series, session, params, filters, phi_definition=phi_definition, cog_method=cog_method,
+                            share=simex_share)
+        bias, err = biases[0]
+    if with_probe:
         probe = probe_coefficients(series, session, params, filter_choice, phi_definition=phi_definition,
                                    cog_method=cog_method)
         h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
-    if have_series:
-        # SIMEX at the chosen filter, and at the probe from the same re-noised recordings
-        filters = [(window_s, polyorder, fit.h_m)]
-        if probe is not None and float(filter_choice.probe[0]) > float(filter_choice.window_s):
-            filters.append((float(filter_choice.probe[0]), int(filter_choice.probe[1]), h_probe))
-        biases = eiv_biases(series, session, params, filters, phi_definition=phi_definition, cog_method=cog_method,
-                            share=simex_share)
-        (bias, err), probe_eiv = biases[0], (biases[1] if len(biases) > 1 else None)
+    if len(biases) > 1:
+        probe_eiv = (biases[1][0] - h_probe, biases[1][1])
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
     slide = measured = None

@@ -102,6 +102,7 @@ def first_replicate(series_list, session, params, *, window_s: float, polyorder:
         share.h_m = pooled_h_of_states(list(states), params)      # a copy of the list: the states are returned
         return states
     out = use(states)
+    release_free_memory()                   # what ``use`` made and dropped
     share.h_m = pooled_h_of_states(states, params)
     release_free_memory()                   # the replicate's reconstruction
     return out
@@ -151,6 +152,7 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
     if all(not np.isfinite(sp).any() for sp, _ in noise):
         return [(nan, nan) for _ in filters]
     rng = np.random.default_rng(seed)
+    release_free_memory()                   # what the steps before left freed, before the replicates
     known = share.lookup(series_list, _share_key(series_list, filters[0][0], filters[0][1], phi_definition,
                                                  cog_method, seed, params)) if len(filters) == 1 else None
 
@@ -158,16 +160,21 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
         # fit_h's pooled 3-DoF h per filter; each recording's states are reduced to their residual
         # coefficients as soon as they are made (never two filters' states of a recording at once)
         coefs: list[list] = [[] for _ in filters]
+        hs: list[float | None] = [None] * len(filters)
         for s, (sp, sr), z in zip(series_list, noise, draws):
             noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
             made = iter_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
-                                       phi_definition=phi_definition, cog_method=cog_method)
+                                       phi_definition=phi_definition, cog_method=cog_method, shared=True)
             for k, states in enumerate(made):
                 coefs[k] += coefficients_for([states], params, "3dof", None)
                 del states
+                if len(series_list) == 1:         # one recording: its fit now, before the next filter's states
+                    hs[k] = float(pooled_fit(coefs[k], DEFAULT_H_GRID, "3dof").h_m)
+                    coefs[k] = []
+                release_free_memory()             # this filter's temporaries, before the next's
             del noisy, made
             release_free_memory()           # the replicate's reconstruction
-        return [float(pooled_fit(c, DEFAULT_H_GRID, "3dof").h_m) for c in coefs]
+        return [h if h is not None else float(pooled_fit(c, DEFAULT_H_GRID, "3dof").h_m) for h, c in zip(hs, coefs)]
 
     hs = []
     pairs = antithetic and replicates >= 2

@@ -590,7 +590,11 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
             "families": sorted({f.key for f in basis.families}), "undetectable": UNDETECTABLE,
             "linearised_at_h_m": h_cur if best is None else best["h_lin"], "linearisations_tried_h_m": h_path}
     if best is None:
+        basis.retain([])
         return {"model": None, "x": None, "heldout": None, "info": info}
+    # the basis goes on with the model: only the chosen groups' columns are kept (the rest are some 700
+    # columns of every analysed sample)
+    basis.retain([(g.family, g.level) for g in best["model"].effects[-1].groups])
     # the held-out residual of the groups chosen within each fold (no leakage of the selection into the test)
     if complete[best_k].shape == current_ho.residual.shape:
         info["selection_heldout"] = HeldOut(current, complete[best_k], current_ho.block, [], current_ho.index)

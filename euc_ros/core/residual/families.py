@@ -230,6 +230,8 @@ def _as_seen(C, sig: dict) -> np.ndarray:
     return out
 
 
+#: Full-rate columns made [bytes] above which their freed temporaries are returned to the OS at once.
+_RELEASE_BYTES = 64 << 20
 #: Samples x columns filtered at once by :func:`_as_seen` (4 MB per full-rate copy).
 _SEEN_BLOCK = 1 << 19
 
@@ -286,11 +288,13 @@ class Families:
         kept: list[np.ndarray] = []
         # each recording's top-level columns, made here for the duplicate test, are kept for columns()
         self._top: dict[tuple, tuple] = {}
+        made_bytes = 0
         for fam in families:
             if fam.kind in ("lab", "speed") and self._degenerate(fam):
                 continue
             top = n_levels(fam) - 1
             per = [_as_seen(self._columns(fam, top, s), s) for s in sigs]
+            made_bytes += sum(len(sg["t"]) * C.shape[1] * 8 for sg, C in zip(sigs, per))
             for c, C in zip(ctxs, per):
                 self._top[(id(fam), _arrays_key(c))] = (_arrays(c), C)
             C = np.concatenate(per) if sigs else np.zeros((0, 1))
@@ -302,7 +306,8 @@ class Families:
                 continue
             self.families.append(fam)
             kept.append(Cn)
-        release_free_memory()           # the full-rate columns' temporaries
+        if made_bytes > _RELEASE_BYTES:
+            release_free_memory()       # the full-rate columns' temporaries
 
     def width(self, f: int, level: int) -> int:
         """Columns of family ``f`` at ``level``."""
@@ -409,8 +414,18 @@ class Families:
         self._cache.move_to_end(key)
         if len(self._cache) > self.CACHE:
             self._cache.popitem(last=False)
-        release_free_memory()           # the full-rate columns' temporaries
+        if len(sig["t"]) * sum(v.shape[1] for v in made_.values()) * 8 > _RELEASE_BYTES:
+            release_free_memory()       # the full-rate columns' temporaries
         return out if keys is None else {k: out[k] for k in want}
+
+    def retain(self, keys) -> None:
+        """Keep only the cached columns of ``keys`` ((family index, level) pairs): what a fitted model of these
+        families still asks for; any other is made again when asked for."""
+        keep = set(keys)
+        for ctx_key, (arrays, cols) in list(self._cache.items()):
+            self._cache[ctx_key] = (arrays, {k: v for k, v in cols.items() if k in keep})
+        top_of = {id(fam) for f, fam in enumerate(self.families) if (f, n_levels(fam) - 1) in keep}
+        self._top = {k: v for k, v in self._top.items() if k[0] in top_of}
 
     # ------------------------------------------------------------------ report
     def curve(self, f: int, level: int) -> tuple[np.ndarray, np.ndarray, list[str]]:

@@ -7,6 +7,7 @@ evaluate their models on these.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
@@ -139,7 +140,8 @@ def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:
 
 
 def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S,
-            floor: FloorFit | None = None, analysis_rate_hz: float | None = None) -> list[Recording]:
+            floor: FloorFit | None = None, analysis_rate_hz: float | None = None,
+            own_signals: bool = False) -> list[Recording]:
     """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook).
 
     ``analysis_rate_hz``: keep every k-th sample (:func:`decimation_step`); None keeps all of them.
@@ -147,6 +149,9 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
     With a ``floor`` that is not flat, each context also carries the floor's slope along travel under
     the wheel (``extras['floor_a']``) and the wheel centre's vertical acceleration (``extras['c_zdd']``,
     the states' derivative filter) for :class:`~euc_ros.core.model.effects.FloorGeometry`.
+
+    Each context's full-rate signals (``extras['full']``, :class:`FullSignals`) are read from its states when
+    needed; ``own_signals``: made now instead, for states that are dropped while the contexts live.
     """
     out = []
     for st in states:
@@ -179,9 +184,49 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
         ctx.extras["recording"] = st.name
         # the full-rate signals and the states' filter, for basis functions made as the states were
         # (:mod:`euc_ros.core.residual.families`: a force reaches the residual through that filter)
-        ctx.extras["full"] = {"t": st.t - st.t[0], "v": xd, "s": s_path, "psi": np.nan_to_num(np.unwrap(st.psi)),
-                              "X": np.nan_to_num(st.C[:, 0]), "Y": np.nan_to_num(st.C[:, 1]),
-                              "phi_dot": np.nan_to_num(st.phi_dot), "gamma_dot": np.nan_to_num(st.gamma_dot),
-                              "index": np.flatnonzero(valid), "window": int(window), "polyorder": int(st.polyorder)}
+        full = FullSignals(st, np.flatnonzero(valid), int(window))
+        ctx.extras["full"] = {k: full[k] for k in full} if own_signals else full
         out.append(Recording(st.name, ctx, block, np.flatnonzero(valid)))
     return out
+
+
+class FullSignals(Mapping):
+    """A context's full-rate signals (every sample of the recording, NaN as 0), made from its states when
+    read: ``t`` (from the first sample), ``v`` (x_dot), ``s`` (path), ``psi`` (unwrapped), ``X``, ``Y`` (the
+    wheel centre), ``phi_dot``, ``gamma_dot``, and ``index`` (the analysed samples), ``window``,
+    ``polyorder`` (the states' filter). A reference to the states, not copies of eight of their arrays:
+    those are read a few times per analysis, while the contexts live through it."""
+
+    _KEYS = ("t", "v", "s", "psi", "X", "Y", "phi_dot", "gamma_dot", "index", "window", "polyorder")
+
+    def __init__(self, st: RiderStates, index: np.ndarray, window: int) -> None:
+        self._st, self._index, self._window = st, index, window
+
+    def __getitem__(self, key: str):
+        st = self._st
+        if key == "t":
+            return st.t - st.t[0]
+        if key in ("v", "s"):
+            xd = np.nan_to_num(st.x_dot)
+            if key == "v":
+                return xd
+            return np.concatenate([[0.0], np.cumsum(0.5 * (xd[1:] + xd[:-1]) * np.diff(st.t))])
+        if key == "psi":
+            return np.nan_to_num(np.unwrap(st.psi))
+        if key in ("X", "Y"):
+            return np.nan_to_num(st.C[:, 0 if key == "X" else 1])
+        if key in ("phi_dot", "gamma_dot"):
+            return np.nan_to_num(getattr(st, key))
+        if key == "index":
+            return self._index
+        if key == "window":
+            return self._window
+        if key == "polyorder":
+            return int(st.polyorder)
+        raise KeyError(key)
+
+    def __iter__(self):
+        return iter(self._KEYS)
+
+    def __len__(self) -> int:
+        return len(self._KEYS)

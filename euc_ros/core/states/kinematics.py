@@ -192,10 +192,13 @@ def reconstruct_states_filters(series, session, filters, *, phi_definition: str 
 
 
 def iter_states_filters(series, session, filters, *, phi_definition: str = "hinge", max_gap: int = DEFAULT_MAX_GAP,
-                        cog_method: str = "segments", skeleton: SkeletonModel | None = None):
+                        cog_method: str = "segments", skeleton: SkeletonModel | None = None,
+                        shared: bool = False):
     """:func:`reconstruct_states_filters` one filter at a time: a generator of the states of each filter, in
     order, each made when asked for (a caller that reduces each before asking for the next never holds two
-    filters' states). The geometry is evaluated once, when the first is asked for."""
+    filters' states). The geometry is evaluated once, when the first is asked for. ``shared``: the states
+    of the filters but the last share the geometry's arrays they keep (G, the pitch angles, the heading...)
+    instead of copies, for a caller that only reads them."""
     filters = [(float(w), int(p)) for w, p in filters]
     if not filters:
         return
@@ -207,8 +210,10 @@ def iter_states_filters(series, session, filters, *, phi_definition: str = "hing
     _check(series, session, phi_definition, cog_method)
     geo = _geometry(series, session, max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
     for k, (w, p) in enumerate(filters):
-        yield _filtered_states(series, geo, phi_definition=phi_definition, window_s=w, polyorder=p, max_gap=max_gap,
-                               cog_method=cog_method, consume=k == len(filters) - 1)
+        last = k == len(filters) - 1
+        yield _filtered_states(series, geo if last or not shared else dict(geo), phi_definition=phi_definition,
+                               window_s=w, polyorder=p, max_gap=max_gap, cog_method=cog_method,
+                               consume=last or shared)
 
 
 def _check(series, session, phi_definition: str, cog_method: str) -> None:

@@ -374,3 +374,39 @@ def test_columns_asked_for_some_keys_are_those_of_every_column(prepared_ride):
     every = basis.columns(ctx)
     assert list(every) == list(whole) and all(np.array_equal(every[k], whole[k]) for k in whole)
     assert all(every[k] is some[k] for k in keys)                 # kept, not made again
+
+
+def test_full_rate_signals_are_the_states_own(prepared_ride):
+    """A context's full-rate signals, read from its states when asked for, are the states' arrays (NaN as 0,
+    time from the first sample, the path integrated by trapezoids, the heading unwrapped); made at once
+    (``own_signals``) they are the same numbers."""
+    from euc_ros.core.states.contexts import prepare
+
+    rec = prepared_ride[0]
+    full = rec.ctx.extras["full"]
+    st = full._st
+    xd = np.where(np.isfinite(st.x_dot), st.x_dot, 0.0)
+    s = np.zeros(st.t.size)
+    for i in range(1, st.t.size):                               # the path, sample by sample
+        s[i] = s[i - 1] + 0.5 * (xd[i] + xd[i - 1]) * (st.t[i] - st.t[i - 1])
+    np.testing.assert_allclose(full["s"], s, rtol=1e-12, atol=1e-12 * np.abs(s).max())
+    assert np.array_equal(full["v"], xd) and full["t"][0] == 0.0
+    assert np.all(np.abs(np.diff(full["psi"])) < np.pi)           # unwrapped
+    assert np.array_equal(full["X"], np.nan_to_num(st.C[:, 0])) and np.array_equal(full["index"], rec.index)
+    own = prepare([st], rec.ctx.params, own_signals=True)[0].ctx.extras["full"]
+    assert isinstance(own, dict) and set(own) == set(full)
+    for k in full:
+        assert np.array_equal(np.asarray(own[k]), np.asarray(full[k])), k
+
+
+def test_retained_columns_are_kept_and_the_rest_made_again_alike(prepared_ride):
+    """After a fit the basis keeps only the chosen groups' columns; asked again for every column it makes
+    the others anew, the same numbers."""
+    ctx = prepared_ride[0].ctx
+    basis = Families([r.ctx for r in prepared_ride])
+    whole = {k: v.copy() for k, v in basis.columns(ctx).items()}
+    keep = list(whole)[:2]
+    basis.retain(keep)
+    assert set(basis._cache[next(iter(basis._cache))][1]) == set(keep)
+    again = basis.columns(ctx)
+    assert list(again) == list(whole) and all(np.array_equal(again[k], whole[k]) for k in whole)
