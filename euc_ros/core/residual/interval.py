@@ -236,9 +236,9 @@ def filter_refit(interval: FinalInterval, model: Model, x: np.ndarray, states, p
     prepared, so the two filters' states never exist together.
     """
     def refit(sts) -> float:
-        # states made here are dropped once prepared (their contexts keep the full-rate signals they need)
+        # states made here live as long as their contexts (dropped after the fit)
         recs = with_blocks(prepare(sts() if callable(sts) else sts, params, floor=floor,
-                                   analysis_rate_hz=analysis_rate_hz, own_signals=callable(sts)), block_s)
+                                   analysis_rate_hz=analysis_rate_hz), block_s)
         return float(fit_model(model, recs, float(x[0]), start=np.asarray(x, float)).h)
 
     h_data = refit(states)

@@ -140,8 +140,7 @@ def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:
 
 
 def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S,
-            floor: FloorFit | None = None, analysis_rate_hz: float | None = None,
-            own_signals: bool = False) -> list[Recording]:
+            floor: FloorFit | None = None, analysis_rate_hz: float | None = None) -> list[Recording]:
     """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook).
 
     ``analysis_rate_hz``: keep every k-th sample (:func:`decimation_step`); None keeps all of them.
@@ -151,7 +150,7 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
     the states' derivative filter) for :class:`~euc_ros.core.model.effects.FloorGeometry`.
 
     Each context's full-rate signals (``extras['full']``, :class:`FullSignals`) are read from its states when
-    needed; ``own_signals``: made now instead, for states that are dropped while the contexts live.
+    needed (the contexts keep their states: the time-shift hook works on them).
     """
     out = []
     for st in states:
@@ -184,8 +183,7 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
         ctx.extras["recording"] = st.name
         # the full-rate signals and the states' filter, for basis functions made as the states were
         # (:mod:`euc_ros.core.residual.families`: a force reaches the residual through that filter)
-        full = FullSignals(st, np.flatnonzero(valid), int(window))
-        ctx.extras["full"] = {k: full[k] for k in full} if own_signals else full
+        ctx.extras["full"] = FullSignals(st, np.flatnonzero(valid), int(window))
         out.append(Recording(st.name, ctx, block, np.flatnonzero(valid)))
     return out
 
