@@ -131,6 +131,10 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
         ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
     cands = make_candidates(candidates, ranges)
+    # what the rigid links show (measured once: the interval's sliding terms and the filter choice); the links'
+    # usable poses are let go before the analysis
+    links = sliding_or_none(series, session, usable) if usable is not None else None
+    del usable
     # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
     simex = SimexShare()
     noise_of = make_noise_floor(series, states, session, params, share=simex) \
@@ -141,8 +145,6 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
     budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
-    # what the rigid links show (measured once: the interval's sliding terms and the filter choice)
-    links = sliding_or_none(series, session, usable) if usable is not None else None
     base = identify_h(states, session, params, models=("3dof",), window_s=window_s, polyorder=polyorder,
                       phi_definition=phi_definition, cog_method=cog_method, simex_share=simex,
                       sliding_prior=sliding_prior(sliding_prior_mm), link_sliding=links, **budget).uncertainty
