@@ -55,7 +55,7 @@ def _runner(runner: str):
     return importlib.import_module(runner)
 
 
-def _tasks(mod, n_tasks: int, duration_s: float) -> list:
+def _campaign(mod, n_tasks: int, duration_s: float) -> list:
     return mod.seed_tasks(range(n_tasks), {**SIMULATE, "duration_s": float(duration_s)})
 
 
@@ -72,7 +72,7 @@ def measure_serial(n_tasks: int, runner: str, duration_s: float = DURATION_S,
     ``euc_ros.cli.campaign_tasks``).
     """
     mod = _runner(runner)
-    tasks = _tasks(mod, n_tasks, duration_s)
+    tasks = _campaign(mod, n_tasks, duration_s)
     t0 = time.perf_counter()
     warm = mod.run_task(_warmup_task(mod, warmup_duration_s))
     warmup_s = time.perf_counter() - t0
@@ -97,7 +97,7 @@ def measure_cluster(n_tasks: int, runner: str, workers: int = WORKERS, duration_
     from distributed import Client, LocalCluster
 
     mod = _runner(runner)
-    tasks = _tasks(mod, n_tasks, duration_s)
+    tasks = _campaign(mod, n_tasks, duration_s)
     warm_task = _warmup_task(mod, warmup_duration_s)
     t0 = time.perf_counter()
     with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
