@@ -160,7 +160,7 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
         # fit_h's pooled 3-DoF h per filter; each recording's states are reduced to their residual
         # coefficients as soon as they are made (never two filters' states of a recording at once)
         coefs: list[list] = [[] for _ in filters]
-        hs: list[float | None] = [None] * len(filters)
+        fitted: list[float | None] = [None] * len(filters)     # per filter, its h once fitted
         for s, (sp, sr), z in zip(series_list, noise, draws):
             noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
             made = iter_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
@@ -169,12 +169,13 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
                 coefs[k] += coefficients_for([states], params, "3dof", None)
                 del states
                 if len(series_list) == 1:         # one recording: its fit now, before the next filter's states
-                    hs[k] = float(pooled_fit(coefs[k], DEFAULT_H_GRID, "3dof").h_m)
+                    fitted[k] = float(pooled_fit(coefs[k], DEFAULT_H_GRID, "3dof").h_m)
                     coefs[k] = []
                 release_free_memory()             # this filter's temporaries, before the next's
             del noisy, made
             release_free_memory()           # the replicate's reconstruction
-        return [h if h is not None else float(pooled_fit(c, DEFAULT_H_GRID, "3dof").h_m) for h, c in zip(hs, coefs)]
+        return [h if h is not None else float(pooled_fit(c, DEFAULT_H_GRID, "3dof").h_m)
+                for h, c in zip(fitted, coefs)]
 
     hs = []
     pairs = antithetic and replicates >= 2
