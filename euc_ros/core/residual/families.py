@@ -293,6 +293,9 @@ class Families:
             if fam.kind in ("lab", "speed") and self._degenerate(fam):
                 continue
             top = n_levels(fam) - 1
+            if fam.kind != "lab":
+                for s in sigs:
+                    s.pop("_splines", None)     # the lab families' last spline basis: not needed any more
             per = [_as_seen(self._columns(fam, top, s), s) for s in sigs]
             made_bytes += sum(len(sg["t"]) * C.shape[1] * 8 for sg, C in zip(sigs, per))
             for c, C in zip(ctxs, per):
@@ -375,9 +378,15 @@ class Families:
         # dynamics
         u = _state(sig, fam.option[0])
         dt = float(np.median(np.diff(sig["t"]))) if sig["t"].size > 1 else 1.0
-        first = [low_pass(u, tau, dt) for tau in TIME_CONSTANTS_S]
-        cols = first + ([low_pass(y, tau, dt) for y, tau in zip(first, TIME_CONSTANTS_S)] if level >= 1 else [])
-        return np.stack(cols, axis=1)
+        # written column by column into the result (no list of full-rate columns beside it)
+        k = len(TIME_CONSTANTS_S)
+        out = np.empty((u.size, k * (2 if level >= 1 else 1)))
+        for i, tau in enumerate(TIME_CONSTANTS_S):
+            out[:, i] = low_pass(u, tau, dt)
+        if level >= 1:
+            for i, tau in enumerate(TIME_CONSTANTS_S):
+                out[:, k + i] = low_pass(np.ascontiguousarray(out[:, i]), tau, dt)
+        return out
 
     def columns(self, ctx, keys=None) -> dict[tuple[int, int], np.ndarray]:
         """(family index, level) -> its columns (n, m) on ``ctx``: every one, or those of ``keys`` (cached per

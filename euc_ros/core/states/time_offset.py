@@ -53,8 +53,10 @@ def measure_time_offset(series_list, session, usable: list | None = None) -> dic
     euc = session.euc.body
     names = set(session.segment_arrays()[0])
     links = [b for a, b in DEFAULT_LINKS if a == "E" and b in names]
-    rows_d, rows_v, rows_blk, used = [], [], [], []
-    nblk = 0
+    # per link, the sums of V . D and V . V over each of its blocks (the blocks are a link's own, numbered
+    # on across links and recordings): no link's rows are kept once summed
+    nums, dens, used = [], [], []
+    frames = 0
     for k, s in enumerate(series_list):
         if euc not in s.bodies:
             continue
@@ -76,24 +78,24 @@ def measure_time_offset(series_list, session, usable: list | None = None) -> dic
             if ok.sum() < MIN_FRAMES:
                 continue
             # the ankle's velocity in the EUC's frame: R_E^T v (the conjugate quaternion rotates into it)
-            qe = s.quat[je] * np.array([-1.0, -1.0, -1.0, 1.0])
-            ve = quat_rotate(qe[ok], v[ok])
+            ve = quat_rotate(s.quat[je][ok] * np.array([-1.0, -1.0, -1.0, 1.0]), v[ok])
+            del v
             d = d[ok]
             t = s.t[ok] - s.t[0]
             blk = np.floor(t / BLOCK_S).astype(int)
-            rows_d.append(d - d.mean(0))
-            rows_v.append(ve - ve.mean(0))
-            rows_blk.append(blk + nblk)
-            nblk += int(blk.max()) + 1
+            D = d - d.mean(0)
+            V = ve - ve.mean(0)
+            del d, ve
+            nblk = int(blk.max()) + 1
+            nums.append(np.bincount(blk, np.einsum("ni,ni->n", V, D), nblk))
+            dens.append(np.bincount(blk, np.einsum("ni,ni->n", V, V), nblk))
+            frames += int(D.shape[0])
             used.append(b)
-    if not rows_d:
+    if not nums:
         return None
-    D = np.concatenate(rows_d)          # (n, 3)
-    V = np.concatenate(rows_v)
-    blk = np.concatenate(rows_blk)
     # d = u - V dt (each recording's and link's own u removed by centring): dt = -(V . D) / (V . V)
-    num = np.bincount(blk, np.einsum("ni,ni->n", V, D), nblk)
-    den = np.bincount(blk, np.einsum("ni,ni->n", V, V), nblk)
+    num = np.concatenate(nums)
+    den = np.concatenate(dens)
     keep = den > 0
     if not keep.any() or den.sum() <= 0:
         return None
@@ -105,4 +107,4 @@ def measure_time_offset(series_list, session, usable: list | None = None) -> dic
     dt_ms, se_ms = 1e3 * float(est), 1e3 * se
     half = max(RANGE_SE * se_ms, FLOOR_MS)
     return {"dt_ms": dt_ms, "se_ms": se_ms, "plausible_ms": [dt_ms - half, dt_ms + half], "links": sorted(set(used)),
-            "frames": int(D.shape[0])}
+            "frames": frames}
