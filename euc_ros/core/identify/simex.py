@@ -165,7 +165,10 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
             noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
             made = iter_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
                                        phi_definition=phi_definition, cog_method=cog_method, shared=True)
-            for k, states in enumerate(made):
+            # a counter, not enumerate(): enumerate's reused (k, item) tuple would keep this filter's states
+            # alive while the generator makes the next filter's
+            for k in range(len(filters)):
+                states = next(made)
                 coefs[k] += coefficients_for([states], params, "3dof", None)
                 del states
                 if len(series_list) == 1:         # one recording: its fit now, before the next filter's states
