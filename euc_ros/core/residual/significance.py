@@ -86,22 +86,27 @@ def max_t_adjusted(base: HeldOut, cands: Sequence[HeldOut], n_flips: int = MAX_T
     t_obs = t_of(D0.sum(axis=1) / nn)
     exact = 2 ** nb <= n_flips
     total = 2 ** nb if exact else n_flips
-    # the flips in chunks of ~2^21 signs: a 60-minute recording has ~6000 blocks, and all 2^15 flips at once
-    # were 1.5 GB (memory that grows with the recording, and most of the step's time)
+    # the flips drawn in chunks of ~2^21 signs (int8: a 60-minute recording has ~6000 blocks, and all 2^15
+    # flips at once were 1.5 GB), evaluated in parts of ~2^17 signs (their float signs and statistics are a
+    # part's: a fixed few MB, however many blocks and candidates)
     chunk = max(1, (1 << 21) // nb)
+    part = max(1, (1 << 17) // nb)
     rng = None if exact else np.random.default_rng(seed)
     t_max = np.empty(total)
     for lo in range(0, total, chunk):
         hi = min(lo + chunk, total)
         if exact:
-            S = 1.0 - 2.0 * ((np.arange(lo, hi)[:, None] >> np.arange(nb)[None, :]) & 1)
+            bits = (np.arange(lo, hi)[:, None] >> np.arange(nb)[None, :]) & 1
         else:
-            S = 1.0 - 2.0 * rng.integers(0, 2, size=(hi - lo, nb), dtype=np.int8)
+            bits = rng.integers(0, 2, size=(hi - lo, nb), dtype=np.int8)
             if lo == 0:
-                S[0] = 1.0                            # the identity
-        T = t_of((S @ D0.T) / nn)                     # (flips, candidates)
-        T[:, n < 3] = -np.inf
-        t_max[lo:hi] = T.max(axis=1)
+                bits[0] = 0                           # the identity
+        for a in range(0, hi - lo, part):
+            S = 1.0 - 2.0 * bits[a:a + part]
+            T = t_of((S @ D0.T) / nn)                 # (flips, candidates)
+            T[:, n < 3] = -np.inf
+            t_max[lo + a:lo + a + S.shape[0]] = T.max(axis=1)
+            del S, T
     t_max.sort()
     exceed = t_max.size - np.searchsorted(t_max, t_obs - 1e-12 * np.abs(t_obs), side="left")
     # (the random flips include the identity: exceed / flips is (1 + others) / (1 + other flips), a valid p)
