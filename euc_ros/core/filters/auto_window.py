@@ -348,8 +348,19 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         raise InputError("no signals given", key="signals")
     noise_std = dict(noise_std or {})
     specs, floors, sig_used, n_avg = {}, {}, {}, {}
+    spectra = {}
     for name, y in signals.items():
-        f, S, n_avg[name] = displacement_spectrum(y, dt, segment_s)
+        spectra[name] = displacement_spectrum(y, dt, segment_s)
+    # one frequency grid for every signal: a signal whose stretches are all shorter than a segment has a
+    # coarser one (a short recording with gaps), so its spectrum is interpolated onto the finest
+    grid = max((sp[0] for sp in spectra.values()), key=lambda f: f.size)
+    for name, (f, S, n) in spectra.items():
+        if f.size != grid.size:
+            S = np.interp(grid, f[1:], S[1:])
+            S[0] = np.nan                               # 0 Hz, as displacement_spectrum gives it
+            spectra[name] = (grid, S, n)
+    for name in signals:
+        f, S, n_avg[name] = spectra.pop(name)
         top = (f >= NOISE_BAND[0] * f[-1]) & (f <= NOISE_BAND[1] * f[-1])
         if name in noise_std and noise_std[name] is not None:
             sigma = float(noise_std[name])

@@ -115,6 +115,27 @@ def test_noise_free_fast_motion_gets_a_short_window_and_noisy_slow_motion_a_long
     assert b.window_s > 1.0
 
 
+def test_signals_whose_stretches_are_all_shorter_than_a_segment_share_the_finest_grid():
+    """A short recording with gaps: one signal is continuous, another broken into stretches shorter than a
+    Welch segment (its spectrum has fewer bins). The choice runs on one grid, and each signal's white
+    floor is read as its own: both carry noise of the same sigma, estimated to within its sampling error."""
+    rng = np.random.default_rng(5)
+    dt, n, sigma = 1 / 120, 120 * 60, 3e-3
+    y, _ = _lines([0.3, 0.8], [0.05, 0.01], dt, n, rng)
+    whole = y + sigma * rng.standard_normal(n)
+    broken = y + sigma * rng.standard_normal(n)
+    stretch = int(0.8 * SEGMENT_S / dt)                 # every stretch shorter than a segment
+    broken[stretch::stretch + 1] = np.nan
+    assert displacement_spectrum(broken, dt)[0].size < displacement_spectrum(whole, dt)[0].size
+    ch = choose_window(dt, {"whole": whole, "broken": broken})
+    assert set(ch.distortion) == {"whole", "broken"}
+    assert ch.window % 2 == 1 and ch.window > ch.polyorder
+    # each floor is the median over ~40+ top-band bins of averages of >= 10 segments: a relative error of
+    # a few percent in power, half that in sigma; 0.2 is beyond 5 standard errors
+    for name in ("whole", "broken"):
+        assert ch.noise_std[name] == pytest.approx(sigma, rel=0.2)
+
+
 def test_choice_on_a_generated_ride_leaves_under_one_percent():
     from euc_ros.core.worldsim import simulate_ride
 
