@@ -198,12 +198,18 @@ def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None
     ref = np.array(seg[length // 2])
     x = seg - ref
     if length >= FFT_MIN_WINDOWS * w:
-        # correlation with c is convolution with c reversed: output i is the full convolution's i + half
-        full = _oaconvolve()(x[None], centre[:, ::-1].reshape((3, w) + (1,) * (x.ndim - 1)), mode="full", axes=1)
+        # correlation with c is convolution with c reversed: output i is the full convolution's i + half; one
+        # column at a time (each column's transforms are its own: the same numbers, a column's temporaries)
+        kernel = centre[:, ::-1]
+        cols = [x] if x.ndim == 1 else [x[:, j] for j in range(x.shape[1])]
+        for j, col in enumerate(cols):
+            full = _oaconvolve()(col[None], kernel, mode="full", axes=1)
+            for d in range(3):
+                target = out[d] if x.ndim == 1 else out[d][:, j]
+                target[half:length - half] = full[d, 2 * half:length]
+            del full
     for d in range(3):
-        if length >= FFT_MIN_WINDOWS * w:
-            out[d][half:length - half] = full[d, 2 * half:length]
-        else:
+        if length < FFT_MIN_WINDOWS * w:
             _correlate1d()(x, centre[d], axis=0, mode="constant", output=out[d])
         out[d][:half] = head[d] @ x[:w]
         out[d][length - half:] = tail[d] @ x[length - w:]
