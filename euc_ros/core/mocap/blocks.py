@@ -121,11 +121,14 @@ class BlockNoise:
         k0, k1 = block_span(lo, hi)
         first = k0 * BLOCK_FRAMES
         if k1 - k0 == 1:
-            z = self._block(k0)
-        else:
-            z = np.concatenate([self._block(k) for k in range(k0, k1)], axis=1)
-        z = z[:, lo - first:hi - first]
-        return z if dtype is None else z.astype(dtype)
+            z = self._block(k0)[:, lo - first:hi - first]
+            return z if dtype is None else z.astype(dtype)
+        # several blocks: each one's part written into the result (no concatenated copy of the blocks)
+        out = np.empty((self.rows, hi - lo, self.width), dtype=np.float32 if dtype is None else dtype)
+        for k in range(k0, k1):
+            a, b = max(lo, k * BLOCK_FRAMES), min(hi, (k + 1) * BLOCK_FRAMES)
+            out[:, a - lo:b - lo] = self._block(k)[:, a - k * BLOCK_FRAMES:b - k * BLOCK_FRAMES]
+        return out
 
 
 def block_span(lo: int, hi: int, block: int | None = None) -> tuple[int, int]:
