@@ -94,6 +94,28 @@ def _stretches(y: np.ndarray, min_len: int):
     return [y[a:b] for a, b in zip(edges[::2], edges[1::2], strict=True) if b - a >= min_len]
 
 
+def welch_linear(x: np.ndarray, fs: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
+    """Welch's one-sided power spectral density of ``x`` [unit^2/Hz]: what ``scipy.signal.welch(x, fs,
+    nperseg=nperseg, detrend="linear")`` gives (periodic Hann windows, half overlap, each segment's
+    least-squares line removed, the segments' mean), with every segment detrended, windowed and transformed
+    at once. scipy removes the lines one segment at a time by least squares; here each segment is projected
+    off ``[1, t]`` (orthogonal, so the same line): equal to round-off (``test_auto_window``).
+
+    Returns ``(freqs [Hz], psd)``."""
+    x = np.asarray(x, dtype=float)
+    n = int(nperseg)
+    step = n - n // 2
+    segs = np.lib.stride_tricks.sliding_window_view(x, n)[::step]
+    t = np.arange(n) - 0.5 * (n - 1)                  # centred time: orthogonal to the constant
+    d = segs - segs.mean(axis=1, keepdims=True)
+    d -= np.outer(d @ t / (t @ t), t)
+    win = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
+    spec = np.fft.rfft(d * win, axis=1)
+    p = (spec.real ** 2 + spec.imag ** 2).mean(axis=0) / (fs * float(win @ win))
+    p[1:(n + 1) // 2] *= 2.0                          # one-sided: every bin but 0 Hz and an even length's Nyquist
+    return np.fft.rfftfreq(n, 1.0 / fs), p
+
+
 def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[np.ndarray, np.ndarray, float]:
     """One-sided power spectral density of a signal, estimated through its second differences.
 
@@ -125,8 +147,6 @@ def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[n
     low-frequency power (a ride's travel, a slow lean) swamp the high frequencies that decide the
     filter. Segments are averaged over all stretches, weighted by their counts.
     """
-    from scipy.signal import welch
-
     arrays = [np.asarray(y, dtype=float)] if np.ndim(y) == 1 and not isinstance(y, (list, tuple)) else \
         [np.asarray(a, dtype=float) for a in y]
     nper = max(16, int(round(segment_s / dt)))
@@ -135,7 +155,7 @@ def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[n
         for seg in _stretches(arr, 8):
             d2 = seg[2:] - 2 * seg[1:-1] + seg[:-2]
             n = min(nper, d2.size)
-            f, p = welch(d2, fs=1.0 / dt, nperseg=n, detrend="linear")
+            f, p = welch_linear(d2, 1.0 / dt, n)
             if freqs is not None and f.size != freqs.size:
                 p = np.interp(freqs, f, p)
                 f = freqs

@@ -201,7 +201,7 @@ def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None
         # correlation with c is convolution with c reversed: output i is the full convolution's i + half; one
         # column at a time (each column's transforms are its own: the same numbers, a column's temporaries)
         kernel = centre[:, ::-1]
-        cols = [x] if x.ndim == 1 else [x[:, j] for j in range(x.shape[1])]
+        cols = [x] if x.ndim == 1 else [np.ascontiguousarray(x[:, j]) for j in range(x.shape[1])]
         for j, col in enumerate(cols):
             full = _oaconvolve()(col[None], kernel, mode="full", axes=1)
             for d in range(3):
