@@ -9,7 +9,8 @@ layer entry and from any entry below; the names grouped in one entry are sibling
 each other (e.g. the residual analysis and the online estimators both build on identification, and
 neither needs the other). Each name is a module (``errors``) or a subpackage (``mocap``) of the core.
 
-* ``errors``: the exception hierarchy; ``memory``: giving freed memory back between large steps.
+* ``errors``: the exception hierarchy; ``memory``: giving freed memory back between large steps;
+  ``robust``: numpy's median of long arrays, selected among the values near it.
   ``rotations``: quaternions and frame changes. ``yamlfile``:
   YAML with located errors.
 * ``session``: the session file (subject and vehicle of a recording), read by everything above.
@@ -30,7 +31,7 @@ neither needs the other). Each name is a module (``errors``) or a subpackage (``
 
 #: The core's layers from the bottom up; each entry a tuple of sibling modules or subpackages.
 LAYERS: tuple[tuple[str, ...], ...] = (
-    ("errors", "memory"),
+    ("errors", "memory", "robust"),
     ("rotations", "yamlfile"),
     ("session",),
     ("mocap", "filters"),

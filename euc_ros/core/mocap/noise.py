@@ -22,11 +22,12 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.mocap.blocks import BlockNoise, PerturbedSeries
+from euc_ros.core.robust import median
 
 
 def _mad_pooled(v: np.ndarray) -> float:
     """1.4826 x the median absolute deviation of rows (k, m) from their own medians, pooled over the rows."""
-    return float(1.4826 * np.median(np.abs(v - np.median(v, axis=1, keepdims=True))))
+    return float(1.4826 * median(np.abs(v - median(v, axis=1, keepdims=True))))
 
 
 def _increments(quat: np.ndarray, ok: np.ndarray, block: int = 1 << 14) -> np.ndarray:

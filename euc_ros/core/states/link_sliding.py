@@ -15,6 +15,7 @@ import numpy as np
 from scipy.optimize import nnls
 
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.robust import median
 from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig
 
 #: Below this RMS sliding [m] the bias is not computed (0): white noise and round-off.
@@ -70,15 +71,15 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
             v = np.concatenate([d[both] for d, both in devs])
             if v.shape[0] == 0:
                 continue                                # links never seen together are left out
-            vector = np.median(np.ascontiguousarray(v.T), axis=1)       # per component, over contiguous memory
+            vector = median(np.ascontiguousarray(v.T), axis=1)       # per component, over contiguous memory
             del v
             for d, _ in devs:
                 d -= vector                                 # in place: no second copy of the deviations
             # the distances to the vector over the frames where both bodies are usable, kept per recording
             dist = [np.linalg.norm(d[both], axis=1) for d, both in devs]
             e = np.concatenate(dist)
-            med = float(np.median(e))
-            mad = float(np.median(np.abs(e - med)))
+            med = float(median(e))
+            mad = float(median(np.abs(e - med)))
             threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
             del e
         else:
@@ -103,7 +104,7 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
             trip = good[3:] & good[2:-1] & good[1:-2] & good[:-3]
             # components as rows: the medians select over contiguous memory (the same order statistics)
             d3 = np.diff(d.T, n=3, axis=1)[:, trip]
-            white = float(np.sum((1.4826 * np.median(np.abs(d3 - np.median(d3, 1, keepdims=True)), 1)) ** 2)
+            white = float(np.sum((1.4826 * median(np.abs(d3 - median(d3, 1, keepdims=True)), 1)) ** 2)
                           / 20.0) if d3.shape[1] >= 10 else 0.0
             del d3
             row = np.zeros(m)
