@@ -76,13 +76,32 @@ def savgol_kernel(window: int, polyorder: int, deriv: int, dt: float) -> np.ndar
 def savgol_response(window: int, polyorder: int, deriv: int, dt: float, freqs) -> np.ndarray:
     """Frequency response of :func:`savgol_kernel` at ``freqs`` [Hz]: ``sum_j w_j exp(2 pi i f j dt)``.
 
-    The ideal ``deriv``-th derivative has the response ``(2 pi i f)^deriv``.
+    The ideal ``deriv``-th derivative has the response ``(2 pi i f)^deriv``. On a spectrum's own grid
+    (``freqs`` the ``N``-point DFT's ``m / (N dt)``, to 1e-12 relative) it is one FFT: the weights folded
+    modulo ``N`` (the exponential's period in ``j``), ``H_m = conj(rfft(a))_m``; elsewhere the sum itself.
+    Both are the same sum to round-off.
     """
     w = savgol_kernel(window, polyorder, deriv, dt)
     c = (w.size - 1) // 2
     j = np.arange(-c, c + 1)
-    ph = 2 * np.pi * np.asarray(freqs, dtype=float)[:, None] * j[None, :] * dt
+    f = np.asarray(freqs, dtype=float)
+    n = _dft_length(f, dt)
+    if n is not None:
+        a = np.bincount(j % n, weights=w, minlength=n)
+        return np.conj(np.fft.rfft(a))
+    ph = 2 * np.pi * f[:, None] * j[None, :] * dt
     return np.cos(ph) @ w + 1j * (np.sin(ph) @ w)
+
+
+def _dft_length(f: np.ndarray, dt: float) -> int | None:
+    """``N`` when ``f`` is ``numpy.fft.rfftfreq(N, dt)`` (to 1e-12 relative), else None."""
+    if f.ndim != 1 or f.size < 2:
+        return None
+    for n in (2 * (f.size - 1), 2 * f.size - 1):
+        grid = np.fft.rfftfreq(n, dt)
+        if grid.size == f.size and np.allclose(f, grid, rtol=1e-12, atol=0.0):
+            return n
+    return None
 
 
 def _stretches(y: np.ndarray, min_len: int):

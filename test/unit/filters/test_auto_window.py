@@ -116,6 +116,23 @@ def test_noise_free_fast_motion_gets_a_short_window_and_noisy_slow_motion_a_long
     assert b.window_s > 1.0
 
 
+@pytest.mark.parametrize(("window", "order"), [(13, 4), (289, 6), (1201, 4)])
+@pytest.mark.parametrize("grid", ["dft even", "dft odd", "other"])
+def test_response_on_a_dft_grid_and_off_it_is_the_explicit_sum(window, order, grid):
+    """The response by one FFT (the weights folded modulo the DFT length, windows longer than it included)
+    and by the direct sum, against ``sum_j w_j exp(2 pi i f j dt)`` written out. Both are sums of
+    ``window`` terms: round-off ~ window * eps * sum|w|; 1e-12 * sum|w| bounds it for windows up to ~4000."""
+    dt = 1 / 120
+    f = {"dft even": np.fft.rfftfreq(480, dt), "dft odd": np.fft.rfftfreq(481, 1.0 / (1.0 / dt)),
+         "other": np.linspace(0.0, 50.0, 77)}[grid]
+    c = (window - 1) // 2
+    j = np.arange(-c, c + 1)
+    for d in (0, 1, 2):
+        w = savgol_kernel(window, order, d, dt)
+        ref = np.array([np.sum(w * np.exp(2j * np.pi * fk * j * dt)) for fk in f])
+        assert np.max(np.abs(savgol_response(window, order, d, dt, f) - ref)) <= 1e-12 * np.sum(np.abs(w))
+
+
 @pytest.mark.parametrize("n", [8, 9, 16, 17, 480, 481])
 def test_welch_linear_is_scipys_welch_with_linear_detrending(n):
     """The vectorised estimate against scipy's own, on lengths of one segment up to many, odd and even
