@@ -381,7 +381,12 @@ def fit_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models: Sequ
         sses = [sse_grid(c, h_grid) for c in coefs]
         for rec, c, s in zip(per_rec, coefs, sses):
             rec.fits[model] = _fit(c, h_grid, model, s)
-        pooled[model] = pooled_fit(coefs, h_grid, model, sses)
+        if len(coefs) == 1:
+            # one recording: the pooled fit is its fit (the same coefficients and curve), not fitted twice
+            one = per_rec[0].fits[model]
+            pooled[model] = dataclasses.replace(one, rmse_curve_nm=one.rmse_curve_nm.copy())
+        else:
+            pooled[model] = pooled_fit(coefs, h_grid, model, sses)
     return IdentifyResult(h_grid, per_rec, pooled, dict(settings or {}))
 
 
