@@ -129,6 +129,9 @@ def torque_difference(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_dd
     gd, pd = np.asarray(gamma_dot, dtype=float), np.asarray(phi_dot, dtype=float)
     xdd = np.asarray(x_ddot, dtype=float)
     gdd, pdd = np.asarray(gamma_ddot, dtype=float), np.asarray(phi_ddot, dtype=float)
+    fast = _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p, extra_Q)
+    if fast is not None:
+        return fast
     R = np.asarray(p.R, dtype=float)
     mh = p.m * p.h
     k = p.m * p.l0 - p.m0 * p.h0
@@ -149,6 +152,37 @@ def torque_difference(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_dd
         e = np.asarray(extra_Q, dtype=float)
         w_s = w_s - (R * e[..., 0] + e[..., 1] + e[..., 2])
     return R * m11 * (xdd * D + w_s) / D
+
+
+#: Fewest samples for the compiled loop (below, numpy's few calls cost less than the call into it).
+_COMPILED_MIN = 64
+
+
+def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
+    """:func:`torque_difference` by the compiled loop (:mod:`~euc_ros.core.model.torque_compiled`) for flat
+    arrays of one length and scalar parameters; None otherwise (numpy's broadcasting then does it)."""
+    args = (g, ph, gd, pd, xdd, gdd, pdd)
+    n = g.shape[0] if g.ndim == 1 else -1
+    if n < _COMPILED_MIN or any(a.shape != (n,) for a in args):
+        return None
+    if not all(np.ndim(v) == 0 for v in (p.R, p.m, p.h, p.l0, p.m0, p.h0, p.J0, p.J, p.g, p.m_eq)):
+        return None
+    extra = np.zeros((0, 3))
+    if extra_Q is not None:
+        extra = np.asarray(extra_Q, dtype=float)
+        if extra.shape != (n, 3):
+            return None
+    from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
+
+    # the scalars formed as the numpy expression forms them (the same roundings)
+    R = np.asarray(p.R, dtype=float)
+    mh = p.m * p.h
+    k = p.m * p.l0 - p.m0 * p.h0
+    m11 = p.m_eq
+    s = np.array([R, R * m11, -k, mh, p.J0 + p.m0 * p.h0 ** 2 + p.m * p.l0 ** 2, -mh * p.l0, p.J + mh * p.h, -mh,
+                  mh * p.l0, k * p.g, mh * p.g, k], dtype=float)
+    return torque_difference_loop(*(np.ascontiguousarray(a) for a in args), s, np.ascontiguousarray(extra),
+                                  np.empty(n))
 
 
 def rider_torque(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot, p: EucParams, extra_Q=None):
