@@ -70,31 +70,42 @@ def run_nodes(create: Callable[[list[Node]], None], args: list[str] | None = Non
     code = 0
     signalled = False
     try:
-        create(nodes)
-        if after_create is not None:
-            after_create(nodes)
-        executor = LeanExecutor()
-        for node in nodes:
-            executor.add_node(node)
-        if executor.public and nodes:
-            nodes[0].get_logger().warning(f"rclpy's public executor ({executor.public_reason}): each message costs "
-                                          "~0.45 ms more")
-        # the set-up's objects (modules, nodes, sessions, a replayed recording's arrays) leave the cyclic
-        # collector's scans: a collection while spinning looks only at what the stream made since
-        gc.collect()
-        gc.freeze()
-        executor.spin()
+        # The outer handler takes the KeyboardInterrupt of a SIGINT wherever it lands, also inside the inner
+        # handlers: rclpy's C handler shuts the context down at once, so the node being made or the message
+        # being taken fails first (an rclpy error, or a parameter that cannot be published), and Python's
+        # handler raises a moment later, while that failure is being handled.
+        try:
+            create(nodes)
+            if after_create is not None:
+                after_create(nodes)
+            executor = LeanExecutor()
+            for node in nodes:
+                executor.add_node(node)
+            if executor.public and nodes:
+                nodes[0].get_logger().warning(f"rclpy's public executor ({executor.public_reason}): each message "
+                                              "costs ~0.45 ms more")
+            # the set-up's objects (modules, nodes, sessions, a replayed recording's arrays) leave the cyclic
+            # collector's scans: a collection while spinning looks only at what the stream made since
+            gc.collect()
+            gc.freeze()
+            executor.spin()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except EucError as exc:
+            if rclpy.ok():
+                print(f"{label}: error: {exc}", file=sys.stderr)
+                code = 2
+            else:                       # a stop signal shut the context down while a node was being set up
+                signalled = True
+        except Exception:
+            # A SIGINT/SIGTERM can land while rclpy is making a node or taking a message; that then fails (e.g.
+            # an RCLError, a pybind RuntimeError) a moment before the signal handler has shut the context down.
+            # Give the shutdown that moment; only an error with the context still up is a real one.
+            if not wait_for_context_shutdown(rclpy.get_default_context(), SHUTDOWN_RACE_S):
+                raise
+            signalled = True
     except (KeyboardInterrupt, ExternalShutdownException):
         signalled = True
-    except EucError as exc:
-        print(f"{label}: error: {exc}", file=sys.stderr)
-        code = 2
-    except Exception:
-        # A SIGINT/SIGTERM can land while rclpy is taking a message; the take then fails (e.g. a pybind
-        # RuntimeError) a moment before the signal handler has shut the context down. Give the shutdown
-        # that moment; only an error with the context still up is a real one.
-        if not wait_for_context_shutdown(rclpy.get_default_context(), SHUTDOWN_RACE_S):
-            raise
     finally:
         if signalled:
             # before the executor's signal guard condition is destroyed: rclpy's signal thread may still be
