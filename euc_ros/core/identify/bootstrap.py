@@ -110,12 +110,22 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
     # generator fills the rows in order) and drawn again for the second pass: 1000 replicates x ~3600
     # blocks of an hour held at once were 58 MB (int64 and its float copy), the residual's memory peak
     chunk = max(1, min(n_boot, (1 << 20) // max(nb, 1)))
+    # the counts of the first pass kept for the second as int32 when they fit in 8 MB (4 bytes a count, half
+    # the int64 the generator gives; the float copy is a chunk's): the same draws, drawn once
+    keep = n_boot * nb * 4 <= (8 << 20)
+    kept: list[np.ndarray] = []
 
     def argmin_of(S: np.ndarray) -> np.ndarray:
-        rng = np.random.default_rng(seed)
+        rng = np.random.default_rng(seed) if not kept else None
         out = np.empty(n_boot, dtype=np.int64)
-        for a in range(0, n_boot, chunk):
-            W = rng.multinomial(nb, p_blocks, size=min(chunk, n_boot - a)).astype(float)
+        for j, a in enumerate(range(0, n_boot, chunk)):
+            if rng is None:
+                counts = kept[j]
+            else:
+                counts = rng.multinomial(nb, p_blocks, size=min(chunk, n_boot - a))
+                if keep:
+                    kept.append(counts.astype(np.int32))
+            W = counts.astype(float)
             out[a:a + W.shape[0]] = np.argmin(W @ S, axis=1)
         return out
 
