@@ -652,6 +652,31 @@ def _fast(rows_bytes: bytes, n_rows: int, width: int) -> np.ndarray | None:
     return _loadtxt(_fill_blanks(rows_bytes), n_rows, width)
 
 
+def _all_last(a: np.ndarray) -> np.ndarray:
+    """``a.all(axis=-1)`` for a short last axis, as one ``&`` per component (numpy's reduction over a
+    three- or four-long axis costs several times more)."""
+    out = a[..., 0].copy()
+    for i in range(1, a.shape[-1]):
+        out &= a[..., i]
+    return out
+
+
+def _any_last(a: np.ndarray) -> np.ndarray:
+    """``a.any(axis=-1)`` for a short last axis (see :func:`_all_last`)."""
+    out = a[..., 0].copy()
+    for i in range(1, a.shape[-1]):
+        out |= a[..., i]
+    return out
+
+
+def _max_last(a: np.ndarray) -> np.ndarray:
+    """``np.max(a, axis=-1)`` for a short last axis, by ``np.maximum`` (the same value; NaN propagates alike)."""
+    out = a[..., 0].copy()
+    for i in range(1, a.shape[-1]):
+        np.maximum(out, a[..., i], out=out)
+    return out
+
+
 def _compiled_rows(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
     """:func:`~euc_ros.core.io.csv_compiled.parse_rows` (numba, imported on first use)."""
     from euc_ros.core.io.csv_compiled import parse_rows
@@ -734,12 +759,12 @@ class _SeriesArrays:
             pos *= self.scale                                          # -> metres
         rot = np.ascontiguousarray(np.moveaxis(m[:, self.rot_cols], 0, 1))  # (b, k, 4 or 3)
         fin_pos, fin_rot = np.isfinite(pos), np.isfinite(rot)
-        finite = fin_pos.all(axis=2) & fin_rot.all(axis=2)
-        self.partial += ((fin_pos.any(axis=2) | fin_rot.any(axis=2)) & ~finite).sum(axis=1)
+        finite = _all_last(fin_pos) & _all_last(fin_rot)
+        self.partial += ((_any_last(fin_pos) | _any_last(fin_rot)) & ~finite).sum(axis=1)
         quat = self.quat[:, span]
         if self.rot_type == QUATERNION:
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-                big = np.max(np.abs(rot), axis=2, keepdims=True)      # scale first: no overflow
+                big = _max_last(np.abs(rot))[..., None]               # scale first: no overflow
                 unit = rot / big
                 norm = big[..., 0] * np.sqrt(np.einsum("bni,bni->bn", unit, unit))
                 tracked = finite & (norm > 1e-9) & np.isfinite(norm)
@@ -753,7 +778,7 @@ class _SeriesArrays:
                 order = self.rot_type  # columns hold the angles about X, Y, Z; scipy wants them in sequence order
                 angles = rot[tracked][:, ["XYZ".index(a) for a in order]]
                 quat[tracked] = Rotation.from_euler(order, angles, degrees=True).as_quat()
-        tracked &= np.isfinite(quat).all(axis=2) & np.isfinite(pos).all(axis=2)  # overflowing nonsense is a gap too
+        tracked &= _all_last(np.isfinite(quat)) & _all_last(np.isfinite(pos))  # overflowing nonsense is a gap too
         if not tracked.all():
             pos[~tracked] = np.nan
             quat[~tracked] = np.nan
