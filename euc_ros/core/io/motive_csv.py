@@ -540,13 +540,14 @@ class _Block:
         chunks = self._chunks()
         for i0, k, rows in chunks:
             m = None
-            # The common case (every cell numeric, every row full): numpy's C reader straight on the file's
-            # bytes. It reads LF and CRLF alike and rejects blank or quoted cells and rows of another width,
-            # and a blank line changes the row count, so anything odd ends in the checked path below.
-            if self.compiled and rows[:1] not in (b"\r", b"\n", b""):
-                m = _compiled_rows(rows, k, width)
-            if m is None and rows[:1] not in (b"\r", b"\n", b""):  # (blank lines only would make numpy warn)
-                m = _loadtxt(rows, k, width)
+            # The common case (every cell numeric, every row full): the compiled parser (large files), else
+            # numpy's C reader, straight on the file's bytes. Both read LF and CRLF alike and give up on quoted
+            # cells and rows of another width (numpy also on blank cells), and a blank line changes the row
+            # count, so anything odd ends in the checked path below.
+            if rows[:1] not in (b"\r", b"\n", b""):  # (a chunk of blank lines only would make numpy warn)
+                m = _compiled_rows(rows, k, width) if self.compiled else None
+                if m is None:
+                    m = _loadtxt(rows, k, width)
             if m is None:
                 data = _lf(rows)
                 if self.has_quote:  # quoted cells (never written by Motive in the data rows): exact path
@@ -652,28 +653,13 @@ def _fast(rows_bytes: bytes, n_rows: int, width: int) -> np.ndarray | None:
     return _loadtxt(_fill_blanks(rows_bytes), n_rows, width)
 
 
-def _all_last(a: np.ndarray) -> np.ndarray:
-    """``a.all(axis=-1)`` for a short last axis, as one ``&`` per component (numpy's reduction over a
-    three- or four-long axis costs several times more)."""
+def _fold_last(op, a: np.ndarray) -> np.ndarray:
+    """``op`` folded over a short last axis, one call per component: ``op.reduce(a, axis=-1)`` for
+    ``np.logical_and`` / ``np.logical_or`` / ``np.maximum`` (the same values, NaN propagating alike), where
+    numpy's reduction over a three- or four-long axis costs several times more."""
     out = a[..., 0].copy()
     for i in range(1, a.shape[-1]):
-        out &= a[..., i]
-    return out
-
-
-def _any_last(a: np.ndarray) -> np.ndarray:
-    """``a.any(axis=-1)`` for a short last axis (see :func:`_all_last`)."""
-    out = a[..., 0].copy()
-    for i in range(1, a.shape[-1]):
-        out |= a[..., i]
-    return out
-
-
-def _max_last(a: np.ndarray) -> np.ndarray:
-    """``np.max(a, axis=-1)`` for a short last axis, by ``np.maximum`` (the same value; NaN propagates alike)."""
-    out = a[..., 0].copy()
-    for i in range(1, a.shape[-1]):
-        np.maximum(out, a[..., i], out=out)
+        op(out, a[..., i], out=out)
     return out
 
 
@@ -759,12 +745,13 @@ class _SeriesArrays:
             pos *= self.scale                                          # -> metres
         rot = np.ascontiguousarray(np.moveaxis(m[:, self.rot_cols], 0, 1))  # (b, k, 4 or 3)
         fin_pos, fin_rot = np.isfinite(pos), np.isfinite(rot)
-        finite = _all_last(fin_pos) & _all_last(fin_rot)
-        self.partial += ((_any_last(fin_pos) | _any_last(fin_rot)) & ~finite).sum(axis=1)
+        finite = _fold_last(np.logical_and, fin_pos) & _fold_last(np.logical_and, fin_rot)
+        some = _fold_last(np.logical_or, fin_pos) | _fold_last(np.logical_or, fin_rot)
+        self.partial += (some & ~finite).sum(axis=1)
         quat = self.quat[:, span]
         if self.rot_type == QUATERNION:
             with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-                big = _max_last(np.abs(rot))[..., None]               # scale first: no overflow
+                big = _fold_last(np.maximum, np.abs(rot))[..., None]  # scale first: no overflow
                 unit = rot / big
                 norm = big[..., 0] * np.sqrt(np.einsum("bni,bni->bn", unit, unit))
                 tracked = finite & (norm > 1e-9) & np.isfinite(norm)
@@ -778,7 +765,8 @@ class _SeriesArrays:
                 order = self.rot_type  # columns hold the angles about X, Y, Z; scipy wants them in sequence order
                 angles = rot[tracked][:, ["XYZ".index(a) for a in order]]
                 quat[tracked] = Rotation.from_euler(order, angles, degrees=True).as_quat()
-        tracked &= _all_last(np.isfinite(quat)) & _all_last(np.isfinite(pos))  # overflowing nonsense is a gap too
+        # overflowing nonsense is a gap too
+        tracked &= _fold_last(np.logical_and, np.isfinite(quat)) & _fold_last(np.logical_and, np.isfinite(pos))
         if not tracked.all():
             pos[~tracked] = np.nan
             quat[~tracked] = np.nan

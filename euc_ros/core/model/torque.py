@@ -132,18 +132,13 @@ def torque_difference(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_dd
     fast = _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p, extra_Q)
     if fast is not None:
         return fast
-    R = np.asarray(p.R, dtype=float)
-    mh = p.m * p.h
-    k = p.m * p.l0 - p.m0 * p.h0
+    R, mh, k, m11, m22, m33 = _difference_constants(p)
     cg, sg = np.cos(g), np.sin(g)
     cp, sp = np.cos(ph), np.sin(ph)
     cpg, spg = np.cos(ph - g), np.sin(ph - g)
-    m11 = p.m_eq
     m12 = -k * cg
     m13 = mh * cp
-    m22 = p.J0 + p.m0 * p.h0 ** 2 + p.m * p.l0 ** 2
     m23 = -mh * p.l0 * cpg
-    m33 = p.J + mh * p.h
     D = R * m11 + m12 + m13
     w_s = (gdd * (R * m12 + m22 + m23) + pdd * (R * m13 + m23 + m33)
            + R * (-mh * pd ** 2 * sp + k * gd ** 2 * sg) + mh * p.l0 * (pd ** 2 - gd ** 2) * spg
@@ -152,6 +147,14 @@ def torque_difference(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_dd
         e = np.asarray(extra_Q, dtype=float)
         w_s = w_s - (R * e[..., 0] + e[..., 1] + e[..., 2])
     return R * m11 * (xdd * D + w_s) / D
+
+
+def _difference_constants(p: EucParams) -> tuple:
+    """``(R, m h, k = m l0 - m0 h0, m11, m22, m33)`` of :func:`torque_difference` (scalars or per-sample
+    arrays), formed once for its numpy and its compiled path alike (the same roundings)."""
+    mh = p.m * p.h
+    return (np.asarray(p.R, dtype=float), mh, p.m * p.l0 - p.m0 * p.h0, p.m_eq,
+            p.J0 + p.m0 * p.h0 ** 2 + p.m * p.l0 ** 2, p.J + mh * p.h)
 
 
 #: Fewest samples for the compiled loop (below, numpy's few calls cost less than the call into it).
@@ -175,12 +178,8 @@ def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
     from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
 
     # the scalars formed as the numpy expression forms them (the same roundings)
-    R = np.asarray(p.R, dtype=float)
-    mh = p.m * p.h
-    k = p.m * p.l0 - p.m0 * p.h0
-    m11 = p.m_eq
-    s = np.array([R, R * m11, -k, mh, p.J0 + p.m0 * p.h0 ** 2 + p.m * p.l0 ** 2, -mh * p.l0, p.J + mh * p.h, -mh,
-                  mh * p.l0, k * p.g, mh * p.g, k], dtype=float)
+    R, mh, k, m11, m22, m33 = _difference_constants(p)
+    s = np.array([R, R * m11, -k, mh, m22, -mh * p.l0, m33, -mh, mh * p.l0, k * p.g, mh * p.g, k], dtype=float)
     return torque_difference_loop(*(np.ascontiguousarray(a) for a in args), s, np.ascontiguousarray(extra),
                                   np.empty(n))
 
