@@ -185,7 +185,8 @@ def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None
     """Value and derivatives (3, L, k) of a gap-free stretch ``seg`` (L >= w, k columns).
 
     ``out``: three (L, k) arrays to write into (e.g. views of the whole recording's outputs), so no
-    (3, L, k) result is made and copied; the only temporary is the offset-free stretch.
+    (3, L, k) result is made and copied; the temporaries are one offset-free column and its transforms (a short
+    stretch: the whole offset-free stretch).
     """
     half = (w - 1) // 2
     length = seg.shape[0]
@@ -196,23 +197,28 @@ def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None
     # a constant offset cancels exactly in the derivatives; removing it keeps round-off at the
     # scale of the motion, not of the distance from the origin
     ref = np.array(seg[length // 2])
-    x = seg - ref
     if length >= FFT_MIN_WINDOWS * w:
         # correlation with c is convolution with c reversed: output i is the full convolution's i + half; one
-        # column at a time (each column's transforms are its own: the same numbers, a column's temporaries)
+        # column and one derivative at a time, the column's offset removed as it is taken (each transform is
+        # its own: the same numbers as all at once, one transform's temporaries)
         kernel = centre[:, ::-1]
-        cols = [x] if x.ndim == 1 else [np.ascontiguousarray(x[:, j]) for j in range(x.shape[1])]
-        for j, col in enumerate(cols):
-            full = _oaconvolve()(col[None], kernel, mode="full", axes=1)
+        for j in range(1 if seg.ndim == 1 else seg.shape[1]):
+            col = (seg - ref if seg.ndim == 1 else seg[:, j] - ref[j])[None]
             for d in range(3):
-                target = out[d] if x.ndim == 1 else out[d][:, j]
-                target[half:length - half] = full[d, 2 * half:length]
-            del full
-    for d in range(3):
-        if length < FFT_MIN_WINDOWS * w:
+                full = _oaconvolve()(col, kernel[d:d + 1], mode="full", axes=1)
+                target = out[d] if seg.ndim == 1 else out[d][:, j]
+                target[half:length - half] = full[0, 2 * half:length]
+                del full
+            del col
+        x_head, x_tail = seg[:w] - ref, seg[length - w:] - ref
+    else:
+        x = seg - ref
+        for d in range(3):
             _correlate1d()(x, centre[d], axis=0, mode="constant", output=out[d])
-        out[d][:half] = head[d] @ x[:w]
-        out[d][length - half:] = tail[d] @ x[length - w:]
+        x_head, x_tail = x[:w], x[length - w:]
+    for d in range(3):
+        out[d][:half] = head[d] @ x_head
+        out[d][length - half:] = tail[d] @ x_tail
     out[0] += ref
     return out
 

@@ -2,7 +2,7 @@
 
 A whole-recording step that needs, per frame, only frames nearby (the bridging, the geometry:
 :func:`~euc_ros.core.states.geometry.block_geometry`) reads the poses block by block
-(:func:`pose_block`, :data:`BLOCK_FRAMES` frames).
+(:func:`pose_block`, :data:`READ_FRAMES` frames).
 
 The uncertainty and noise-floor steps reconstruct the recording again with noise added
 (SIMEX, :func:`~euc_ros.core.identify.simex.eiv_bias`; the residual's noise floor,
@@ -24,8 +24,13 @@ import numpy as np
 
 from euc_ros.core.mocap.series import MocapSeries
 
-#: Frames per block of :func:`~euc_ros.core.states.geometry.block_geometry` (and of the noise bookmarks).
+#: Frames per block of the noise draws (:class:`BlockNoise`: the draws depend on it).
 BLOCK_FRAMES = 4096
+
+#: Frames per block read by :func:`~euc_ros.core.states.geometry.block_geometry` (its results do not depend
+#: on it): a block's working set (the perturbed poses and the geometry's temporaries) stays small beside a
+#: short recording's arrays. A read may span noise blocks.
+READ_FRAMES = 1024
 
 
 def pose_block(series, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -35,6 +40,15 @@ def pose_block(series, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.nda
     if block is not None:
         return block(lo, hi)
     return series.position[:, lo:hi], series.quat[:, lo:hi], series.tracked[:, lo:hi]
+
+
+def release(series) -> None:
+    """Let a :class:`PerturbedSeries` drop what it keeps between block reads (its noise's recent blocks),
+    once a pass over its blocks is done; a plain recording has nothing to drop. Reading it again gives the
+    same poses."""
+    drop = getattr(series, "release", None)
+    if drop is not None:
+        drop()
 
 
 def materialize(series) -> MocapSeries:
@@ -55,11 +69,15 @@ class PerturbedSeries:
     base : MocapSeries
     perturb : callable
         ``perturb(lo, hi) -> (position, quat)``: new arrays (b, hi - lo, 3) and (b, hi - lo, 4).
+    forget : callable, optional
+        Drops what ``perturb`` keeps between calls (:meth:`release`), without changing what it gives.
     """
 
-    def __init__(self, base, perturb: Callable[[int, int], tuple[np.ndarray, np.ndarray]]) -> None:
+    def __init__(self, base, perturb: Callable[[int, int], tuple[np.ndarray, np.ndarray]],
+                 forget: Callable[[], None] | None = None) -> None:
         self._base = base
         self._perturb = perturb
+        self._forget = forget
 
     def __getattr__(self, name):
         if name.startswith("_"):
@@ -70,6 +88,11 @@ class PerturbedSeries:
         """``(position, quat, tracked)`` of frames ``lo:hi``, perturbed (new arrays but ``tracked``)."""
         pos, quat = self._perturb(lo, hi)
         return pos, quat, self._base.tracked[:, lo:hi]
+
+    def release(self) -> None:
+        """Drop what the perturbation keeps between block reads (see :func:`release`)."""
+        if self._forget is not None:
+            self._forget()
 
     @property
     def position(self) -> np.ndarray:
@@ -114,6 +137,10 @@ class BlockNoise:
             self._cache.pop(next(iter(self._cache)))
         self._cache[k] = z
         return z
+
+    def forget(self) -> None:
+        """Drop the kept blocks (a block asked for again is drawn again: the same numbers)."""
+        self._cache.clear()
 
     def draw(self, lo: int, hi: int, dtype=float) -> np.ndarray:
         """The draws of frames ``lo:hi``: (rows, hi - lo, width) float64 (``dtype`` None: as drawn, float32,

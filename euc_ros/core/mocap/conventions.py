@@ -74,14 +74,17 @@ def _read_as(series) -> tuple[str, bool]:
     return (str(up), True) if up in _CANDIDATES else ("z", False)
 
 
-def poses_with_up(series, up: str) -> tuple[np.ndarray, np.ndarray]:
-    """Return (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up.
+def poses_with_up(series, up: str, body: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Return (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up
+    (``body``: that body's only, (n, 3) and (n, 4)).
 
     ``series`` was read with ``series.meta["world_up"]`` (a Motive CSV) or is Z-up (a bag): with the
     other candidate the file's own axes are recovered and read again (docs/motive_csv.md).
     """
     read_as, _ = _read_as(series)
     pos, quat = np.asarray(series.position, float), np.asarray(series.quat, float)
+    if body is not None:
+        pos, quat = pos[body], quat[body]
     if up == read_as:
         return pos, quat
     if read_as == "y":  # file axes are (x, z, -y) of the series; read with Z up: no swap
@@ -120,7 +123,12 @@ def _floor(heights: np.ndarray) -> dict:
                 "text": f"lowest pivot at {low[c]:.3f} m"} for c in _CANDIDATES}
 
 
-def _upright(series, names: list[str] | None, poses: dict) -> dict:
+def _heights(series, up: str) -> np.ndarray:
+    """Every body's pivot height (b, n) with the file's ``up`` axis up (one body's poses turned at a time)."""
+    return np.stack([poses_with_up(series, up, i)[0][:, 2] for i in range(len(series.bodies))])
+
+
+def _upright(series, names: list[str] | None, heights: dict) -> dict:
     """Upright-rider test: median per-frame span of the tracked bodies along each candidate axis."""
     rows = list(range(len(series.bodies))) if names is None else \
         [i for i, b in enumerate(series.bodies) if b in names]
@@ -132,7 +140,7 @@ def _upright(series, names: list[str] | None, poses: dict) -> dict:
         return {}
     span = {}
     for c in _CANDIDATES:
-        h = np.where(trk[:, frames], poses[c][0][rows][:, frames, 2], np.nan)
+        h = np.where(trk[:, frames], heights[c][rows][:, frames], np.nan)
         span[c] = float(np.median(np.nanmax(h, axis=0) - np.nanmin(h, axis=0)))
     out = {}
     for c, o in zip(_CANDIDATES, _CANDIDATES[::-1]):
@@ -141,7 +149,7 @@ def _upright(series, names: list[str] | None, poses: dict) -> dict:
     return out
 
 
-def _euc(series, session, poses: dict) -> tuple[dict, dict]:
+def _euc(series, session) -> tuple[dict, dict]:
     """Wheel-centre and EUC-axis tests (empty when the EUC is not tracked long enough)."""
     body = session.euc.body
     if body not in series.bodies:
@@ -155,7 +163,8 @@ def _euc(series, session, poses: dict) -> tuple[dict, dict]:
     r = session.euc.wheel_radius
     wheel, axis = {}, {}
     for c in _CANDIDATES:
-        pos, quat = poses[c][0][i][trk], poses[c][1][i][trk]
+        pos, quat = poses_with_up(series, c, i)
+        pos, quat = pos[trk], quat[trk]
         offset = rotate(quat, p)                         # E -> C in the world
         zc = pos[:, 2] + offset[:, 2]
         level = float(np.median(zc))
@@ -197,9 +206,10 @@ def infer_up_axis(series, session=None) -> dict:
     """
     series = _thinned(series)
     names = _axis_names(series)
-    poses = {c: poses_with_up(series, c) for c in _CANDIDATES}
+    # the tests read the pivots' heights, and the EUC's poses: never every body's turned poses at once
+    up_heights = {c: _heights(series, c) for c in _CANDIDATES}
     trk = np.asarray(series.tracked, bool)
-    heights = {c: poses[c][0][..., 2][trk] for c in _CANDIDATES}
+    heights = {c: h[trk] for c, h in up_heights.items()}
     heights = {c: h[np.isfinite(h)] for c, h in heights.items()}
     if not heights["y"].size:
         return {"inferred": "unknown", "reason": "no tracked rigid-body samples", "evidence": "", "conclusive": False,
@@ -207,8 +217,8 @@ def infer_up_axis(series, session=None) -> dict:
     bodies, tests = None, {}
     if session is not None:
         bodies = [*session.rider.segments, session.euc.body]
-        tests["wheel_centre"], tests["euc_axis"] = _euc(series, session, poses)
-    tests["upright"] = _upright(series, bodies, poses)
+        tests["wheel_centre"], tests["euc_axis"] = _euc(series, session)
+    tests["upright"] = _upright(series, bodies, up_heights)
     tests["floor"] = _floor(heights)
     tests = {k: v for k, v in tests.items() if v}
     fits = {c: all(v[c]["ok"] for v in tests.values()) for c in _CANDIDATES}

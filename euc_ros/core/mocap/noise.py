@@ -126,7 +126,7 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
         # the recording's whole arrays and the draws, contiguous: one compiled specialisation, no copies
         return perturb_poses(position, quat, np.ascontiguousarray(z), pos_scale, rot_scale, has_r, lo)
 
-    return PerturbedSeries(series, perturb)
+    return PerturbedSeries(series, perturb, noise.forget)
 
 
 def pose_noise_draws(series, rng):
@@ -201,4 +201,4 @@ def renoised(series, rng: np.random.Generator):
         quat /= np.linalg.norm(quat, axis=2, keepdims=True)
         return pos, quat
 
-    return PerturbedSeries(series, perturb)
+    return PerturbedSeries(series, perturb, noise.forget)

@@ -16,7 +16,7 @@ live frame and a whole recording):
   model's own rider pitch (the line A-G of Fig. 5) and the default for identification.
 
 Over a whole recording, :func:`block_geometry` bridges and evaluates :func:`frame_geometry` block by
-block (:data:`~euc_ros.core.mocap.blocks.BLOCK_FRAMES` frames, each read with ``max_gap + 1`` frames of
+block (:data:`~euc_ros.core.mocap.blocks.READ_FRAMES` frames, each read with ``max_gap + 1`` frames of
 margin on both sides so every bridged gap sees both its ends) and keeps only the per-frame outputs
 the states are made of. The peak memory is the outputs plus one block's working set, where bridging
 and evaluating the whole recording at once cost a full copy of its poses plus the geometry's
@@ -51,7 +51,7 @@ def block_geometry(series, session, max_gap: int, *, block: int | None = None) -
         Body-frames bridged, and frames with at least one body bridged (as
         :func:`~euc_ros.core.mocap.bridging.bridge_series` reports them for the whole recording).
     """
-    block = block or blocks.BLOCK_FRAMES
+    block = block or blocks.READ_FRAMES
     n = int(series.n_frames)
     margin = max(int(max_gap), 0) + 1
     frame = np.asarray(series.frame)
@@ -88,6 +88,7 @@ def block_geometry(series, session, max_gap: int, *, block: int | None = None) -
         if bridged is not None:
             n_samples += int(bridged[:, core].sum())
             n_frames += int(bridged[:, core].any(axis=0).sum())
+    blocks.release(series)                      # a re-noised recording's kept noise blocks: not needed after
     return out, n_samples, n_frames
 
 

@@ -85,6 +85,10 @@ def test_reading_with_the_other_axis_recovers_the_file(files):
     np.testing.assert_array_equal(quat, s_z.quat)
     back, _ = poses_with_up(s_z, "y")
     np.testing.assert_array_equal(back, s_y.position)
+    for i in range(len(s_y.bodies)):                   # one body's poses: that body's of the whole
+        p1, q1 = poses_with_up(s_y, "z", i)
+        np.testing.assert_array_equal(p1, s_z.position[i])
+        np.testing.assert_array_equal(q1, s_z.quat[i])
 
 
 def test_bag_with_y_up_poses_is_refused(files, tmp_path, capsys):

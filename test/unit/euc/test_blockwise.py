@@ -40,6 +40,7 @@ def ride(short_ride):
 @pytest.fixture()
 def small_blocks(monkeypatch):
     monkeypatch.setattr(blocks, "BLOCK_FRAMES", BLOCK)
+    monkeypatch.setattr(blocks, "READ_FRAMES", BLOCK)
 
 
 def test_block_geometry_equals_whole_recording(ride, small_blocks):
@@ -90,6 +91,27 @@ def test_pose_noise_series_blocks_are_one_recording(ride, small_blocks):
     other = pose_noise_series(series, sp, sr, np.random.default_rng(5)).materialize()
     assert not np.array_equal(np.nan_to_num(other.position), np.nan_to_num(whole.position))
     assert whole.tracked is series.tracked or np.array_equal(whole.tracked, series.tracked)
+
+
+def test_a_released_recording_reads_the_same_poses(ride, small_blocks):
+    """Releasing a re-noised recording (after a pass of the geometry) drops its kept noise blocks; reading it
+    again draws them again, the same numbers."""
+    from euc_ros.core.mocap.noise import pose_noise_draws, pose_noise_series
+
+    series, session = ride
+    draws = pose_noise_draws(series, np.random.default_rng(4))
+    noisy = pose_noise_series(series, np.full(len(series.bodies), 2e-4), np.full(len(series.bodies), 0.008),
+                              noise=draws)
+    first = noisy.pose_block(0, 3 * BLOCK)
+    assert draws._cache
+    blocks.release(noisy)
+    assert not draws._cache
+    again = noisy.pose_block(0, 3 * BLOCK)
+    for a, b in zip(first, again):
+        np.testing.assert_array_equal(a, b)
+    geometry.block_geometry(noisy, session, 5)           # a whole pass leaves nothing kept
+    assert not draws._cache
+    blocks.release(series)                               # a plain recording has nothing to release
 
 
 def test_pose_noise_series_adds_the_stated_noise(ride, small_blocks):
