@@ -396,7 +396,9 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         """The group search on the turned columns as rows ``BT`` (h projected out here, then normalised by
         group_path: both in place)."""
         u = hc / max(np.linalg.norm(hc), 1e-300)
-        BT -= np.outer(BT @ u, u)
+        p = BT @ u
+        for a in range(0, BT.shape[0], 64):     # the outer product by rows: no temporary the size of BT
+            BT[a:a + 64] -= np.outer(p[a:a + 64], u)
         return group_path(r0 - u * (u @ r0), (BT, [sl.stop - sl.start for sl in sls]), keys, MAX_GROUPS,
                           n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), n_fixed=1,
                           kinds=[g.family for g in groups], extra_df=extra_df)
@@ -475,6 +477,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
                 c = fit_with_free(hc, turn_cols(Braw, cols), -r0,
                                   n_eff=SAMPLES_PER_BLOCK * float(np.unique(blocks).size), norms=scale[cols])
                 per_k.setdefault(k, []).append(r0t + hct * c[0] + turn_cols(Braw_t, cols) @ c[1:])
+            del BT, Braw, Braw_t        # not held while the next fold's are made
         complete = {k: np.concatenate(v) for k, v in per_k.items() if len(v) == len(folds)}
         rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
         # parsimony: the fewest groups within one standard error of the best held-out error
