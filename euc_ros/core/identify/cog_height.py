@@ -41,6 +41,7 @@ from euc_ros.core.identify.interval import (
 from euc_ros.core.identify.simex import SimexShare, eiv_bias, eiv_biases
 from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
+from euc_ros.core.memory import release_free_memory
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, reconstruct_states
 from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
@@ -310,6 +311,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
                   h_bounds=h_bounds, turning_ms2=turning_rms(states),
                   filter_floor_m=floor["filter_floor_m"] if floor else 0.0, prior_range_m=prior_range)
     corrected = None
+    release_free_memory()             # the replicates' and the probe's temporaries, before the bootstraps
     if probe is not None:
         slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
         corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, h_probe, filter_choice,
@@ -336,6 +338,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     lo, hi = iv.bootstrap_ci95_m
     out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
     if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
+        release_free_memory()         # the bootstraps' temporaries, before the budget's reconstructions
         b = budget(series, states, session, params, fit.h_m, window_s=window_s, polyorder=polyorder,
                    phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
         out["h_range_m"] = b["h_range_m"]

@@ -18,6 +18,7 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.auto_window import WindowChoice, choose_window
+from euc_ros.core.memory import release_free_memory
 from euc_ros.core.states.geometry import block_geometry
 from euc_ros.core.states.kinematics import PHI_DEFINITIONS, reconstruct_states, reconstruct_states_filters
 from euc_ros.core.states.link_sliding import sliding_or_none
@@ -154,6 +155,8 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
     per_rate = {rate: choose_window(dts[rate], sig, noise_power=noise_power, coloured=coloured)
                 for rate, sig in groups.items()}
     used = max(per_rate.values(), key=lambda c: c.window_s)
+    del groups
+    release_free_memory()       # the raw signals, spectra and the links' deviations: freed, not kept resident
     return FilterChoice(used, per_rate, sliding)
 
 
