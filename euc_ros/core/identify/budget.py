@@ -119,7 +119,7 @@ def budget(series_list, states, session, params, h: float, *, window_s: float, p
         # each recording's states reduced to their residual coefficients as soon as made (what fit_h's pooled
         # h is fitted from), so no shifted recording's states are held beside another's or the fit's
         coefs = [coefficients_for([reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s,
-                                                      polyorder=polyorder, cog_method=cog_method)],
+                                                      polyorder=polyorder, cog_method=cog_method, lean=True)],
                                   params, "3dof", None)[0] for s in series_list]
         hs.append(float(pooled_fit(coefs, DEFAULT_H_GRID, "3dof").h_m))
         del coefs

@@ -352,7 +352,8 @@ def probe_coefficients(series_list, session, params: EucParams, choice, *, phi_d
     (:func:`~euc_ros.core.identify.fit.coefficients_for`), each recording's states dropped once reduced."""
     w, p = choice.probe
     return [coefficients_for([reconstruct_states(s, session, phi_definition=phi_definition, window_s=float(w),
-                                                 polyorder=int(p), cog_method=cog_method)], params, "3dof", None)[0]
+                                                 polyorder=int(p), cog_method=cog_method, lean=True)],
+                             params, "3dof", None)[0]
             for s in series_list]
 
 

@@ -164,7 +164,7 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
         for s, (sp, sr), z in zip(series_list, noise, draws):
             noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
             made = iter_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
-                                       phi_definition=phi_definition, cog_method=cog_method, shared=True)
+                                       phi_definition=phi_definition, cog_method=cog_method, shared=True, lean=True)
             # a counter, not enumerate(): enumerate's reused (k, item) tuple would keep this filter's states
             # alive while the generator makes the next filter's
             for k in range(len(filters)):

@@ -92,7 +92,8 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
             noisy = [add_sliding(s, scaled, rng) for s in series_list]
             skel = SkeletonModel.estimate(noisy, session) if cog_method == "skeleton" else None
             states = [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
-                                         polyorder=polyorder, cog_method=cog_method, skeleton=skel) for s in noisy]
+                                         polyorder=polyorder, cog_method=cog_method, skeleton=skel, lean=True)
+                      for s in noisy]
             hs[level].append(fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
             del noisy, skel, states           # before the next replicate's are made
     h2, h3 = float(np.nanmean(hs[1])), float(np.nanmean(hs[2]))

@@ -125,7 +125,8 @@ class RiderStates:
 
 def reconstruct_states(series, session, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
                        polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP,
-                       cog_method: str = "segments", skeleton: SkeletonModel | None = None) -> RiderStates:
+                       cog_method: str = "segments", skeleton: SkeletonModel | None = None,
+                       lean: bool = False) -> RiderStates:
     """Reconstruct the planar model's states and derivatives from a motion-capture recording.
 
     Parameters
@@ -147,6 +148,12 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
         Rider CoG from the measured segments or from the fitted chain (:func:`frame_geometry`).
     skeleton : SkeletonModel, optional
         The session's chain (default: estimated from this recording).
+    lean : bool
+        Only what the model's residual reads (the pitch angles, their derivatives, ``x_dot``, ``x_ddot``
+        and ``valid``, the same numbers): ``x``, ``psi``, ``theta``, ``C``, ``G``, ``has_euc``,
+        ``has_rider`` and the unused pitch definition are left empty (for a caller that reduces the
+        states to the residual's coefficients at once, e.g. a SIMEX replicate), and let go before the
+        pitch angles are filtered.
 
     Returns
     -------
@@ -162,7 +169,7 @@ def reconstruct_states(series, session, *, phi_definition: str = "hinge", window
     _check(series, session, phi_definition, cog_method)
     geo = _geometry(series, session, max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
     return _filtered_states(series, geo, phi_definition=phi_definition, window_s=window_s, polyorder=polyorder,
-                            max_gap=max_gap, cog_method=cog_method, consume=True)
+                            max_gap=max_gap, cog_method=cog_method, consume=True, lean=lean)
 
 
 def reconstruct_states_filters(series, session, filters, *, phi_definition: str = "hinge",
@@ -193,19 +200,19 @@ def reconstruct_states_filters(series, session, filters, *, phi_definition: str 
 
 def iter_states_filters(series, session, filters, *, phi_definition: str = "hinge", max_gap: int = DEFAULT_MAX_GAP,
                         cog_method: str = "segments", skeleton: SkeletonModel | None = None,
-                        shared: bool = False):
+                        shared: bool = False, lean: bool = False):
     """:func:`reconstruct_states_filters` one filter at a time: a generator of the states of each filter, in
     order, each made when asked for (a caller that reduces each before asking for the next never holds two
     filters' states). The geometry is evaluated once, when the first is asked for. ``shared``: the states
     of the filters but the last share the geometry's arrays they keep (G, the pitch angles, the heading...)
-    instead of copies, for a caller that only reads them."""
+    instead of copies, for a caller that only reads them. ``lean``: as for :func:`reconstruct_states`."""
     filters = [(float(w), int(p)) for w, p in filters]
     if not filters:
         return
     if len(filters) == 1:
         (w, p), = filters
         yield reconstruct_states(series, session, phi_definition=phi_definition, window_s=w, polyorder=p,
-                                 max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
+                                 max_gap=max_gap, cog_method=cog_method, skeleton=skeleton, lean=lean)
         return
     _check(series, session, phi_definition, cog_method)
     geo = _geometry(series, session, max_gap=max_gap, cog_method=cog_method, skeleton=skeleton)
@@ -213,7 +220,7 @@ def iter_states_filters(series, session, filters, *, phi_definition: str = "hing
         last = k == len(filters) - 1
         yield _filtered_states(series, geo if last or not shared else dict(geo), phi_definition=phi_definition,
                                window_s=w, polyorder=p, max_gap=max_gap, cog_method=cog_method,
-                               consume=last or shared)
+                               consume=last or shared, lean=lean)
 
 
 def _check(series, session, phi_definition: str, cog_method: str) -> None:
@@ -255,9 +262,10 @@ def _geometry(series, session, *, max_gap: int, cog_method: str, skeleton) -> di
 
 
 def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float, polyorder: int, max_gap: int,
-                     cog_method: str, consume: bool) -> RiderStates:
+                     cog_method: str, consume: bool, lean: bool = False) -> RiderStates:
     """The states of one Savitzky-Golay filter from the geometry of :func:`_geometry` (``consume``: its
-    arrays may be dropped as they are filtered; else ``geo`` is left as given)."""
+    arrays may be dropped as they are filtered; else ``geo`` is left as given; ``lean``: as for
+    :func:`reconstruct_states`)."""
     src = series.meta.get("path", series.name or None)
     # without ``consume`` the states get arrays of their own (another filter's states share none)
     geo = geo if consume else {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in geo.items()}
@@ -269,6 +277,9 @@ def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float,
     # keep) and the wheel centre's derivatives once reduced to x_dot and x_ddot, so the working set
     # beyond the states is at most one filter's. The numbers are those of any other order.
     n_faults = int(geo.pop("n_faults").sum())
+    if lean:            # what the residual does not read, let go before the filtering (empty in the states)
+        for key in ("G", "theta", "has_euc", "has_rider", "phi_eq3" if phi_definition == "hinge" else "phi_hinge"):
+            geo[key] = np.empty((0, 3) if key == "G" else 0, dtype=geo[key].dtype)
     d_C = savgol_derivatives(dt, geo.pop("C"), **sg)
     psi = geo["psi"].copy()
     fin = np.isfinite(psi)
@@ -290,10 +301,13 @@ def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float,
     C, filled = d_C.y, d_C.filled.copy()
     del d_C                                        # its (n, 3) y_dot and y_ddot
     t = np.asarray(series.t, dtype=float)
-    xd0 = np.where(np.isfinite(x_dot), x_dot, 0.0)
-    x = np.concatenate(([0.0], np.cumsum(0.5 * (xd0[1:] + xd0[:-1]) * np.diff(t)))) if t.size else t.copy()
-    del xd0
-    x[~np.isfinite(x_dot)] = np.nan
+    if lean:                                       # what the residual does not read: left empty
+        C, x, psi = np.empty((0, 3)), np.empty(0), np.empty(0)
+    else:
+        xd0 = np.where(np.isfinite(x_dot), x_dot, 0.0)
+        x = np.concatenate(([0.0], np.cumsum(0.5 * (xd0[1:] + xd0[:-1]) * np.diff(t)))) if t.size else t.copy()
+        del xd0
+        x[~np.isfinite(x_dot)] = np.nan
     d_gamma = savgol_derivatives(dt, geo.pop("gamma"), **sg)
     phi_raw = geo["phi_hinge"] if phi_definition == "hinge" else geo["phi_eq3"]
     d_phi = savgol_derivatives(dt, phi_raw, **sg)

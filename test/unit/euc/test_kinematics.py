@@ -101,6 +101,42 @@ def test_a_short_segment_loss_is_bridged_and_costs_nothing(synth):
     assert np.nanmax(np.abs(st.phi - ref.phi)) < 1e-3     # rad; interpolation over 25 ms of a ~1 Hz motion
 
 
+@pytest.mark.parametrize("phi_definition", ["hinge", "eq3"])
+def test_lean_states_are_the_full_states_the_residual_reads(synth, phi_definition):
+    """Lean states (for callers that reduce them to the residual's coefficients at once) hold what the residual
+    reads, number for number, with gaps and bridged frames; the rest is empty, and the residual coefficients of
+    both are the same."""
+    from euc_ros.core.identify.fit import coefficients_for
+    from euc_ros.core.states.kinematics import iter_states_filters
+
+    s, _ = _straight_series(synth, rng=np.random.default_rng(3), n=900, pos_noise=2e-4)
+    j = s.bodies.index("CHL")
+    s.tracked[j, 100:103] = False                  # bridged
+    s.position[j, 100:103] = np.nan
+    s.tracked[0, 400:420] = False                  # a gap that splits the stretch
+    s.position[0, 400:420] = np.nan
+    kept = ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "valid",
+            "phi_hinge" if phi_definition == "hinge" else "phi_eq3")
+    dropped = ("x", "psi", "theta", "C", "G", "has_euc", "has_rider",
+               "phi_eq3" if phi_definition == "hinge" else "phi_hinge")
+    full = reconstruct_states(s, SESSION, window_s=0.2, phi_definition=phi_definition)
+    params = EucParams.from_session(SESSION)
+    filters = [(0.2, DEFAULT_SG_POLYORDER), (0.35, 4)]
+    both = [reconstruct_states(s, SESSION, window_s=0.2, phi_definition=phi_definition, lean=True),
+            *iter_states_filters(s, SESSION, filters, phi_definition=phi_definition, shared=True, lean=True)]
+    refs = [full, full, reconstruct_states(s, SESSION, window_s=0.35, polyorder=4, phi_definition=phi_definition)]
+    for lean, ref in zip(both, refs):
+        assert lean.valid.sum() > 500 and not lean.valid[400:420].any()
+        for key in kept:
+            np.testing.assert_array_equal(getattr(lean, key), getattr(ref, key), err_msg=key)
+        for key in dropped:
+            assert getattr(lean, key).size == 0, key
+        assert lean.n == ref.n and lean.window == ref.window and lean.meta == ref.meta
+        a, = coefficients_for([lean], params, "3dof", None)
+        b, = coefficients_for([ref], params, "3dof", None)
+        np.testing.assert_array_equal(a, b)
+
+
 def test_zero_mass_segment_may_be_missing(synth):
     s, _ = _straight_series(synth, n=60)
     j = s.bodies.index("HR")  # hip markers only, mass fraction 0
