@@ -31,7 +31,6 @@ from __future__ import annotations
 import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.mocap.series import MocapSeries
 from euc_ros.core.rotations import (
     rotate,
     y_up_to_z_up_position,
@@ -82,9 +81,10 @@ def poses_with_up(series, up: str, body: int | None = None) -> tuple[np.ndarray,
     other candidate the file's own axes are recovered and read again (docs/motive_csv.md).
     """
     read_as, _ = _read_as(series)
-    pos, quat = np.asarray(series.position, float), np.asarray(series.quat, float)
     if body is not None:
-        pos, quat = pos[body], quat[body]
+        pos, quat = (np.asarray(v, float) for v in _body_poses(series, body))
+    else:
+        pos, quat = np.asarray(series.position, float), np.asarray(series.quat, float)
     if up == read_as:
         return pos, quat
     if read_as == "y":  # file axes are (x, z, -y) of the series; read with Z up: no swap
@@ -92,16 +92,30 @@ def poses_with_up(series, up: str, body: int | None = None) -> tuple[np.ndarray,
     return y_up_to_z_up_position(pos), y_up_to_z_up_quat(quat)
 
 
+class _Thinned:
+    """Frames ``idx`` of a recording, for the up-axis tests: its times and tracked flags taken, its poses read one
+    body at a time (:func:`_body_poses`), never every body's at once."""
+
+    def __init__(self, series, idx: np.ndarray) -> None:
+        self.base, self.idx = series, idx
+        self.t, self.tracked = series.t[idx], series.tracked[:, idx]
+        self.bodies, self.meta, self.n_frames = list(series.bodies), series.meta, int(idx.size)
+
+    def body_poses(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        return self.base.position[i][self.idx], self.base.quat[i][self.idx]
+
+
+def _body_poses(series, i: int) -> tuple[np.ndarray, np.ndarray]:
+    """Body ``i``'s (position (n, 3), quat (n, 4)) of a recording or of its :class:`_Thinned` frames."""
+    return series.body_poses(i) if isinstance(series, _Thinned) else (series.position[i], series.quat[i])
+
+
 def _thinned(series):
     """``series`` with at most :data:`MAX_FRAMES` evenly spaced frames (the same object if shorter)."""
     n = series.n_frames
     if n <= MAX_FRAMES:
         return series
-
-    idx = np.unique(np.linspace(0, n - 1, MAX_FRAMES).round().astype(np.int64))
-    return MocapSeries(series.t[idx], series.frame[idx], list(series.bodies), series.position[:, idx],
-                       series.quat[:, idx], series.tracked[:, idx], series.mean_marker_error[:, idx], series.name,
-                       series.meta)
+    return _Thinned(series, np.unique(np.linspace(0, n - 1, MAX_FRAMES).round().astype(np.int64)))
 
 
 def _axis_names(series) -> dict[str, str]:
@@ -155,7 +169,7 @@ def _euc(series, session) -> tuple[dict, dict]:
     if body not in series.bodies:
         return {}, {}
     i = series.bodies.index(body)
-    trk = np.asarray(series.tracked[i], bool) & np.all(np.isfinite(series.quat[i]), axis=-1)
+    trk = np.asarray(series.tracked[i], bool) & np.all(np.isfinite(_body_poses(series, i)[1]), axis=-1)
     t = np.asarray(series.t, float)[trk]
     if not _long_enough(t):
         return {}, {}
