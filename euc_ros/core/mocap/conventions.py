@@ -111,7 +111,8 @@ def _body_poses(series, i: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _thinned(series):
-    """``series`` with at most :data:`MAX_FRAMES` evenly spaced frames (the same object if shorter)."""
+    """``series`` itself when it has at most :data:`MAX_FRAMES` frames, else a :class:`_Thinned` view of that
+    many evenly spaced frames."""
     n = series.n_frames
     if n <= MAX_FRAMES:
         return series
