@@ -140,7 +140,10 @@ def _floor(heights: np.ndarray) -> dict:
 
 def _heights(series, up: str) -> np.ndarray:
     """Every body's pivot height (b, n) with the file's ``up`` axis up (one body's poses turned at a time)."""
-    return np.stack([poses_with_up(series, up, i)[0][:, 2] for i in range(len(series.bodies))])
+    out = np.empty((len(series.bodies), np.shape(series.t)[0]))       # (0, n) for a recording without bodies
+    for i in range(len(series.bodies)):
+        out[i] = poses_with_up(series, up, i)[0][:, 2]
+    return out
 
 
 def _upright(series, names: list[str] | None, heights: dict) -> dict:
