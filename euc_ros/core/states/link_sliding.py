@@ -68,7 +68,8 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
         devs = [link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
                 for s, ok in zip(series_list, usable)]
         if vector is None:
-            v = np.concatenate([d[both] for d, both in devs])
+            seen_both = [d[both] for d, both in devs]       # each recording's frames where both are usable
+            v = seen_both[0] if len(seen_both) == 1 else np.concatenate(seen_both)
             if v.shape[0] == 0:
                 continue                                # links never seen together are left out
             vector = median(np.ascontiguousarray(v.T), axis=1)       # per component, over contiguous memory
@@ -76,7 +77,12 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
             for d, _ in devs:
                 d -= vector                                 # in place: no second copy of the deviations
             # the distances to the vector over the frames where both bodies are usable, kept per recording
-            dist = [np.linalg.norm(d[both], axis=1) for d, both in devs]
+            # (numpy's norm over the three components, written out: the same sums in the same order)
+            dist = []
+            for sb in seen_both:
+                sb -= vector
+                dist.append(np.sqrt((sb[:, 0] * sb[:, 0] + sb[:, 1] * sb[:, 1]) + sb[:, 2] * sb[:, 2]))
+            del seen_both
             e = np.concatenate(dist)
             med = float(median(e))
             mad = float(median(np.abs(e - med)))
@@ -97,8 +103,9 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
                 good[both] = near <= threshold
             if good.sum() < 16:
                 continue
-            centre = d[good].mean(0)
-            dg = d[good] - centre
+            dg = d[good]
+            centre = dg.mean(0)
+            dg -= centre
             total = float(np.mean(np.sum(dg ** 2, 1)))
             del dg
             trip = good[3:] & good[2:-1] & good[1:-2] & good[:-3]
@@ -113,8 +120,13 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
                     row[i] = 1.0
             rows.append(row)
             vals.append(max(total - white, 0.0))
-            x = np.where(good[:, None], d - centre, 0.0)
-            p = np.sum(np.abs(np.fft.rfft(x, axis=0)) ** 2, 1)
+            # the components as contiguous rows: each one's transform over contiguous memory (the same numbers),
+            # their powers summed in the order numpy's sum over the short axis takes
+            x = np.where(good, np.ascontiguousarray((d - centre).T), 0.0)
+            a = np.abs(np.fft.rfft(x, axis=1)) ** 2
+            del x
+            p = (a[0] + a[1]) + a[2]
+            del a
             f = freqs.get(id(s))
             if f is None:
                 f = freqs[id(s)] = np.fft.rfftfreq(n, 1.0 / s.rate_hz)
@@ -122,7 +134,8 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
                 # keep the longest recording's grid; others are interpolated onto it
                 spec_p = None if spec_p is None else np.interp(f, spec_f, spec_p)
                 spec_f = f
-            p = np.interp(spec_f, f, p)
+            if f is not spec_f:                         # on its own grid a spectrum is already there
+                p = np.interp(spec_f, f, p)
             spec_p = p if spec_p is None else spec_p + p
         del devs
     if skeleton is None and not seen:
