@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.identify.fit import DEFAULT_H_GRID, coefficients_for, fit_h, pooled_fit
+from euc_ros.core.identify.fit import fit_h, pooled_h_of_states
 from euc_ros.core.identify.interval import json_float
 from euc_ros.core.memory import release_free_memory
 from euc_ros.core.states.kinematics import reconstruct_states
@@ -116,13 +116,10 @@ def budget(series_list, states, session, params, h: float, *, window_s: float, p
     hs = []
     for dz in (step, -step):
         s2 = shifted(dz)
-        # each recording's states reduced to their residual coefficients as soon as made (what fit_h's pooled
-        # h is fitted from), so no shifted recording's states are held beside another's or the fit's
-        coefs = [coefficients_for([reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s,
-                                                      polyorder=polyorder, cog_method=cog_method, lean=True)],
-                                  params, "3dof", None)[0] for s in series_list]
-        hs.append(float(pooled_fit(coefs, DEFAULT_H_GRID, "3dof").h_m))
-        del coefs
+        # each recording's states made when the fit asks for them and reduced to their coefficients at once
+        hs.append(pooled_h_of_states((reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s,
+                                                         polyorder=polyorder, cog_method=cog_method, lean=True)
+                                      for s in series_list), params))
         release_free_memory()         # the shifted reconstruction's temporaries
     d = (hs[0] - hs[1]) / (2 * step)
     tol = _absolute(tolerances["rider.segments.com_offset"], 0.0)

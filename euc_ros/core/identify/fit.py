@@ -402,11 +402,17 @@ def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = 
     return _fit(pooled_coef, h_grid, model, np.sum(sses, axis=0))
 
 
-def pooled_h_of_states(states: list, params: EucParams) -> float:
-    """``fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, emptying the list ``states``:
-    each recording's states are dropped as soon as they are reduced to their residual coefficients
-    (48 bytes a valid sample, where the states are ~170 a frame), so the fit runs without them."""
+def pooled_h_of_states(states, params: EucParams) -> float:
+    """``fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, each recording's states dropped as soon
+    as they are reduced to their residual coefficients (48 bytes a valid sample, where the states are ~170 a
+    frame), so the fit runs without them: a list ``states`` is emptied; any other iterable (e.g. a generator
+    making each recording's states when asked) is read one recording at a time, none held beside the next."""
     coefs = []
-    while states:
-        coefs += coefficients_for([states.pop(0)], params, "3dof", None)
+    if isinstance(states, list):
+        while states:
+            coefs += coefficients_for([states.pop(0)], params, "3dof", None)
+    else:
+        for st in states:
+            coefs += coefficients_for([st], params, "3dof", None)
+            del st                  # not held while the iterable makes the next recording's
     return float(pooled_fit(coefs, DEFAULT_H_GRID, "3dof").h_m)

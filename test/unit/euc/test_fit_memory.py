@@ -97,6 +97,7 @@ def test_pooled_h_of_states_is_identify_h_and_drops_the_states(ride):
     work = list(states)
     assert I.pooled_h_of_states(work, params) == want
     assert work == []
+    assert I.pooled_h_of_states((st for st in states), params) == want     # states made one at a time
     one = [states[0]]
     assert I.pooled_h_of_states(list(one), params) == I.fit_h(one, params, models=("3dof",)).pooled["3dof"].h_m
 
