@@ -153,32 +153,54 @@ def savgol_coefficients(window: int, polyorder: int, dt: float, positions,
     >>> abs(float(h[2, 0].sum())) < 1e-9   # a constant has no acceleration, at any rate
     True
     """
+    return _assemble(*_savgol_factors(int(window), int(polyorder), positions, tuple(derivs)), dt)
+
+
+def _savgol_factors(window: int, polyorder: int, positions, derivs: tuple) -> tuple:
+    """``(q, solves, c, derivs)`` of :func:`savgol_coefficients`: the QR factor ``q`` (window, p + 1) of the
+    Legendre basis and, per derivative, the (p + 1, m) triangular solve; small beside the (m, window)
+    coefficients they make."""
     from scipy.linalg import qr, solve_triangular
 
-    window = int(window)
     c = (window - 1) / 2.0
     u = (np.arange(window) - c) / c
     q, r = qr(legendre.legvander(u, polyorder), mode="economic")
     up = (np.atleast_1d(np.asarray(positions, dtype=float)) - c) / c
     eye = np.eye(polyorder + 1)
-    out = np.empty((len(derivs), up.size, window))
-    for i, d in enumerate(derivs):
+    solves = []
+    for d in derivs:
         # row k of g: the d-th derivative of Legendre polynomial k at every position
         g = np.stack([legendre.legval(up, legendre.legder(eye[k], d) if d else eye[k])
                       for k in range(polyorder + 1)])
-        out[i] = (q @ solve_triangular(r, g, trans="T")).T / (c * dt) ** d
+        solves.append(solve_triangular(r, g, trans="T"))
+    return q, tuple(solves), c, derivs
+
+
+def _assemble(q: np.ndarray, solves: tuple, c: float, derivs: tuple, dt: float) -> np.ndarray:
+    """The coefficients (len(derivs), m, window) from :func:`_savgol_factors`."""
+    out = np.empty((len(derivs), solves[0].shape[1], q.shape[0]))
+    for i, d in enumerate(derivs):
+        out[i] = (q @ solves[i]).T / (c * dt) ** d
     return out
 
 
 @functools.lru_cache(maxsize=32)
-def _stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
-    """Centre and edge coefficients of :func:`_filter_stretch` (cached: the residual analysis filters many
-    series with the same window; read-only)."""
+def _stretch_factors(w: int, polyorder: int) -> tuple:
+    """:func:`_savgol_factors` of :func:`_stretch_coefficients` (cached: the analyses filter many series with
+    the same window; a few (p + 1, w) arrays each, read-only)."""
     half = (w - 1) // 2
     edges = np.arange(half)
-    coeffs = savgol_coefficients(w, polyorder, dt, np.concatenate(([half], edges, edges + half + 1)))
-    coeffs.setflags(write=False)
-    return coeffs
+    q, solves, c, derivs = _savgol_factors(w, polyorder, np.concatenate(([half], edges, edges + half + 1)), (0, 1, 2))
+    for a in (q,) + solves:
+        a.setflags(write=False)
+    return q, solves, c, derivs
+
+
+def _stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
+    """Centre and edge coefficients of :func:`_filter_stretch`: (3, w, w), row 0 the centre, rows 1 to half
+    the first half samples', the rest the last half's. Made from cached factors on each call (the same
+    numbers as :func:`savgol_coefficients`) and not kept: 3 w^2 numbers (0.7 MB at w = 171)."""
+    return _assemble(*_stretch_factors(int(w), int(polyorder)), float(dt))
 
 
 def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None) -> np.ndarray:

@@ -435,10 +435,13 @@ def _rotation_type(hdr: _Header, warnings: list[str]) -> str | None:
 
 
 # -------------------------------------------------------------------------------------- data block
-#: Bytes of data rows read and converted at a time. The reader's working memory is a few times this
-#: (the chunk's text, its nan-filled copy, its float matrix and per-body temporaries) whatever the
-#: size of the file, on top of the arrays it returns.
+#: Bytes of data rows read and converted at a time, at most. The reader's working memory is a few times
+#: the chunk (the chunk's text, its nan-filled copy, its float matrix and per-body temporaries) on top of
+#: the arrays it returns; a file of under ``_CHUNK_BYTES * _CHUNKS_AT_LEAST`` bytes is read in that many
+#: smaller chunks (not under ``_CHUNK_BYTES_MIN``), so the working memory stays a small part of its arrays.
 _CHUNK_BYTES = 1 << 20
+_CHUNKS_AT_LEAST = 32
+_CHUNK_BYTES_MIN = 1 << 16
 #: Data rows of at least this many bytes are read by the compiled parser first
 #: (:mod:`~euc_ros.core.io.csv_compiled`: numpy's values bit for bit, 5-10x faster); smaller files (a live
 #: replay's, a test's) by numpy alone, without loading the compiler.
@@ -465,11 +468,11 @@ class _Block:
     def __init__(self, f, hdr: _Header) -> None:
         self.f = f
         self.hdr = hdr
-        self.chunk_bytes = _CHUNK_BYTES
         self.aligned = False  # chunks of whole 2048-row blocks (set when the exact scan needs them)
         self.first_line = hdr.axis_line + 1
         size = f.seek(0, os.SEEK_END)
         start, end = min(hdr.data_offset, size), size
+        self.chunk_bytes = min(_CHUNK_BYTES, max(_CHUNK_BYTES_MIN, (end - start) // _CHUNKS_AT_LEAST))
         while end > start:  # trailing line ends and blank lines
             lo = max(start, end - 65536)
             f.seek(lo)

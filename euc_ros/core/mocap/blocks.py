@@ -12,8 +12,8 @@ recording that never exists whole: it hands out the perturbed poses of any block
 :class:`BlockNoise`: the standard normal draws of block ``k`` (:data:`BLOCK_FRAMES` frames, every
 body and component at once) come from their own generator, seeded by one number drawn from the
 caller's generator and ``k``, so any block is drawn directly (no walk through the stream before it)
-and a block read twice, or out of order, gives the same numbers. The last few blocks are kept, so
-reading a recording block after block with margins draws every block once.
+and a block read twice, or out of order, gives the same numbers. The block being read and the end of the
+one before are kept, so reading a recording block after block with margins draws every block once.
 """
 from __future__ import annotations
 
@@ -117,26 +117,38 @@ class BlockNoise:
     the blocks are independent, any of them is made directly, and the same block is always the same
     numbers. Drawn in float32 (about twice as fast as float64; the draws scale noise of ~1e-4 m and
     ~1e-2 rad, where float32's relative 6e-8 is far below anything the analysis resolves) and
-    returned as float64. The ``cache`` most recent blocks are kept.
+    returned as float64. At most ``cache`` blocks are kept; when a block is drawn, the block before it
+    keeps only its last :data:`READ_FRAMES` frames (a forward pass whose reads have margins steps back
+    over a block's edge by less than a read) and earlier ones are dropped, so a pass holds about one block.
     """
 
     def __init__(self, rng: np.random.Generator, n: int, rows: int, width: int, *, cache: int = 3) -> None:
         self._entropy = int(rng.integers(0, 2**63 - 1))
         self.n, self.rows, self.width = int(n), int(rows), int(width)
-        self._cache: dict[int, np.ndarray] = {}
+        self._cache: dict[int, tuple[int, np.ndarray]] = {}   # block -> (its first frame kept, draws from there)
         self._cache_size = int(cache)
 
-    def _block(self, k: int) -> np.ndarray:
+    def _part(self, k: int, a: int) -> np.ndarray:
+        """The draws of block ``k`` from its frame ``a`` (counted from the block's first) on."""
         hit = self._cache.get(k)
-        if hit is not None:
-            return hit
+        if hit is not None and hit[0] <= a:
+            return hit[1][:, a - hit[0]:]
+        tail = min(READ_FRAMES, BLOCK_FRAMES)
+        for j in [j for j in self._cache if j < k]:
+            first, z = self._cache[j]
+            if j < k - 1:
+                del self._cache[j]
+            elif z.shape[1] > tail:         # a copy of the last frames: the whole block is let go
+                self._cache[j] = (first + z.shape[1] - tail, z[:, -tail:].copy())
+            del z
         frames = min(self.n, (k + 1) * BLOCK_FRAMES) - k * BLOCK_FRAMES
         g = np.random.Generator(np.random.PCG64(np.random.SeedSequence(self._entropy, spawn_key=(k,))))
         z = g.standard_normal((self.rows, frames, self.width), dtype=np.float32)
-        if len(self._cache) >= self._cache_size:
+        self._cache.pop(k, None)
+        while len(self._cache) >= self._cache_size:
             self._cache.pop(next(iter(self._cache)))
-        self._cache[k] = z
-        return z
+        self._cache[k] = (0, z)
+        return z[:, a:]
 
     def forget(self) -> None:
         """Drop the kept blocks (a block asked for again is drawn again: the same numbers)."""
@@ -144,17 +156,17 @@ class BlockNoise:
 
     def draw(self, lo: int, hi: int, dtype=float) -> np.ndarray:
         """The draws of frames ``lo:hi``: (rows, hi - lo, width) float64 (``dtype`` None: as drawn, float32,
-        possibly a view of a cached block)."""
+        possibly a view of a kept block)."""
         k0, k1 = block_span(lo, hi)
         first = k0 * BLOCK_FRAMES
         if k1 - k0 == 1:
-            z = self._block(k0)[:, lo - first:hi - first]
+            z = self._part(k0, lo - first)[:, :hi - lo]
             return z if dtype is None else z.astype(dtype)
         # several blocks: each one's part written into the result (no concatenated copy of the blocks)
         out = np.empty((self.rows, hi - lo, self.width), dtype=np.float32 if dtype is None else dtype)
         for k in range(k0, k1):
             a, b = max(lo, k * BLOCK_FRAMES), min(hi, (k + 1) * BLOCK_FRAMES)
-            out[:, a - lo:b - lo] = self._block(k)[:, a - k * BLOCK_FRAMES:b - k * BLOCK_FRAMES]
+            out[:, a - lo:b - lo] = self._part(k, a - k * BLOCK_FRAMES)[:, :b - a]
         return out
 
 

@@ -114,6 +114,38 @@ def test_a_released_recording_reads_the_same_poses(ride, small_blocks):
     blocks.release(series)                               # a plain recording has nothing to release
 
 
+def test_a_forward_pass_draws_each_block_once_and_keeps_about_one(ride, small_blocks, monkeypatch):
+    """The geometry's pass over a re-noised recording (reads with margins, across the blocks' edges) draws
+    every noise block once and never holds two whole blocks: the block before the one drawn keeps only its
+    last READ_FRAMES frames."""
+    from euc_ros.core.mocap.noise import pose_noise_draws, pose_noise_series
+
+    monkeypatch.setattr(blocks, "READ_FRAMES", 16)      # reads of 16 frames and margins of 6: 4 reads a block
+    series, session = ride
+    b = len(series.bodies)
+    draws = pose_noise_draws(series, np.random.default_rng(4))
+    noisy = pose_noise_series(series, np.full(b, 2e-4), np.full(b, 0.008), noise=draws)
+    seen, kept = [], []
+    part = draws._part
+
+    def counting(k, a):
+        before = set(draws._cache)
+        out = part(k, a)
+        if k not in before or draws._cache[k][0] > a:
+            seen.append(k)
+        kept.append(sum(z.shape[1] for _, z in draws._cache.values()))
+        return out
+
+    draws._part = counting
+    geometry.block_geometry(noisy, session, 5)
+    n_blocks = -(-series.n_frames // BLOCK)
+    assert sorted(seen) == list(range(n_blocks))         # each block drawn once
+    assert max(kept) <= BLOCK + 16
+    whole = pose_noise_series(series, np.full(b, 2e-4), np.full(b, 0.008), noise=draws).materialize()
+    reread = _blocks(noisy, series.n_frames, [(a, min(a + 50, series.n_frames)) for a in range(0, series.n_frames, 50)])
+    np.testing.assert_array_equal(reread[0], whole.position)
+
+
 def test_pose_noise_series_adds_the_stated_noise(ride, small_blocks):
     """Position offsets of sigma_pos per axis, body-frame rotations of sigma_rot per axis, nothing where a
     sigma is NaN, and sign=-1 the mirror image of the same draws (antithetic SIMEX)."""
