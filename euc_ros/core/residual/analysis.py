@@ -33,7 +33,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from euc_ros.core.model.effects import Candidate, FloorGeometry, make_candidates, with_plausible
+from euc_ros.core.model.effects import Candidate, FloorGeometry, MocapTimeOffset, make_candidates, with_plausible
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.discovery import discover_terms
 from euc_ros.core.residual.folds import (
@@ -65,7 +65,7 @@ from euc_ros.core.residual.selection import (
     refusal,
 )
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, max_t_adjusted, paired_block_test
-from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, Recording, prepare
+from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, Recording, forget_shift_caches, prepare
 from euc_ros.core.states.floor import RADIUS_TOL_M, FloorFit, floor_from_states, rolling_radius_from_floor
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates
 
@@ -307,6 +307,8 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             journal.rows[c.name] = CandidateResult(c.name, False, screening.visible[c.name], base.heldout.rmse, 1.0,
                                                    {}, setup.base_fit.h)
     geometry, stage = radius_step(setup, candidates, selection.stage, use_geometry, journal, say)
+    if not any(c.name == MocapTimeOffset.name for c in stage.model.effects):
+        forget_shift_caches(setup.recs)     # no time offset fitted from here on: its hook's geometry let go
     alternative = Alternative(stage, {})
     if discover and any(not getattr(c, "geometric", False) for c in stage.model.effects):
         alternative = discovery_alternative(setup, stage, rules, journal)

@@ -122,7 +122,17 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
         der = savgol_derivatives(t, d, window=window, polyorder=polyorder, frame=st.frame)
         return der.y[valid], der.y_dot[valid], der.y_ddot[valid]
 
+    shift.forget = base.clear       # drops the kept geometry (made again, the same, if the hook is called again)
     return shift
+
+
+def forget_shift_caches(recs: Sequence[Recording]) -> None:
+    """Let the time-shift hooks of prepared recordings drop what they keep (:func:`_phi_shift_fn`: 8 numbers a
+    sample), e.g. once the analysis no longer fits a time offset; a hook called again makes it again."""
+    for rec in recs:
+        forget = getattr(rec.ctx.extras.get("phi_shift"), "forget", None)
+        if forget is not None:
+            forget()
 
 
 def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:

@@ -135,3 +135,21 @@ def test_time_shift_hook_is_the_eager_whole_recording_one(ride, monkeypatch):
         got = shift(dt)
         for k in range(3):
             assert np.array_equal(got[k], ref[:, k], equal_nan=True)
+
+
+def test_a_time_shift_hook_forgets_its_geometry_and_makes_it_again_the_same(ride):
+    """forget_shift_caches lets the hooks drop their hinge path and trigonometry; a shift asked for after it
+    gives the same numbers as before."""
+    from euc_ros.core.states import contexts as A
+
+    _, params, states = ride
+    recs = A.prepare(states[:1], params, analysis_rate_hz=10.0)
+    shift = recs[0].ctx.extras["phi_shift"]
+    before = shift(0.021)
+    kept = shift.forget.__self__                         # the hook's dict of kept geometry
+    assert kept                                          # kept between shifts
+    A.forget_shift_caches(recs)
+    assert not kept
+    after = shift(0.021)
+    for a, b in zip(before, after):
+        assert np.array_equal(a, b, equal_nan=True)
