@@ -1239,8 +1239,10 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
     rate = series.rate_hz if series.n_frames > 1 else np.nan
     unknown = series.frame < 0
     if unknown.any():
-        series.frame[unknown] = (np.round(series.t[unknown] * rate).astype(np.int64) if np.isfinite(rate)
-                                 else np.flatnonzero(unknown))
+        frame = series.frame.copy()       # a new array: the series measures its rate again from it
+        frame[unknown] = (np.round(series.t[unknown] * rate).astype(np.int64) if np.isfinite(rate)
+                          else np.flatnonzero(unknown))
+        series.frame = frame
     if bodies is not None:
         series = series.select(list(bodies))
     return series
@@ -1475,30 +1477,39 @@ def _frames_fast(msgs, topic: str, bag: Path) -> MocapSeries | None:
     if np.any(rows[:, 0] != 0) or np.any(rows[:, 1] != 1) or np.any(rows[:, const] != rows[0, const]):
         return None
     n, k = rows.shape[0], lay["k"]
+    rows = np.ascontiguousarray(rows)
+    flat = rows.reshape(-1)
 
-    def field(start: int, nbytes: int, dtype: str) -> np.ndarray:
-        return rows[:, start:start + nbytes].copy().view(dtype)
+    def field(start: int, dtype: str, shape: tuple = (), strides: tuple = ()) -> np.ndarray:
+        # the field of every message, read in place: a strided view of the messages' bytes (no copy)
+        return np.ndarray((n,) + shape, dtype=dtype, buffer=flat, offset=start, strides=(rows.shape[1],) + strides)
 
-    sec = field(4, 4, "<i4")[:, 0].astype(np.int64)
-    nsec = field(8, 4, "<u4")[:, 0].astype(np.int64)
+    sec = field(4, "<i4").astype(np.int64)
+    nsec = field(8, "<u4").astype(np.int64)
     stamps = sec * 10**9 + nsec
-    numbers = field(lay["frame_number"], 8, "<i8")[:, 0].astype(np.int64)
-    vals = field(lay["poses"], 56 * k, "<f8").reshape(n, k, 7).astype(float)
+    numbers = field(lay["frame_number"], "<i8").astype(np.int64)
+    vals = field(lay["poses"], "<f8", (k, 7), (56, 8))          # (n, k, 7) view
     trk = rows[:, lay["tracked"]:lay["tracked"] + k] != 0
-    err = (field(lay["err"], 4 * k, "<f4").astype(float) if lay["err"] is not None else np.full((n, k), np.nan))
-    order = np.argsort(stamps, kind="stable")
-    trk_t = trk[order].T                                       # (k, n)
-    vals_t = vals[order].transpose(1, 0, 2)                    # (k, n, 7)
-    # C-ordered (body, frame, component) like every other reader's arrays (the analyses read them by block)
-    position = np.full((k, n, 3), np.nan)
-    np.copyto(position, vals_t[..., :3], where=trk_t[..., None])
-    quat = np.full((k, n, 4), np.nan)
-    np.copyto(quat, vals_t[..., 3:], where=trk_t[..., None])
-    stamps_arr = stamps[order]
-    return MocapSeries(np.zeros(n), numbers[order], list(lay["names"]), position, quat, trk_t.copy(),
-                       np.ascontiguousarray(err[order].T), name=bag.name,
+    err = field(lay["err"], "<f4", (k,), (4,)).astype(float) if lay["err"] is not None else np.full((n, k), np.nan)
+    if n > 1 and np.any(stamps[1:] < stamps[:-1]):              # out of order: sorted (stable) by stamp
+        order = np.argsort(stamps, kind="stable")
+        stamps, numbers, vals, trk, err = stamps[order], numbers[order], vals[order], trk[order], err[order]
+    trk_t = np.ascontiguousarray(trk.T)                         # (k, n)
+    vals_t = vals.transpose(1, 0, 2)                            # (k, n, 7)
+    # C-ordered (body, frame, component) like every other reader's arrays (the analyses read them by block);
+    # each written once from the messages' bytes, NaN where a body is not tracked
+    untracked = ~trk_t
+    position = np.empty((k, n, 3))
+    np.copyto(position, vals_t[..., :3])
+    position[untracked] = np.nan
+    quat = np.empty((k, n, 4))
+    np.copyto(quat, vals_t[..., 3:])
+    quat[untracked] = np.nan
+    del vals, vals_t
+    return MocapSeries(np.zeros(n), numbers, list(lay["names"]), position, quat, trk_t,
+                       np.ascontiguousarray(err.T), name=bag.name,
                        meta={"path": str(bag), "source": f"{MOCAP_FRAME} {topic}",
-                             "_stamps": stamps_arr, "_first_ns": int(stamps_arr[0])})
+                             "_stamps": stamps, "_first_ns": int(stamps[0])})
 
 
 def _poses_fast(mcap, conns: list, prefix: str, bag: Path, merge_tolerance: float) -> MocapSeries | None:

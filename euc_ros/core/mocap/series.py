@@ -62,10 +62,20 @@ class MocapSeries:
         carry round-off; the exact nominal value keeps window lengths in samples reproducible), and
         with fewer than two frames.
         """
-        rate = measured_rate_hz(self.t, self.frame) if self.n_frames > 1 else float("nan")
+        rate = self._measured_rate()
         stated = float(self.meta["rate_hz"]) if "rate_hz" in self.meta else float("nan")
         if np.isfinite(stated) and stated > 0 and (not np.isfinite(rate) or abs(rate / stated - 1.0) <= 1e-3):
             return stated
+        return rate
+
+    def _measured_rate(self) -> float:
+        """:func:`measured_rate_hz` of the frames, kept for the arrays it was measured on (the analyses ask for
+        the rate many times; a series given other ``t`` or ``frame`` arrays is measured again)."""
+        kept = self.__dict__.get("_rate_of")
+        if kept is not None and kept[0] is self.t and kept[1] is self.frame and kept[2] == self.t.shape:
+            return kept[3]
+        rate = measured_rate_hz(self.t, self.frame) if self.n_frames > 1 else float("nan")
+        self.__dict__["_rate_of"] = (self.t, self.frame, self.t.shape, rate)
         return rate
 
     def index(self, body: str) -> int:

@@ -77,3 +77,20 @@ def test_measured_rate_of_real_motive_exports_is_their_export_rate(shared_dir):
         s = read_motive_csv(f, world_up="y")
         assert measured_rate_hz(s.t, s.frame) == pytest.approx(s.meta["rate_hz"], rel=1e-9), f.name
         assert s.rate_hz == s.meta["rate_hz"]
+
+
+def test_a_series_measures_its_rate_once_per_frames_arrays():
+    """The rate is kept for the t and frame arrays it was measured on: a series given new arrays (dropped
+    frames filled in, a shifted clock) is measured again, so the kept value is never a stale one."""
+    n = 500
+    frame = np.arange(n, dtype=np.int64)
+    frame[100:] += 3                                          # three dropped frames
+    s = MocapSeries(t=frame / 240.0, frame=frame, bodies=["E"], position=np.zeros((1, n, 3)),
+                    quat=np.tile([0.0, 0.0, 0.0, 1.0], (1, n, 1)), tracked=np.ones((1, n), bool),
+                    mean_marker_error=np.full((1, n), np.nan))
+    assert s.rate_hz == pytest.approx(240.0, rel=1e-12)
+    assert s.rate_hz == measured_rate_hz(s.t, s.frame)       # kept: the same value
+    s.t = frame / 100.0                                       # new arrays: measured again
+    assert s.rate_hz == pytest.approx(100.0, rel=1e-12)
+    s.frame = np.arange(n, dtype=np.int64)                    # frames renumbered without the gap
+    assert s.rate_hz == measured_rate_hz(s.t, s.frame) != pytest.approx(100.0, rel=1e-3)
