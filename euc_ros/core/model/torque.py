@@ -163,25 +163,34 @@ _COMPILED_MIN = 64
 
 def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
     """:func:`torque_difference` by the compiled loop (:mod:`~euc_ros.core.model.torque_compiled`) for flat
-    arrays of one length and scalar parameters; None otherwise (numpy's broadcasting then does it)."""
+    arrays of one length and parameters that are scalars or per-sample arrays of that length (an effect that
+    moves h or g sample by sample); None otherwise (numpy's broadcasting then does it)."""
     args = (g, ph, gd, pd, xdd, gdd, pdd)
     n = g.shape[0] if g.ndim == 1 else -1
     if n < _COMPILED_MIN or any(a.shape != (n,) for a in args):
         return None
-    if not all(np.ndim(v) == 0 for v in (p.R, p.m, p.h, p.l0, p.m0, p.h0, p.J0, p.J, p.g, p.m_eq)):
+    shapes = [np.shape(v) for v in (p.R, p.m, p.h, p.l0, p.m0, p.h0, p.J0, p.J, p.g, p.m_eq)]
+    if not all(sh in ((), (n,)) for sh in shapes):
         return None
     extra = np.zeros((0, 3))
     if extra_Q is not None:
         extra = np.asarray(extra_Q, dtype=float)
         if extra.shape != (n, 3):
             return None
-    from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
+    from euc_ros.core.model.torque_compiled import torque_difference_loop, torque_difference_loop_per_sample
 
-    # the scalars formed as the numpy expression forms them (the same roundings)
+    # the constants formed as the numpy expression forms them (the same roundings, sample by sample when a
+    # parameter is per sample)
     R, mh, k, m11, m22, m33 = _difference_constants(p)
-    s = np.array([R, R * m11, -k, mh, m22, -mh * p.l0, m33, -mh, mh * p.l0, k * p.g, mh * p.g, k], dtype=float)
-    return torque_difference_loop(*(np.ascontiguousarray(a) for a in args), s, np.ascontiguousarray(extra),
-                                  np.empty(n))
+    consts = (R, R * m11, -k, mh, m22, -mh * p.l0, m33, -mh, mh * p.l0, k * p.g, mh * p.g, k)
+    out = np.empty(n)
+    arrays = tuple(np.ascontiguousarray(a) for a in args)
+    if all(sh == () for sh in shapes):
+        return torque_difference_loop(*arrays, np.array(consts, dtype=float), np.ascontiguousarray(extra), out)
+    S = np.empty((len(consts), n))
+    for row, c in zip(S, consts):
+        row[...] = c
+    return torque_difference_loop_per_sample(*arrays, S, np.ascontiguousarray(extra), out)
 
 
 def rider_torque(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot, p: EucParams, extra_Q=None):

@@ -68,6 +68,34 @@ def test_compiled_torque_difference_is_numpys_bit_for_bit_and_the_symbolic_resid
             np.testing.assert_array_equal(fast_q, torque.torque_difference(*_sargs(s), p, extra_Q=dQ))
 
 
+@pytest.mark.parametrize("per_sample", [("h",), ("g",), ("h", "g", "R", "m0")])
+def test_compiled_torque_difference_with_per_sample_parameters_is_numpys_bit_for_bit(symbolic, rng, monkeypatch,
+                                                                                    per_sample):
+    """Parameters given per sample (an effect that moves h or g sample by sample) take the compiled loop too:
+    against the sympy eqs (9)-(10) per sample, and equal to numpy's broadcast expression bit for bit."""
+    import dataclasses
+
+    from euc_ros.core.model import torque
+
+    n = 257
+    p = _random_params(rng)
+    each = _random_params(rng, n)
+    p = dataclasses.replace(p, **{k: getattr(each, k) for k in per_sample})
+    s = _random_states(rng, n)
+    ref = symbolic.Md1(*_sargs(s), *_pvals(p)) - symbolic.Md2(*_sargs(s), *_pvals(p))
+    assert torque._compiled_difference(*(np.asarray(a, float) for a in _sargs(s)), p, None) is not None
+    dQ = rng.normal(0.0, 20.0, (n, 3))
+    fast, fast_q = torque.torque_difference(*_sargs(s), p), torque.torque_difference(*_sargs(s), p, extra_Q=dQ)
+    np.testing.assert_allclose(fast, ref, rtol=1e-9, atol=1e-9 * np.max(np.abs(ref)))
+    with monkeypatch.context() as m:
+        m.setattr(torque, "_compiled_difference", lambda *a, **k: None)
+        np.testing.assert_array_equal(fast, torque.torque_difference(*_sargs(s), p))
+        np.testing.assert_array_equal(fast_q, torque.torque_difference(*_sargs(s), p, extra_Q=dQ))
+    # parameters per sample of another length are numpy's (broadcasting decides)
+    other = dataclasses.replace(p, h=rng.uniform(0.2, 1.2, n + 1))
+    assert torque._compiled_difference(*(np.asarray(a, float) for a in _sargs(s)), other, None) is None
+
+
 def test_kinetic_energy_from_geometry_equals_paper_A1(symbolic):
     assert sp.simplify(sp.expand_trig(symbolic.T_geometry - symbolic.T_A1)) == 0
 
