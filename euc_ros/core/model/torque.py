@@ -177,20 +177,17 @@ def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
         extra = np.asarray(extra_Q, dtype=float)
         if extra.shape != (n, 3):
             return None
-    from euc_ros.core.model.torque_compiled import torque_difference_loop, torque_difference_loop_per_sample
+    from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
 
     # the constants formed as the numpy expression forms them (the same roundings, sample by sample when a
-    # parameter is per sample)
+    # parameter is per sample): one column, or one per sample
     R, mh, k, m11, m22, m33 = _difference_constants(p)
     consts = (R, R * m11, -k, mh, m22, -mh * p.l0, m33, -mh, mh * p.l0, k * p.g, mh * p.g, k)
-    out = np.empty(n)
-    arrays = tuple(np.ascontiguousarray(a) for a in args)
-    if all(sh == () for sh in shapes):
-        return torque_difference_loop(*arrays, np.array(consts, dtype=float), np.ascontiguousarray(extra), out)
-    S = np.empty((len(consts), n))
+    S = np.empty((len(consts), 1 if all(sh == () for sh in shapes) else n))
     for row, c in zip(S, consts):
         row[...] = c
-    return torque_difference_loop_per_sample(*arrays, S, np.ascontiguousarray(extra), out)
+    return torque_difference_loop(*(np.ascontiguousarray(a) for a in args), S, np.ascontiguousarray(extra),
+                                  np.empty(n))
 
 
 def rider_torque(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot, p: EucParams, extra_Q=None):

@@ -11,40 +11,18 @@ import numba
 
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
-def torque_difference_loop(g, ph, gd, pd, xdd, gdd, pdd, s, extra, out):
-    """``M_d1 - M_d2`` per sample into ``out``. ``s``: the scalars ``(R, R m11, -k, mh, m22, -mh l0, m33,
-    -mh, mh l0, k g, mh g, k)`` as :func:`~euc_ros.core.model.torque.torque_difference` forms them;
-    ``extra``: (n, 3) extra generalized force, or (0, 3)."""
-    R, Rm11, nk, mh, m22, c23, m33, nmh, mhl0, kg, mhg, k = (s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7],
-                                                            s[8], s[9], s[10], s[11])
+def torque_difference_loop(g, ph, gd, pd, xdd, gdd, pdd, S, extra, out):
+    """``M_d1 - M_d2`` per sample into ``out``. ``S`` (12, 1) or (12, n): the constants ``(R, R m11, -k, mh, m22,
+    -mh l0, m33, -mh, mh l0, k g, mh g, k)`` as :func:`~euc_ros.core.model.torque.torque_difference` forms them,
+    one column for every sample or one per sample (parameters given per sample); ``extra``: (n, 3) extra
+    generalized force, or (0, 3)."""
     has_extra = extra.shape[0] > 0
+    per_sample = S.shape[1] > 1
     for i in range(out.shape[0]):
-        gi, pi = g[i], ph[i]
-        cg, sg = math.cos(gi), math.sin(gi)
-        cp, sp = math.cos(pi), math.sin(pi)
-        cpg, spg = math.cos(pi - gi), math.sin(pi - gi)
-        m12 = nk * cg
-        m13 = mh * cp
-        m23 = c23 * cpg
-        D = Rm11 + m12 + m13
-        pd2, gd2 = pd[i] * pd[i], gd[i] * gd[i]
-        w = (gdd[i] * (R * m12 + m22 + m23) + pdd[i] * (R * m13 + m23 + m33)
-             + R * (nmh * pd2 * sp + k * gd2 * sg) + mhl0 * (pd2 - gd2) * spg + kg * sg - mhg * sp)
-        if has_extra:
-            w = w - (R * extra[i, 0] + extra[i, 1] + extra[i, 2])
-        out[i] = Rm11 * (xdd[i] * D + w) / D
-    return out
-
-
-@numba.njit(cache=True, nogil=True, error_model="numpy")
-def torque_difference_loop_per_sample(g, ph, gd, pd, xdd, gdd, pdd, S, extra, out):
-    """:func:`torque_difference_loop` with the constants per sample: ``S`` (12, n), row j the j-th constant of
-    :func:`torque_difference_loop` at every sample (a scalar repeated, or a per-sample parameter's values)."""
-    has_extra = extra.shape[0] > 0
-    for i in range(out.shape[0]):
-        R, Rm11, nk, mh, m22, c23, m33, nmh, mhl0, kg, mhg, k = (S[0, i], S[1, i], S[2, i], S[3, i], S[4, i],
-                                                                S[5, i], S[6, i], S[7, i], S[8, i], S[9, i],
-                                                                S[10, i], S[11, i])
+        j = i if per_sample else 0
+        R, Rm11, nk, mh, m22, c23, m33, nmh, mhl0, kg, mhg, k = (S[0, j], S[1, j], S[2, j], S[3, j], S[4, j],
+                                                                S[5, j], S[6, j], S[7, j], S[8, j], S[9, j],
+                                                                S[10, j], S[11, j])
         gi, pi = g[i], ph[i]
         cg, sg = math.cos(gi), math.sin(gi)
         cp, sp = math.cos(pi), math.sin(pi)
