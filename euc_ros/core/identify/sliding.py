@@ -29,7 +29,7 @@ import dataclasses
 
 import numpy as np
 
-from euc_ros.core.identify.fit import fit_h
+from euc_ros.core.identify.fit import pooled_h_of_states
 from euc_ros.core.rotations import rotation_matrices
 from euc_ros.core.states.kinematics import reconstruct_states
 from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
@@ -91,11 +91,12 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
         for _ in range(replicates):
             noisy = [add_sliding(s, scaled, rng) for s in series_list]
             skel = SkeletonModel.estimate(noisy, session) if cog_method == "skeleton" else None
-            states = [reconstruct_states(s, session, phi_definition=phi_definition, window_s=window_s,
-                                         polyorder=polyorder, cog_method=cog_method, skeleton=skel, lean=True)
-                      for s in noisy]
-            hs[level].append(fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m)
-            del noisy, skel, states           # before the next replicate's are made
+            # each recording's states reduced to their coefficients as they are made (no per-recording fits)
+            hs[level].append(pooled_h_of_states((reconstruct_states(s, session, phi_definition=phi_definition,
+                                                                    window_s=window_s, polyorder=polyorder,
+                                                                    cog_method=cog_method, skeleton=skel, lean=True)
+                                                 for s in noisy), params))
+            del noisy, skel                   # before the next replicate's are made
     h2, h3 = float(np.nanmean(hs[1])), float(np.nanmean(hs[2]))
     h0 = 3.0 * h - 3.0 * h2 + h3
     out["sliding_bias_m"] = float(h - h0)

@@ -72,10 +72,10 @@ class MocapSeries:
         """:func:`measured_rate_hz` of the frames, kept for the arrays it was measured on (the analyses ask for
         the rate many times; a series given other ``t`` or ``frame`` arrays is measured again)."""
         kept = self.__dict__.get("_rate_of")
-        if kept is not None and kept[0] is self.t and kept[1] is self.frame and kept[2] == self.t.shape:
-            return kept[3]
+        if kept is not None and kept[0] is self.t and kept[1] is self.frame:
+            return kept[2]
         rate = measured_rate_hz(self.t, self.frame) if self.n_frames > 1 else float("nan")
-        self.__dict__["_rate_of"] = (self.t, self.frame, self.t.shape, rate)
+        self.__dict__["_rate_of"] = (self.t, self.frame, rate)
         return rate
 
     def index(self, body: str) -> int:
