@@ -223,7 +223,8 @@ class Discovery:
     rows : list of dict
         The accepted discovered terms (empty when none).
     p_value : float
-        The structure test's p-value (1 when not run, or when a named effect explains the structure).
+        The structure test's p-value (1 when not run, when the discovered terms cut the held-out RMSE by less
+        than the minimum gain, or when a named effect explains the structure).
     """
 
     stage: Stage
@@ -658,9 +659,11 @@ def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None
                               "p_value": p_disc, "rmse_after_nm": disc["heldout"].rmse,
                               "terms": [r["formula"] for r in rows_found]})
         return Discovery(Stage(disc["model"], disc["heldout"], disc["x"]), stage, info, rows_found, p_disc)
-    if why is not None and p_disc < rules.alpha:
+    if why is not None and p_disc < rules.alpha and gain_ok:
         journal.warnings.append(f"discovered terms would cut the held-out RMSE but are not admissible: {why}")
-    return Discovery(stage, stage, info, [], p_disc)
+    # structure is what the terms would cut by the minimum gain: a significant cut of a few per cent (a slightly
+    # different h, the filter's distortion) is the noise floor's business, not an effect left unexplained
+    return Discovery(stage, stage, info, [], p_disc if gain_ok else 1.0)
 
 
 def conclude(setup: Setup, base: Stage, found: Discovery, geometry: dict,
