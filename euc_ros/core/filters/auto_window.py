@@ -164,26 +164,34 @@ def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[n
     spectrum; Welch's estimate (Hann windows, half overlap, linear detrending) of it is divided by
     ``16 sin^4(pi f dt)``. Estimating the signal itself would let the side lobes of its huge
     low-frequency power (a ride's travel, a slow lean) swamp the high frequencies that decide the
-    filter. Segments are averaged over all stretches, weighted by their counts.
+    filter. Segments are averaged over the stretches at least a segment long (over every stretch, on the
+    finest grid, when none is), weighted by their counts.
     """
     arrays = [np.asarray(y, dtype=float)] if np.ndim(y) == 1 and not isinstance(y, (list, tuple)) else \
         [np.asarray(a, dtype=float) for a in y]
     nper = max(16, int(round(segment_s / dt)))
-    total, weight, freqs = None, 0.0, None
+    parts = []
     for arr in arrays:
         for seg in _stretches(arr, 8):
             d2 = seg[2:] - 2 * seg[1:-1] + seg[:-2]
             n = min(nper, d2.size)
             f, p = welch_linear(d2, 1.0 / dt, n)
-            if freqs is not None and f.size != freqs.size:
-                p = np.interp(freqs, f, p)
-                f = freqs
-            k = max(1.0, 2.0 * d2.size / n - 1.0)           # segments averaged (half overlap)
-            total = p * k if total is None else total + p * k
-            weight += k
-            freqs = f
-    if total is None:
+            parts.append((f, p, max(1.0, 2.0 * d2.size / n - 1.0), n == nper))   # segments averaged (half overlap)
+    if not parts:
         raise InputError("no finite stretch of at least 8 samples to estimate a spectrum from", key="y")
+    # a stretch shorter than a segment (between dropped frames) resolves only 1 / its length: its low bins are
+    # the strong slow motion's leakage, which the division by sin^4 turns into motion up to several Hz. As in
+    # Welch's method, such stretches are left out when there are whole segments; when every stretch is short
+    # they are all used, on the finest grid (the longest stretch's), whichever stretch comes first
+    if any(whole for *_, whole in parts):
+        parts = [q for q in parts if q[3]]
+    freqs = max((f for f, *_ in parts), key=lambda f: f.size)
+    total, weight = None, 0.0
+    for f, p, k, _ in parts:
+        if f is not freqs and (f.size != freqs.size or not np.array_equal(f, freqs)):
+            p = np.interp(freqs, f, p)
+        total = p * k if total is None else total + p * k
+        weight += k
     psd = total / weight
     with np.errstate(divide="ignore", invalid="ignore"):
         out = psd / (16.0 * np.sin(np.pi * freqs * dt) ** 4)
