@@ -39,7 +39,8 @@ def raw_signals(series, session, phi_definition: str = "hinge") -> dict[str, np.
     -------
     dict of ndarray (n,)
         ``n`` = last frame - first frame + 1; frames not in the recording, or without the bodies a
-        signal needs, are NaN (no bridging: an interpolated gap has no spectrum of its own).
+        signal needs, are NaN (the spectrum continues across short runs of them and splits at longer ones:
+        :func:`~euc_ros.core.filters.auto_window.displacement_spectrum`).
     """
     geo, _, _ = block_geometry(series, session, 0)
     frame = np.asarray(series.frame, dtype=np.int64)

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from euc_ros.core.filters.auto_window import (
+    BRIDGED_GAP,
     SEGMENT_S,
     choose_window,
     displacement_spectrum,
@@ -161,7 +162,9 @@ def test_signals_whose_stretches_are_all_shorter_than_a_segment_share_the_finest
     whole = y + sigma * rng.standard_normal(n)
     broken = y + sigma * rng.standard_normal(n)
     stretch = int(0.8 * SEGMENT_S / dt)                 # every stretch shorter than a segment
-    broken[stretch::stretch + 1] = np.nan
+    gap = BRIDGED_GAP + 1                               # gaps longer than those a stretch continues across
+    for a in range(stretch, n, stretch + gap):
+        broken[a:a + gap] = np.nan
     assert displacement_spectrum(broken, dt)[0].size < displacement_spectrum(whole, dt)[0].size
     ch = choose_window(dt, {"whole": whole, "broken": broken})
     assert set(ch.distortion) == {"whole", "broken"}
@@ -172,28 +175,33 @@ def test_signals_whose_stretches_are_all_shorter_than_a_segment_share_the_finest
         assert ch.noise_std[name] == pytest.approx(sigma, rel=0.2)
 
 
-@pytest.mark.parametrize("first_drop", [8, 60, 300])
-def test_a_dropped_frame_before_the_first_full_segment_keeps_the_finest_grid(first_drop):
-    """Frames dropped at random (a Motive export's missing rows, NaN in the signals): the first stretch is
-    shorter than a Welch segment, the later ones are not. The spectrum keeps the segments' grid (the
-    first stretch's coarse one once took over, and a 6-bin spectrum showed no motion at all), its white
-    floor is the undropped signal's and the choice is the undropped signal's."""
-    rng = np.random.default_rng(int(first_drop))
+@pytest.mark.parametrize(("first_drop", "drops"), [(8, 12), (60, 12), (300, 12), (3, 144), (3, 720)])
+def test_frames_dropped_anywhere_leave_the_spectrum_and_the_choice_as_they_were(first_drop, drops):
+    """Frames dropped at random (a Motive export's missing rows, NaN in the signals), one in the first
+    Welch segment, then 12 more, 2 % or 10 % of them. The stretches continue across them (the states
+    interpolate such gaps too): the spectrum keeps the segments' grid (a first stretch shorter than a
+    segment once set a 6-bin grid, and 2 % dropped left no stretch of a segment: no motion seen at all),
+    its white floor is the undropped signal's less half the share interpolated, and the choice is the
+    undropped signal's."""
+    rng = np.random.default_rng(int(first_drop) + drops)
     dt, n, sigma = 1 / 120, 120 * 60, 2e-3
     y, _ = _lines([0.3, 0.8, 1.6], [0.05, 0.01, 0.002], dt, n, rng)
     whole = y + sigma * rng.standard_normal(n)
     dropped = whole.copy()
-    at = np.concatenate([[first_drop], np.sort(rng.choice(np.arange(first_drop + 1, n), 12, replace=False))])
+    at = np.concatenate([[first_drop], rng.choice(np.arange(first_drop + 2, n - 1), drops, replace=False)])
     dropped[at] = np.nan
     f_w, S_w, k_w = displacement_spectrum(whole, dt)
     f_d, S_d, k_d = displacement_spectrum(dropped, dt)
     np.testing.assert_array_equal(f_d, f_w)
     top = f_w > 0.6 * f_w[-1]
+    # an interpolated sample's noise is the mean of its neighbours': variance sigma^2 / 2, so the white
+    # power falls by half the share of samples interpolated
+    q = np.count_nonzero(np.isnan(dropped)) / n
     # the two floors are medians over the same m bins of averages of ~k segments of nearly the same data:
     # each scatters by ~1.25 sqrt(2 / (k m)) (test_noise_floor_of_white_noise); 5 of those apart at most
     tol = 5 * 1.25 * np.sqrt(2 / (min(k_w, k_d) * int(top.sum())))
-    assert abs(np.median(S_d[top]) / np.median(S_w[top]) - 1) <= tol
-    assert abs(np.median(S_d[top]) / (2 * sigma**2 * dt) - 1) <= tol + 1 / (3 * k_d)
+    assert abs(np.median(S_d[top]) / np.median(S_w[top]) / (1 - q / 2) - 1) <= tol
+    assert abs(np.median(S_d[top]) / (2 * sigma**2 * dt * (1 - q / 2)) - 1) <= tol + 1 / (3 * k_d)
     ch_w, ch_d = choose_window(dt, {"y": whole}), choose_window(dt, {"y": dropped})
     assert ch_d.polyorder == ch_w.polyorder
     assert abs(ch_d.window - ch_w.window) <= 0.1 * ch_w.window
