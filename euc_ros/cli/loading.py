@@ -21,7 +21,9 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
     state's ``meta["filter"]``.
 
     Every recording is first checked by :func:`euc_ros.core.mocap.checks.check_recording`; its warnings are
-    kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). Names are made unique. With
+    kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). A recording without a single usable
+    state is left out, said in the first state's ``meta["skipped"]``; with none usable the read is refused
+    (an :class:`~euc_ros.core.errors.InputError` naming the first). Names are made unique. With
     ``cog_method="skeleton"`` the chain's link vectors are estimated once from all recordings (one
     session) before any state is reconstructed.
     """
@@ -46,6 +48,7 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
     bar = tqdm(paths, desc=desc, unit="rec", file=sys.stderr, delay=0.5,
                disable=True if (not progress or len(paths) < 2) else None)
     choice = None
+    skipped: list[tuple] = []
     if auto:
         # every recording is read before the filter is chosen from all of them
         from euc_ros.core.states.filter_choice import choose_filter
@@ -67,8 +70,11 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
                                 polyorder=polyorder, cog_method=cog_method, skeleton=skeleton)
         if not st.valid.any():
-            raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
-                             path=path)
+            # one recording with nothing usable (a short run the filter's window does not fit between its gaps)
+            # is left out and said; with nothing usable in any, the run is refused
+            skipped.append((path, Path(path).stem, f"skipped: no frame with the EUC and every rider segment tracked "
+                            f"long enough to differentiate (filter window {st.window} samples)"))
+            continue
         st.name = st.name or Path(path).stem
         if choice is not None:
             st.meta["filter"] = choice
@@ -85,6 +91,10 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
                             f"more than max_gap frames, or stretches shorter than the filter window)")
         st.meta.setdefault("warnings", []).extend(warnings)
         states.append(st)
+    if not states:
+        raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
+                         path=skipped[0][0])
+    states[0].meta["skipped"] = [(name, why) for _, name, why in skipped]
     seen: dict[str, int] = {}
     for st in states:  # unique names for the report
         k = seen.get(st.name, 0)
@@ -147,7 +157,8 @@ def collect_warnings(states) -> list[str]:
     body the fitted skeleton excluded in more than :data:`EXCLUDED_WARN_SHARE` of the frames, and bodies
     the skeleton's chain does not know (their poses are used as measured, without swap or flip checks).
     """
-    out = [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]
+    out = [f"{name}: {why}" for st in states for name, why in st.meta.get("skipped", [])]
+    out += [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]
     for st in states:
         n = max(int(np.size(st.t)), 1)
         for body, count in sorted(st.meta.get("cog_fault_bodies", {}).items()):

@@ -196,8 +196,11 @@ def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[n
     filter. Segments are averaged over the stretches at least a segment long (over every stretch, on the
     finest grid, when none is), weighted by their counts.
     """
-    arrays = [np.asarray(y, dtype=float)] if np.ndim(y) == 1 and not isinstance(y, (list, tuple)) else \
-        [np.asarray(a, dtype=float) for a in y]
+    # a sequence first: np.ndim of recordings of different lengths is an error, not a ragged 1
+    if isinstance(y, (list, tuple)) or np.ndim(y) != 1:
+        arrays = [np.asarray(a, dtype=float) for a in y]
+    else:
+        arrays = [np.asarray(y, dtype=float)]
     nper = max(16, int(round(segment_s / dt)))
     parts = []
     for arr in arrays:

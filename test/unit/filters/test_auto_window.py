@@ -263,3 +263,22 @@ def test_coloured_noise_is_modelled_and_the_choice_follows_the_motion(monkeypatc
     monkeypatch.undo()
     clean = {k: np.asarray(tr[k]) + 1e-5 * rng.standard_normal(n) for k in rms}
     assert choose_window(dt, clean).noise_model == "white"
+
+
+def test_recordings_of_different_lengths_pool_their_segments():
+    """Several recordings of one rate, of different lengths (a list, as the filter choice passes them): the
+    pooled spectrum is the count-weighted mean of each one's own, bin for bin."""
+    rng = np.random.default_rng(3)
+    dt, sigma = 1 / 120, 2e-3
+    ys = []
+    for n in (120 * 30, 120 * 45 + 17):
+        y, _ = _lines([0.4, 1.1], [0.04, 0.01], dt, n, rng)
+        ys.append(y + sigma * rng.standard_normal(n))
+    f, S, k = displacement_spectrum(ys, dt)
+    parts = [displacement_spectrum(y, dt) for y in ys]
+    for fp, _, _ in parts:
+        np.testing.assert_array_equal(fp, f)
+    assert k == pytest.approx(sum(kp for _, _, kp in parts))
+    mean = sum(Sp * kp for _, Sp, kp in parts) / k
+    np.testing.assert_allclose(S[1:], mean[1:], rtol=1e-12)
+    choose_window(dt, {"y": ys})     # the choice takes them as given
