@@ -185,8 +185,8 @@ def main(args: argparse.Namespace) -> int:
         if row["status"] != "ok":
             print(f"campaign: {row['task']} failed: {row['error']}", file=sys.stderr)
 
-    where = "serially" if args.serial else (args.scheduler or f"a local cluster of {args.workers or 'CPU-count'} "
-                                                               "worker processes")
+    cluster = args.scheduler or f"a local cluster of {args.workers or 'CPU-count'} worker processes"
+    where = "serially" if args.serial else f"on {cluster}"
     print(f"campaign: {len(tasks)} task(s) {where}", file=sys.stderr)
     start = time.perf_counter()
     rows = cmp.run_campaign(tasks, scheduler=args.scheduler, workers=args.workers, serial=args.serial,
