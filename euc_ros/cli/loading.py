@@ -9,6 +9,7 @@ import numpy as np
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.io.recordings import load_recording, recording_kind
 from euc_ros.core.mocap.checks import check_recording
+from euc_ros.core.mocap.duplicates import TakeIndex
 
 
 def load_states(session, paths, *, window_s: float | str, polyorder: int | None, phi_definition: str = "hinge",
@@ -23,7 +24,8 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
     Every recording is first checked by :func:`euc_ros.core.mocap.checks.check_recording`; its warnings are
     kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). A recording without a single usable
     state is left out, said in the first state's ``meta["skipped"]``; with none usable the read is refused
-    (an :class:`~euc_ros.core.errors.InputError` naming the first). Names are made unique. With
+    (an :class:`~euc_ros.core.errors.InputError` naming the first); so is a recording holding the same take as
+    an earlier one (:class:`~euc_ros.core.mocap.duplicates.TakeIndex`). Names are made unique. With
     ``cog_method="skeleton"`` the chain's link vectors are estimated once from all recordings (one
     session) before any state is reconstructed.
     """
@@ -49,11 +51,21 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
                disable=True if (not progress or len(paths) < 2) else None)
     choice = None
     skipped: list[tuple] = []
+    takes = TakeIndex()
+
+    def twice(path, series) -> bool:
+        # one take given twice (a CSV and the bag converted from it) would count double: the second is left out
+        other = takes.same_as(series, Path(path).stem)
+        if other is not None:
+            skipped.append((path, Path(path).stem, f"skipped: the same take as {other} (equal frames and poses)"))
+        return other is not None
+
     if auto:
         # every recording is read before the filter is chosen from all of them
         from euc_ros.core.states.filter_choice import choose_filter
 
         bar = [(path, load_recording(path, session.world_up)) for path in bar]
+        bar = [(path, series) for path, series in bar if not twice(path, series)]
         try:
             choice = choose_filter([s for _, s in bar], session, phi_definition=phi_definition)
         except InputError:
@@ -66,6 +78,8 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         window_s, polyorder = choice.window_s, choice.polyorder
     for item in bar:
         path, series = item if auto else (item, load_recording(item, session.world_up))
+        if not auto and twice(path, series):
+            continue
         warnings = check_recording(series, session, path)
         st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
                                 polyorder=polyorder, cog_method=cog_method, skeleton=skeleton)

@@ -58,3 +58,28 @@ def test_alone_it_is_refused_naming_the_file(takes, capsys):
     assert main(["identify", str(takes["session"]), str(takes["short"]), "--no-progress"]) != 0
     err = capsys.readouterr().err
     assert "false_start.csv" in err and "long enough to differentiate" in err
+
+
+def test_a_take_given_twice_counts_once(takes, tmp_path, capsys):
+    """A take's CSV and the bag converted from it, side by side: analysed twice it would count double (and
+    narrow the intervals as if it were independent data); the second is left out and said."""
+    bag = tmp_path / "full_bag"
+    assert main(["convert", str(takes["full"]), str(bag), "--frames", "--no-progress"]) == 0
+    recs = [str(takes["full"]), str(bag), str(takes["early"])]
+    assert main(["identify", str(takes["session"]), *recs, "--json", str(tmp_path / "id.json"), "--no-progress"]) == 0
+    out = json.loads((tmp_path / "id.json").read_text())
+    assert [r["frames"] for r in out["per_recording"]] == [840, 700]
+    assert any(w.startswith("full_bag: skipped: the same take as") for w in out["warnings"]), out["warnings"]
+
+
+def test_two_takes_of_one_length_are_two_takes(takes):
+    """Different takes of the same frame span and bodies are not taken for one (their poses differ by far more
+    than the export's rounding)."""
+    from euc_ros.core.io.recordings import load_recording
+    from euc_ros.core.mocap.duplicates import TakeIndex
+
+    ride = takes["full"].parent
+    index = TakeIndex()
+    for name in ("deceleration_01", "deceleration_02", "deceleration_03"):
+        assert index.same_as(load_recording(str(ride / f"{name}.csv")), name) is None
+    assert index.same_as(load_recording(str(ride / "deceleration_02.csv")), "again") == "deceleration_02"
