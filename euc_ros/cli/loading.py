@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.io.recordings import load_recording, recording_kind
 from euc_ros.core.mocap.checks import check_recording
 from euc_ros.core.mocap.duplicates import TakeIndex
@@ -86,8 +87,7 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         if not st.valid.any():
             # one recording with nothing usable (a short run the filter's window does not fit between its gaps)
             # is left out and said; with nothing usable in any, the run is refused
-            skipped.append((path, Path(path).stem, f"skipped: no frame with the EUC and every rider segment tracked "
-                            f"long enough to differentiate (filter window {st.window} samples)"))
+            skipped.append((path, Path(path).stem, f"skipped: {_unusable_why(st, series)}"))
             continue
         st.name = st.name or Path(path).stem
         if choice is not None:
@@ -106,8 +106,7 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         st.meta.setdefault("warnings", []).extend(warnings)
         states.append(st)
     if not states:
-        raise InputError("no frame with the EUC and every rider segment tracked long enough to differentiate",
-                         path=skipped[0][0])
+        raise InputError(skipped[0][2].removeprefix("skipped: "), path=skipped[0][0])
     states[0].meta["skipped"] = [(name, why) for _, name, why in skipped]
     seen: dict[str, int] = {}
     for st in states:  # unique names for the report
@@ -117,6 +116,18 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
             st.name = f"{st.name}#{k + 1}"
     release_free_memory()           # the readers' and the reconstruction's temporaries
     return states
+
+
+def _unusable_why(st, series) -> str:
+    """Why a recording gives no usable state, and what would help."""
+    dt = st.dt if np.isfinite(st.dt) and st.dt > 0 else 1.0 / float(series.rate_hz)
+    window_s = st.window * dt if st.window else float("nan")
+    span_s = float(series.t[-1] - series.t[0]) if np.size(series.t) > 1 else 0.0
+    where = (f"the take lasts {span_s:.2f} s, less than the filter's {window_s:.2f} s window" if span_s < window_s else
+             f"bodies lost for more than {DEFAULT_MAX_GAP} frames leave no stretch as long as the filter's "
+             f"{window_s:.2f} s window")
+    return (f"no frame with the EUC and every rider segment tracked long enough to differentiate ({where}; a shorter "
+            f"--window-s, or a longer take)")
 
 
 #: Below this fraction of a recording's frames used, the analysis warns.

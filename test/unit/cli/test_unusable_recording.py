@@ -58,6 +58,8 @@ def test_alone_it_is_refused_naming_the_file(takes, capsys):
     assert main(["identify", str(takes["session"]), str(takes["short"]), "--no-progress"]) != 0
     err = capsys.readouterr().err
     assert "false_start.csv" in err and "long enough to differentiate" in err
+    # and says why, and what would help: the take (99 frame periods at 120 Hz) is shorter than the window
+    assert "the take lasts 0.82 s, less than the filter's" in err and "--window-s" in err
 
 
 def test_a_take_given_twice_counts_once(takes, tmp_path, capsys):
