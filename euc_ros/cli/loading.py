@@ -51,14 +51,15 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
     bar = tqdm(paths, desc=desc, unit="rec", file=sys.stderr, delay=0.5,
                disable=True if (not progress or len(paths) < 2) else None)
     choice = None
-    skipped: list[tuple] = []
+    twins: list[tuple] = []         # (path, why): takes given twice, left out
+    unusable: list[tuple] = []      # (path, why): takes without a usable state, left out
     takes = TakeIndex()
 
     def twice(path, series) -> bool:
         # one take given twice (a CSV and the bag converted from it) would count double: the second is left out
         other = takes.same_as(series, Path(path).stem)
         if other is not None:
-            skipped.append((path, Path(path).stem, f"skipped: the same take as {other} (equal frames and poses)"))
+            twins.append((path, f"the same take as {other} (equal frames and poses)"))
         return other is not None
 
     if auto:
@@ -87,7 +88,7 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         if not st.valid.any():
             # one recording with nothing usable (a short run the filter's window does not fit between its gaps)
             # is left out and said; with nothing usable in any, the run is refused
-            skipped.append((path, Path(path).stem, f"skipped: {_unusable_why(st, series)}"))
+            unusable.append((path, _unusable_why(st, series)))
             continue
         st.name = st.name or Path(path).stem
         if choice is not None:
@@ -106,8 +107,8 @@ def load_states(session, paths, *, window_s: float | str, polyorder: int | None,
         st.meta.setdefault("warnings", []).extend(warnings)
         states.append(st)
     if not states:
-        raise InputError(skipped[0][2].removeprefix("skipped: "), path=skipped[0][0])
-    states[0].meta["skipped"] = [(name, why) for _, name, why in skipped]
+        raise InputError(unusable[0][1], path=unusable[0][0])
+    states[0].meta["skipped"] = [(Path(path).stem, why) for path, why in twins + unusable]
     seen: dict[str, int] = {}
     for st in states:  # unique names for the report
         k = seen.get(st.name, 0)
@@ -182,7 +183,7 @@ def collect_warnings(states) -> list[str]:
     body the fitted skeleton excluded in more than :data:`EXCLUDED_WARN_SHARE` of the frames, and bodies
     the skeleton's chain does not know (their poses are used as measured, without swap or flip checks).
     """
-    out = [f"{name}: {why}" for st in states for name, why in st.meta.get("skipped", [])]
+    out = [f"{name}: skipped: {why}" for st in states for name, why in st.meta.get("skipped", [])]
     out += [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]
     for st in states:
         n = max(int(np.size(st.t)), 1)

@@ -194,9 +194,10 @@ def test_frames_dropped_anywhere_leave_the_spectrum_and_the_choice_as_they_were(
     f_d, S_d, k_d = displacement_spectrum(dropped, dt)
     np.testing.assert_array_equal(f_d, f_w)
     top = f_w > 0.6 * f_w[-1]
-    # an interpolated sample follows its neighbours: at the top of the band (0.6-0.95 of Nyquist) the white
-    # power falls by about twice the share of samples interpolated (measured on white noise alone: 1.7-2.2 q
-    # for q from 0.2 to 10 %); 2 q is taken, the spread of that factor within the tolerance below
+    # an interpolated sample follows its neighbours: white power at angular frequency w becomes
+    # 1 - q/2 + 2 q cos w of itself (first order in q, q the share interpolated: each missing n_j is replaced by
+    # the mean of n_{j-1} and n_{j+1}); over the top of the band (0.6-0.95 of Nyquist, median cos w = -0.76)
+    # that is 1 - 2.0 q (white noise alone: 1.7-2.2 q for q from 0.2 to 10 %)
     q = np.count_nonzero(np.isnan(dropped)) / n
     # the two floors are medians over the same m bins of averages of ~k segments of nearly the same data:
     # each scatters by ~1.25 sqrt(2 / (k m)) (test_noise_floor_of_white_noise); 5 of those apart at most
