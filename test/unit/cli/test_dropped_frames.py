@@ -1,8 +1,8 @@
 """Frames Motive dropped (missing rows, the frame number jumping by 2) anywhere in a recording, the first
 4 s included, and 2 % of them: identify and residual work from the files and find what the ride holds.
-Before, a frame dropped before the first whole Welch segment gave the filter choice a 6-bin spectrum, and
-2 % dropped left no stretch of a whole segment: both commands refused the ride ("no motion above the noise
-floor"). The rides' seeds were drawn at random, not chosen."""
+What can go wrong: the first stretch (before the first drop) setting the filter choice's spectral grid, or
+stretches between drops too short for a whole Welch segment; either leaves no motion above the noise floor
+and the ride refused. The rides' seeds were drawn at random, not chosen."""
 from __future__ import annotations
 
 import json

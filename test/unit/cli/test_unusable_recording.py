@@ -1,8 +1,8 @@
 """Sets of recordings as labs have them: of different lengths (a take stopped early), one of them too short
 to use. identify and residual read them all; a recording without a single usable state (shorter than the
 chosen filter's window) is left out and said, not a refusal of the whole set; alone it is refused, naming it.
-Before, recordings of different lengths stopped the filter choice with numpy's ragged-array error (a
-traceback), so no real session with takes of different lengths could be analysed."""
+What can go wrong: the takes of one rate handed to the filter choice as a ragged list (numpy refuses to
+take its shape), which only takes of different lengths show."""
 from __future__ import annotations
 
 import json

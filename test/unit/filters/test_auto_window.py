@@ -179,8 +179,8 @@ def test_signals_whose_stretches_are_all_shorter_than_a_segment_share_the_finest
 def test_frames_dropped_anywhere_leave_the_spectrum_and_the_choice_as_they_were(first_drop, drops):
     """Frames dropped at random (a Motive export's missing rows, NaN in the signals), one in the first
     Welch segment, then 12 more, 2 % or 10 % of them. The stretches continue across them (the states
-    interpolate such gaps too): the spectrum keeps the segments' grid (a first stretch shorter than a
-    segment once set a 6-bin grid, and 2 % dropped left no stretch of a segment: no motion seen at all),
+    interpolate such gaps too): the spectrum keeps the segments' grid (neither a first stretch shorter than a
+    segment nor the short stretches between 2 % dropped may set it: a 6-bin grid shows no motion at all),
     its white floor is the undropped signal's less about twice the share interpolated, and the choice is the
     undropped signal's."""
     rng = np.random.default_rng(int(first_drop) + drops)

@@ -2,10 +2,10 @@
 
 The discovery's structure test can find a held-out cut of a few per cent significant on a ride with nothing
 missing (a slightly different h, the derivative filter's distortion): measured, figure-eight rides without an
-effect cut by 3 % at p < 1e-4, and the demo's deceleration runs with a 2.5 deg slope by 0.5 % at p = 0.003,
-were reported ``unexplained``. Structure is what the discovered terms would cut by the minimum gain, the rule
-that accepts them. The rides are the user's path (``simulate-ride`` into CSV, ``residual`` from the files);
-the seeds other than the demo's were drawn at random, not chosen.
+effect cut by 3 % at p < 1e-4, and the demo's deceleration runs with a 2.5 deg slope by 0.5 % at p = 0.003;
+significance alone would report them ``unexplained``. Structure is what the discovered terms would cut by
+the minimum gain, the rule that accepts them. The rides are the user's path (``simulate-ride`` into CSV,
+``residual`` from the files); the seeds other than the demo's were drawn at random, not chosen.
 """
 from __future__ import annotations
 
