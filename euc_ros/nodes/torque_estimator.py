@@ -22,6 +22,8 @@ from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import RiderState, TorqueEstimate
 from rclpy.node import Node
 
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.identify.model_file import read_model_file
 from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.online.estimators import TorqueEstimator, extended_model_from_config
@@ -33,8 +35,11 @@ from euc_ros.ros.runtime import drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (docs/session.md): rider and EUC parameters (required)"),
-    ParamSpec("h", 0.61, "rider CoG height above the ankle hinge A used for the torques (the identified value)",
-              "m", 0.05, 3.0, live=True),
+    ParamSpec("h", 0.61, "rider CoG height above the ankle hinge A used for the torques (the identified value); "
+              "with model: 0 or this default take the model's h", "m", 0.0, 3.0, live=True),
+    ParamSpec("model", "", "the JSON of 'euc-ros residual' or 'euc-ros identify': h, effects and their parameters "
+              "from it (its session must be this session_file)"),
+    ParamSpec("model_force", False, "use model even when it was made with another session file"),
     ParamSpec("rmse_window_s", 5.0, "window of the sliding RMSE of M_d1 - M_d2", "s", 0.01, 3600.0),
     ParamSpec("h_window_s", 30.0, "window of the online h estimate", "s", 0.1, 3600.0),
     ParamSpec("h_update_every", 0, "re-estimate h every this many states (0: every 0.1 s of states, 12 at 120 Hz)",
@@ -91,9 +96,9 @@ class TorqueEstimatorNode(Node):
         self.config = cfg = declare_params(self, SPECS)
         key = f"{self.NAME}.ros__parameters"
         session, self.hardware_id = required_session(self.NAME, cfg)
-        params = EucParams.from_session(session, cfg["h"])
-        model = extended_model_from_config(params, cfg["effects"], cfg["effect_parameters"],
-                                           key=f"{key}.effect_parameters")
+        h, effects, assignments, self._base_h = self._model_settings(cfg, key)
+        params = EucParams.from_session(session, h)
+        model = extended_model_from_config(params, effects, assignments, key=f"{key}.effect_parameters")
         rate = cfg["rate_hz"] or session.rate_hz
         self._params, self._model = params, model
         # states are held until their rate is measured (the estimator's windows count samples)
@@ -119,6 +124,40 @@ class TorqueEstimatorNode(Node):
         self.get_logger().info(f"model {self.estimator.model_name}, h = {cfg['h']:g} m, "
                                f"RMSE window {self.estimator.window_s:g} s")
 
+    def _model_settings(self, cfg: dict, key: str) -> tuple[float, list, list, float | None]:
+        """h, effects, their assignments and the base model's h: from ``model`` when given, else the parameters.
+
+        Raises
+        ------
+        ConfigError
+            ``model`` with ``effects`` or an h of its own, h 0 without ``model``, a model file that cannot
+            be read, or one made with another session (unless ``model_force``).
+        """
+        if not cfg["model"]:
+            if cfg["h"] <= 0:
+                raise ConfigError("h = 0 takes the h of 'model', and no model is given: set h (the value 'euc-ros "
+                                  "identify' gives) or model (its JSON)", key=f"{key}.h")
+            return cfg["h"], cfg["effects"], cfg["effect_parameters"], None
+        if any(e.strip() for e in cfg["effects"]) or any(a.strip() for a in cfg["effect_parameters"]):
+            raise ConfigError("the model file gives the effects and their parameters: leave effects and "
+                              "effect_parameters empty, or model empty", key=f"{key}.model")
+        applied = read_model_file(cfg["model"])
+        default_h = next(p.default for p in SPECS if p.name == "h")
+        if cfg["h"] not in (0.0, default_h) and abs(cfg["h"] - applied.h_m) > 1e-9:
+            raise ConfigError(f"h = {cfg['h']:g} m and model {cfg['model']} (h = {applied.h_m:.4f} m) are both given: "
+                              "the model's h belongs to its effects; leave h unset", key=f"{key}.h")
+        log = self.get_logger()
+        for line in applied.check(session=cfg["session_file"], force=cfg["model_force"],
+                                  force_option="model_force:=true"):
+            log.warning(line)
+        for line in applied.left_out:
+            log.warning(f"{cfg['model']}: not in the live model (it needs the recordings it was fitted on): {line}")
+        if applied.identifiable is False and applied.kind == "identify":
+            log.warning(f"{cfg['model']}: its h is not identifiable from the recordings it was made from")
+        log.info(f"model {applied.name} from {cfg['model']}: h = {applied.h_m:.4f} m"
+                 + (f", {', '.join(applied.assignments())}" if applied.effects else ""))
+        return applied.h_m, list(applied.effects), applied.assignments(), applied.base_h_m
+
     def on_parameter(self, name: str, value) -> None:
         """``ros2 param set /torque_estimator h 0.58``: torques use the new h from the next state on."""
         if name == "h":
@@ -131,7 +170,8 @@ class TorqueEstimatorNode(Node):
         self.estimator = TorqueEstimator(self._params, 1.0 / rate, rmse_window_s=cfg["rmse_window_s"],
                                          h_window_s=cfg["h_window_s"], h_update_every=cfg["h_update_every"],
                                          min_sensitivity=cfg["min_sensitivity"], model=self._model,
-                                         psi_rate_window_s=cfg["psi_rate_window_s"])
+                                         psi_rate_window_s=cfg["psi_rate_window_s"],
+                                         base_h=self._base_h if self._model is not None else None)
 
     def _on_states(self, msg: RiderState) -> None:
         self._on_state(msg)
@@ -188,6 +228,7 @@ class TorqueEstimatorNode(Node):
                   "h_online": (f"{last.h_online_m:.3f} m" if last.h_online_status == "ok" else last.h_online_status)
                   if last else "not yet (no state)",
                   "missing_bodies_upstream": self.upstream_missing,
+                  "rmse_window_base_model_nm": last.extra.get("rmse_base_nm", nan) if last else nan,
                   "expected_rate_hz": self.rate_gate.meter.nominal_hz,
                   "measured_rate_hz": self.rate_gate.meter.measured_hz}
         fresh = self.published - self._published_at_last_diag
@@ -202,10 +243,23 @@ class TorqueEstimatorNode(Node):
             level, message = convert.WARN, ("states arrive but none is usable: " + (
                 f"rider_state has no pose for {self.upstream_missing}" if self.upstream_missing
                 else "rider missing or derivatives not finite"))
+        elif self._fits_worse(last):
+            base = last.extra["rmse_base_nm"]
+            level, message = convert.WARN, (
+                f"{self.estimator.model_name} fits worse than the 3-DoF model without its effects over the last "
+                f"{self.estimator.window_s:g} s (RMSE {last.rmse_window_nm:.3f} against {base:.3f} N m): its effects "
+                "may not belong to this ride")
         else:
             level, message = convert.OK, f"{self.estimator.model_name}: publishing torques"
         convert.publish_status(self, self.diag_pub, "torque_estimator: torques", level, message, values,
                                self.hardware_id)
+
+
+    def _fits_worse(self, last) -> bool:
+        """Whether the extended model's sliding RMSE is above its base model's (both over a full window)."""
+        if last is None or "rmse_base_nm" not in last.extra:
+            return False
+        return bool(last.rmse_window_nm > last.extra["rmse_base_nm"])
 
 
 main = main_for(TorqueEstimatorNode)

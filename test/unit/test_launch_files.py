@@ -205,7 +205,9 @@ def test_arguments_reach_the_nodes_with_the_declared_types():
         "session": "001.yaml", "h": "0.58", "source": "csv", "csv_path": "ride.csv", "rate_factor": "2",
         "bodies": "['E', 'PV']", "effects": "['ground_slope']", "expected_rate_hz": "240", "multicast": "false",
         "bag": "0042"})}
-    assert specs["torque_estimator"].parameters == {"session_file": "001.yaml", "h": 0.58, "effects": ["ground_slope"]}
+    assert specs["torque_estimator"].parameters == {"session_file": "001.yaml", "h": 0.58, "model": "",
+                                                    "model_force": False, "effects": ["ground_slope"],
+                                                    "effect_parameters": [""]}
     ingest = specs["mocap_ingest"].parameters
     assert ingest["rate_factor"] == 2.0 and isinstance(ingest["rate_factor"], float)
     assert ingest["bodies"] == ["E", "PV"] and ingest["multicast"] is False and ingest["csv_path"] == "ride.csv"
@@ -266,8 +268,10 @@ def test_launch_arguments_are_checked():
     path = LAUNCH / "pipeline.launch.xml"
     with pytest.raises(ConfigError, match="'session' is required"):
         lf.load_launch_file(path, {"h": "0.6"})
-    with pytest.raises(ConfigError, match=r"'h' is required \(rider CoG height .*euc-ros identify.*\): add h:=VALUE"):
-        lf.load_launch_file(path, {"session": "s.yaml"})
+    # h may come from model:= instead: without either, torque_estimator refuses h = 0 (test_torque_estimator)
+    (te,) = [s for s in lf.load_launch_file(path, {"session": "s.yaml", "model": "r.json"})
+             if s.executable == "torque_estimator"]
+    assert te.parameters["h"] == 0.0 and te.parameters["model"] == "r.json"
     with pytest.raises(ConfigError, match="must be one of natnet, topics, csv, got 'vrpn'"):
         lf.load_launch_file(path, {"session": "s", "h": "0.6", "source": "vrpn"})
     with pytest.raises(ConfigError, match="no launch argument 'sesion'"):

@@ -468,13 +468,17 @@ class TorqueEstimator:
         Window of the causal yaw-rate estimate some effects need (``tilt_gravity``) [s]: a cubic
         Savitzky-Golay fit of the unwrapped yaw, evaluated at the newest state (no lag; the states
         themselves carry no yaw rate). Its first window of states after a (re)start gives no output.
+    base_h : float, optional
+        With ``model``: the h of the 3-DoF model the effects extend (the analysis' base model) [m]. The
+        base model's residual is then tracked too, over the same window (``extra["rmse_base_nm"]`` of
+        each sample), so that a model whose effects do not belong to the ride shows as fitting worse.
     """
 
     def __init__(self, params: EucParams, dt: float, *, rmse_window_s: float = 5.0, h_window_s: float = 30.0,
                  h_update_every: int | None = None, correlation_samples: float | None = None,
                  min_sensitivity: float = 5.0,
                  extra_Q: Callable | None = None, model: "ExtendedModel | None" = None,
-                 psi_rate_window_s: float = 0.3) -> None:
+                 psi_rate_window_s: float = 0.3, base_h: float | None = None) -> None:
         if not (dt > 0 and rmse_window_s > 0 and h_window_s > 0):
             raise ConfigError("dt, rmse_window_s and h_window_s must be > 0", key="rmse_window_s")
         if model is not None and extra_Q is not None:
@@ -486,6 +490,8 @@ class TorqueEstimator:
         n_rmse = max(1, int(round(rmse_window_s / self.dt)))
         self.window_s = n_rmse * self.dt
         self._rmse = SlidingRmse(n_rmse)
+        self._base = (replace(params, h=float(base_h)), SlidingRmse(n_rmse)) \
+            if model is not None and base_h is not None and np.isfinite(base_h) and base_h > 0 else None
         k = window_samples(self.dt, window_s=DEFAULT_WINDOW_S) if correlation_samples is None else correlation_samples
         if not h_update_every:
             h_update_every = max(1, int(round(H_UPDATE_S / self.dt)))
@@ -515,6 +521,8 @@ class TorqueEstimator:
     def reset(self) -> None:
         """Forget every window (a new stream starts with the next state)."""
         self._rmse.reset()
+        if self._base is not None:
+            self._base[1].reset()
         self._h.reset()
         if self._psi_rate is not None:
             self._psi_rate.reset()
@@ -553,6 +561,8 @@ class TorqueEstimator:
     def _age(self, n: int) -> None:
         for _ in range(n):
             self._rmse.push(np.nan)
+            if self._base is not None:
+                self._base[1].push(np.nan)
             self._h.update(*([np.nan] * 7))
 
     def _continuity(self, t: float) -> bool:
@@ -634,16 +644,23 @@ class TorqueEstimator:
         if not (ok and all(np.isfinite((d1, d2, e1, e2)))):
             self.counts["invalid"] += 1
             self._rmse.push(np.nan)
+            if self._base is not None:
+                self._base[1].push(np.nan)
             self._h.update(*([np.nan] * 7))
             return None
         rmse = self._rmse.push(d1 - d2)
+        base = {}
+        if self._base is not None:
+            b1, b2 = torques_one(*args, self._base[0]) if self._scalar_params else \
+                (float(v) for v in torques(*args, self._base[0]))
+            base["rmse_base_nm"] = self._base[1].push(b1 - b2)
         est = self._h.update(*args)
         self.counts["outputs"] += 1
         return TorqueSample(frame=int(getattr(state, "frame", -1)), t=t,
                             M_d1=d1, M_d2=d2, M_d1_2dof=e1, M_d2_2dof=e2, h_m=float(self.params.h),
                             residual_nm=d1 - d2, rmse_window_nm=rmse, window_s=self.window_s,
                             h_online_m=est.h_m, h_online_std_m=est.h_std_m, model=self.model_name,
-                            h_online_status=self._h.status(self.dt, est))
+                            extra=base, h_online_status=self._h.status(self.dt, est))
 
 
 def series_torques(series, states: RiderStateEstimator,

@@ -233,3 +233,23 @@ def test_extended_model_with_a_yaw_rate_effect_uses_a_causal_yaw_rate():
     n_missing = sum(o is None for o in b)
     assert n_missing == ext._psi_rate.window - 1        # no yaw rate until its first window is full
     assert a[-1].rmse_window_nm > 0.02 and b[-1].rmse_window_nm < 0.15 * a[-1].rmse_window_nm
+
+
+def test_the_base_model_is_tracked_beside_an_extended_one(sloped_ride):
+    """With ``base_h`` the 3-DoF model's sliding RMSE runs beside the extended model's, sample for sample as
+    a plain estimator at that h computes it: on the sloped ride the slope model fits better; a slope claimed
+    with the wrong sign fits worse than the base model, which is what the node warns about."""
+    from euc_ros.core.model.extended import ExtendedModel
+
+    p = EucParams.from_session(sloped_ride.session, 0.61)
+    states = _truth_states(sloped_ride.runs[0])
+    plain_estimator = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0)
+    plain = [plain_estimator.update(x) for x in states]
+    for alpha, better in ((3.0, True), (-3.0, False)):
+        ext = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0, base_h=0.61,
+                              model=ExtendedModel(p, {"ground_slope": {"alpha_deg": alpha}}, online=True))
+        out = [ext.update(x) for x in states]
+        base = np.array([o.extra["rmse_base_nm"] for o in out])
+        np.testing.assert_allclose(base, [o.rmse_window_nm for o in plain], rtol=1e-9)
+        assert bool(out[-1].rmse_window_nm < base[-1]) is better
+    assert "rmse_base_nm" not in plain[-1].extra
