@@ -17,8 +17,6 @@ import os
 import sys
 from pathlib import Path
 
-import numpy as np
-
 from euc_ros.cli.loading import (
     cog_faults,
     collect_warnings,
@@ -28,8 +26,11 @@ from euc_ros.cli.loading import (
     usage_table,
 )
 from euc_ros.cli.outputs import Output, check_outputs, write_output
-from euc_ros.cli.plots import add_figure_arguments, configure_from_args, pyplot, save_figure
+from euc_ros.cli.plots import add_figure_arguments, configure_from_args
+from euc_ros.cli.residual_figures import discovered_figure as discovered_figure
+from euc_ros.cli.residual_figures import write_plots
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.effects import LIBRARY, make_candidates, parse_plausible
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.session import load_session
@@ -172,7 +173,34 @@ def run_residual(session_path, recordings, *, candidates=None, alpha: float | No
         data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
     data["time_offset_measured"] = offset
     data["cog"] = cog_faults(states)
+    data.update(final_identifiability(data))
+    data["inputs"] = inputs_record(session_path, recordings)
     return result, data, states, params
+
+
+def final_identifiability(data: dict) -> dict:
+    """Whether the data determine the final model's h (``h_after_m``): the JSON keys ``h_after_identifiable``
+    and ``h_after_identifiability_reason``.
+
+    The final model's h is identifiable when its 95 % interval is bounded on both ends and no wider than
+    identify's :data:`~euc_ros.core.identify.interval.MAX_CI_WIDTH_M`; without a final interval (nothing
+    selected or discovered) the final model is the base model and its verdict is the base model's.
+    """
+    from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
+
+    ci = data.get("h_after_ci95_m")
+    if ci is None:
+        return {"h_after_identifiable": bool(data.get("identifiable")),
+                "h_after_identifiability_reason": data.get("identifiability_reason")}
+    if None in ci:
+        held = (data.get("h_after_uncertainty") or {}).get("widened_by") or []
+        reason = "its 95 % interval is not bounded" + (f" (it holds {' and '.join(held)})" if held else "")
+    elif ci[1] - ci[0] > MAX_CI_WIDTH_M:
+        reason = (f"its 95 % interval is {100 * (ci[1] - ci[0]):.0f} cm wide (at most "
+                  f"{100 * MAX_CI_WIDTH_M:.0f} cm for an identified h)")
+    else:
+        reason = None
+    return {"h_after_identifiable": reason is None, "h_after_identifiability_reason": reason}
 
 
 def main(args: argparse.Namespace) -> int:
@@ -192,16 +220,13 @@ def main(args: argparse.Namespace) -> int:
         progress=not args.no_progress)
     write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     print(format_summary(data))
-    if not data["identifiable"]:
-        print(f"h (base model) is NOT identifiable from these recordings: {data['identifiability_reason']}")
-    elif data.get("h_ci95_m") and None not in data["h_ci95_m"]:
-        print(f"h (base model) 95 % interval [{data['h_ci95_m'][0]:.3f}, {data['h_ci95_m'][1]:.3f}] m")
     print(format_usage(data["per_recording"]))
     print(format_cog_faults(data["cog"]))
-    print_warnings(list(data["warnings"]) + list(data.get("analysis_warnings", [])))
+    print_warnings(console_warnings(data))
+    print(headline_text(data, args.json, args.session))
     figures = []
     if args.plots:
-        figures = write_plots(result, states, params, Path(args.plots))
+        figures = write_plots(result, states, params, Path(args.plots), data=data)
     if args.report:
         write_output(args.report, markdown_report(data, figures, Path(args.report).parent), "--report")
     return 0
@@ -211,6 +236,7 @@ def format_summary(data: dict) -> str:
     """Console summary: the verdict and the candidate table."""
     lines = [f"h (3-DoF, no effect) = {data['h_m']:.3f} m; held-out RMSE of M_d1 - M_d2: "
              f"{data['rmse_before_nm']:.3f} N m ({data['held_out']['kind']}, {data['held_out']['folds']} folds)"]
+    lines.append(base_status_text(data))
     if data["effect"] == "none":
         lines.append("effect: none (the residual is at its noise floor; no candidate beats chance)")
     else:
@@ -255,6 +281,39 @@ def format_summary(data: dict) -> str:
         params = ", ".join(f"{k}={v:.4g}" for k, v in (c.get("effect_parameters") or {}).items())
         lines.append(f"{c['effect']:22s} {rmse:>14s} {p:>9s} {pa:>9s}  {params}")
     return "\n".join(lines)
+
+
+def console_warnings(data: dict) -> list[str]:
+    """The warnings to print once each: the recordings' and the analysis', without those the summary shows
+    already (a refused name is a line of the verdict)."""
+    said = tuple(r["text"] for r in data.get("refused", []))
+    out = [w for w in list(data.get("warnings", [])) + list(data.get("analysis_warnings", []))
+           if not (said and w.startswith(said))]
+    return list(dict.fromkeys(out))
+
+
+def base_status_text(data: dict) -> str:
+    """How well the data determine the base 3-DoF model's h, one line."""
+    ci = data.get("h_ci95_m") or [None, None]
+    if not data.get("identifiable"):
+        return f"  (base model: h NOT identifiable from these recordings: {data.get('identifiability_reason')})"
+    return f"  (base model: h 95 % interval {_ci(ci)} m)"
+
+
+def headline_text(data: dict, json_path: str | None = None, session: str | None = None) -> str:
+    """The last lines: the h to use (the final model's) with its verdict, and how to run it live."""
+    name = data["effect"] if data.get("h_after_ci95_m") is not None else "3-DoF, no effect"
+    h = data.get("h_after_m", data["h_m"])
+    ci = data.get("h_after_ci95_m") or data.get("h_ci95_m")
+    if not data.get("h_after_identifiable", data.get("identifiable")):
+        why = data.get("h_after_identifiability_reason", data.get("identifiability_reason"))
+        return (f"h of the final model ({name}) is NOT identifiable from these recordings: {why} (best fit "
+                f"{h:.3f} m: do not use it as h)")
+    text = f"h to use: {h:.3f} m, 95 % interval {_ci(ci)} m (final model: {name})"
+    if json_path and session:
+        text += (f"\nlive with this model: euc-ros launch pipeline.launch.xml session:={session} model:={json_path} "
+                 "...")
+    return text
 
 
 def _ci(iv) -> str:
@@ -365,160 +424,3 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
             "the `torque_estimator` parameters `effects` and `effect_parameters`.", ""]
     return "\n".join(out)
 
-
-def discovered_figure(rows: list[dict], path: Path) -> Path:
-    """Each discovered function over its argument's observed range with its 95 % band (one panel per row of
-    the residual JSON's ``discovered``; a drift has one curve per recording)."""
-    plt = pyplot()
-    fig, axes = plt.subplots(len(rows), 1, figsize=(7.5, 2.6 * len(rows) + 0.4), squeeze=False)
-    for ax, d in zip(axes[:, 0], rows):
-        grid = np.asarray(d["grid"], float)
-        values = np.asarray(d["values"], float).reshape(-1, grid.size)
-        lo = np.asarray([np.nan if v is None else v for v in np.ravel(d["band_lo"])], float).reshape(values.shape)
-        hi = np.asarray([np.nan if v is None else v for v in np.ravel(d["band_hi"])], float).reshape(values.shape)
-        names = d.get("curves") or [""]
-        for k in range(values.shape[0]):
-            line, = ax.plot(grid, values[k], lw=1.2, label=names[k] or "fitted")
-            if np.any(np.isfinite(lo[k])):
-                ax.fill_between(grid, lo[k], hi[k], color=line.get_color(), alpha=0.2, lw=0,
-                                label="95 % band" if k == 0 else None)
-        ax.axhline(0.0, color="k", lw=0.6)
-        ax.set_xlabel(f"{d['argument']} [{d['argument_unit']}]")
-        ax.set_ylabel(f"[{d['unit']}]")
-        ax.set_title(f"{d['family']}: {d['function']} on {d['coordinate']} at the {d['point']}", fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="best", ncols=2)
-    return save_figure(fig, path)
-
-
-def write_plots(result, states, params, out_dir: Path) -> list[Path]:
-    """residual_time.png, residual_signature.png, rmse_before_after.png, candidates.png, floor.png (the
-    floor measured from the contact path), h_range.png (h of every model the data cannot tell apart) and
-    discovered_functions.png (each discovered function with its 95 % band)."""
-    from euc_ros.core.residual.selection import Model
-    from euc_ros.core.states.contexts import prepare
-    from euc_ros.core.states.floor import contact_heights
-
-    plt = pyplot()
-    out_dir.mkdir(parents=True, exist_ok=True)
-    recs = prepare(states, params, floor=result.floor_fit)
-    paths = []
-    fl = result.floor_fit
-    if fl is not None:
-        fig, ax = plt.subplots(figsize=(9, 3.6))
-        for st in states:
-            v = st.valid
-            z = contact_heights(st.C[v], st.theta[v], params.R)
-            ax.plot(st.C[v, 0], 1e3 * z, ".", ms=1.5, alpha=0.6, label=st.name)
-            plane = fl.plane[0] + fl.plane[1] * st.C[v, 0] + fl.plane[2] * st.C[v, 1]
-            ax.plot(st.C[v, 0], 1e3 * plane, "k-", lw=0.8)
-        ax.set_xlabel("lab x [m]")
-        ax.set_ylabel("contact height C_z - R cos(theta) [mm]")
-        ax.set_title(f"floor from the contact path ({'flat' if fl.flat else 'not flat'}): plane slope "
-                     f"{np.degrees(fl.slope_rad):.2f} deg, deviation {1e3 * fl.deviation_m:.1f} mm,\n"
-                     f"scatter {1e3 * fl.scatter_m:.2f} mm; black: fitted plane", fontsize=9)
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, markerscale=4, loc="best")
-        paths.append(save_figure(fig, out_dir / "floor.png"))
-    tied = result.tied
-    if tied:
-        import textwrap
-
-        fig, ax = plt.subplots(figsize=(8.0, 0.55 * len(tied) + 2.6))
-        names = ["\n".join(textwrap.wrap(t["effect"], 30)) for t in tied]
-        ax.axvspan(result.h_range[0], result.h_range[1], color="tab:orange", alpha=0.2,
-                   label=f"h range [{result.h_range[0]:.3f}, {result.h_range[1]:.3f}] m")
-        ax.plot([t["h_m"] for t in tied], range(len(tied)), "o", color="tab:blue", ms=6, label="h of the model")
-        ax.axvline(result.h_base, color="k", ls="--", lw=1, label=f"base 3-DoF model: {result.h_base:.3f} m")
-        ax.set_yticks(range(len(tied)), names)
-        ax.set_ylim(-0.7, len(tied) - 0.3)
-        lo = min(result.h_range[0], result.h_base, *(t["h_m"] for t in tied))
-        hi = max(result.h_range[1], result.h_base, *(t["h_m"] for t in tied))
-        ax.set_xlim(lo - 0.05, hi + 0.05)
-        ax.set_xlabel("rider CoG height h [m]")
-        ax.set_ylabel("model")
-        ax.set_title("models the held-out data cannot tell apart", fontsize=9)
-        ax.grid(axis="x", alpha=0.3)
-        ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.02, 0.5), frameon=False)
-        paths.append(save_figure(fig, out_dir / "h_range.png"))
-    base_x = np.array([result.h_base])
-    final = result.final_model
-
-    fig, axes = plt.subplots(len(recs), 1, figsize=(9, 2.2 * len(recs) + 0.6), squeeze=False, sharex=False)
-    for ax, rec in zip(axes[:, 0], recs):
-        r0, m0 = Model().residual(rec, base_x)
-        r1, m1 = final.residual(rec, result.final_x)
-        ax.plot(rec.ctx.t[m0], r0[m0], lw=0.8, label=f"3-DoF, h = {result.h_base:.3f} m")
-        if final.effects:
-            ax.plot(rec.ctx.t[m1], r1[m1], lw=0.8, label=f"3-DoF + {final.name}")
-        ax.set_ylabel("M_d1 - M_d2 [N m]")
-        ax.set_title(rec.name, fontsize=9)
-        ax.grid(alpha=0.3)
-    axes[0, 0].legend(fontsize=8, loc="upper right")
-    axes[-1, 0].set_xlabel("t [s]")
-    paths.append(save_figure(fig, out_dir / "residual_time.png"))
-
-    # the residual against the selected effect's contribution: over time (always readable, also for an
-    # effect that is nearly constant, such as rolling resistance at one sign of the speed), and as a
-    # scatter when the contribution varies enough to spread the points
-    rec = recs[0]
-    r0, m0 = Model().residual(rec, np.array([result.h_after]))
-    if final.effects:
-        r1, m1 = final.residual(rec, result.final_x)
-        m = m0 & m1
-        sig = (r0 - r1)[m]
-    else:
-        m, sig = m0, np.zeros(int(m0.sum()))
-    varies = final.effects and sig.size > 2 and np.std(sig) > 0.1 * max(abs(np.mean(sig)), 1e-9)
-    fig, axes = plt.subplots(1, 2 if varies else 1, figsize=(10 if varies else 7, 3.8), squeeze=False)
-    ax = axes[0, 0]
-    ax.plot(rec.ctx.t[m], r0[m], lw=0.7, color="tab:gray",
-            label=f"residual of the 3-DoF model, h = {result.h_after:.3f} m")
-    if final.effects:
-        ax.plot(rec.ctx.t[m], sig, lw=1.2, color="tab:blue", label=f"fitted {final.name}")
-    else:
-        ax.axhline(0.0, color="tab:blue", lw=1, label="no effect selected")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("torque [N m]")
-    ax.set_title(rec.name, fontsize=9)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False, ncols=2)
-    if varies:
-        ax = axes[0, 1]
-        ax.plot(sig, r0[m], ".", ms=2, alpha=0.5)
-        lim = float(np.nanmax(np.abs(np.concatenate([sig, r0[m]]))))
-        ax.plot([-lim, lim], [-lim, lim], "k--", lw=1, label="1:1")
-        ax.set_xlabel(f"fitted {final.name} [N m]")
-        ax.set_ylabel("residual [N m]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), frameon=False)
-    paths.append(save_figure(fig, out_dir / "residual_signature.png"))
-
-    fig, ax = plt.subplots(figsize=(5, 3.5))
-    ax.bar(["before\n(3-DoF)", f"after\n({final.name})"], [result.rmse_before, result.rmse_after],
-           color=["tab:gray", "tab:blue"])
-    for i, v in enumerate([result.rmse_before, result.rmse_after]):
-        ax.text(i, v, f"{v:.3f}", ha="center", va="bottom")
-    ax.set_ylabel("held-out RMSE of M_d1 - M_d2 [N m]")
-    paths.append(save_figure(fig, out_dir / "rmse_before_after.png"))
-
-    if result.discovered:
-        paths.append(discovered_figure(result.discovered, out_dir / "discovered_functions.png"))
-
-    data = result.to_json()
-    rows = [[c["effect"], "undetectable" if not c["detectable"] else f"{c['rmse_after_nm']:.3f}",
-             "" if c.get("p_value") is None else f"{c['p_value']:.2g}",
-             ", ".join(f"{k}={v:.3g}" for k, v in (c.get("effect_parameters") or {}).items())]
-            for c in data["candidates"]]
-    fig, ax = plt.subplots(figsize=(9, 0.28 * len(rows) + 0.7))
-    ax.axis("off")
-    table = ax.table(cellText=rows, colLabels=["effect", "held-out RMSE [N m]", "p", "parameters"], loc="center",
-                     cellLoc="left", bbox=[0, 0, 1, 1], colWidths=[0.22, 0.18, 0.1, 0.5])
-    table.auto_set_font_size(False)
-    table.set_fontsize(8)
-    for (i, _), cell in table.get_celld().items():
-        if i > 0 and rows[i - 1][0] in result.selected:
-            cell.set_facecolor("#d9ead3")
-    ax.set_title(f"candidates (selected: {final.name})", fontsize=10)
-    paths.append(save_figure(fig, out_dir / "candidates.png"))
-    return paths
