@@ -39,10 +39,10 @@ from euc_ros.cli.plots import add_figure_arguments, configure_from_args, plot_ri
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.identify.budget import parse_tolerances
 from euc_ros.core.identify.cog_height import HIdentification, identify_h
+from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques
-from euc_ros.core.residual.names import has_discovered, library_effects
 from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
 from euc_ros.core.states.skeleton import COG_METHODS
@@ -82,6 +82,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="a parameter of an added effect, in the residual report's units (repeatable)")
     parser.add_argument("--from-residual", metavar="RESIDUAL.json", default=None,
                         help="add the effect(s) and parameters selected by 'euc-ros residual --json'")
+    parser.add_argument("--force", action="store_true",
+                        help="apply --from-residual even to a session or recordings it was not made from (its "
+                             "'inputs' name them; a mismatch is refused without this)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar on stderr")
     parser.add_argument("--tolerance", action="append", default=[], metavar="KEY=VALUE",
                         help="tolerance of a nominal session value for the h range, e.g. rider.mass=2 or "
@@ -142,32 +145,29 @@ def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
     ------
     InputError
         The residual JSON cannot be read or lacks ``effect`` / ``effect_parameters``.
+    InputMismatch
+        The residual JSON was made from another session or other recordings than the command's
+        (unless ``--force``).
     ConfigError
         An unknown effect, a malformed ``--param`` or a parameter of an effect that is not added.
     """
     effects: dict[str, dict[str, float]] = {}
     path = getattr(args, "from_residual", None)
     if path:
-        try:
-            data = json.loads(Path(path).read_text(encoding="utf-8"))
-        except OSError as exc:
-            raise InputError(f"cannot read residual JSON: {exc.strerror}", path=path) from None
-        except json.JSONDecodeError as exc:
-            raise InputError(f"not valid JSON: {exc.msg}", path=path, line=exc.lineno, column=exc.colno) from None
-        if not isinstance(data, dict) or not isinstance(data.get("effect"), str):
-            raise InputError("expected the output of 'euc-ros residual --json' with a string 'effect'", path=path,
-                             key="effect")
-        values = data.get("effect_parameters", {})
-        if not isinstance(values, dict) or not all(isinstance(v, (int, float)) for v in values.values()):
-            raise InputError("expected a mapping of parameter names to numbers", path=path, key="effect_parameters")
-        names = library_effects(data["effect"])
-        if has_discovered(data["effect"]):
+        from euc_ros.core.identify.model_file import read_model_file
+
+        applied = read_model_file(path)
+        if applied.kind != "residual":
+            raise InputError("expected the output of 'euc-ros residual --json' (this is an identify result)",
+                             path=path, key="effect")
+        for line in applied.check(session=args.session, recordings=args.recordings,
+                                  force=bool(getattr(args, "force", False))):
+            print(f"euc-ros identify: warning: {line}", file=sys.stderr)
+        if applied.left_out:
             # the discovery's terms are functions fitted on the residual's own recordings: not a model here
-            print(f"euc-ros identify: note: {path}: the discovered terms are not refitted here (the residual's "
-                  "h_after_m and h_after_ci95_m are the h of the model with them); the named effects are",
-                  file=sys.stderr)
-        for n in names:
-            effects[n] = {k: float(v) for k, v in values.items()}
+            print(f"euc-ros identify: note: {path}: not refitted here: {'; '.join(applied.left_out)} (the "
+                  "residual's h_after_m and h_after_ci95_m are the h of the model with them)", file=sys.stderr)
+        effects.update({k: dict(v) for k, v in applied.effects.items()})
     added = [e for e in getattr(args, "effect", []) or [] if e]
     items = list(getattr(args, "param", []) or [])
     for item in items:  # name the option, and keep this error apart from a malformed assignment
@@ -205,8 +205,15 @@ def format_uncertainty(ident: HIdentification) -> str:
             cci = "[-, -]" if clo is None or chi is None else f"[{clo:.3f}, {chi:.3f}]"
             lines.append(f"h corrected for the noise and the filter's distortion = {hc:.3f} m, 95 % interval {cci} m")
     else:
-        lines = [f"h is NOT identifiable from these recordings: {unc['identifiability_reason']}",
+        lines = ["h is NOT identifiable from these recordings:",
+                 *(f"  - {r}" for r in (unc["identifiability_reason"] or "").split("; ")),
                  f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
+    ex = u.get("excitation")
+    if ex and unc["identifiable"] and ex.get("accel_rms_mps2") is not None:
+        need = ex.get("accel_rms_needed_mps2")
+        lines.append(f"excitation: RMS longitudinal acceleration {ex['accel_rms_mps2']:.2f} m/s^2"
+                     + (f" (h needs about {need:.2f})" if need is not None else "")
+                     + f", {ex['blocks']} blocks of {ex['block_s']:.1f} s ({ex['blocks_needed']} needed)")
     b = unc.get("uncertainty_budget")
     if b and unc["identifiable"]:
         rows = sorted(b["sensitivity"].items(), key=lambda kv: -(kv[1]["dh_m"] or 0.0))
@@ -320,8 +327,24 @@ def run_identify(session_path, recordings, *, window_s: float | str = "auto",
     for rec in data.get("per_recording", []):
         rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
     data["cog"] = cog_faults(states)
-    data["warnings"] = collect_warnings(states)
+    data["warnings"] = collect_warnings(states) + worse_fit_warnings(ident.fits)
+    data["inputs"] = inputs_record(session_path, recordings)
     return ident, data, states, params
+
+
+def worse_fit_warnings(fits) -> list[str]:
+    """A warning when an extended model fits the recordings worse than the 3-DoF model it extends.
+
+    Both are fitted on the same states, each at its own best h; an effect that belongs to the data
+    lowers the RMSE, so a higher one says the effect (or its parameters) came from other data.
+    """
+    name = fits.settings.get("extended_model")
+    ext, base = fits.pooled.get(name), fits.pooled.get("3dof")
+    if name is None or ext is None or base is None or not ext.rmse_nm > base.rmse_nm:
+        return []
+    return [f"the extended model {name} fits these recordings worse than the 3-DoF model without its effects "
+            f"(RMSE of M_d1 - M_d2 {ext.rmse_nm:.3f} against {base.rmse_nm:.3f} N m, each at its best h): the "
+            "effect's parameters do not describe these recordings; do not use its h"]
 
 
 def main(args: argparse.Namespace) -> int:
@@ -347,12 +370,38 @@ def main(args: argparse.Namespace) -> int:
         write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     if args.plots:
         finite = ident.uncertainty is not None and all(np.isfinite(ident.interval))
-        write_plots(ident.fits, states, params, Path(args.plots), interval=ident.interval if finite else None)
+        write_plots(ident.fits, states, params, Path(args.plots), interval=ident.interval if finite else None,
+                    identifiable=ident.identifiable)
     return 0
 
 
-def write_plots(result, states, params, out_dir: Path, *, interval=None) -> list[Path]:
-    """Write ``<recording>_states.png`` per recording and ``rmse_curves.png`` into ``out_dir``."""
+def write_plots(result, states, params, out_dir: Path, *, interval=None,
+                identifiable: bool | None = True) -> list[Path]:
+    """Write ``<recording>_states.png`` per recording and ``rmse_curves.png`` into ``out_dir``.
+
+    Parameters
+    ----------
+    result : IdentifyResult
+        Per-recording and pooled fits (``HIdentification.fits``).
+    states : sequence of RiderStates
+        The recordings' states, in the order of ``result.per_recording``.
+    params : EucParams
+        The session's parameters.
+    out_dir : Path
+        Folder of the figures (created).
+    interval : (float, float), optional
+        The 95 % interval of h [m], shaded on the RMSE curves.
+    identifiable : bool or None
+        Whether the data identify h (``HIdentification.identifiable``): when not, the titles and labels give
+        the h as a best fit not for use (:func:`~euc_ros.cli.plots.h_text`; None: not assessed).
+
+    Returns
+    -------
+    list of Path
+        The figures written (first configured format).
+    """
+    from euc_ros.cli.plots import h_text
+
     out_dir.mkdir(parents=True, exist_ok=True)
     written = []
     for rec, st in zip(result.per_recording, states):
@@ -361,14 +410,17 @@ def write_plots(result, states, params, out_dir: Path, *, interval=None) -> list
         d1, d2 = torques(*st.torque_args(), params.with_h(h))
         d1 = np.where(st.valid, d1, np.nan)
         d2 = np.where(st.valid, d2, np.nan)
-        title = f"{rec.recording}: 3 DoF, h = {h:.2f} m, RMSE(M_d1 - M_d2) = {fit.rmse_nm:.3f} N m"
+        title = f"{rec.recording}: 3 DoF, {h_text(h, identifiable)}\nRMSE(M_d1 - M_d2) = {fit.rmse_nm:.3f} N m"
         safe = "".join(c if c.isalnum() or c in "-_." else "_" for c in rec.recording)
         written.append(plot_ride_states([st], [(d1, d2)], out_dir / f"{safe}_states.png", title=title))
     panels = {rec.recording: {m: (f.rmse_curve_nm, f.h_m, f.rmse_nm) for m, f in rec.fits.items()}
               for rec in result.per_recording}
     if len(result.per_recording) > 1:
         panels["pooled"] = {m: (f.rmse_curve_nm, f.h_m, f.rmse_nm) for m, f in result.pooled.items()}
-    written.append(plot_rmse_curves(result.h_grid, panels, out_dir / "rmse_curves.png",
-                                    title="RMSE of M_d1 - M_d2 against h (EUC paper, Fig. 8)",
-                                    interval=None if interval is None or None in interval else tuple(interval)))
+    title = "RMSE of M_d1 - M_d2 against h (EUC paper, Fig. 8)"
+    if identifiable is False:
+        title += "\nh not identifiable from these recordings: the optima are best fits, not for use"
+    written.append(plot_rmse_curves(result.h_grid, panels, out_dir / "rmse_curves.png", title=title,
+                                    interval=None if interval is None or None in interval else tuple(interval),
+                                    identifiable=identifiable))
     return written

@@ -31,6 +31,7 @@ from euc_ros.core.identify.fit import (
     pooled_fit,
 )
 from euc_ros.core.identify.interval import (
+    MIN_BLOCKS,
     extend_by_prior,
     interval,
     json_float,
@@ -214,7 +215,8 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
     the sliding prior's range. The
     errors of those bias estimates are not added. Everything computed for the 3-DoF model goes under
     ``base_model`` with that model's name and h (``base_h``), so no interval stands beside another
-    model's h.
+    model's h. ``uncertainty.excitation`` is the base model's (the ride's speed changes and
+    sensitivities) with the extended model's blocks and the recording they need.
     """
     u = base.get("uncertainty") or {}
     block_s = u.get("block_s") or DEFAULT_BLOCK_S
@@ -225,10 +227,20 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
         lo, hi = min(lo, lo - bias) - floor, max(hi, hi - bias) + floor
         lo, hi = extend_by_prior(lo, hi, u.get("sliding_prior_range_m") or (0.0, 0.0))
     reasons = []
-    if nb < 4:
-        reasons.append(f"too few independent blocks ({nb} of {float(block_s):.1f} s)")
+    ex = dict(u.get("excitation") or {})
+    usable = [v for v in ex.get("usable_s_per_recording") or [] if v is not None]
+    more_s = float(block_s) * max(MIN_BLOCKS - nb, 0)   # each block_s seconds more in one take add a block
+    runs = int(np.ceil(max(MIN_BLOCKS - nb, 0) * len(usable) / nb)) if nb > 0 and usable else 0
+    if nb < MIN_BLOCKS:
+        reasons.append(f"too few independent blocks ({nb} of {float(block_s):.1f} s"
+                       + (f" in {sum(usable):.1f} s of usable states" if usable else "")
+                       + f", at least {MIN_BLOCKS} needed): record at least {more_s:.1f} s more in one take"
+                       + (f", or {runs} more run{'' if runs == 1 else 's'} like these" if runs else ""))
     if not (np.isfinite(lo) and np.isfinite(hi)):
-        reasons.append("the extended model's residual does not bound h")
+        reasons.append(f"the extended model's residual does not bound h ({nb} blocks of {float(block_s):.1f} s: "
+                       "more runs like these bound it)")
+    if ex:
+        ex.update(blocks=nb, block_s=float(block_s), record_more_s=more_s, more_runs_needed=runs)
     out = {k: v for k, v in base.items() if k not in BASE_ONLY_KEYS}
     out["base_model"] = {"model": "3dof", "h_m": json_float(base_h),
                          **{k: base[k] for k in BASE_ONLY_KEYS if k in base}}
@@ -236,7 +248,7 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
                 "identifiability_reason": "; ".join(reasons) or None, "h_std_m": json_float(se),
                 "uncertainty": {"method": "block sandwich (effects fixed)", "n_blocks": nb, "block_s": float(block_s),
                                 "eiv_bias_m": json_float(bias), "filter_floor_m": json_float(floor),
-                                "sharpness": None}})
+                                "sharpness": None, **({"excitation": ex} if ex else {})}})
     return out
 
 
@@ -309,7 +321,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     coefs = coefficients_for(states, params, "3dof", None)
     iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
                   h_bounds=h_bounds, turning_ms2=turning_rms(states),
-                  filter_floor_m=floor["filter_floor_m"] if floor else 0.0, prior_range_m=prior_range)
+                  filter_floor_m=floor["filter_floor_m"] if floor else 0.0, prior_range_m=prior_range, states=states)
     corrected = None
     release_free_memory()             # the replicates' and the probe's temporaries, before the bootstraps
     if probe is not None:

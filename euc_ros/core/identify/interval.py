@@ -22,8 +22,14 @@ Three sources of error, three tools (:func:`interval` combines the first two):
   perturbed) and the h range that stated tolerances imply.
 
 h is **not identifiable** (``identifiable: false`` with a reason) when the recording is too short,
-the RMSE curve too flat (too little excitation), or the interval reaches the edge of the search
-range or is wider than :data:`MAX_CI_WIDTH_M`.
+holds fewer than :data:`MIN_BLOCKS` independent blocks, turns, has an RMSE curve too flat (too
+little excitation), or the interval reaches the edge of the search range or is wider than
+:data:`MAX_CI_WIDTH_M`. Every reason says what the ride had and what it needs, in the lab's terms
+(:mod:`~euc_ros.core.identify.excitation`): usable seconds and blocks against those needed, with the
+seconds to add to one take or the runs like these to add; for the sharpness, the ride's speed
+changes, accelerations and rider pitch range, and how many times its speed changes the criterion
+needs (derived from the residual's sensitivity to h, not guessed). The same numbers are in the
+JSON's ``uncertainty.excitation`` whether h is identifiable or not (:func:`excitation_json`).
 """
 from __future__ import annotations
 
@@ -33,7 +39,14 @@ from typing import Sequence
 import numpy as np
 
 from euc_ros.core.filters.derivatives import savgol_derivatives
-from euc_ros.core.identify.bootstrap import block_bootstrap
+from euc_ros.core.identify.bootstrap import block_bootstrap, block_counts
+from euc_ros.core.identify.excitation import (
+    Excitation,
+    Needs,
+    measure_excitation,
+    more_data_for_blocks,
+    more_data_for_seconds,
+)
 
 #: Shortest total duration of valid samples for an identifiable h [s].
 MIN_DURATION_S = 4.0
@@ -45,6 +58,8 @@ MIN_SHARPNESS = 0.8
 MAX_TURNING_MS2 = 0.5
 #: Widest 95 % interval still reported as an identification [m].
 MAX_CI_WIDTH_M = 0.15
+#: Fewest bootstrap blocks for an identifiable h (fewer give no meaningful percentiles).
+MIN_BLOCKS = 4
 
 
 @dataclass
@@ -140,7 +155,7 @@ def turning_rms(states) -> float:
 def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bias_m: float = float("nan"),
              h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0, turning_ms2: float = 0.0,
              eiv_bias_err_m: float = 0.0, filter_floor_m: float = 0.0,
-             prior_range_m: tuple[float, float] = (0.0, 0.0)) -> Interval:
+             prior_range_m: tuple[float, float] = (0.0, 0.0), states=None) -> Interval:
     """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
 
     Parameters
@@ -165,21 +180,37 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         Change of h a stated prior allows, ``lo <= 0 <= hi`` (the common soft-tissue sliding,
         :func:`~euc_ros.core.identify.sliding_prior.prior_spread`): the truth may lie at ``h - hi`` to
         ``h - lo``, so the ends move out by ``hi`` (below) and ``-lo`` (above).
+    states : sequence of RiderStates, optional
+        The recordings' states, in the order of ``coefs``: the reasons then give the ride's speed
+        changes, accelerations and rider pitch range against what h needs
+        (:mod:`~euc_ros.core.identify.excitation`); without them, the residual's sensitivity to h.
+
+    Returns
+    -------
+    Interval
+        Its ``extra["excitation"]`` (the JSON's ``uncertainty.excitation``) holds what the ride had and
+        what it needs, whether or not h is identifiable (:func:`excitation_json`).
     """
     h = float(fit.h_m)
-    n = sum(c.shape[1] for c in coefs)
+    n_rec = [int(c.shape[1]) for c in coefs]
+    n = sum(n_rec)
     duration = n * dt
     reasons = []
     if not np.isfinite(h):
         return Interval(h, (np.nan, np.nan), (np.nan, np.nan), np.nan, 0, eiv_bias_m, False, "no valid sample",
                         float("nan"))
+    exc = measure_excitation(coefs, h, float(fit.rmse_nm), states)
+    usable = exc.usable_s if exc.usable_s else tuple(k * dt for k in n_rec)
+    more_s, more_runs = more_data_for_seconds(usable, MIN_DURATION_S)
     if duration < MIN_DURATION_S:
-        reasons.append(f"too short: {duration:.1f} s of usable states (at least {MIN_DURATION_S:g} s needed)")
+        reasons.append(f"too short: {duration:.1f} s of usable states (at least {MIN_DURATION_S:g} s needed): "
+                       f"record at least {_up(more_s)} s more, or {_runs(more_runs)}")
     hb, length, nb, grid = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
     lo, hi = percentiles95(hb, nb)
     boot = (float(lo), float(hi))
     k = student_factor(nb)
     lo2, hi2 = h - k * (h - boot[0]), h + k * (boot[1] - h)
+    random_width = hi2 - lo2
     if np.isfinite(eiv_bias_m):
         # the interval contains the estimate and the bias-corrected estimate, each with the bias'
         # own random error (two standard errors)
@@ -189,16 +220,129 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         lo2, hi2 = lo2 - filter_floor_m, hi2 + filter_floor_m
     lo2, hi2 = extend_by_prior(lo2, hi2, prior_range_m)
     if turning_ms2 > MAX_TURNING_MS2:
-        reasons.append(f"the ride turns (RMS centripetal acceleration {turning_ms2:.1f} m/s^2 > {MAX_TURNING_MS2:g}): "
-                       "the planar model lacks the turning terms; see `euc-ros residual`")
-    if nb < 4:
-        reasons.append(f"too few independent blocks ({nb} of {length * dt:.1f} s)")
+        v = exc.speed_rms_mps
+        radius = (f": at the ride's RMS speed of {v:.1f} m/s, turns of radius at least {v * v / MAX_TURNING_MS2:.0f} m"
+                  if np.isfinite(v) and v > 0 else "")
+        reasons.append(f"the ride turns (RMS centripetal acceleration {turning_ms2:.1f} m/s^2, at most "
+                       f"{MAX_TURNING_MS2:g} for the planar model{radius}): it lacks the turning terms, see "
+                       "`euc-ros residual`")
+    counts = block_counts(coefs, length)
+    block_more_s, block_runs = more_data_for_blocks(counts, n_rec, length, MIN_BLOCKS, dt)
+    if nb < MIN_BLOCKS:
+        reasons.append(f"too few independent blocks ({nb} of {length * dt:.1f} s in {duration:.1f} s of usable states, "
+                       f"at least {MIN_BLOCKS} needed): record at least {_up(block_more_s)} s more in one take, or "
+                       f"{_runs(block_runs)}")
+    needs = exc.needs(MIN_SHARPNESS, sharpness=float(fit.sharpness))
     if fit.sharpness < MIN_SHARPNESS:
         reasons.append(f"too little excitation: the RMSE curve rises only {100 * fit.sharpness:.0f} % at h +- 0.1 m "
-                       f"(at least {100 * MIN_SHARPNESS:.0f} % needed; ride with speed changes)")
+                       f"(at least {100 * MIN_SHARPNESS:.0f} % needed, which riding longer does not change): "
+                       + _excitation_text(exc, needs))
+    width_more_s = width_runs = 0
     if not (np.isfinite(lo2) and np.isfinite(hi2)):
-        reasons.append("the data do not bound h: bootstrap optima reach the edge of the search range")
+        reasons.append("the data do not bound h: bootstrap optima reach the edge of the search range "
+                       f"({nb} block{'' if nb == 1 else 's'} of {length * dt:.1f} s in {duration:.1f} s of usable "
+                       f"states, curve sharpness {fit.sharpness:.2f}: more runs like these or more excitation "
+                       "bound it)")
     elif hi2 - lo2 > MAX_CI_WIDTH_M:
-        reasons.append(f"the 95 % interval is {100 * (hi2 - lo2):.0f} cm wide")
+        text, width_more_s, width_runs = _width_text(hi2 - lo2, random_width, usable)
+        reasons.append(text)
+    more = {"record_more_s": max(more_s if duration < MIN_DURATION_S else 0.0, block_more_s, width_more_s),
+            "more_runs_needed": max(more_runs if duration < MIN_DURATION_S else 0, block_runs, width_runs)}
+    ex = excitation_json(exc, needs, usable, nb, length * dt, more)
     return Interval(h, (lo2, hi2), boot, length * dt, nb, eiv_bias_m, not reasons, "; ".join(reasons),
-                    float(fit.sharpness), {"turning_rms_ms2": json_float(turning_ms2)})
+                    float(fit.sharpness), {"turning_rms_ms2": json_float(turning_ms2), "excitation": ex})
+
+
+def _runs(k: int) -> str:
+    return f"{k} more run{'' if k == 1 else 's'} like these"
+
+
+def _times(k: float) -> str:
+    """A factor as text: two decimals below 2 (a ride just short of the criterion needs 1.05, not 1.0)."""
+    return f"{k:.2f}" if k < 2.0 else f"{k:.1f}"
+
+
+def _up(seconds: float) -> str:
+    """``seconds`` rounded up to 0.1 s, as text."""
+    return f"{np.ceil(10.0 * seconds - 1e-9) / 10.0:.1f}"
+
+
+def _span(values, scale: float = 1.0, digits: int = 1) -> str:
+    """``"a-b"`` (or one value) of the finite ``values`` times ``scale``."""
+    v = [scale * x for x in values if np.isfinite(x)]
+    if not v:
+        return "-"
+    lo, hi = f"{min(v):.{digits}f}", f"{max(v):.{digits}f}"
+    return lo if lo == hi else f"{lo}-{hi}"
+
+
+def _excitation_text(exc: Excitation, needs: Needs) -> str:
+    """What the ride had and what h needs, for the sharpness reason."""
+    if not exc.has_ride:
+        return (f"the residual's RMS sensitivity to h is {exc.sensitivity_nm_per_m:.1f} N m/m, about "
+                f"{needs.sensitivity_nm_per_m:.1f} needed: larger longitudinal accelerations")
+    had = (f"the recordings changed speed by {_span(exc.speed_change_mps)} m/s (RMS longitudinal acceleration "
+           f"{exc.accel_rms_mps2:.2f} m/s^2, {exc.speed_change_accel_rms_mps2:.2f} from the speed changes, peak "
+           f"{exc.accel_peak_mps2:.1f} m/s^2, rider pitch range {_span(exc.phi_range_rad, np.degrees(1.0), 0)} deg)")
+    k = needs.speed_change_factor
+    a_n = needs.speed_change_accel_rms_mps2
+    if exc.gain_from_ride and np.isfinite(k):
+        need = (f"about {_times(k)} times these speed changes in the same time (about "
+                f"{_span(needs.speed_change_mps)} m/s, an RMS acceleration of about {a_n:.2f} m/s^2 from them)")
+    else:
+        need = f"speed changes giving an RMS acceleration of about {a_n:.2f} m/s^2" + (
+            f", about {_times(k)} times these recordings'" if np.isfinite(k) else "")
+    return f"{had}, h needs {need}"
+
+
+def _width_text(width: float, random_width: float, usable) -> tuple[str, float, int]:
+    """The too-wide reason with the recording it needs: the random part of the width shrinks as one over
+    the square root of the usable time, the bias terms do not."""
+    fixed = width - random_width
+    head = f"the 95 % interval is {100 * width:.0f} cm wide (at most {100 * MAX_CI_WIDTH_M:.0f} cm)"
+    total = float(sum(usable))
+    if not (np.isfinite(random_width) and random_width > 0) or fixed >= MAX_CI_WIDTH_M:
+        return (f"{head}: its bias terms alone take {100 * fixed:.0f} cm, which more of the same data does not "
+                "narrow (less pose noise or more excitation does)", 0.0, 0)
+    factor = (random_width / (MAX_CI_WIDTH_M - fixed)) ** 2
+    more_s, runs = more_data_for_seconds(usable, factor * total)
+    return (f"{head}: its random part ({100 * random_width:.0f} cm) shrinks as one over the square root of the "
+            f"{total:.1f} s of usable states, so record about {_up(more_s)} s more, or {_runs(runs)}", more_s, runs)
+
+
+def excitation_json(exc: Excitation, needs: Needs, usable, blocks: int, block_s: float, more: dict) -> dict:
+    """The JSON's ``uncertainty.excitation``: what the ride had, and what identifying h needs.
+
+    Keys: per recording ``speed_change_mps`` (max - min of ``x_dot``), ``phi_range_deg`` (the rider's
+    pitch range) and ``usable_s_per_recording``; ``accel_rms_mps2``, ``accel_peak_mps2`` and
+    ``speed_change_accel_rms_mps2`` (its share from the speed changes); ``usable_s`` against
+    ``usable_s_needed``; ``blocks`` of ``block_s`` against ``blocks_needed``; ``sensitivity_nm_per_m``
+    against ``sensitivity_needed_nm_per_m``; ``speed_change_factor_needed`` (how many times these speed
+    changes, in the same time, the sharpness criterion needs: below 1 a margin), with
+    ``speed_change_needed_mps`` (per recording, its speed change times that),
+    ``speed_change_accel_rms_needed_mps2`` and ``accel_rms_needed_mps2``;
+    ``record_more_s`` (usable seconds to add to one take) and ``more_runs_needed`` (runs like these to
+    add) for the duration, block and width criteria (0 when they hold). Non-finite numbers are null.
+    """
+    f = json_float
+    return {
+        "speed_change_mps": [f(v) for v in exc.speed_change_mps],
+        "phi_range_deg": [f(np.degrees(v)) for v in exc.phi_range_rad],
+        "accel_rms_mps2": f(exc.accel_rms_mps2),
+        "accel_peak_mps2": f(exc.accel_peak_mps2),
+        "speed_change_accel_rms_mps2": f(exc.speed_change_accel_rms_mps2),
+        "usable_s": f(float(sum(usable))),
+        "usable_s_per_recording": [f(v) for v in usable],
+        "usable_s_needed": MIN_DURATION_S,
+        "blocks": int(blocks),
+        "blocks_needed": MIN_BLOCKS,
+        "block_s": f(block_s),
+        "sensitivity_nm_per_m": f(exc.sensitivity_nm_per_m),
+        "sensitivity_needed_nm_per_m": f(needs.sensitivity_nm_per_m),
+        "speed_change_factor_needed": f(needs.speed_change_factor),
+        "speed_change_needed_mps": [f(v) for v in needs.speed_change_mps],
+        "speed_change_accel_rms_needed_mps2": f(needs.speed_change_accel_rms_mps2),
+        "accel_rms_needed_mps2": f(needs.accel_rms_mps2),
+        "record_more_s": f(more["record_more_s"]),
+        "more_runs_needed": int(more["more_runs_needed"]),
+    }

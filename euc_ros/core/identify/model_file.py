@@ -187,6 +187,8 @@ def model_from_json(data: dict, path: str | Path = "") -> AppliedModel:
         effects = effects_of(data["effect"], flat, path=path)
         left = [f"{d.get('name', 'discovered')}: {d.get('formula', '')}".strip() for d in data.get("discovered") or []
                 if isinstance(d, dict)]
+        if not left and "discovered" in (n.strip() for n in data["effect"].split("+")):
+            left.append("the discovered terms")
         floor = (data.get("geometry") or {}).get("floor") if isinstance(data.get("geometry"), dict) else None
         if isinstance(floor, dict) and floor.get("flat") is False:
             left.append("the floor measured from the wheel's contact path (not flat)")

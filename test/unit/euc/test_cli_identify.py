@@ -15,6 +15,7 @@ import pytest
 
 from euc_ros.cli import identify as identify_cmd
 from euc_ros.cli.main import main
+from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.session import default_session, save_session
 
@@ -174,7 +175,8 @@ def test_residual_json_gives_the_same_model_as_the_options(sloped, tmp_path):
     residual.write_text(json.dumps({"h_m": 0.2, "rmse_before_nm": 8.0, "effect": "ground_slope+time_varying_h",
                                     "effect_parameters": {"alpha_deg": 3.0, "amplitude_m": 0.0, "period_s": 4.0,
                                                           "phase_rad": 0.0},
-                                    "rmse_after_nm": 0.4, "candidates": []}))
+                                    "rmse_after_nm": 0.4, "candidates": [],
+                                    "inputs": inputs_record(d / "session.yaml", files)}))
     a = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(residual)], tmp_path / "a.json")
     b = _identify([str(d / "session.yaml"), files[0], "--effect", "ground_slope",
                    "--param", "ground_slope.alpha_deg=3"], tmp_path / "b.json")
@@ -223,7 +225,8 @@ def test_bad_residual_json_exits_2_naming_the_file(sloped, tmp_path, capsys):
         err = capsys.readouterr().err
         assert name in err and needle in err
     none = tmp_path / "none.json"
-    none.write_text(json.dumps({"effect": "none", "effect_parameters": {}}))
+    none.write_text(json.dumps({"effect": "none", "effect_parameters": {}, "h_m": 0.6,
+                                "inputs": inputs_record(d / "session.yaml", files)}))
     js = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(none)], tmp_path / "n.json")
     assert js["model"] == "3dof" and set(js["models"]) == {"3dof", "2dof"}
 
@@ -234,8 +237,9 @@ def test_residual_json_outcome_markers_add_no_effect(sloped, tmp_path, capsys, m
     # the named ones and says that discovered terms are not refitted
     d, files = sloped
     residual = tmp_path / "residual.json"
-    residual.write_text(json.dumps({"effect": f"ground_slope+{marker}", "effect_parameters": {"alpha_deg": 3.0}}))
+    residual.write_text(json.dumps({"effect": f"ground_slope+{marker}", "effect_parameters": {"alpha_deg": 3.0},
+                                    "h_m": 0.6, "inputs": inputs_record(d / "session.yaml", files)}))
     a = _identify([str(d / "session.yaml"), files[0], "--from-residual", str(residual)], tmp_path / "a.json")
     assert a["model"] == "3dof+ground_slope"
     err = capsys.readouterr().err
-    assert ("discovered terms are not refitted" in err) == (marker == "discovered")
+    assert ("the discovered terms" in err and "not refitted here" in err) == (marker == "discovered")
