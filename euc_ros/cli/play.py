@@ -170,6 +170,35 @@ class BagSource:
         self._bag.__exit__(None, None, None)
 
 
+def missing_subscribers(have: dict[str, int], wanted: int) -> str:
+    """The topics short of ``wanted`` subscribers, with how many each has, for the log.
+
+    Parameters
+    ----------
+    have : dict of str to int
+        Topic -> subscriptions matched so far.
+    wanted : int
+        Subscriptions waited for per topic (``--wait-subscribers``).
+
+    Returns
+    -------
+    str
+        ``"/mocap/frame has no subscriber"``, ``"/a has 1 of 2 subscribers, /b has 0 of 2"``; empty when
+        no topic is short.
+
+    Examples
+    --------
+    >>> missing_subscribers({"/mocap/frame": 0, "/clock": 1}, 1)
+    '/mocap/frame has no subscriber'
+    >>> missing_subscribers({"/a": 1, "/b": 0}, 2)
+    '/a has 1 of 2 subscribers, /b has 0 of 2'
+    """
+    short = [(t, n) for t, n in have.items() if n < wanted]
+    if wanted == 1:
+        return ", ".join(f"{t} has no subscriber" for t, _ in short)
+    return ", ".join(f"{t} has {n} of {wanted}" + (" subscribers" if k == 0 else "") for k, (t, n) in enumerate(short))
+
+
 def set_realtime(priority: int) -> str:
     """Switch this process to SCHED_FIFO at ``priority``; return what happened (never raises)."""
     return _set(priority, "playing")
@@ -227,12 +256,11 @@ class Player:
         t_end = time.monotonic() + timeout_s
         if count > 0:
             while not self.stop.is_set():
-                short = [t for t, p in self.pubs.items() if p.get_subscription_count() < count]
-                if not short:
+                have = {t: p.get_subscription_count() for t, p in self.pubs.items()}
+                if all(n >= count for n in have.values()):
                     break
                 if time.monotonic() >= t_end:
-                    log.info(f"fewer than {count} subscription(s) on {', '.join(short)} after {timeout_s:g} s: "
-                             "playing anyway")
+                    log.info(f"after {timeout_s:g} s, {missing_subscribers(have, count)}: playing anyway")
                     break
                 self._tick_clock(time.perf_counter(), first_bag_ns)
                 self._sleep(0.01)

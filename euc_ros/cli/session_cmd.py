@@ -5,11 +5,17 @@ import argparse
 import sys
 from pathlib import Path
 
+from euc_ros.core.anthropometry import BODIES, REFERENCE
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.model.anthropometry import BODIES, REFERENCE
 from euc_ros.core.model.session_template import EUC_HOWTO, NameMap, RiderMeasures, render_session
 from euc_ros.core.session import parse_session
 from euc_ros.core.yamlfile import parse_yaml
+
+
+def option(key: str) -> str:
+    """The ``session init`` option of an EUC key (``body`` -> ``--euc-body``, ``h0`` -> ``--h0``)."""
+    return "--euc-body" if key == "body" else f"--{key.replace('_', '-')}"
+
 
 HELP = "write a session file (rider segments from body mass, height and sex; the EUC's measured values)"
 
@@ -18,7 +24,7 @@ EPILOG = f"""rider bodies (pass --name BODY=MOTIVE_NAME for each one your lab na
 
 segment masses and centres of mass: {REFERENCE}.
 EUC values not given take the EUC paper's (Table 3) and say so in the file. How to measure each:
-{chr(10).join(f'  --{k.replace("_", "-"):22s} {v}' for k, v in EUC_HOWTO.items())}
+{chr(10).join(f'  {option(k):24s} {v}' for k, v in EUC_HOWTO.items())}
 
 example:
   euc-ros session init --mass 72 --height 1.78 --sex male --world-up z --name H=Helmet \\
@@ -43,12 +49,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help="the lab's Motive name of a rider body (repeatable), e.g. CHR=RightShoulder")
     for key in EUC_HOWTO:
         if key == "pivot_to_wheel_center":
-            p.add_argument("--pivot-to-wheel-center", type=float, nargs=3, metavar=("X", "Y", "Z"),
+            p.add_argument(option(key), type=float, nargs=3, metavar=("X", "Y", "Z"),
                            help="wheel centre from the EUC pivot, EUC body frame [m]")
         elif key == "body":
-            p.add_argument("--euc-body", metavar="NAME", help="the EUC's rigid-body name in Motive [E]")
+            p.add_argument(option(key), metavar="NAME", help="the EUC's rigid-body name in Motive [E]")
         else:
-            p.add_argument(f"--{key.replace('_', '-')}", type=float, metavar="VALUE", help=f"EUC {key} (SI)")
+            p.add_argument(option(key), type=float, metavar="VALUE", help=f"EUC {key} (SI)")
     p.add_argument("--out", required=True, metavar="FILE", help="session YAML to write ('-' for standard output)")
     p.add_argument("--force", action="store_true", help="replace an existing file")
 

@@ -57,7 +57,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--path-scale", type=float, default=1.0, metavar="K",
                         help="multiply the figure-eight's length (wider turns) [1]")
     parser.add_argument("--session", default=None, metavar="FILE",
-                        help="nominal session YAML (default: the paper's Table 3 with default segments)")
+                        help="nominal session YAML (default: the EUC paper's EUC, Table 3, and a 65 kg, 1.75 m male "
+                             "rider from the anthropometric table of session init)")
     parser.add_argument("--out", required=True, metavar="DIR",
                         help="output folder: new or empty (the truth goes to DIR/truth/, apart from the recordings)")
     parser.add_argument("--overwrite", action="store_true",

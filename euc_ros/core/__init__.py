@@ -12,7 +12,8 @@ neither needs the other). Each name is a module (``errors``) or a subpackage (``
 * ``errors``: the exception hierarchy; ``memory``: giving freed memory back between large steps;
   ``robust``: numpy's median of long arrays, selected among the values near it.
   ``rotations``: quaternions and frame changes. ``yamlfile``:
-  YAML with located errors.
+  YAML with located errors. ``anthropometry``: the one anthropometric table (the rider's segments
+  and pitch inertia from mass, height and sex), read by the session's default rider and ``session init``.
 * ``session``: the session file (subject and vehicle of a recording), read by everything above.
 * ``mocap``: motion-capture series and what is measured on them alone (rate, bridging, conventions,
   presence, live frames, the pose-noise model); ``filters``: Savitzky-Golay and low-lag derivatives.
@@ -32,7 +33,7 @@ neither needs the other). Each name is a module (``errors``) or a subpackage (``
 #: The core's layers from the bottom up; each entry a tuple of sibling modules or subpackages.
 LAYERS: tuple[tuple[str, ...], ...] = (
     ("errors", "memory", "robust"),
-    ("rotations", "yamlfile"),
+    ("rotations", "yamlfile", "anthropometry"),
     ("session",),
     ("mocap", "filters"),
     ("io", "model"),

@@ -21,6 +21,7 @@ from typing import Any, Mapping
 import numpy as np
 import yaml
 
+from euc_ros.core.anthropometry import rider_segments, standing_rider
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.yamlfile import load_yaml
 
@@ -284,12 +285,16 @@ def parse_session(data: Any, source: str | Path | None = None) -> Session:
 
 
 def load_session(path: str | Path) -> Session:
-    """Read and validate a session YAML file (docs/session.md)."""
+    """Read and validate a session YAML file (docs/session.md).
+
+    A Motive CSV export or a bag given as the session is refused with a message that says the order
+    of the arguments without naming a command: the command line's error prefix names the one run.
+    """
     p = Path(path)
     if p.is_dir() or p.suffix.lower() in (".csv", ".mcap", ".db3"):
         what = "a bag" if p.is_dir() or p.suffix.lower() != ".csv" else "a Motive CSV export"
-        raise ConfigError(f"is {what}, not a session file: commands take the session first, then the recordings "
-                          "(euc-ros identify SESSION.yaml RECORDING...); were the two swapped?", path=p)
+        raise ConfigError(f"is {what}, not a session file: the session comes first, then the recordings "
+                          "(SESSION.yaml RECORDING...); were the two swapped?", path=p)
     data = load_yaml(p, "session file")
     return parse_session(data, p)
 
@@ -299,25 +304,27 @@ def save_session(session: Session, path: str | Path) -> None:
     Path(path).write_text(yaml.safe_dump(session.to_dict(), sort_keys=False), encoding="utf-8")
 
 
-#: Default segment table: mass fractions (de Leva style) and CoM offsets from each pivot in the body
-#: frame (x forward, y left, z up when standing). Pivots per EUC paper Table 2.
-DEFAULT_SEGMENTS: dict[str, Segment] = {
-    "H": Segment(0.081, (0.0, 0.0, -0.12)),     # head, from top of helmet
-    "CHR": Segment(0.216, (0.0, 0.1, -0.22)),   # chest halves, from shoulder
-    "CHL": Segment(0.216, (0.0, -0.1, -0.22)),
-    "UAR": Segment(0.028, (0.0, 0.0, 0.13)),    # upper arm, from elbow
-    "UAL": Segment(0.028, (0.0, 0.0, 0.13)),
-    "LAR": Segment(0.022, (0.0, 0.0, 0.16)),    # forearm + hand, from wrist (hand part below)
-    "LAL": Segment(0.022, (0.0, 0.0, 0.16)),
-    "HR": Segment(0.0, (0.0, 0.0, 0.0)),        # hip markers only (mass in chest/thigh)
-    "HL": Segment(0.0, (0.0, 0.0, 0.0)),
-    "TR": Segment(0.1, (0.0, 0.0, 0.19)),       # thigh, from knee
-    "TL": Segment(0.1, (0.0, 0.0, 0.19)),
-    "LR": Segment(0.0935, (0.0, 0.0, 0.18)),    # shank + foot, from ankle
-    "LL": Segment(0.0935, (0.0, 0.0, 0.18)),
-}
+#: The default rider: the EUC paper's rider mass (Table 3) [kg], and the height [m] and sex that select
+#: the segments and pitch inertia of :mod:`euc_ros.core.anthropometry` (a 1.75 m rider, the stature of
+#: the ride simulator's riding posture).
+DEFAULT_RIDER_MASS = 65.0
+DEFAULT_RIDER_HEIGHT = 1.75
+DEFAULT_RIDER_SEX = "male"
+
+
+def default_rider() -> Rider:
+    """The default rider: segments and pitch inertia from :mod:`euc_ros.core.anthropometry`.
+
+    The same table and mapping onto the rider bodies as ``euc-ros session init --mass 65 --height 1.75
+    --sex male``: mass fractions, CoM offsets from each pivot (body frame, x forward, y left, z up when
+    standing) and the standing rider's pitch inertia about its CoG.
+    """
+    segments = rider_segments(DEFAULT_RIDER_MASS, DEFAULT_RIDER_HEIGHT, DEFAULT_RIDER_SEX)
+    standing = standing_rider(DEFAULT_RIDER_MASS, DEFAULT_RIDER_HEIGHT, DEFAULT_RIDER_SEX)
+    return Rider(DEFAULT_RIDER_MASS, standing.inertia_pitch,
+                 {name: Segment(seg.mass_fraction, seg.com_offset) for name, seg in segments.items()})
 
 
 def default_session(world_up: str = "y") -> Session:
-    """Return the nominal session of the EUC paper (Table 3) with :data:`DEFAULT_SEGMENTS`."""
-    return Session(world_up=world_up, rate_hz=120.0, rider=Rider(65.0, 16.6, dict(DEFAULT_SEGMENTS)), euc=Euc())
+    """Return the nominal session: the EUC paper's EUC (Table 3) and :func:`default_rider`."""
+    return Session(world_up=world_up, rate_hz=120.0, rider=default_rider(), euc=Euc())

@@ -3,7 +3,7 @@
     python docs/figures/session/pivots.py
 
 Side view (x forward, z up) of a rider standing on an EUC, with segment heights from
-euc_ros.core.model.anthropometry (a 1.75 m male) and the EUC paper's geometry (R = 0.2 m, l0, h0).
+euc_ros.core.anthropometry (a 1.75 m male) and the EUC paper's geometry (R = 0.2 m, l0, h0).
 """
 from __future__ import annotations
 
@@ -14,14 +14,14 @@ import matplotlib
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
-from euc_ros.core.model.anthropometry import SHOULDER_BELOW_C7, STATURE_M, _ankle_height, _lengths  # noqa: E402
+from euc_ros.core.anthropometry import SHOULDER_BELOW_C7, STATURE_M, ankle_height, segment_lengths  # noqa: E402
 
 H, R, L0, H0 = 1.75, 0.2, 0.05, 0.075
-L = _lengths(H, "male")
+L = segment_lengths(H, "male")
 k = H / STATURE_M["male"]
 axle = R
 ankle = axle + L0                          # the ankle hinge A stands l0 above the wheel centre C
-lift = ankle - _ankle_height(L, H)         # the standing body raised onto the pedals
+lift = ankle - ankle_height(L, H)          # the standing body raised onto the pedals
 knee, hip = ankle + L["shank"], ankle + L["shank"] + L["thigh"]
 c7 = hip + L["trunk"]
 shoulder = c7 - SHOULDER_BELOW_C7 * k

@@ -685,6 +685,7 @@ class _Scan:
         self.schemas: dict[int, object] = {}
         self.channels: dict[int, object] = {}
         self.counts: dict[int, int] = {}
+        self.span_ns: dict[int, list[int]] = {}       # channel -> [first, last] log time
         self.first_ns: int | None = None
         self.last_ns: int | None = None
         self.n_chunks = 0
@@ -713,6 +714,13 @@ def _scan_mcap(path: Path, *, keep_messages: bool = False, validate_crcs: bool =
         elif isinstance(rec, Message):
             scan.n_messages += 1
             scan.counts[rec.channel_id] = scan.counts.get(rec.channel_id, 0) + 1
+            span = scan.span_ns.get(rec.channel_id)
+            if span is None:
+                scan.span_ns[rec.channel_id] = [rec.log_time, rec.log_time]
+            elif rec.log_time < span[0]:
+                span[0] = rec.log_time
+            elif rec.log_time > span[1]:
+                span[1] = rec.log_time
             scan.first_ns = rec.log_time if scan.first_ns is None else min(scan.first_ns, rec.log_time)
             scan.last_ns = rec.log_time if scan.last_ns is None else max(scan.last_ns, rec.log_time)
             if keep_messages:
@@ -937,7 +945,9 @@ def inspect_bag(path) -> dict:
         ``path``, ``storage``, ``metadata_version``, ``ros_distro``, ``files`` [{name, bytes}],
         ``topics`` [{name, type, count, rate_hz}], ``message_count``, ``start_ns``, ``end_ns``,
         ``duration_s``, ``problems`` (list of str; empty when the bag is sound). For a bag without
-        metadata.yaml the figures come from what the MCAP scan could read.
+        metadata.yaml the figures come from what the MCAP scan could read. A topic's ``rate_hz`` is
+        ``(count - 1)`` over the span from its own first to its last message (log time), None with
+        fewer than two messages; ``duration_s`` is the bag's span over all topics.
     """
     bag = _bag_dir(path)
     if not bag.is_dir():
@@ -955,6 +965,7 @@ def inspect_bag(path) -> dict:
            "files": [{"name": f.name, "bytes": f.stat().st_size} for f in files], "topics": [],
            "message_count": 0, "start_ns": None, "end_ns": None, "duration_s": 0.0, "problems": problems}
     topics: dict[str, dict] = {}
+    spans: dict[str, tuple[int, int]] = {}      # topic -> (first, last) log time [ns]
     first = last = None
     for file in files:
         scan, _ = _scan_mcap(file, validate_crcs=False)
@@ -963,6 +974,10 @@ def inspect_bag(path) -> dict:
             entry = topics.setdefault(ch.topic, {"name": ch.topic, "type": schema.name if schema else "?",
                                                  "count": 0})
             entry["count"] += scan.counts.get(cid, 0)
+            if cid in scan.span_ns:
+                lo, hi = scan.span_ns[cid]
+                seen = spans.get(ch.topic)
+                spans[ch.topic] = (lo, hi) if seen is None else (min(seen[0], lo), max(seen[1], hi))
         if scan.first_ns is not None:
             first = scan.first_ns if first is None else min(first, scan.first_ns)
             last = scan.last_ns if last is None else max(last, scan.last_ns)
@@ -971,8 +986,9 @@ def inspect_bag(path) -> dict:
         out["metadata_version"] = info.get("version")
         out["ros_distro"] = info.get("ros_distro")
     duration = (last - first) * 1e-9 if first is not None else 0.0
-    for entry in topics.values():
-        entry["rate_hz"] = (entry["count"] - 1) / duration if duration > 0 and entry["count"] > 1 else None
+    for entry in topics.values():      # each topic over its own span: topics start and end at different times
+        lo, hi = spans.get(entry["name"], (0, 0))
+        entry["rate_hz"] = (entry["count"] - 1) / ((hi - lo) * 1e-9) if hi > lo and entry["count"] > 1 else None
     out.update(topics=sorted(topics.values(), key=lambda e: e["name"]),
                message_count=sum(e["count"] for e in topics.values()), start_ns=first, end_ns=last,
                duration_s=duration)

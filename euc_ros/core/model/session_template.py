@@ -2,7 +2,7 @@
 
 :func:`render_session` writes the YAML that :func:`euc_ros.core.session.parse_session` reads, with a
 comment on every key saying what it is, its frame and unit, and how to measure it. The rider's
-segments come from :mod:`euc_ros.core.model.anthropometry`; the EUC's values are the caller's measurements
+segments come from :mod:`euc_ros.core.anthropometry`; the EUC's values are the caller's measurements
 (or the EUC paper's, marked as such, where none is given).
 
 Examples
@@ -17,8 +17,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 
+from euc_ros.core.anthropometry import BODIES, REFERENCE, rider_segments, standing_rider
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.model.anthropometry import BODIES, REFERENCE, rider_segments, standing_rider
 from euc_ros.core.session import Euc
 
 

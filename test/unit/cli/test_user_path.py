@@ -43,6 +43,19 @@ def test_swapped_session_and_recording_say_so(ride, capsys):
     assert "not a session file" in err and "swapped" in err
 
 
+@pytest.mark.parametrize("command, extra", [("identify", []), ("residual", ["--json", "out.json"])])
+@pytest.mark.parametrize("recording", ["ride.csv", "ride.mcap"])
+def test_swapped_arguments_name_the_command_that_was_run(command, extra, recording, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / recording).write_text("not read\n")
+    (tmp_path / "session.yaml").write_text("not read\n")
+    assert main([command, recording, "session.yaml", *extra]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"euc-ros {command}: error: {recording}: ") and "swapped" in err, err
+    other = {"identify": "residual", "residual": "identify"}[command]
+    assert f"euc-ros {other}" not in err, err
+
+
 def test_a_missing_body_lists_the_bodies_the_file_has(ride, tmp_path, capsys):
     session, csv = ride
     renamed = tmp_path / "session.yaml"

@@ -5,16 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.errors import ConfigError
-from euc_ros.core.model.anthropometry import (
+from euc_ros.core.anthropometry import (
+    BODIES,
     SHOULDER_BELOW_C7,
     STATURE_M,
     TABLE,
-    _ankle_height,
-    _lengths,
+    ankle_height,
     rider_segments,
+    segment_lengths,
     standing_rider,
 )
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.session import MASS_FRACTION_TOL
 
 PAIRED = ("upper_arm", "forearm", "hand", "thigh", "shank", "foot")
 
@@ -24,6 +26,23 @@ def test_the_table_sums_to_the_whole_body(sex):
     t = TABLE[sex]
     total = t["head"].mass_pct + t["trunk"].mass_pct + 2 * sum(t[n].mass_pct for n in PAIRED)
     assert total == pytest.approx(100.0, abs=0.05)     # the published table's own rounding
+
+
+@pytest.mark.parametrize("sex", ["male", "female"])
+def test_the_bodies_take_the_whole_table_within_the_session_tolerance(sex):
+    """The table's own fractions, mapped onto the 13 bodies without renormalising, sum to 1 within the
+    session file's tolerance (docs/session.md), so the renormalisation only spreads the table's rounding."""
+    t = TABLE[sex]
+    raw = {"H": t["head"].mass_pct, "CHR": t["trunk"].mass_pct / 2, "CHL": t["trunk"].mass_pct / 2}
+    for side in "RL":
+        raw |= {f"UA{side}": t["upper_arm"].mass_pct, f"LA{side}": t["forearm"].mass_pct + t["hand"].mass_pct,
+                f"H{side}": 0.0, f"T{side}": t["thigh"].mass_pct, f"L{side}": t["shank"].mass_pct + t["foot"].mass_pct}
+    assert sorted(raw) == sorted(BODIES)
+    assert abs(sum(raw.values()) / 100 - 1) <= MASS_FRACTION_TOL
+    seg = rider_segments(70.0, 1.75, sex)
+    assert sum(s.mass_fraction for s in seg.values()) == pytest.approx(1.0, abs=1e-12)
+    for body, pct in raw.items():
+        assert seg[body].mass_fraction == pytest.approx(pct / 100, abs=MASS_FRACTION_TOL / 13)
 
 
 @pytest.mark.parametrize("sex, mass, height", [("male", 65, 1.70), ("male", 95, 1.92), ("female", 55, 1.60)])
@@ -41,8 +60,8 @@ def test_whole_body_cog_height_is_where_bodies_have_it(sex, mass, height):
 def test_session_bodies_put_the_cog_where_the_stacked_body_has_it(sex):
     mass, height = 70.0, 1.75
     seg = rider_segments(mass, height, sex, helmet_m=0.03)
-    L, k = _lengths(height, sex), height / STATURE_M[sex]
-    ankle = _ankle_height(L, height)
+    L, k = segment_lengths(height, sex), height / STATURE_M[sex]
+    ankle = ankle_height(L, height)
     knee, hip = ankle + L["shank"], ankle + L["shank"] + L["thigh"]
     c7 = hip + L["trunk"]
     shoulder = c7 - SHOULDER_BELOW_C7 * k

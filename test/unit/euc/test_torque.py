@@ -185,9 +185,10 @@ def test_parameters_broadcast_against_samples(rng):
 def test_params_from_session_uses_nominal_values():
     from euc_ros.core.session import default_session
 
-    p = EucParams.from_session(default_session(), 0.5)
-    assert (p.m, p.J, p.m0, p.J0, p.mw, p.Jw, p.R, p.h0, p.l0, p.h) == (65.0, 16.6, 13.0, 0.5, 3.0, 0.12, 0.2,
-                                                                          0.075, 0.05, 0.5)
+    session = default_session()
+    p = EucParams.from_session(session, 0.5)
+    assert (p.m, p.J, p.m0, p.J0, p.mw, p.Jw, p.R, p.h0, p.l0, p.h) == (65.0, session.rider.inertia_pitch, 13.0, 0.5,
+                                                                          3.0, 0.12, 0.2, 0.075, 0.05, 0.5)
     assert p.m_eq == pytest.approx(65 + 13 + 3 + 0.12 / 0.04)
 
 

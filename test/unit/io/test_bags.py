@@ -450,6 +450,21 @@ def test_inspect(written, tmp_path):
         inspect_bag(tmp_path / "nothing")
 
 
+def test_inspect_gives_each_topic_its_own_rate(written, capsys):
+    """A topic's rate is over its own first-to-last span, not the bag's: the 40 frames at 120 Hz span
+    0.325 s of a bag that lasts 1 s (the rider state is written 1 s after the start)."""
+    from euc_ros.cli.main import main
+
+    info = inspect_bag(written[0])
+    rates = {t["name"]: t["rate_hz"] for t in info["topics"]}
+    for topic in ("/mocap/frame", "/vrpn_mocap/E/pose", "/chatter", "/torque"):
+        assert rates[topic] == pytest.approx(1e9 / 8_333_333, rel=1e-9), topic
+    assert rates["/rider_state"] is None                      # one message: no rate
+    assert main(["inspect", str(written[0])]) == 0
+    line = next(x for x in capsys.readouterr().out.splitlines() if x.strip().startswith("/mocap/frame"))
+    assert "120.00 Hz" in line, line
+
+
 # ---------------------------------------------------------------------------------------------------------------------
 # Mocap series
 # ---------------------------------------------------------------------------------------------------------------------

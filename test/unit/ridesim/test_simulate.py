@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from scipy.interpolate import CubicSpline
+from scipy.interpolate import CubicSpline, make_interp_spline
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.ridesim import MANEUVERS, MocapNoise, RideConfig, make_effects, simulate_ride
@@ -21,20 +21,30 @@ def test_paper_equations_hold_along_generated_trajectories(ride_decel, ride_fig8
 
 
 def _interval_integrals(t, f):
-    cs = CubicSpline(t, f)
-    F = cs.antiderivative()
+    """Integrals of f between consecutive samples, through a quintic spline: its quadrature error
+    (~h^6 f^(6)) is below 1e-11 at 120 Hz here, where a cubic spline's (~h^4) reaches 7e-10."""
+    F = make_interp_spline(t, f, k=5).antiderivative()
     return np.diff(F(t))
 
 
 def test_sampled_derivatives_are_consistent_at_integration_tolerance(ride_decel):
-    """q_dot integrates to q and q_ddot to q_dot between samples (the ODE was solved, not faked)."""
-    run = ride_decel.runs[0]
+    """q_dot integrates to q and q_ddot to q_dot between samples (the ODE was solved, not faked).
+
+    DOP853 keeps each step's error estimate below ``atol + rtol |y|``; between two samples of its dense
+    output the q_dot error is measured at up to 10 times that (rides at tolerances 1e-9 to 1e-12), so
+    q_ddot's bound is 100 times it. Derivatives by finite differences of the samples miss it by orders
+    of magnitude.
+    """
+    run, cfg = ride_decel.runs[0], ride_decel.config
     t = run.t
     for i in range(3):
         dq = np.diff(run.q[:, i])
         dqd = np.diff(run.q_dot[:, i])
+        bound_qd = 100 * (cfg.atol + cfg.rtol * np.abs(run.q_dot[:, i]).max())
         assert np.abs(_interval_integrals(t, run.q_dot[:, i]) - dq).max() < 1e-9
-        assert np.abs(_interval_integrals(t, run.q_ddot[:, i]) - dqd).max() < 1e-9
+        assert np.abs(_interval_integrals(t, run.q_ddot[:, i]) - dqd).max() < bound_qd
+        faked = np.gradient(run.q_dot[:, i], t)
+        assert np.abs(_interval_integrals(t, faked) - dqd).max() > 100 * bound_qd
         assert np.abs(dqd).max() > 1e-4  # something happens
 
 

@@ -1,4 +1,10 @@
-"""Rider segment parameters from body mass, height and sex (de Leva's adjusted Zatsiorsky-Seluyanov data).
+"""The one anthropometric table of euc_ros: rider segment parameters from body mass, height and sex.
+
+Everything that needs the rider's segments takes them from here: ``euc-ros session init``
+(:mod:`euc_ros.core.model.session_template`) and the default session of
+:func:`euc_ros.core.session.default_session`, which is the ride simulator's default rider. The module is
+data and the geometry of stacking the table's segments; it holds no model code, so the analysis and the
+simulator (independent of the analysis by design) may both read it.
 
 The session file describes the rider by rigid bodies at the pivots of the recording contract (top of
 helmet, shoulder, elbow, wrist, hip, knee, ankle): for each, a mass fraction of the rider mass and the
@@ -151,12 +157,13 @@ def _check(mass: float, height: float, sex: str) -> str:
     return sex
 
 
-def _lengths(height: float, sex: str) -> dict[str, float]:
+def segment_lengths(height: float, sex: str) -> dict[str, float]:
+    """The table's mean segment lengths scaled to ``height`` [m], by table segment name."""
     k = height / STATURE_M[sex]
     return {name: row.length_mm * 1e-3 * k for name, row in TABLE[sex].items()}
 
 
-def _ankle_height(L: dict[str, float], height: float) -> float:
+def ankle_height(L: dict[str, float], height: float) -> float:
     """Ankle height that puts the vertex at ``height`` on the stacked segments [m]."""
     return height - (L["shank"] + L["thigh"] + L["trunk"] + L["head"])
 
@@ -180,7 +187,7 @@ def rider_segments(mass: float, height: float, sex: str, *, helmet_m: float = 0.
         Body name -> :class:`BodySegment`, in the order of :data:`BODIES`.
     """
     sex = _check(mass, height, sex)
-    t, L, k = TABLE[sex], _lengths(height, sex), height / STATURE_M[sex]
+    t, L, k = TABLE[sex], segment_lengths(height, sex), height / STATURE_M[sex]
     frac = {n: row.mass_pct / 100.0 for n, row in t.items()}
     total = frac["head"] + frac["trunk"] + 2 * sum(frac[n] for n in ("upper_arm", "forearm", "hand", "thigh",
                                                                        "shank", "foot"))
@@ -198,7 +205,7 @@ def rider_segments(mass: float, height: float, sex: str, *, helmet_m: float = 0.
     thigh_z = L["thigh"] - c("thigh")
     sh, ft = frac["shank"], frac["foot"]
     foot_x = c("foot") - HEEL_TO_ANKLE * L["foot"]
-    foot_z = -0.5 * _ankle_height(L, height)
+    foot_z = -0.5 * ankle_height(L, height)
     leg = (ft * foot_x / (sh + ft), 0.0, (sh * (L["shank"] - c("shank")) + ft * foot_z) / (sh + ft))
     out = {
         "H": BodySegment(frac["head"], (0.0, 0.0, head_z)),
@@ -241,8 +248,8 @@ class StandingRider:
 def standing_rider(mass: float, height: float, sex: str) -> StandingRider:
     """Pitch inertia and CoG height of the rider standing upright, arms hanging (see the module notes)."""
     sex = _check(mass, height, sex)
-    t, L, k = TABLE[sex], _lengths(height, sex), height / STATURE_M[sex]
-    ankle = _ankle_height(L, height)
+    t, L, k = TABLE[sex], segment_lengths(height, sex), height / STATURE_M[sex]
+    ankle = ankle_height(L, height)
     knee = ankle + L["shank"]
     hip = knee + L["thigh"]
     c7 = hip + L["trunk"]
