@@ -124,6 +124,23 @@ def _paths(recordings: str | os.PathLike | Sequence[str | os.PathLike]) -> list[
     return out
 
 
+def _settings(options: dict, default=None):
+    """The :class:`~euc_ros.core.states.settings.ReconstructionSettings` of the reconstruction options, and
+    the rest of the options."""
+    from dataclasses import replace
+
+    from euc_ros.core.states.settings import ReconstructionSettings
+
+    keys = ("window_s", "polyorder", "phi_definition", "cog_method")
+    given = {k: options[k] for k in keys if k in options}
+    rest = {k: v for k, v in options.items() if k not in keys}
+    if default is None:
+        return ReconstructionSettings(**given), rest
+    if "window_s" in given and "polyorder" not in given:
+        given["polyorder"] = None if given["window_s"] == "auto" else default.polyorder
+    return replace(default, **given), rest
+
+
 def _warn(identifiable: bool, reason: str, h: float, what: str, notes: Sequence[str] = ()) -> None:
     if not identifiable:
         warnings.warn(f"{what} is NOT identifiable from these recordings: {reason} (best fit {h:.3f} m: do not "
@@ -177,7 +194,7 @@ def identify(session: str | Path, recordings: str | Path | Sequence[str | Path],
     >>> from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
     >>> from euc_ros.core.ridesim.writers import write_ride
     >>> folder = tempfile.mkdtemp()
-    >>> _ = write_ride(simulate_ride(RideConfig(runs=2, seed=3)), folder)
+    >>> _ = write_ride(simulate_ride(RideConfig(runs=2, seed=0)), folder)
     >>> fit = euc_ros.identify(f"{folder}/session.yaml", [f"{folder}/deceleration_01.csv",
     ...                                                    f"{folder}/deceleration_02.csv"])
     >>> fit.identifiable, fit.reason
@@ -186,20 +203,25 @@ def identify(session: str | Path, recordings: str | Path | Sequence[str | Path],
     >>> lo <= fit.h <= hi and lo < 0.61 < hi
     True
     """
-    from euc_ros.cli.identify import effects_from_args, run_identify, worse_fit_warnings
+    from euc_ros.core.identify.pipeline import HGrid, identify_recordings, worse_fit_warnings
 
     recs = _paths(recordings)
+    effects = dict(options.pop("effects", None) or {})
     if from_residual is not None:
-        import argparse
+        from euc_ros.core.identify.model_file import read_model_file
 
-        effects = effects_from_args(argparse.Namespace(from_residual=os.fspath(from_residual), effect=[], param=[],
-                                                       session=os.fspath(session), recordings=recs, force=force))
-        options["effects"] = {**effects, **(options.get("effects") or {})}
-    ident, data, _, _ = run_identify(os.fspath(session), recs, **options)
+        applied = read_model_file(from_residual)
+        for line in applied.check(session=session, recordings=recs, force=force):
+            warnings.warn(line, ModelFitWarning, stacklevel=2)
+        effects = {**applied.effects, **effects}
+    settings, rest = _settings(options)
+    grid = HGrid(**{k: rest.pop(f"h_{k[:-2]}") for k in ("min_m", "max_m", "step_m") if f"h_{k[:-2]}" in rest})
+    run = identify_recordings(os.fspath(session), recs, settings, grid=grid, effects=effects, **rest)
+    data = run.data
     ci = _pair(data.get("h_ci95_m"))
     ok = bool(data.get("identifiable", True))
     reason = data.get("identifiability_reason") or ""
-    _warn(ok, reason, float(data["h_m"]), "h", worse_fit_warnings(ident.fits))
+    _warn(ok, reason, float(data["h_m"]), "h", worse_fit_warnings(run.identification.fits))
     return Result(float(data["h_m"]), ci, ok, reason, data)
 
 
@@ -250,9 +272,12 @@ def residual(session: str | Path, recordings: str | Path | Sequence[str | Path],
     >>> res.h == res.data["h_after_m"], isinstance(res.identifiable, bool)
     (True, True)
     """
-    from euc_ros.cli.residual import run_residual
+    from euc_ros.core.residual.pipeline import RESIDUAL_SETTINGS, ResidualOptions, trace_residual
 
-    _, data, _, _ = run_residual(os.fspath(session), _paths(recordings), **options)
+    settings, rest = _settings(options, RESIDUAL_SETTINGS)
+    analysis = ResidualOptions(**{k: rest.pop(k) for k in ("candidates", "alpha", "min_gain", "max_effects",
+                                                            "use_geometry", "discover", "plausible") if k in rest})
+    data = trace_residual(os.fspath(session), _paths(recordings), settings, options=analysis, **rest).data
     h = float(data.get("h_after_m", data["h_m"]))
     ci = _pair(data.get("h_after_ci95_m") if data.get("h_after_ci95_m") is not None else data.get("h_ci95_m"))
     ok = bool(data.get("h_after_identifiable", data.get("identifiable", True)))

@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import contextlib
 import csv
-import io
-import json
 import os
 import tempfile
 import time
@@ -97,18 +95,18 @@ def seed_tasks(seeds, simulate: dict, *, residual: bool = False) -> list[Task]:
             for s in seeds]
 
 
-def _cli_json(argv: list[str], out: Path) -> dict:
-    """Run an ``euc-ros`` command in this process with ``--json out``; its JSON, or RuntimeError with its
-    one-line error."""
-    from euc_ros.cli.main import main
+def _analysis_json(command: str, session: str, recordings: list[str]) -> dict:
+    """The JSON document of ``identify`` or ``residual`` on these files (the library's pipelines, as the
+    commands run them), or RuntimeError with the command's one-line error."""
+    from euc_ros.core.errors import EucError
+    from euc_ros.core.identify.pipeline import identify_recordings
+    from euc_ros.core.residual.pipeline import trace_residual
 
-    err = io.StringIO()
-    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
-        code = main([*argv, "--json", str(out), "--no-progress"])
-    if code != 0:
-        lines = [ln for ln in err.getvalue().splitlines() if ln.strip()]
-        raise RuntimeError(lines[-1] if lines else f"{argv[0]} exited with {code}")
-    return json.loads(out.read_text(encoding="utf-8"))
+    try:
+        run = identify_recordings(session, recordings) if command == "identify" else trace_residual(session, recordings)
+    except EucError as exc:
+        raise RuntimeError(f"euc-ros {command}: error: {exc}") from None
+    return run.data
 
 
 def _simulate(task: Task, out: Path) -> tuple[str, list[str], float]:
@@ -147,12 +145,12 @@ def run_task(task: Task) -> dict:
                 session, recs, row["h_true_m"] = _simulate(task, tmp / "ride")
             else:
                 session, recs = task.session, list(task.recordings)
-            ident = _cli_json(["identify", session, *recs], tmp / "identify.json")
+            ident = _analysis_json("identify", session, recs)
             row["h_m"], row["rmse_nm"] = ident["h_m"], ident["rmse_nm"]
             lo, hi = ident.get("h_ci95_m") or (None, None)
             row["h_ci95_lo_m"], row["h_ci95_hi_m"] = lo, hi
             if task.residual:
-                res = _cli_json(["residual", session, *recs], tmp / "residual.json")
+                res = _analysis_json("residual", session, recs)
                 row["effect"], row["rmse_after_nm"], row["h_after_m"] = (res["effect"], res["rmse_after_nm"],
                                                                          res["h_after_m"])
         row["status"] = "ok"

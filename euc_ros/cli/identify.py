@@ -26,25 +26,18 @@ from pathlib import Path
 
 import numpy as np
 
-from euc_ros.cli.loading import (
-    cog_faults,
-    collect_warnings,
-    format_cog_faults,
-    load_states,
-    print_warnings,
-    usage_table,
-)
+from euc_ros.cli.loading import format_cog_faults, print_warnings, progress_bar
 from euc_ros.cli.outputs import Output, check_outputs, write_output
 from euc_ros.cli.plots import add_figure_arguments, configure_from_args, plot_ride_states, plot_rmse_curves
 from euc_ros.core.errors import ConfigError, InputError
 from euc_ros.core.identify.budget import parse_tolerances
-from euc_ros.core.identify.cog_height import HIdentification, identify_h
-from euc_ros.core.io.provenance import inputs_record
-from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
-from euc_ros.core.model.terms import EucParams
+from euc_ros.core.identify.cog_height import HIdentification
+from euc_ros.core.identify.pipeline import HGrid, identify_recordings
+from euc_ros.core.model.extended import parse_effect_assignments
 from euc_ros.core.model.torque import torques
-from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+from euc_ros.core.states.load import usage_table
+from euc_ros.core.states.settings import ReconstructionSettings
 from euc_ros.core.states.skeleton import COG_METHODS
 
 HELP = "identify the rider CoG height h from recordings (RMSE of M_d1 - M_d2)"
@@ -102,13 +95,6 @@ def add_sliding_prior_argument(parser: argparse.ArgumentParser) -> None:
                              "default: as large as the sliding the chain's links show; docs/cog_artefacts.md)")
 
 
-def sliding_prior(mm: float | None):
-    """The :class:`~euc_ros.core.identify.sliding_prior.SlidingPrior` of ``--sliding-prior-mm``."""
-    from euc_ros.core.identify.sliding_prior import SlidingPrior
-
-    return SlidingPrior(rms_m=None if mm is None else float(mm) * 1e-3)
-
-
 def window_arg(text: str) -> float | str:
     """``--window-s``: ``auto`` or a number of seconds."""
     if text.strip().lower() == "auto":
@@ -121,16 +107,13 @@ def window_arg(text: str) -> float | str:
 
 def h_grid_from_args(args: argparse.Namespace) -> np.ndarray:
     """Return the h grid [m] of ``--h-min/--h-max/--h-step``; ConfigError naming the option if invalid."""
-    lo, hi, step = args.h_min, args.h_max, args.h_step
-    for name, v in (("--h-min", lo), ("--h-max", hi), ("--h-step", step)):
-        if not np.isfinite(v):
-            raise ConfigError(f"must be a finite number, got {v}", key=name)
-    if not 0 < lo < hi:
-        raise ConfigError(f"need 0 < h-min < h-max, got {lo} and {hi}", key="--h-min")
-    if not 0 < step <= (hi - lo) / 2:
-        raise ConfigError(f"must be > 0 and at most half the range, got {step}", key="--h-step")
-    n = int(np.floor((hi - lo) / step + 1e-9)) + 1
-    return lo + step * np.arange(n)
+    return HGrid(args.h_min, args.h_max, args.h_step).values()
+
+
+def settings_from_args(args: argparse.Namespace) -> ReconstructionSettings:
+    """The :class:`~euc_ros.core.states.settings.ReconstructionSettings` of the filter, pitch and CoG options."""
+    return ReconstructionSettings(window_s=args.window_s, polyorder=args.polyorder,
+                                  phi_definition=args.phi_definition, cog_method=args.cog_method)
 
 
 def effects_from_args(args: argparse.Namespace) -> dict[str, dict[str, float]]:
@@ -186,28 +169,44 @@ def _fmt(v: float, digits: int) -> str:
 
 
 def format_uncertainty(ident: HIdentification) -> str:
-    """The verdict on h: interval and sharpness, or why h is not identifiable, and the budget."""
+    """The verdict on the headline h: its interval, or why h is not identifiable; diagnostics and the budget.
+
+    With a filter chosen from the data the headline is h corrected for the pose noise and the filter's
+    distortion (:attr:`~euc_ros.core.identify.cog_height.HIdentification.corrected`), and the uncorrected
+    h at the chosen filter follows as a diagnostic line.
+    """
+    def ci_text(ci) -> str:           # [lo, hi] to 1 mm, "-" for an end the data do not bound
+        lo, hi = ci if ci is not None else (None, None)
+        return "[" + ", ".join("-" if v is None else f"{v:.3f}" for v in (lo, hi)) + "]"
+
     unc = ident.uncertainty
     u = unc["uncertainty"]
-    lo, hi = unc["h_ci95_m"]
     h = ident.h
-    ci = "[-, -]" if lo is None or hi is None else f"[{lo:.3f}, {hi:.3f}]"
+    ci = ci_text(unc["h_ci95_m"])
     bias = u.get("eiv_bias_m")
     floor = u.get("filter_floor_m")
-    how = (f"{u.get('method', 'block bootstrap')} over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
-           + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else "")
-           + (f", filter distortion +-{1e3 * floor:.3f} mm" if floor is not None else ""))
+    step = u.get("distortion_correction_m")
     sharp = "-" if u.get("sharpness") is None else f"{u['sharpness']:.2f}"
-    if unc["identifiable"]:
-        lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
-        hc, (clo, chi) = unc.get("h_corrected_m"), unc.get("h_corrected_ci95_m", (None, None))
-        if hc is not None:
-            cci = "[-, -]" if clo is None or chi is None else f"[{clo:.3f}, {chi:.3f}]"
-            lines.append(f"h corrected for the noise and the filter's distortion = {hc:.3f} m, 95 % interval {cci} m")
-    else:
+    blocks = f"{u.get('method', 'block bootstrap')} over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
+    if not unc["identifiable"]:
         lines = ["h is NOT identifiable from these recordings:",
                  *(f"  - {r}" for r in (unc["identifiability_reason"] or "").split("; ")),
                  f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
+    elif ident.corrected:
+        diag = unc["diagnostics"]
+        removed = [f"noise bias {1e3 * bias:+.1f} mm" if bias is not None else "",
+                   f"filter distortion {-1e3 * step:+.1f} mm" if step is not None else ""]
+        lines = [f"h = {h:.3f} m, 95 % interval {ci} m (corrected for the pose noise and the filter's distortion; "
+                 "the one to use)",
+                 f"  {blocks}" + (f", {' and '.join(r for r in removed if r)} removed" if any(removed) else "")
+                 + f"; curve sharpness {sharp}",
+                 f"  diagnostic, not for use: h at the chosen filter, uncorrected = "
+                 f"{diag['h_at_chosen_filter_m']:.3f} m, 95 % interval {ci_text(diag['h_at_chosen_filter_ci95_m'])} m"
+                 + (f" (noise bias included, filter distortion +-{1e3 * floor:.3f} mm)" if floor is not None else "")]
+    else:
+        how = (blocks + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else "")
+               + (f", filter distortion +-{1e3 * floor:.3f} mm" if floor is not None else ""))
+        lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
     ex = u.get("excitation")
     if ex and unc["identifiable"] and ex.get("accel_rms_mps2") is not None:
         need = ex.get("accel_rms_needed_mps2")
@@ -280,84 +279,17 @@ def format_table(result, identifiable: bool | None = None) -> str:
     return "\n".join(lines)
 
 
-def run_identify(session_path, recordings, *, window_s: float | str = "auto",
-                 polyorder: int | None = None, phi_definition: str = "hinge", cog_method: str = "segments",
-                 h_min: float = 0.1, h_max: float = 1.2, h_step: float = 0.005, effects: dict | None = None,
-                 model: str | None = None, uncertainty: bool = True, sliding: bool = True,
-                 tolerances: dict | None = None, sliding_prior_mm: float | None = None, progress: bool = False):
-    """The identification ``euc-ros identify`` runs: ``(HIdentification, JSON document, states, params)``.
-
-    The document is the command's ``--json`` output, key for key; :func:`euc_ros.identify` returns it too.
-    Defaults are the command's: ``window_s="auto"`` chooses the filter from the recordings
-    (:func:`~euc_ros.core.states.filter_choice.choose_filter`; the document's ``filter`` key, and the
-    interval's floor for the filter's distortion); a number fixes it (``polyorder`` default
-    :data:`~euc_ros.core.states.kinematics.DEFAULT_SG_POLYORDER`).
-    """
-    if window_s == "auto" and polyorder is not None:
-        raise ConfigError("the order is chosen with the window; give a window in seconds to fix it",
-                          key="--polyorder")
-    if window_s != "auto" and polyorder is None:
-        polyorder = DEFAULT_SG_POLYORDER
-    grid = h_grid_from_args(argparse.Namespace(h_min=h_min, h_max=h_max, h_step=h_step))
-    effects = dict(effects or {})
-    session = load_session(session_path)
-    params = EucParams.from_session(session)
-    if effects:
-        ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
-    states = load_states(session, recordings, window_s=window_s, polyorder=polyorder,
-                         phi_definition=phi_definition, progress=progress, desc="identify",
-                         keep_series=uncertainty, cog_method=cog_method)
-    choice = states[0].meta.get("filter")
-    if choice is not None:
-        window_s, polyorder = choice.window_s, choice.polyorder
-    settings = {"session": str(session_path), "recordings": [str(p) for p in recordings],
-                "phi_definition": phi_definition, "cog_method": cog_method, "window_s": window_s,
-                "window_samples": states[0].window, "polyorder": polyorder,
-                "h_grid": {"min_m": float(grid[0]), "max_m": float(grid[-1]), "step_m": h_step},
-                "gravity_m_per_s2": float(params.g)}
-    ident = identify_h(states, session, params, h_grid=grid, h_bounds=(h_min, h_max), effects=effects,
-                       model=model, settings=settings, uncertainty=uncertainty, sliding=sliding,
-                       tolerances=tolerances if tolerances is not None else parse_tolerances([]),
-                       window_s=window_s, polyorder=polyorder, phi_definition=phi_definition, cog_method=cog_method,
-                       filter_choice=choice, sliding_prior=sliding_prior(sliding_prior_mm))
-    data = ident.to_dict()
-    if choice is not None:
-        data["filter"] = choice.to_json()
-    usage = {u["recording"]: u for u in usage_table(states)}
-    for rec in data.get("per_recording", []):
-        rec.update({k: v for k, v in usage.get(rec["recording"], {}).items() if k != "recording"})
-    data["cog"] = cog_faults(states)
-    data["warnings"] = collect_warnings(states) + worse_fit_warnings(ident.fits)
-    data["inputs"] = inputs_record(session_path, recordings)
-    return ident, data, states, params
-
-
-def worse_fit_warnings(fits) -> list[str]:
-    """A warning when an extended model fits the recordings worse than the 3-DoF model it extends.
-
-    Both are fitted on the same states, each at its own best h; an effect that belongs to the data
-    lowers the RMSE, so a higher one says the effect (or its parameters) came from other data.
-    """
-    name = fits.settings.get("extended_model")
-    ext, base = fits.pooled.get(name), fits.pooled.get("3dof")
-    if name is None or ext is None or base is None or not ext.rmse_nm > base.rmse_nm:
-        return []
-    return [f"the extended model {name} fits these recordings worse than the 3-DoF model without its effects "
-            f"(RMSE of M_d1 - M_d2 {ext.rmse_nm:.3f} against {base.rmse_nm:.3f} N m, each at its best h): the "
-            "effect's parameters do not describe these recordings; do not use its h"]
-
-
 def main(args: argparse.Namespace) -> int:
     """Run the identification; returns 0 (EucError on bad input: exit code 2 via the dispatcher)."""
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir")],
                   [args.session, *args.recordings])
     configure_from_args(args)
-    ident, data, states, params = run_identify(
-        args.session, args.recordings, window_s=args.window_s, polyorder=args.polyorder,
-        phi_definition=args.phi_definition, cog_method=args.cog_method, h_min=args.h_min, h_max=args.h_max,
-        h_step=args.h_step, effects=effects_from_args(args), model=args.model,
-        uncertainty=not args.no_uncertainty, sliding=args.sliding_bias, tolerances=parse_tolerances(args.tolerance),
-        sliding_prior_mm=args.sliding_prior_mm, progress=not args.no_progress)
+    run = identify_recordings(
+        args.session, args.recordings, settings_from_args(args), grid=HGrid(args.h_min, args.h_max, args.h_step),
+        effects=effects_from_args(args), model=args.model, uncertainty=not args.no_uncertainty,
+        sliding=args.sliding_bias, tolerances=parse_tolerances(args.tolerance), sliding_prior_mm=args.sliding_prior_mm,
+        progress=progress_bar("identify", not args.no_progress))
+    ident, data, states, params = run.identification, run.data, run.states, run.params
     if "filter" in data:
         print(format_filter(data["filter"]))
     print(format_table(ident.fits, identifiable=ident.identifiable))
@@ -390,7 +322,9 @@ def write_plots(result, states, params, out_dir: Path, *, interval=None,
     out_dir : Path
         Folder of the figures (created).
     interval : (float, float), optional
-        The 95 % interval of h [m], shaded on the RMSE curves.
+        The 95 % interval of the headline h [m] (``HIdentification.interval``: with a filter chosen from
+        the data, that of h corrected for the pose noise and the filter's distortion), shaded on the
+        pooled RMSE curves. The curves' optima are the uncorrected fits, so it need not contain them.
     identifiable : bool or None
         Whether the data identify h (``HIdentification.identifiable``): when not, the titles and labels give
         the h as a best fit not for use (:func:`~euc_ros.cli.plots.h_text`; None: not assessed).

@@ -1,166 +1,28 @@
-"""Reading recordings for the offline analyses (identify, residual): one path for both commands."""
+"""What the offline commands print of their recordings: the CoG line, the warnings, the progress bar.
+
+Reading and reconstruction live in :mod:`euc_ros.core.states.load`.
+"""
 from __future__ import annotations
 
 import sys
-from pathlib import Path
-
-import numpy as np
-
-from euc_ros.core.errors import ConfigError, InputError
-from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
-from euc_ros.core.io.recordings import load_recording, recording_kind
-from euc_ros.core.mocap.checks import check_recording
-from euc_ros.core.mocap.duplicates import TakeIndex
+from typing import Callable, Iterable, Sequence
 
 
-def load_states(session, paths, *, window_s: float | str, polyorder: int | None, phi_definition: str = "hinge",
-                progress: bool = True, desc: str = "read", keep_series: bool = False, cog_method: str = "segments"):
-    """Read recordings, check them against the session and reconstruct their states.
+def progress_bar(desc: str, enabled: bool = True) -> Callable[[Sequence], Iterable] | None:
+    """A tqdm bar over recordings for :func:`~euc_ros.core.states.load.load_states`'s ``progress``.
 
-    ``window_s="auto"`` (``polyorder`` then ignored): the filter is chosen from the recordings' own
-    spectra (:func:`euc_ros.core.states.filter_choice.choose_filter`) after all are read and before any
-    is reconstructed; the :class:`~euc_ros.core.states.filter_choice.FilterChoice` is kept in every
-    state's ``meta["filter"]``.
-
-    Every recording is first checked by :func:`euc_ros.core.mocap.checks.check_recording`; its warnings are
-    kept in ``states.meta["warnings"]`` (see :func:`collect_warnings`). A recording without a single usable
-    state is left out, said in the first state's ``meta["skipped"]``; with none usable the read is refused
-    (an :class:`~euc_ros.core.errors.InputError` naming the first); so is a recording holding the same take as
-    an earlier one (:class:`~euc_ros.core.mocap.duplicates.TakeIndex`). Names are made unique. With
-    ``cog_method="skeleton"`` the chain's link vectors are estimated once from all recordings (one
-    session) before any state is reconstructed.
+    No bar on a non-terminal stderr, none for fewer than two recordings, and none for work that ends (or
+    fails) within 0.5 s, so a refusal stays one line. None when not ``enabled``.
     """
-    from tqdm import tqdm
+    if not enabled:
+        return None
 
-    from euc_ros.core.memory import release_free_memory
-    from euc_ros.core.states.kinematics import reconstruct_states
+    def bar(paths: Sequence) -> Iterable:
+        from tqdm import tqdm
 
-    for path in paths:
-        recording_kind(path)  # fail early, before any long read
-    skeleton = None
-    if cog_method == "skeleton":
-        from euc_ros.core.states.skeleton import SkeletonModel
+        return tqdm(paths, desc=desc, unit="rec", file=sys.stderr, delay=0.5, disable=True if len(paths) < 2 else None)
 
-        skeleton = SkeletonModel.estimate([load_recording(p, session.world_up) for p in paths], session)
-    auto = isinstance(window_s, str)
-    if auto and window_s != "auto":
-        raise ConfigError(f"window must be 'auto' or a number of seconds, got {window_s!r}", key="--window-s")
-    states = []
-    # no bar on a non-terminal stderr (disable=None) and none for work that ends (or fails) within 0.5 s,
-    # so a refusal stays one line
-    bar = tqdm(paths, desc=desc, unit="rec", file=sys.stderr, delay=0.5,
-               disable=True if (not progress or len(paths) < 2) else None)
-    choice = None
-    twins: list[tuple] = []         # (path, why): takes given twice, left out
-    unusable: list[tuple] = []      # (path, why): takes without a usable state, left out
-    takes = TakeIndex()
-
-    def twice(path, series) -> bool:
-        # one take given twice (a CSV and the bag converted from it) would count double: the second is left out
-        other = takes.same_as(series, Path(path).stem)
-        if other is not None:
-            twins.append((path, f"the same take as {other} (equal frames and poses)"))
-        return other is not None
-
-    if auto:
-        # every recording is read before the filter is chosen from all of them
-        from euc_ros.core.states.filter_choice import choose_filter
-
-        bar = [(path, load_recording(path, session.world_up)) for path in bar]
-        bar = [(path, series) for path, series in bar if not twice(path, series)]
-        try:
-            choice = choose_filter([s for _, s in bar], session, phi_definition=phi_definition)
-        except InputError:
-            # a recording's own fault (a missing body, nothing tracked) is named by its reconstruction
-            for path, series in bar:
-                check_recording(series, session, path)
-                reconstruct_states(series, session, phi_definition=phi_definition, cog_method=cog_method,
-                                   skeleton=skeleton)
-            raise
-        window_s, polyorder = choice.window_s, choice.polyorder
-    for item in bar:
-        path, series = item if auto else (item, load_recording(item, session.world_up))
-        if not auto and twice(path, series):
-            continue
-        warnings = check_recording(series, session, path)
-        st = reconstruct_states(series, session, phi_definition=phi_definition, window_s=window_s,
-                                polyorder=polyorder, cog_method=cog_method, skeleton=skeleton)
-        if not st.valid.any():
-            # one recording with nothing usable (a short run the filter's window does not fit between its gaps)
-            # is left out and said; with nothing usable in any, the run is refused
-            unusable.append((path, _unusable_why(st, series)))
-            continue
-        st.name = st.name or Path(path).stem
-        if choice is not None:
-            st.meta["filter"] = choice
-        if keep_series:
-            # kept for the interval and the noise floor, which use the poses only: the marker errors
-            # (an eighth of the recording's bytes at 14 bodies) are dropped for the rest of the run
-            series.mean_marker_error = np.broadcast_to(np.float64(np.nan), series.tracked.shape)
-            st.meta["series"] = series
-        used = samples_used(st)
-        st.meta["samples"] = used
-        if used["samples_used_fraction"] < LOW_USE_FRACTION:
-            warnings.append(f"only {used['samples_used']} of {used['frames']} frames "
-                            f"({100 * used['samples_used_fraction']:.0f} %) give usable states (bodies lost for "
-                            f"more than max_gap frames, or stretches shorter than the filter window)")
-        st.meta.setdefault("warnings", []).extend(warnings)
-        states.append(st)
-    if not states:
-        raise InputError(unusable[0][1], path=unusable[0][0])
-    states[0].meta["skipped"] = [(Path(path).stem, why) for path, why in twins + unusable]
-    seen: dict[str, int] = {}
-    for st in states:  # unique names for the report
-        k = seen.get(st.name, 0)
-        seen[st.name] = k + 1
-        if k:
-            st.name = f"{st.name}#{k + 1}"
-    release_free_memory()           # the readers' and the reconstruction's temporaries
-    return states
-
-
-def _unusable_why(st, series) -> str:
-    """Why a recording gives no usable state, and what would help."""
-    dt = st.dt if np.isfinite(st.dt) and st.dt > 0 else 1.0 / float(series.rate_hz)
-    window_s = st.window * dt if st.window else float("nan")
-    span_s = float(series.t[-1] - series.t[0]) if np.size(series.t) > 1 else 0.0
-    where = (f"the take lasts {span_s:.2f} s, less than the filter's {window_s:.2f} s window" if span_s < window_s else
-             f"bodies lost for more than {DEFAULT_MAX_GAP} frames leave no stretch as long as the filter's "
-             f"{window_s:.2f} s window")
-    return (f"no frame with the EUC and every rider segment tracked long enough to differentiate ({where}; a shorter "
-            f"--window-s, or a longer take)")
-
-
-#: Below this fraction of a recording's frames used, the analysis warns.
-LOW_USE_FRACTION = 0.5
-
-
-def samples_used(st) -> dict:
-    """How much of a recording the analysis uses: ``frames`` (its frame span, dropped frames
-    included), ``samples_used`` (valid states), ``samples_used_fraction``, ``bridged_frames`` (frames
-    with a body bridged across a short gap)."""
-    frames = int(st.frame[-1] - st.frame[0] + 1) if st.n else 0
-    used = int(st.valid.sum())
-    return {"frames": frames, "samples_used": used,
-            "samples_used_fraction": used / frames if frames else 0.0,
-            "bridged_frames": int(st.meta.get("bridged_frames", 0))}
-
-
-def usage_table(states) -> list[dict]:
-    """Per recording: name plus :func:`samples_used`."""
-    return [{"recording": st.name, **st.meta.get("samples", samples_used(st))} for st in states]
-
-
-def cog_faults(states) -> dict:
-    """The CoG method and the rider body-frames it excluded from G (swaps, flips), JSON-ready."""
-    per_body: dict[str, int] = {}
-    for st in states:
-        for nm, c in st.meta.get("cog_fault_bodies", {}).items():
-            per_body[nm] = per_body.get(nm, 0) + int(c)
-    return {"cog_method": states[0].cog_method if states else "segments",
-            "excluded_body_frames": int(sum(st.meta.get("cog_faults", 0) for st in states)),
-            "per_recording": {st.name: int(st.meta.get("cog_faults", 0)) for st in states},
-            "per_body": per_body}
+    return bar
 
 
 def format_cog_faults(info: dict) -> str:
@@ -170,34 +32,6 @@ def format_cog_faults(info: dict) -> str:
     bodies = ", ".join(f"{k} {v}" for k, v in sorted(info["per_body"].items())) or "none"
     return (f"rider CoG: fitted skeleton; body-frames excluded from G (swapped or flipped): "
             f"{info['excluded_body_frames']} ({bodies})")
-
-
-#: A rider body excluded from G in more than this share of a recording's frames is worth a warning.
-EXCLUDED_WARN_SHARE = 0.05
-
-
-def collect_warnings(states) -> list[str]:
-    """Return every recording's warnings, each prefixed with the recording's name.
-
-    Besides the warnings of the reading, every exclusion that changes G is said with its count: a rider
-    body the fitted skeleton excluded in more than :data:`EXCLUDED_WARN_SHARE` of the frames, and bodies
-    the skeleton's chain does not know (their poses are used as measured, without swap or flip checks).
-    """
-    out = [f"{name}: skipped: {why}" for st in states for name, why in st.meta.get("skipped", [])]
-    out += [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]
-    for st in states:
-        n = max(int(np.size(st.t)), 1)
-        for body, count in sorted(st.meta.get("cog_fault_bodies", {}).items()):
-            if count > EXCLUDED_WARN_SHARE * n:
-                out.append(f"{st.name}: rider body {body} excluded from the CoG in {count} of {n} frames "
-                           f"({100 * count / n:.0f} %): its pivot or orientation disagrees with the fitted skeleton "
-                           "(a swapped or flipped body, or a session offset that does not fit it)")
-        unlinked = st.meta.get("cog_unlinked_bodies")
-        if unlinked:
-            out.append(f"{st.name}: the skeleton's chain has no link for {', '.join(unlinked)}: used as measured, "
-                       "without swap or flip checks (the chain knows the contract's body names H, CHR, CHL, UAR, "
-                       "UAL, LAR, LAL, HR, HL, TR, TL, LR, LL)")
-    return out
 
 
 def print_warnings(warnings, file=None) -> None:

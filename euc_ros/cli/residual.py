@@ -17,23 +17,14 @@ import os
 import sys
 from pathlib import Path
 
-from euc_ros.cli.loading import (
-    cog_faults,
-    collect_warnings,
-    format_cog_faults,
-    load_states,
-    print_warnings,
-    usage_table,
-)
+from euc_ros.cli.loading import format_cog_faults, print_warnings, progress_bar
 from euc_ros.cli.outputs import Output, check_outputs, write_output
 from euc_ros.cli.plots import add_figure_arguments, configure_from_args
 from euc_ros.cli.residual_figures import discovered_figure as discovered_figure
 from euc_ros.cli.residual_figures import write_plots
-from euc_ros.core.errors import ConfigError
-from euc_ros.core.io.provenance import inputs_record
-from euc_ros.core.model.effects import LIBRARY, make_candidates, parse_plausible
-from euc_ros.core.model.terms import EucParams
-from euc_ros.core.session import load_session
+from euc_ros.core.model.effects import LIBRARY, parse_plausible
+from euc_ros.core.residual.pipeline import ResidualOptions, trace_residual
+from euc_ros.core.states.settings import ReconstructionSettings
 
 HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the error before and after"
 
@@ -83,126 +74,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="no progress output on stderr")
 
 
-def run_residual(session_path, recordings, *, candidates=None, alpha: float | None = None,
-                 min_gain: float | None = None, max_effects: int = 3, use_geometry: bool = True,
-                 discover: bool = True, window_s: float | None = None, polyorder: int | None = None,
-                 cog_method: str = "segments", phi_definition: str = "hinge", tolerances: dict | None = None,
-                 plausible: dict | None = None, sliding_prior_mm: float | None = None, progress: bool = False):
-    """The analysis ``euc-ros residual`` runs: ``(result, JSON document, states, params)``.
-
-    The document is the command's ``--json`` output, key for key; :func:`euc_ros.residual` returns it too.
-    Defaults are the command's.
-    """
-    from euc_ros.cli.identify import sliding_prior
-    from euc_ros.core.identify.cog_height import identify_h
-    from euc_ros.core.identify.simex import SimexShare
-    from euc_ros.core.residual.analysis import (
-        DEFAULT_ALPHA,
-        DEFAULT_MIN_GAIN,
-        RESIDUAL_POLYORDER,
-        RESIDUAL_WINDOW_S,
-        analyze,
-    )
-    from euc_ros.core.residual.interval import base_widening, filter_refit
-    from euc_ros.core.residual.noise import make_noise_floor
-    from euc_ros.core.states.filter_choice import data_filters
-    from euc_ros.core.states.link_sliding import sliding_or_none, usable_poses
-    from euc_ros.core.states.time_offset import measure_time_offset
-
-    alpha = DEFAULT_ALPHA if alpha is None else alpha
-    min_gain = DEFAULT_MIN_GAIN if min_gain is None else min_gain
-    window_s = RESIDUAL_WINDOW_S if window_s is None else window_s
-    polyorder = RESIDUAL_POLYORDER if polyorder is None else polyorder
-    if not 0 < alpha < 1:
-        raise ConfigError(f"--alpha must be in (0, 1), got {alpha}", key="--alpha")
-    if not 0 <= min_gain < 1:
-        raise ConfigError(f"--min-gain must be in [0, 1), got {min_gain}", key="--min-gain")
-    session = load_session(session_path)
-    states = load_states(session, recordings, window_s=window_s, polyorder=polyorder, phi_definition=phi_definition,
-                         progress=progress, keep_series=True, cog_method=cog_method)
-    params = EucParams.from_session(session)
-    say = (lambda m: print(m, file=sys.stderr, flush=True)) if progress else None
-    series = [st.meta.get("series") for st in states]
-    # the rider-to-EUC time offset measured from the ankles on the pedals bounds the name mocap_time_offset
-    # (unless the user set its range)
-    # which poses the links can use (the time offset's pedal links and the sliding's chain)
-    usable = [usable_poses(s) for s in series] if all(s is not None for s in series) else None
-    offset = measure_time_offset(series, session, usable) if usable is not None else None
-    ranges = dict(plausible or {})
-    if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
-        ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
-    cands = make_candidates(candidates, ranges)
-    # what the rigid links show (measured once: the interval's sliding terms and the filter choice); the links'
-    # usable poses are let go before the analysis
-    links = sliding_or_none(series, session, usable) if usable is not None else None
-    del usable
-    # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
-    simex = SimexShare()
-    noise_of = make_noise_floor(series, states, session, params, share=simex) \
-        if all(s is not None for s in series) else None
-    result = analyze(states, params, candidates=cands, alpha=alpha, min_gain=min_gain,
-                     max_effects=max_effects, use_geometry=use_geometry,
-                     discover=discover, noise_floor_of=noise_of, progress=say)
-    data = result.to_json()
-    # how well the data determine the base model's h (identify's interval and identifiability)
-    budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
-    base = identify_h(states, session, params, models=("3dof",), window_s=window_s, polyorder=polyorder,
-                      phi_definition=phi_definition, cog_method=cog_method, simex_share=simex,
-                      sliding_prior=sliding_prior(sliding_prior_mm), link_sliding=links, **budget).uncertainty
-    for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
-        data.setdefault(k, base[k])
-    if result.final_interval is not None:
-        final = result.final_interval.widened(*base_widening(base))
-        if cog_method == "segments" and all(s is not None for s in series):
-            chosen, probe, ratio = data_filters(series, session, phi_definition, sliding=links)
-            final = filter_refit(final, result.final_model, result.final_x, chosen, params, probe_states=probe,
-                                 probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
-        data.update(final.to_json())
-    data["uncertainty"] = base["uncertainty"]
-    if tolerances:   # what the stated tolerances of nominal values do to the base model's h
-        data["uncertainty_budget"] = base.get("uncertainty_budget")
-        data["h_range_for_tolerances_m"] = base.get("h_range_m")
-    data["recordings"] = [st.name for st in states]
-    data["per_recording"] = usage_table(states)
-    data["warnings"] = collect_warnings(states)
-    data["settings"] = {"session": str(session_path), "window_s": window_s, "polyorder": polyorder,
-                        "candidates": [c.name for c in cands], "cog_method": cog_method}
-    if phi_definition != "hinge":
-        data["settings"]["phi_definition"] = phi_definition
-    if plausible:
-        data["settings"]["plausible"] = {k: list(v) for k, v in plausible.items()}
-    data["time_offset_measured"] = offset
-    data["cog"] = cog_faults(states)
-    data.update(final_identifiability(data))
-    data["inputs"] = inputs_record(session_path, recordings)
-    return result, data, states, params
-
-
-def final_identifiability(data: dict) -> dict:
-    """Whether the data determine the final model's h (``h_after_m``): the JSON keys ``h_after_identifiable``
-    and ``h_after_identifiability_reason``.
-
-    The final model's h is identifiable when its 95 % interval is bounded on both ends and no wider than
-    identify's :data:`~euc_ros.core.identify.interval.MAX_CI_WIDTH_M`; without a final interval (nothing
-    selected or discovered) the final model is the base model and its verdict is the base model's.
-    """
-    from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
-
-    ci = data.get("h_after_ci95_m")
-    if ci is None:
-        return {"h_after_identifiable": bool(data.get("identifiable")),
-                "h_after_identifiability_reason": data.get("identifiability_reason")}
-    if None in ci:
-        held = (data.get("h_after_uncertainty") or {}).get("widened_by") or []
-        reason = "its 95 % interval is not bounded" + (f" (it holds {' and '.join(held)})" if held else "")
-    elif ci[1] - ci[0] > MAX_CI_WIDTH_M:
-        reason = (f"its 95 % interval is {100 * (ci[1] - ci[0]):.0f} cm wide (at most "
-                  f"{100 * MAX_CI_WIDTH_M:.0f} cm for an identified h)")
-    else:
-        reason = None
-    return {"h_after_identifiable": reason is None, "h_after_identifiability_reason": reason}
-
-
 def main(args: argparse.Namespace) -> int:
     """Run the analysis; 0 on success (EucError: exit 2 through the dispatcher)."""
     from euc_ros.cli.identify import format_usage
@@ -211,13 +82,17 @@ def main(args: argparse.Namespace) -> int:
     check_outputs([Output("--json", args.json), Output("--plots", args.plots, "dir"),
                    Output("--report", args.report)], [args.session, *args.recordings])
     configure_from_args(args)
-    result, data, states, params = run_residual(
-        args.session, args.recordings, candidates=args.candidates, alpha=args.alpha, min_gain=args.min_gain,
-        max_effects=args.max_effects, use_geometry=not args.no_geometry, discover=not args.no_discovery,
-        window_s=args.window_s, polyorder=args.polyorder, cog_method=args.cog_method,
-        phi_definition=args.phi_definition, tolerances=parse_tolerances(args.tolerance) if args.tolerance else None,
-        plausible=parse_plausible(args.plausible), sliding_prior_mm=args.sliding_prior_mm,
-        progress=not args.no_progress)
+    run = trace_residual(
+        args.session, args.recordings,
+        ReconstructionSettings(window_s=args.window_s, polyorder=args.polyorder, phi_definition=args.phi_definition,
+                               cog_method=args.cog_method),
+        options=ResidualOptions(candidates=args.candidates, alpha=args.alpha, min_gain=args.min_gain,
+                                max_effects=args.max_effects, use_geometry=not args.no_geometry,
+                                discover=not args.no_discovery, plausible=parse_plausible(args.plausible)),
+        tolerances=parse_tolerances(args.tolerance) if args.tolerance else None,
+        sliding_prior_mm=args.sliding_prior_mm, progress=progress_bar("read", not args.no_progress),
+        say=None if args.no_progress else (lambda m: print(m, file=sys.stderr, flush=True)))
+    result, data, states, params = run.result, run.data, run.states, run.params
     write_output(args.json, json.dumps(data, indent=2) + "\n", "--json")
     print(format_summary(data))
     print(format_usage(data["per_recording"]))

@@ -156,3 +156,12 @@ def test_no_import_cycle_between_the_subpackages():
         folded[mod].discard(mod)
     found = cycles({m: {t for t in ts if t in folded} for m, ts in folded.items()})
     assert not found, "import cycles between subpackages:\n" + "\n".join(" <-> ".join(c) for c in found)
+
+
+def test_nothing_outside_the_cli_imports_the_cli():
+    """The library does not depend on its command line (rosbag2's way round): the pipelines the commands run
+    live in the core, and the API, the nodes, the benchmarks and the campaigns call them there."""
+    bad = [f"{mod}:{line} imports {target}" for mod, path in MODULES.items() if not mod.startswith("euc_ros.cli")
+           for target, line, _ in imports_of(path) if target == "euc_ros.cli" or target.startswith("euc_ros.cli.")]
+    assert not bad, "\n".join(bad)
+

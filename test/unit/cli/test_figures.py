@@ -185,11 +185,12 @@ def _inside(t, spans, *, strict: bool) -> np.ndarray:
 @pytest.fixture(scope="module")
 def rolling_run(rolling):
     """The residual analysis of the rolling rides: (result, JSON document, states, params, prepared recordings)."""
-    from euc_ros.cli.residual import run_residual
+    from euc_ros.core.residual.pipeline import trace_residual
     from euc_ros.core.states.contexts import prepare
 
     session, csvs = rolling
-    result, data, states, params = run_residual(session, csvs)
+    run = trace_residual(session, csvs)
+    result, data, states, params = run.result, run.data, run.states, run.params
     return result, data, states, params, prepare(states, params, floor=result.floor_fit)
 
 
@@ -321,11 +322,12 @@ def test_gap_spans_cover_invalid_samples_and_missing_frames():
 
 
 def test_ride_states_shade_the_occlusion_gaps(gappy, strict):
-    from euc_ros.cli.loading import load_states
     from euc_ros.core.session import load_session
+    from euc_ros.core.states.load import load_states
+    from euc_ros.core.states.settings import ReconstructionSettings
 
     session, csvs = gappy
-    st = load_states(load_session(session), csvs, window_s=0.2, polyorder=3, progress=False)[0]
+    st = load_states(load_session(session), csvs, ReconstructionSettings(window_s=0.2, polyorder=3))[0]
     nan = np.full(st.t.size, np.nan)
     fig = plots.draw_ride_states([st], [(np.where(st.valid, 1.0, nan), np.where(st.valid, 1.1, nan))])
     t = st.t - st.t[0]

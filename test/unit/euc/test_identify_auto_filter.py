@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.cli.loading import load_states
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.session import load_session
+from euc_ros.core.states.load import load_states
 
 #: Noise-free rides: the filter leaves a distortion the chosen window keeps far below this (measured
 #: below 0.03 mm on both simulators, docs/studies/h_bias_worldsim.md); the 1.2 s fixed filter misses by 0.5-8 mm.
@@ -16,8 +16,7 @@ TOLERANCE_M = 1e-3
 
 def _identify(session_path, csvs):
     session = load_session(session_path)
-    states = load_states(session, [str(c) for c in csvs], window_s="auto", polyorder=None, progress=False,
-                         keep_series=True)
+    states = load_states(session, [str(c) for c in csvs], keep_series=True)
     choice = states[0].meta["filter"]
     ident = identify_h(states, session, with_budget=False, sliding=False, window_s=choice.window_s,
                        polyorder=choice.polyorder, filter_choice=choice)

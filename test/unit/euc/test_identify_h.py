@@ -7,7 +7,6 @@ import json
 import numpy as np
 import pytest
 
-from euc_ros.cli.loading import load_states
 from euc_ros.cli.main import main
 from euc_ros.core.identify.budget import parse_tolerances
 from euc_ros.core.identify.cog_height import HIdentification, identify_h
@@ -17,6 +16,8 @@ from euc_ros.core.ridesim.simulate import DEFAULT_H_M, RideConfig, simulate_ride
 from euc_ros.core.ridesim.writers import write_ride
 from euc_ros.core.session import load_session
 from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.load import load_states
+from euc_ros.core.states.settings import ReconstructionSettings
 
 
 @pytest.fixture(scope="module")
@@ -89,7 +90,7 @@ def test_the_command_writes_what_the_library_returns(ride, tmp_path):
                  "--window-s", "1.2"]) == 0
     written = json.loads(out.read_text())
     session = load_session(session_file)
-    states = load_states(session, csvs, window_s=1.2, polyorder=6, progress=False, keep_series=True)
+    states = load_states(session, csvs, ReconstructionSettings(window_s=1.2, polyorder=6), keep_series=True)
     lib = json.loads(json.dumps(identify_h(states, session, sliding=False, tolerances=parse_tolerances([])).to_dict()))
     for key in ("h_m", "rmse_nm", "h_ci95_m", "identifiable", "identifiability_reason", "uncertainty", "h_std_m",
                 "h_range_m", "uncertainty_budget"):

@@ -174,13 +174,14 @@ def test_the_default_ride_is_identifiable_with_its_margins_in_the_json(tmp_path)
     """The simulator's default ride (three 7-s decelerations), through ``euc-ros identify``'s pipeline:
     identifiable, with what it had and what h needs in ``uncertainty.excitation`` beside the keys the
     JSON had."""
-    from euc_ros.cli.identify import run_identify
+    from euc_ros.core.identify.pipeline import identify_recordings
     from euc_ros.core.ridesim.writers import write_ride
 
     write_ride(simulate_ride(RideConfig(seed=0)), tmp_path)
     recs = sorted(glob.glob(str(tmp_path / "deceleration_*.csv")))
     assert len(recs) == 3
-    ident, data, _, _ = run_identify(tmp_path / "session.yaml", recs)
+    run = identify_recordings(tmp_path / "session.yaml", recs)
+    data = run.data
     assert data["identifiable"] is True and data["identifiability_reason"] is None, data["identifiability_reason"]
     u = data["uncertainty"]
     for key in ("bootstrap_ci95_m", "block_s", "n_blocks", "eiv_bias_m", "sharpness", "turning_rms_ms2"):

@@ -1,0 +1,252 @@
+"""The residual analysis from files: session and recordings in, a result that knows its JSON out.
+
+:func:`trace_residual` is what ``euc-ros residual``, :func:`euc_ros.residual` and the campaigns run:
+read the recordings (:func:`~euc_ros.core.states.load.load_states`), measure what the rigid links show
+(the rider-to-EUC time offset, the soft-tissue sliding) and the noise floor, trace M_d1 - M_d2 to the
+candidate effects (:func:`~euc_ros.core.residual.analysis.analyze`), give the base model's h its interval
+(identify's), widen and refit the final model's, and assemble the analysis JSON of the recording format
+(with its ``inputs``, so the result is never applied to other data).
+
+Examples
+--------
+>>> ResidualOptions().alpha, ResidualOptions().min_gain
+(0.01, 0.1)
+>>> ResidualOptions(alpha=1.5)
+Traceback (most recent call last):
+    ...
+euc_ros.core.errors.ConfigError: key '--alpha': must be in (0, 1), got 1.5
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from typing import Callable, Iterable, Sequence
+
+from euc_ros.core.errors import ConfigError
+from euc_ros.core.identify.cog_height import identify_h
+from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
+from euc_ros.core.identify.pipeline import sliding_prior
+from euc_ros.core.identify.simex import SimexShare
+from euc_ros.core.io.provenance import inputs_record
+from euc_ros.core.model.effects import make_candidates
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.residual.analysis import (
+    DEFAULT_ALPHA,
+    DEFAULT_MIN_GAIN,
+    RESIDUAL_POLYORDER,
+    RESIDUAL_WINDOW_S,
+    analyze,
+)
+from euc_ros.core.residual.interval import base_widening, filter_refit
+from euc_ros.core.residual.noise import make_noise_floor
+from euc_ros.core.residual.result import ResidualResult
+from euc_ros.core.session import load_session
+from euc_ros.core.states.filter_choice import data_filters
+from euc_ros.core.states.link_sliding import sliding_or_none, usable_poses
+from euc_ros.core.states.load import cog_faults, collect_warnings, load_states, usage_table
+from euc_ros.core.states.settings import ReconstructionSettings
+from euc_ros.core.states.time_offset import measure_time_offset
+
+#: The residual's reconstruction: a fixed window with less bias of the accelerations than identify's default.
+RESIDUAL_SETTINGS = ReconstructionSettings(window_s=RESIDUAL_WINDOW_S, polyorder=RESIDUAL_POLYORDER)
+
+
+@dataclass(frozen=True)
+class ResidualOptions:
+    """How the residual is traced: the library, the selection's thresholds, geometry and discovery.
+
+    Parameters
+    ----------
+    candidates : sequence of str, optional
+        Library effects to try (default: all).
+    alpha : float
+        Significance level of each selection step, in (0, 1).
+    min_gain : float
+        Minimum relative cut of the held-out RMSE to select an effect, in [0, 1).
+    max_effects : int
+        Most effects to select.
+    use_geometry : bool
+        Compare the wheel-centre height with the session's wheel radius (rolling radius, floor).
+    discover : bool
+        Run the discovery step for what no named effect explains.
+    plausible : dict
+        Plausible ranges of library parameters by ``"effect.parameter"`` instead of the library's.
+
+    Raises
+    ------
+    ConfigError
+        A threshold outside its range, naming the option.
+    """
+
+    candidates: Sequence[str] | None = None
+    alpha: float = DEFAULT_ALPHA
+    min_gain: float = DEFAULT_MIN_GAIN
+    max_effects: int = 3
+    use_geometry: bool = True
+    discover: bool = True
+    plausible: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not 0 < self.alpha < 1:
+            raise ConfigError(f"must be in (0, 1), got {self.alpha}", key="--alpha")
+        if not 0 <= self.min_gain < 1:
+            raise ConfigError(f"must be in [0, 1), got {self.min_gain}", key="--min-gain")
+
+
+@dataclass(frozen=True)
+class ResidualRun:
+    """What one residual analysis made: the result, its JSON document, the states and the parameters.
+
+    Attributes
+    ----------
+    result : ResidualResult
+    data : dict
+        The analysis JSON (``euc-ros residual --json``).
+    states : list of RiderStates
+    params : EucParams
+        The session's nominal parameters.
+    """
+
+    result: ResidualResult
+    data: dict
+    states: list
+    params: EucParams
+
+    def to_json(self) -> str:
+        """The JSON text, indented, with a final newline.
+
+        Returns
+        -------
+        str
+        """
+        return json.dumps(self.data, indent=2) + "\n"
+
+
+def final_identifiability(data: dict) -> dict:
+    """Whether the data determine the final model's h (``h_after_m``).
+
+    The final model's h is identifiable when its 95 % interval is bounded on both ends and no wider than
+    identify's :data:`~euc_ros.core.identify.interval.MAX_CI_WIDTH_M`; without a final interval (nothing
+    selected or discovered) the final model is the base model and its verdict is the base model's.
+
+    Parameters
+    ----------
+    data : dict
+        The residual JSON so far (``h_after_ci95_m``, ``identifiable``, ...).
+
+    Returns
+    -------
+    dict
+        The JSON keys ``h_after_identifiable`` and ``h_after_identifiability_reason``.
+    """
+    ci = data.get("h_after_ci95_m")
+    if ci is None:
+        return {"h_after_identifiable": bool(data.get("identifiable")),
+                "h_after_identifiability_reason": data.get("identifiability_reason")}
+    if None in ci:
+        held = (data.get("h_after_uncertainty") or {}).get("widened_by") or []
+        reason = "its 95 % interval is not bounded" + (f" (it holds {' and '.join(held)})" if held else "")
+    elif ci[1] - ci[0] > MAX_CI_WIDTH_M:
+        reason = (f"its 95 % interval is {100 * (ci[1] - ci[0]):.0f} cm wide (at most "
+                  f"{100 * MAX_CI_WIDTH_M:.0f} cm for an identified h)")
+    else:
+        reason = None
+    return {"h_after_identifiable": reason is None, "h_after_identifiability_reason": reason}
+
+
+def trace_residual(session_path, recordings: Sequence, settings: ReconstructionSettings | None = None, *,
+                   options: ResidualOptions | None = None, tolerances: dict | None = None,
+                   sliding_prior_mm: float | None = None, progress: Callable[[Sequence], Iterable] | None = None,
+                   say: Callable[[str], None] | None = None) -> ResidualRun:
+    """Trace the M_d1 - M_d2 residual of recordings to a missing effect, as ``euc-ros residual`` does.
+
+    Parameters
+    ----------
+    session_path : str or Path
+        The session file.
+    recordings : sequence of str or Path
+        Motive CSV exports, bag directories or ``.mcap`` files.
+    settings : ReconstructionSettings, optional
+        The reconstruction (default :data:`RESIDUAL_SETTINGS`); its window must be a number of seconds.
+    options : ResidualOptions, optional
+        The library and the selection's thresholds (default: the command's).
+    tolerances : dict, optional
+        Tolerances of nominal session values: adds their h budget to the base model's uncertainty.
+    sliding_prior_mm : float, optional
+        RMS of the soft-tissue sliding all rider bodies share [mm].
+    progress : callable, optional
+        A progress display over the recordings.
+    say : callable, optional
+        Receives one line per analysis step.
+
+    Returns
+    -------
+    ResidualRun
+
+    Raises
+    ------
+    EucError
+        A session or recording that cannot be read or used, a bad option.
+    """
+    settings = RESIDUAL_SETTINGS if settings is None else settings
+    options = ResidualOptions() if options is None else options
+    if settings.is_auto:
+        raise ConfigError("the residual analysis needs a window in seconds", key="--window-s")
+    session = load_session(session_path)
+    states = load_states(session, recordings, settings, progress=progress, keep_series=True)
+    params = EucParams.from_session(session)
+    series = [st.meta.get("series") for st in states]
+    # which poses the links can use (the time offset's pedal links and the sliding's chain); the rider-to-EUC
+    # time offset measured from the ankles on the pedals bounds the name mocap_time_offset (unless the user
+    # set its range)
+    usable = [usable_poses(s) for s in series] if all(s is not None for s in series) else None
+    offset = measure_time_offset(series, session, usable) if usable is not None else None
+    ranges = dict(options.plausible or {})
+    if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
+        ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
+    cands = make_candidates(options.candidates, ranges)
+    # what the rigid links show (measured once: the interval's sliding terms and the filter choice); the links'
+    # usable poses are let go before the analysis
+    links = sliding_or_none(series, session, usable) if usable is not None else None
+    del usable
+    # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
+    simex = SimexShare()
+    noise_of = make_noise_floor(series, states, session, params, share=simex) \
+        if all(s is not None for s in series) else None
+    result = analyze(states, params, candidates=cands, alpha=options.alpha, min_gain=options.min_gain,
+                     max_effects=options.max_effects, use_geometry=options.use_geometry,
+                     discover=options.discover, noise_floor_of=noise_of, progress=say)
+    data = result.to_json()
+    # how well the data determine the base model's h (identify's interval and identifiability)
+    budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
+    base = identify_h(states, session, params, models=("3dof",), window_s=settings.window_s,
+                      polyorder=settings.polyorder, phi_definition=settings.phi_definition,
+                      cog_method=settings.cog_method, simex_share=simex,
+                      sliding_prior=sliding_prior(sliding_prior_mm), link_sliding=links, **budget).uncertainty
+    for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
+        data.setdefault(k, base[k])
+    if result.final_interval is not None:
+        final = result.final_interval.widened(*base_widening(base))
+        if settings.cog_method == "segments" and all(s is not None for s in series):
+            chosen, probe, ratio = data_filters(series, session, settings.phi_definition, sliding=links)
+            final = filter_refit(final, result.final_model, result.final_x, chosen, params, probe_states=probe,
+                                 probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
+        data.update(final.to_json())
+    data["uncertainty"] = base["uncertainty"]
+    if tolerances:   # what the stated tolerances of nominal values do to the base model's h
+        data["uncertainty_budget"] = base.get("uncertainty_budget")
+        data["h_range_for_tolerances_m"] = base.get("h_range_m")
+    data["recordings"] = [st.name for st in states]
+    data["per_recording"] = usage_table(states)
+    data["warnings"] = collect_warnings(states)
+    data["settings"] = {"session": str(session_path), "window_s": settings.window_s, "polyorder": settings.polyorder,
+                        "candidates": [c.name for c in cands], "cog_method": settings.cog_method}
+    if settings.phi_definition != "hinge":
+        data["settings"]["phi_definition"] = settings.phi_definition
+    if options.plausible:
+        data["settings"]["plausible"] = {k: list(v) for k, v in options.plausible.items()}
+    data["time_offset_measured"] = offset
+    data["cog"] = cog_faults(states)
+    data.update(final_identifiability(data))
+    data["inputs"] = inputs_record(session_path, recordings)
+    return ResidualRun(result, data, states, params)
