@@ -140,10 +140,11 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
 
 def floor_rmse(session, csv_paths) -> float:
     """Held-out RMSE of the base model [N m] (``euc-ros residual`` without candidates or discovery)."""
-    from euc_ros.cli.residual import run_residual
+    from euc_ros.core.residual.pipeline import ResidualOptions, trace_residual
 
     paths = [csv_paths] if isinstance(csv_paths, (str, Path)) else list(csv_paths)
-    data = run_residual(str(session), [str(c) for c in paths], candidates=[], discover=False)[1]
+    data = trace_residual(str(session), [str(c) for c in paths],
+                          options=ResidualOptions(candidates=[], discover=False)).data
     return float(data["rmse_before_nm"])
 
 
@@ -340,7 +341,7 @@ def run_task(task) -> dict:
     ``task.simulate`` holds ``family`` and optionally ``duration_s``, ``rate_hz``, ``rtol``. Returns a row
     of :data:`COLUMNS`; a failure is a row with ``status: failed`` and the error.
     """
-    from euc_ros.cli.residual import run_residual
+    from euc_ros.core.residual.pipeline import trace_residual
 
     o = task.simulate
     family = o["family"]
@@ -351,7 +352,7 @@ def run_task(task) -> dict:
         with tempfile.TemporaryDirectory(prefix="euc_openworld_") as tmp:
             r = make_ride(task.seed, family, Path(tmp), duration=float(o.get("duration_s", DURATION_S)),
                           rate_hz=float(o.get("rate_hz", RATE_HZ)), rtol=float(o.get("rtol", RTOL)))
-            data = run_residual(str(r["session"]), [str(c) for c in r["csvs"]])[1]
+            data = trace_residual(str(r["session"]), [str(c) for c in r["csvs"]]).data
         ride, law = r["ride"], r["law"]
         row.update(judge(data, family, law))
         row.update(ride_seed=ride.spec.info.get("seed"), artefact_mm=r["artefact_mm"], ratio_target=r["ratio_target"],

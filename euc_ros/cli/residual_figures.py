@@ -445,7 +445,7 @@ def write_plots(result, states, params, out_dir: Path, *, data: dict | None = No
     out_dir : Path
         Folder of the figures (created).
     data : dict, optional
-        The command's JSON document (:func:`euc_ros.cli.residual.run_residual`): its ``identifiable``,
+        The command's JSON document (:func:`euc_ros.core.residual.pipeline.trace_residual`): its ``identifiable``,
         ``h_ci95_m`` and ``h_after_ci95_m`` give the h their status and intervals. Default: the result's own
         JSON, which does not assess the identifiability of h (the figures say so).
 

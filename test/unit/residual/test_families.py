@@ -15,17 +15,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from euc_ros.core.residual.families import (
-    FAMILIES,
-    SPLINE_LEVELS,
-    TIME_CONSTANTS_S,
-    Families,
-    fewest_within_one_se,
-    group_path,
-    independent_columns,
-    low_pass,
-    n_levels,
-)
+from euc_ros.core.residual.families import FAMILIES, SPLINE_LEVELS, TIME_CONSTANTS_S, Families, low_pass, n_levels
+from euc_ros.core.residual.search import fewest_within_one_se, group_path, independent_columns
 
 R = 0.2
 DT = 0.1
@@ -270,7 +261,7 @@ def test_discovered_rows_carry_the_function_with_its_band_and_draw(tmp_path):
     that holds the values (a drift: one curve per recording); the CLI's figure passes the layout checks."""
     from euc_ros.cli import plots
     from euc_ros.cli.residual import discovered_figure
-    from euc_ros.core.residual.discovery import DiscoveredEffect, Group
+    from euc_ros.core.residual.groups import DiscoveredEffect, Group
 
     rng = np.random.default_rng(5)
     ctxs = [fake_ctx(rng, f"r{i}") for i in range(3)]
@@ -345,7 +336,7 @@ def test_columns_filtered_a_few_at_a_time_are_the_whole_filter(prepared_ride, mo
 def test_row_sensitivities_are_rows_of_the_whole_matrix(prepared_ride):
     """The selection's sensitivities, made group by group on some rows of some recordings, are those rows of
     the whole matrix (group_sensitivities) stacked in order."""
-    from euc_ros.core.residual.discovery import RowSensitivities, candidate_groups, group_sensitivities
+    from euc_ros.core.residual.groups import RowSensitivities, candidate_groups, group_sensitivities
 
     recs = prepared_ride
     basis = Families([r.ctx for r in recs])
