@@ -24,7 +24,6 @@ import numpy as np
 from euc_ros.cli.main import main as cli_main
 from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.io.bags import check_bag, read_bag
-from euc_ros.core.model.effects import LIBRARY
 from euc_ros.core.residual.names import library_effects
 from euc_ros.ros.launcher import NodeSpec, run
 
@@ -46,6 +45,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--skip-steer", action="store_true", help="skip the unicycle maneuver")
 
 
+#: What the live replay waits for before its first frame, besides its 3 s ``start_delay``: the
+#: subscriptions mocap/frame has matched (recorder, monitor, rider_state) and /tf has matched
+#: (recorder), and the subscriptions the ROS graph lists on rider/state (torque_estimator, monitor,
+#: recorder) and euc/torque (monitor, recorder). Start-up times vary by seconds on a loaded host: a
+#: fixed delay alone loses the first messages of whichever node comes up last. How soon rider_state's
+#: and torque_estimator's publishers match their subscribers is not visible to the replay: they match
+#: within the ``start_delay`` when the nodes come up together; when one comes up seconds after the
+#: others, the first states or torques may still be missed (frames never are).
+LIVE_WAITS = {"wait_subscribers": 3, "wait_topics": ["/tf=1", "rider/state=3", "euc/torque=2"]}
+
+
 def _step(n: int, text: str) -> None:
     print(f"\n=== [{n}] {text}", flush=True)
 
@@ -59,7 +69,12 @@ def _cli(argv: list[str]) -> int:
 
 
 def _live(out: Path, csv: Path, session: Path, h: float, rate_factor: float, extra: dict | None = None) -> Path:
-    """Run the live pipeline on one CSV; returns the bag path."""
+    """Run the live pipeline on one CSV; returns the path of a bag that holds every frame of it.
+
+    The replay starts once every consumer is there (:data:`LIVE_WAITS`) and ends once every subscriber
+    has every frame; every node is required, so a node that dies ends the run with an error instead of
+    leaving the replay waiting for it or a bag with a hole.
+    """
     config = Path(__file__).resolve().parents[2] / "config"
     bag = out
     if bag.exists():
@@ -67,16 +82,14 @@ def _live(out: Path, csv: Path, session: Path, h: float, rate_factor: float, ext
     te_params = {"session_file": str(session), "h": float(h)}
     te_params.update(extra or {})
     specs = [
-        NodeSpec("recorder", params_file=str(config / "recorder.yaml"), parameters={"output": str(bag)},
-                 required=False),
-        NodeSpec("monitor", params_file=str(config / "monitor.yaml"), required=False),
-        NodeSpec("torque_estimator", params_file=str(config / "torque_estimator.yaml"), parameters=te_params,
-                 required=False),
+        NodeSpec("recorder", params_file=str(config / "recorder.yaml"), parameters={"output": str(bag)}),
+        NodeSpec("monitor", params_file=str(config / "monitor.yaml")),
+        NodeSpec("torque_estimator", params_file=str(config / "torque_estimator.yaml"), parameters=te_params),
         NodeSpec("rider_state", params_file=str(config / "rider_state.yaml"),
-                 parameters={"session_file": str(session)}, required=False),
+                 parameters={"session_file": str(session)}),
         NodeSpec("mocap_ingest", params_file=str(config / "mocap_ingest.yaml"),
                  parameters={"csv_path": str(csv), "rate_factor": rate_factor, "exit_when_done": True,
-                             "start_delay": 3.0, "linger": 1.5}),
+                             "start_delay": 3.0, "linger": 1.5, **LIVE_WAITS}),
     ]
     log = io.StringIO()
     t0 = time.monotonic()
@@ -154,10 +167,10 @@ def main(args: argparse.Namespace) -> int:
           "--json", str(out / "identify_extended.json"), "--no-progress"])
     effects = library_effects(residual["effect"])
     if not args.skip_live and effects:
-        assignments = [f"{e}.{k}={v}" for e in effects for k, v in residual["effect_parameters"].items()
-                       if _belongs(e, k)]
-        bag2 = _live(out / "live_bag_extended", csvs[0], session, residual["h_after_m"], args.rate_factor,
-                     {"effects": effects, "effect_parameters": assignments})
+        # the residual's JSON is the live model as it is: h, effects and parameters (model:=residual.json)
+        print(f"$ euc-ros launch pipeline.launch.xml session:={session} model:={out / 'residual.json'} ...", flush=True)
+        bag2 = _live(out / "live_bag_extended", csvs[0], session, 0.0, args.rate_factor,
+                     {"model": str(out / "residual.json")})
         results["live_after"] = _bag_summary(bag2)
 
     print(f"\n=== done in {time.monotonic() - t_start:.0f} s. Outputs in {out}:")
@@ -176,8 +189,3 @@ def main(args: argparse.Namespace) -> int:
         print(f"    live residual RMS: {results['live_before'].get('live_residual_rms_nm', float('nan')):.2f} -> "
               f"{results['live_after'].get('live_residual_rms_nm', float('nan')):.2f} N m")
     return 0
-
-
-def _belongs(effect: str, param: str) -> bool:
-    cand = LIBRARY[effect]()
-    return param in cand.report(np.array([q.start for q in cand.params]))

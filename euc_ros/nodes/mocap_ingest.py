@@ -50,8 +50,11 @@ SPECS = (
     ParamSpec("start_delay", 1.0, "wait before the first CSV frame so subscribers can match", "s", 0.0, 60.0),
     ParamSpec("wait_subscribers", 0, "also wait until mocap/frame has this many subscriptions, then 0.3 s "
               "(source csv)", "", 0, 1000),
+    ParamSpec("wait_topics", [""], "also wait until each listed topic has N subscriptions: 'topic=N' entries, "
+              "e.g. rider/state=3 (the stages downstream; source csv)"),
     ParamSpec("exit_when_done", False, "exit (code 0) after the CSV replay ends and linger has passed"),
-    ParamSpec("linger", 1.0, "time to keep running after the last CSV frame", "s", 0.0, 3600.0),
+    ParamSpec("linger", 1.0, "time to keep running once every subscriber has acknowledged the last CSV frame",
+              "s", 0.0, 3600.0),
     ParamSpec("topic_type", "pose_stamped", "message of source topics: one geometry_msgs/PoseStamped per body "
               "(vrpn_mocap), or mocap4r2_msgs/RigidBodies per frame (the MOCAP4ROS2 OptiTrack driver)",
               choices=("pose_stamped", "rigid_bodies")),

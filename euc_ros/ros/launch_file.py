@@ -345,12 +345,14 @@ class _Context:
                 out.append(str(self._eval(element, attribute, expression)))
         return "".join(out)
 
-    def _eval(self, element: Element, attribute: str, expression: str) -> bool:
-        """Evaluate a comparison of quoted strings, the only Python ``$(eval)`` accepts here."""
+    def _eval(self, element: Element, attribute: str, expression: str) -> bool | str | int | float:
+        """Evaluate a comparison of quoted strings, or a choice of two constants by one: the Python ``$(eval)``
+        accepts here."""
         def bad() -> ConfigError:
             return self.error(element, f"{attribute}: $(eval) of {expression!r}: only comparisons of quoted "
                                        "strings are supported ('a' == 'b', 'a' != 'b', joined with and, or, "
-                                       "not); a value with a quote in it cannot be compared this way")
+                                       "not), and a choice between two constants by one ('3 if ... else 2'); "
+                                       "a value with a quote in it cannot be compared this way")
 
         try:
             tree = ast.parse(expression.strip(), mode="eval").body
@@ -358,8 +360,14 @@ class _Context:
             raise bad() from None
 
         def value(node: ast.AST) -> Any:
-            if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            if isinstance(node, ast.Constant) and isinstance(node.value, (str, int, float)) \
+                    and not isinstance(node.value, bool):
                 return node.value
+            if isinstance(node, ast.IfExp):
+                test = value(node.test)
+                if not isinstance(test, bool) or not all(isinstance(n, ast.Constant) for n in (node.body, node.orelse)):
+                    raise bad()
+                return value(node.body) if test else value(node.orelse)
             if isinstance(node, ast.Compare) and len(node.ops) == 1 and isinstance(node.ops[0], (ast.Eq, ast.NotEq)):
                 left, right = value(node.left), value(node.comparators[0])
                 if not (isinstance(left, str) and isinstance(right, str)):
@@ -378,7 +386,7 @@ class _Context:
             raise bad()
 
         result = value(tree)
-        if not isinstance(result, bool):
+        if not isinstance(result, bool) and not isinstance(tree, ast.IfExp):
             raise bad()
         return result
 
