@@ -1,13 +1,15 @@
 """Coverage study of the h interval: does the 95 % interval contain the true h?
 
 Over seeds and maneuvers of the ride simulator (whose truth shares no code with the analysis), each
-case is identified exactly as ``euc-ros identify`` does (states, pooled 3-DoF fit, block bootstrap,
-errors-in-variables bias) and classified: identifiable and covered, identifiable and missed, or
-declared not identifiable (with its reason). ``studies/coverage_study.py`` prints the README table;
+case is written as files and identified by ``euc-ros identify`` with its defaults (:func:`euc_ros.identify`:
+the filter chosen from the data, the headline h corrected for the pose noise and the filter's distortion,
+with its interval) and classified: identifiable and covered, identifiable and missed, or declared not
+identifiable (with its reason). ``studies/coverage_study.py`` prints the README table;
 ``test/unit/euc/test_uncertainty.py`` runs a small version.
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
@@ -24,26 +26,58 @@ CASES = (
 
 
 def run_case(maneuver: str, runs: int, duration_s, seed: int, h_true: float = 0.61) -> dict:
-    """One ride identified with its interval; returns h, interval, identifiable, reason, covered."""
-    from euc_ros.core.identify.fit import coefficients_for, fit_h
-    from euc_ros.core.identify.interval import interval, turning_rms
-    from euc_ros.core.identify.simex import eiv_bias
-    from euc_ros.core.model.terms import EucParams
+    """One simulated ride identified as ``euc-ros identify`` does with its defaults; judges the headline h.
+
+    The ride is written as the simulator's files (:func:`~euc_ros.core.ridesim.writers.write_ride`) and
+    identified by :func:`euc_ros.identify`: the filter chosen from the data, the interval with the
+    errors-in-variables and sliding biases, the filter's distortion and the budget, and the headline h
+    corrected for the pose noise and the filter's distortion.
+
+    Parameters
+    ----------
+    maneuver : str
+        The simulator's maneuver (``deceleration``, ``acceleration``, ``constant_speed``, ``figure_eight``).
+    runs : int
+        Number of runs.
+    duration_s : float or None
+        Duration of each run [s] (None: the maneuver's default).
+    seed : int
+        The simulator's seed.
+    h_true : float
+        The true h [m].
+
+    Returns
+    -------
+    dict
+        ``h_m`` and ``ci95_m`` (the JSON's headline ``h_m`` and ``h_ci95_m``; NaN for an end the data do
+        not bound), ``identifiable``, ``reason``, ``covered`` (the interval contains ``h_true``),
+        ``eiv_bias_m`` (SIMEX's bias at the chosen filter), ``h_at_chosen_filter_m`` and
+        ``h_at_chosen_filter_ci95_m`` (the uncorrected fit, from ``diagnostics``; the headline's when there
+        is none).
+    """
+    import tempfile
+    import warnings
+
+    import euc_ros
+    from euc_ros.api import NotIdentifiableWarning
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
-    from euc_ros.core.states.kinematics import reconstruct_states
+    from euc_ros.core.ridesim.writers import write_ride
 
     ride = simulate_ride(RideConfig(maneuver=maneuver, runs=runs, seed=seed, h=h_true, duration_s=duration_s))
-    params = EucParams.from_session(ride.session)
-    series = [r.mocap for r in ride.runs]
-    states = [reconstruct_states(s, ride.session) for s in series]
-    fit = fit_h(states, params, models=("3dof",)).pooled["3dof"]
-    bias, err = eiv_bias(series, ride.session, params, fit.h_m, window_s=states[0].window * states[0].dt,
-                           polyorder=states[0].polyorder, with_error=True) if np.isfinite(fit.h_m) else (np.nan, np.nan)
-    iv = interval(coefficients_for(states, params, "3dof", None), fit, window=states[0].window, dt=states[0].dt,
-                    eiv_bias_m=bias, eiv_bias_err_m=err, turning_ms2=turning_rms(states))
-    lo, hi = iv.ci95_m
-    return {"h_m": fit.h_m, "ci95_m": (lo, hi), "identifiable": iv.identifiable, "reason": iv.reason,
-            "covered": bool(lo <= h_true <= hi), "eiv_bias_m": bias}
+    with tempfile.TemporaryDirectory(prefix="euc_coverage_") as folder:
+        written = write_ride(ride, folder)
+        recordings = [str(p) for p in written if p.suffix == ".csv" and p.parent == Path(folder)]
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", NotIdentifiableWarning)
+            res = euc_ros.identify(str(Path(folder) / "session.yaml"), recordings)
+    lo, hi = res.interval
+    data = res.data
+    diag = data.get("diagnostics") or {"h_at_chosen_filter_m": data["h_m"],
+                                       "h_at_chosen_filter_ci95_m": data.get("h_ci95_m")}
+    return {"h_m": res.h, "ci95_m": (lo, hi), "identifiable": res.identifiable, "reason": res.reason,
+            "covered": bool(lo <= h_true <= hi), "eiv_bias_m": (data.get("uncertainty") or {}).get("eiv_bias_m"),
+            "h_at_chosen_filter_m": diag["h_at_chosen_filter_m"],
+            "h_at_chosen_filter_ci95_m": diag["h_at_chosen_filter_ci95_m"]}
 
 
 def study(cases: Sequence = CASES, seeds: Sequence[int] = range(10), progress=None) -> list[dict]:

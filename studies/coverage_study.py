@@ -9,7 +9,10 @@ import argparse
 import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+HERE = Path(__file__).resolve().parent
+# run as a script, studies/ heads sys.path and its coverage.py would shadow the coverage package numba imports
+sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
+sys.path.insert(0, str(HERE.parent))
 
 from studies.coverage import CASES, study  # noqa: E402
 

@@ -59,9 +59,12 @@ def run_cli(args: list[str]) -> None:
 
 def identify(session: Path, csvs: list[Path], out: Path, window=None, uncertainty: bool = True) -> dict:
     """Run ``euc-ros identify`` (``window`` None: its default, the filter chosen from the data) and return
-    ``h_m``, ``h_ci95_m``, the noise-bias-corrected h (``h_simex_m`` = ``h_m - eiv_bias_m``), the h
-    corrected for noise and distortion (``h_corrected_m``, with ``h_corrected_ci95_m``; the window chosen
-    from the data only), the filter's probe h and floor, and the ``filter`` choice."""
+    ``h_m`` and ``h_ci95_m``, the fit at the filter (identify's ``diagnostics.h_at_chosen_filter_m`` and
+    ``diagnostics.h_at_chosen_filter_ci95_m`` with the filter chosen from the data, its ``h_m`` and
+    ``h_ci95_m`` with a fixed window), the noise-bias-corrected fit (``h_simex_m`` = ``h_m - eiv_bias_m``),
+    the h corrected for noise and distortion (``h_corrected_m`` with ``h_corrected_ci95_m``: identify's
+    headline ``h_m`` and ``h_ci95_m`` with the window chosen from the data, else None), the filter's probe h
+    and floor, and the ``filter`` choice."""
     args = ["identify", str(session), *map(str, csvs), "--json", str(out), "--no-progress"]
     if window is not None:
         args += ["--window-s", repr(float(window[0])), "--polyorder", str(int(window[1]))]
@@ -71,9 +74,11 @@ def identify(session: Path, csvs: list[Path], out: Path, window=None, uncertaint
     d = json.loads(out.read_text(encoding="utf-8"))
     u = d.get("uncertainty") or {}
     bias = u.get("eiv_bias_m")
-    return {"h_m": d["h_m"], "h_ci95_m": d.get("h_ci95_m"), "identifiable": d.get("identifiable"),
-            "h_simex_m": d["h_m"] - bias if bias is not None else None, "eiv_bias_m": bias,
-            "h_corrected_m": d.get("h_corrected_m"), "h_corrected_ci95_m": d.get("h_corrected_ci95_m"),
+    diag = d.get("diagnostics")
+    h, ci = (diag["h_at_chosen_filter_m"], diag["h_at_chosen_filter_ci95_m"]) if diag else (d["h_m"], d.get("h_ci95_m"))
+    return {"h_m": h, "h_ci95_m": ci, "identifiable": d.get("identifiable"),
+            "h_simex_m": h - bias if bias is not None else None, "eiv_bias_m": bias,
+            "h_corrected_m": d["h_m"] if diag else None, "h_corrected_ci95_m": d.get("h_ci95_m") if diag else None,
             "h_probe_m": u.get("h_probe_m"), "filter_floor_m": u.get("filter_floor_m"), "filter": d.get("filter")}
 
 
@@ -208,15 +213,17 @@ def findings(results: dict) -> list[str]:
                     + ([np.abs(errs(ps, lambda r: r["auto"])).max()] if ps else []))
     clean_cov = sum(bool(r["runs"]["clean"]["auto"]["covered"]) for r in ws)
     out.append(f"- With the window chosen from the data (`identify`'s default) the noise-free bias is below "
-               f"{clean_max:.3f} mm on both simulators (target: < 1 mm). The interval carries a floor for the "
-               f"filter's distortion (`filter_floor_m`, from the probe window) and covers {clean_cov}/{len(ws)} "
+               f"{clean_max:.3f} mm on both simulators (target: < 1 mm). The interval of the fit at the chosen "
+               f"filter (`diagnostics.h_at_chosen_filter_ci95_m`) carries a floor for the filter's distortion "
+               f"(`filter_floor_m`, from the probe window) and covers {clean_cov}/{len(ws)} "
                "generator rides; the misses are of a micrometre, the rounding of Motive's 6 decimals (with 9 "
                "decimals the test rides are covered), which no term of the interval holds.")
     c = errs(ws, lambda r: {"h_m": r["runs"]["noisy"]["auto"]["h_simex_m"]})
     k = errs(ws, lambda r: {"h_m": r["runs"]["noisy"]["auto"]["h_corrected_m"]})
-    out.append(f"- With the paper's noise the SIMEX-corrected h (`h_m - eiv_bias_m`) of the auto window is "
-               f"{c.mean():+.2f} +- {c.std(ddof=1) / np.sqrt(c.size):.2f} mm off, the h corrected for noise and "
-               f"distortion (`h_corrected_m`) {k.mean():+.2f} +- {k.std(ddof=1) / np.sqrt(k.size):.2f} mm "
+    out.append(f"- With the paper's noise the SIMEX-corrected fit (`diagnostics.h_at_chosen_filter_m - "
+               f"uncertainty.eiv_bias_m`) of the auto window is {c.mean():+.2f} +- "
+               f"{c.std(ddof=1) / np.sqrt(c.size):.2f} mm off, the h corrected for noise and distortion (identify's "
+               f"headline `h_m`) {k.mean():+.2f} +- {k.std(ddof=1) / np.sqrt(k.size):.2f} mm "
                f"({len(ws)} rides; each ride's error holds the noise's random first-order effect of millimetres: "
                "`docs/studies/h_correction.md` resolves the bias on more rides and with antithetic noise).")
     return out
@@ -266,10 +273,11 @@ AUTO_TEXT = [
     "",
     "For identification the choice counts the noise by the square of its relative variance "
     "(`choose_filter`'s `noise_power=2`: SIMEX removes the noise's first-order bias of h, the distortion stays "
-    "whole), a shorter window than the mean-square-error choice (`noise_power=1`). `h_corrected_m` extrapolates the "
-    "SIMEX-corrected h of the chosen and the probe filter to zero distortion, "
-    "`(r (h - b) - (h_probe - b_probe)) / (r - 1)`, with its own interval `h_corrected_ci95_m` from a paired block "
-    "bootstrap (`euc_ros.core.identify.cog_height.distortion_corrected`).",
+    "whole), a shorter window than the mean-square-error choice (`noise_power=1`). identify's headline `h_m` "
+    "extrapolates the SIMEX-corrected h of the chosen and the probe filter to zero distortion, "
+    "`(r (h - b) - (h_probe - b_probe)) / (r - 1)`, with its own interval `h_ci95_m` from a paired block "
+    "bootstrap (`euc_ros.core.identify.cog_height.distortion_corrected`); the fit at the chosen filter, `h` here, "
+    "and its interval are `diagnostics.h_at_chosen_filter_m` and `diagnostics.h_at_chosen_filter_ci95_m`.",
     "",
 ]
 
@@ -284,9 +292,10 @@ def report(results: dict) -> str:
          "`euc_ros.core.worldsim` (Newton-Euler dynamics of its own, an EUC balance loop with a per-ride pitch-mode "
          "frequency, a rider LQR ankle loop, band-limited disturbances within 0.1-3 Hz, random speed profiles), "
          f"{results['duration_s']:.0f} s each; `clean` = no noise, Motive's 6 decimals; `noisy` = 0.2 mm and 0.5 deg "
-         "(rms) pose noise. Identification: `euc-ros identify` (3-DoF, pooled h, `h_ci95_m`); `default` = "
-         "`--window-s 1.2` (order 6), `auto` = its default (the filter chosen from the recording). Errors are "
-         "identified minus true h, in mm.",
+         "(rms) pose noise. Identification: `euc-ros identify` (3-DoF, pooled h at the filter with its interval: "
+         "`h_m` and `h_ci95_m` with `default`, `diagnostics.h_at_chosen_filter_m` and its interval with `auto`); "
+         "`default` = `--window-s 1.2` (order 6), `auto` = its default (the filter chosen from the recording). "
+         "Errors are identified minus true h, in mm.",
          "",
          "## Spectral content of the true accelerations and the default filter's distortion",
          "",
@@ -303,7 +312,8 @@ def report(results: dict) -> str:
                  + " | ".join(f"{100 * d[k]:.0f} %" for k in ("gamma", "gamma_ddot", "phi_ddot", "x_ddot")) + " |")
     L += ["", "## h per ride: the default filter and the window chosen from the data", "",
           "`auto` = `identify`'s default: `choose_filter` on the recording's raw gamma, phi and wheel centre (noise "
-          "floor estimated from the spectrum). `probe - auto` = `h_probe_m - h_m` of its JSON (the companion window "
+          "floor estimated from the spectrum). `probe - auto` = `h_probe_m - diagnostics.h_at_chosen_filter_m` of "
+          "its JSON (the companion window "
           "with twice the predicted distortion).", "",
           "| seed | noise | default err | default 95 % | covers | auto W [s] / P | auto err | auto 95 % | covers | "
           "probe - auto |",
@@ -324,7 +334,7 @@ def report(results: dict) -> str:
             cov = [r["runs"][noise][m]["covered"] for r in ws]
             mean, se = _stats(errs)
             L.append(f"| worldsim | {noise} | {m} | {mean:+.3f} | {se:.3f} | {sum(bool(c) for c in cov)}/{len(cov)} |")
-            for key, label in (("h_simex_m", "h - SIMEX bias"), ("h_corrected_m", "h_corrected_m")):
+            for key, label in (("h_simex_m", "h - SIMEX bias"), ("h_corrected_m", "h_m (headline, corrected)")):
                 corr = [1e3 * (r["runs"][noise][m][key] - r["h_true_m"]) for r in ws
                         if r["runs"][noise][m].get(key) is not None]
                 if corr and (noise == "noisy" or key == "h_corrected_m"):

@@ -5,8 +5,11 @@ optionally for the 3-DoF model extended with effects (:mod:`.extended`), and, un
 well the data determine the pooled 3-DoF h (:func:`uncertainty_of_h`): the block-bootstrap interval
 widened by the errors-in-variables biases (white pose noise, :mod:`.simex`; soft-tissue sliding,
 :mod:`.sliding`), identifiability, and the budget over the session's nominal values (:mod:`.budget`).
-The result, :class:`HIdentification`, carries h, its interval and the numbers the command reports, and
-gives the command's JSON document (:meth:`HIdentification.to_dict`).
+With a filter chosen from the data, the headline h is the pooled 3-DoF h corrected for the pose noise's
+bias and the filter's distortion (:func:`distortion_corrected`), with its own interval; the h at the
+chosen filter is a diagnostic. The result, :class:`HIdentification`, carries the headline h, its
+interval and the numbers the command reports, and gives the command's JSON document
+(:meth:`HIdentification.to_dict`).
 """
 from __future__ import annotations
 
@@ -53,17 +56,20 @@ H_BOUNDS = (0.1, 1.2)
 
 @dataclass(frozen=True)
 class HIdentification:
-    """h with its interval, and everything ``euc-ros identify`` reports about it.
+    """The headline h with its interval, and everything ``euc-ros identify`` reports about it.
 
     Attributes
     ----------
     h : float
-        The pooled 3-DoF h [m] (NaN without a valid sample).
+        The headline h [m], the JSON's ``h_m``: the best estimate, the one to give ``torque_estimator``.
+        With a filter chosen from the data (and the uncertainty computed) it is the pooled 3-DoF h
+        corrected for the pose noise's bias and the filter's distortion (:func:`distortion_corrected`);
+        otherwise the pooled fit of :attr:`model` (NaN without a valid sample).
     interval : tuple of float
-        Its 95 % interval [m]: the block bootstrap's, widened to contain the bias-corrected h (NaN, NaN
-        when the uncertainty was not computed; infinite ends when the data do not bound h).
+        The 95 % interval of :attr:`h` [m] (the JSON's ``h_ci95_m``; NaN, NaN when the uncertainty was
+        not computed; infinite ends when the data do not bound h).
     identifiable : bool or None
-        Whether the data determine h (None when the uncertainty was not computed).
+        Whether the data determine :attr:`h` (None when the uncertainty was not computed).
     reason : str
         Why not ("" when identifiable or not computed).
     model : str
@@ -71,12 +77,16 @@ class HIdentification:
     fits : IdentifyResult
         Per-recording and pooled fits of every model, with their RMSE curves.
     uncertainty : dict or None
-        The interval's details, JSON-ready (:func:`uncertainty_of_h`), or None.
-    h_corrected : float
-        h corrected for the pose noise's bias and the filter's distortion (:func:`distortion_corrected`;
-        the JSON's ``h_corrected_m``) [m]; NaN without a filter chosen from the data, or when not computed.
-    corrected_interval : tuple of float
-        Its own 95 % interval [m] (``h_corrected_ci95_m``; NaN, NaN when not computed).
+        The JSON's uncertainty keys (:func:`uncertainty_of_h`), or None.
+    corrected : bool
+        Whether :attr:`h` is the corrected h (then :attr:`h_at_filter` and :attr:`interval_at_filter`
+        are the JSON's ``diagnostics``).
+    h_at_filter : float
+        The pooled fit of :attr:`model` [m] at the filter the states were reconstructed with,
+        uncorrected (:attr:`h` itself when not :attr:`corrected`).
+    interval_at_filter : tuple of float
+        Its 95 % interval [m]: the block bootstrap's, widened to contain the noise-corrected h and by the
+        filter's distortion floor (:attr:`interval` itself when not :attr:`corrected`).
     """
 
     h: float
@@ -86,14 +96,22 @@ class HIdentification:
     model: str
     fits: IdentifyResult
     uncertainty: dict | None
-    h_corrected: float = float("nan")
-    corrected_interval: tuple[float, float] = (float("nan"), float("nan"))
+    corrected: bool = False
+    h_at_filter: float = float("nan")
+    interval_at_filter: tuple[float, float] = (float("nan"), float("nan"))
 
     def to_dict(self) -> dict:
-        """The JSON document: the fits headed by :attr:`model`, then the uncertainty (when computed)."""
+        """The JSON document: the fits headed by :attr:`model`, then the uncertainty (when computed).
+
+        The top level holds one h, the headline ``h_m`` (:attr:`h`), with its ``h_ci95_m``,
+        ``identifiable`` and ``h_std_m``; with a corrected headline the fit at the chosen filter is under
+        ``diagnostics`` (``h_at_chosen_filter_m``, ``h_at_chosen_filter_ci95_m``, ...). ``per_recording``
+        and ``models`` hold the fits of every model (each at its optimum, uncorrected).
+        """
         data = self.fits.to_json(self.model)
         if self.uncertainty is not None:
-            data["h_std_formal_m"] = data.get("h_std_m")
+            if not self.corrected:        # the formal std of the fit that h_m is (else under diagnostics)
+                data["h_std_formal_m"] = data.get("h_std_m")
             data.update(self.uncertainty)
         return data
 
@@ -150,10 +168,10 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
     filter_choice : FilterChoice or WindowChoice, optional
         The filter chosen from the data (:func:`~euc_ros.core.states.filter_choice.choose_filter`)
         that ``window_s`` and ``polyorder`` come from; its ``probe`` gives the interval a floor for the
-        distortion the filter leaves (:func:`filter_floor`), and h corrected for that distortion
-        (:func:`distortion_corrected`: ``h_corrected_m`` with its own interval ``h_corrected_ci95_m``;
-        ``h_m`` and ``h_ci95_m`` stay those of the chosen filter). Without it (a fixed window) there
-        are neither.
+        distortion the filter leaves (:func:`filter_floor`), and h corrected for the pose noise and that
+        distortion (:func:`distortion_corrected`), which becomes the headline h of a 3-DoF head (the
+        JSON's ``h_m`` with ``h_ci95_m``; the fit at the chosen filter goes under ``diagnostics``).
+        Without it (a fixed window) there are neither: the headline is the fit.
     sliding_prior : SlidingPrior, optional
         The soft-tissue sliding all the rider's bodies share, which no link shows
         (:mod:`.sliding_prior`; default: as large as the sliding the links show); its effect on h
@@ -179,27 +197,38 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         head = model or name
     pooled3 = fits.pooled.get("3dof")
     h = float(pooled3.h_m) if pooled3 is not None else float("nan")
+    if head != "3dof" and head in fits.pooled:
+        h = float(fits.pooled[head].h_m)
     if not uncertainty or pooled3 is None:
-        return HIdentification(h, (float("nan"), float("nan")), None, "", head, fits, None)
+        return HIdentification(h, (float("nan"), float("nan")), None, "", head, fits, None, h_at_filter=h)
     unc = uncertainty_of_h(states, session, params, pooled3, window_s=window_s, polyorder=polyorder,
                            phi_definition=phi_definition, cog_method=cog_method, h_bounds=h_bounds,
                            sliding=sliding, tolerances=tolerances, with_budget=with_budget,
                            simex_share=simex_share, filter_choice=filter_choice, sliding_prior=sliding_prior,
                            link_sliding=link_sliding)
     if head != "3dof" and effects and head in fits.pooled:
-        unc = extended_uncertainty(unc, states, params, effects, float(fits.pooled[head].h_m), base_h=h)
-        h = float(fits.pooled[head].h_m)
-    lo, hi = (float("nan") if v is None else float(v) for v in unc["h_ci95_m"])
-    hc = unc.get("h_corrected_m")
-    clo, chi = (float("nan") if v is None else float(v) for v in unc.get("h_corrected_ci95_m", (None, None)))
-    return HIdentification(h, (lo, hi), bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
-                           unc, float("nan") if hc is None else float(hc), (clo, chi))
+        unc = extended_uncertainty(unc, states, params, effects, h, base_h=float(pooled3.h_m))
+    elif head != "3dof":                     # a 2-DoF head keeps its own h_m (the fit's)
+        unc = {k: v for k, v in unc.items() if k != "h_m"}
+    ci = _pair(unc["h_ci95_m"])
+    corrected = "h_m" in unc and head == "3dof"
+    h_fit, ci_fit = h, ci
+    if corrected:                            # the headline is the corrected h; the fit is a diagnostic
+        h, ci_fit = float(unc["h_m"]), _pair(unc["diagnostics"]["h_at_chosen_filter_ci95_m"])
+    return HIdentification(h, ci, bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
+                           unc, corrected, h_fit, ci_fit)
+
+
+def _pair(ci) -> tuple[float, float]:
+    """A JSON interval as floats (NaN for a null end)."""
+    lo, hi = ci if ci is not None else (None, None)
+    return tuple(float("nan") if v is None else float(v) for v in (lo, hi))
 
 
 #: Keys of the base model's uncertainty that belong to the base model only (moved under ``base_model``
 #: when the JSON is headed by an extended model).
-BASE_ONLY_KEYS = ("h_ci95_m", "identifiable", "identifiability_reason", "uncertainty", "h_std_m", "h_corrected_m",
-                  "h_corrected_ci95_m", "h_range_m", "uncertainty_budget")
+BASE_ONLY_KEYS = ("h_m", "h_ci95_m", "identifiable", "identifiability_reason", "uncertainty", "h_std_m",
+                  "diagnostics", "h_range_m", "uncertainty_budget")
 #: Block length of the extended model's interval when the base model's bootstrap gives none [s].
 DEFAULT_BLOCK_S = 2.0
 
@@ -214,7 +243,8 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
     biases, the same states filtered alike), reaches ``filter_floor_m`` beyond on both sides and holds
     the sliding prior's range. The
     errors of those bias estimates are not added. Everything computed for the 3-DoF model goes under
-    ``base_model`` with that model's name and h (``base_h``), so no interval stands beside another
+    ``base_model`` with that model's name and its headline h (``base``'s ``h_m`` when it has one, the
+    corrected h, with its ``diagnostics``; else the fit ``base_h``), so no interval stands beside another
     model's h. ``uncertainty.excitation`` is the base model's (the ride's speed changes and
     sensitivities) with the extended model's blocks and the recording they need.
     """
@@ -260,9 +290,20 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
     ``fit`` is the pooled 3-DoF fit of ``states``; the other arguments are those of :func:`identify_h`.
-    Returns the JSON document's keys ``h_ci95_m``, ``identifiable``, ``identifiability_reason``,
-    ``uncertainty``, ``h_std_m``, with ``filter_choice`` ``h_corrected_m`` and ``h_corrected_ci95_m``
-    (:func:`distortion_corrected`), and with the budget ``h_range_m`` and ``uncertainty_budget``.
+
+    Returns
+    -------
+    dict
+        The JSON document's keys ``h_ci95_m``, ``identifiable``, ``identifiability_reason``,
+        ``uncertainty``, ``h_std_m``, and with the budget ``h_range_m`` and ``uncertainty_budget``.
+        They describe the headline h. With ``filter_choice`` and a corrected h
+        (:func:`distortion_corrected`) the headline is that h: the keys add ``h_m`` (the corrected h,
+        replacing the fit's) and ``diagnostics``, the fit at the chosen filter (``h_at_chosen_filter_m``
+        with its interval ``h_at_chosen_filter_ci95_m``, ``h_at_chosen_filter_bootstrap_ci95_m``,
+        ``h_at_chosen_filter_std_m`` and ``h_at_chosen_filter_std_formal_m``); ``h_ci95_m`` is the
+        corrected h's own interval, ``identifiable`` judges it, ``h_std_m`` and
+        ``uncertainty.bootstrap_ci95_m`` are its paired bootstrap's (``uncertainty.method``), and
+        ``h_range_m`` is centred on it. Without them the headline is ``fit.h_m`` (no ``h_m`` key).
     """
     tolerances = dict(DEFAULT_TOLERANCES) if tolerances is None else tolerances
     series = [st.meta.get("series") for st in states]
@@ -332,11 +373,25 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
                                          h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method,
                                          probe_eiv=probe_eiv)
     del coefs, probe                  # per-sample coefficients: not kept through the budget
-    out.update(iv.to_json())
+    head = iv
     if corrected is not None:
-        out["h_corrected_m"] = json_float(corrected.pop("h_corrected_m"))
-        out["h_corrected_ci95_m"] = [json_float(v) for v in extend_by_prior(*corrected.pop("h_corrected_ci95_m"),
-                                                                              prior_range)]
+        hc = corrected.pop("h_corrected_m")
+        ci = extend_by_prior(*corrected.pop("h_corrected_ci95_m"), prior_range)
+        boot = corrected.pop("h_corrected_bootstrap_ci95_m")
+        random_width = corrected.pop("h_corrected_random_width_m")
+        if np.isfinite(hc):           # the headline: h corrected, judged on its own interval
+            head = iv.for_estimate(hc, ci, boot, random_width)
+    out.update(head.to_json())
+    if head is not iv:
+        lo, hi = iv.bootstrap_ci95_m
+        out["h_m"] = json_float(head.h_m)
+        out["diagnostics"] = {
+            "h_at_chosen_filter_m": json_float(fit.h_m),
+            "h_at_chosen_filter_ci95_m": [json_float(v) for v in iv.ci95_m],
+            "h_at_chosen_filter_bootstrap_ci95_m": [json_float(v) for v in iv.bootstrap_ci95_m],
+            "h_at_chosen_filter_std_m": _std_of(lo, hi),
+            "h_at_chosen_filter_std_formal_m": json_float(fit.h_std_m)}
+        out["uncertainty"]["method"] = "paired block bootstrap (chosen and probe filter)"
     if slide is not None:
         out["uncertainty"]["eiv_bias_m"] = json_float(bias)
         out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
@@ -347,15 +402,22 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
                                    for k, v in spread.items()})
     if corrected is not None:
         out["uncertainty"].update({k: json_float(v) for k, v in corrected.items()})
-    lo, hi = iv.bootstrap_ci95_m
-    out["h_std_m"] = float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
+    out["h_std_m"] = _std_of(*head.bootstrap_ci95_m)
     if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
         release_free_memory()         # the bootstraps' temporaries, before the budget's reconstructions
         b = budget(series, states, session, params, fit.h_m, window_s=window_s, polyorder=polyorder,
                    phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
+        if head is not iv:            # the sensitivities are the fit's; the range is centred on the headline h
+            shift = head.h_m - fit.h_m
+            b["h_range_m"] = [None if v is None else float(v + shift) for v in b["h_range_m"]]
         out["h_range_m"] = b["h_range_m"]
         out["uncertainty_budget"] = b
     return out
+
+
+def _std_of(lo: float, hi: float) -> float | None:
+    """The standard deviation of a 95 % bootstrap interval ``[lo, hi]`` taken as normal [m] (None when unbounded)."""
+    return float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
 
 
 def probe_coefficients(series_list, session, params: EucParams, choice, *, phi_definition: str = "hinge",
@@ -462,7 +524,9 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     -------
     dict
         ``h_corrected_m``, ``h_corrected_ci95_m`` (NaN, and NaN ends, without a probe longer than the
-        chosen filter), ``probe_eiv_bias_m`` and ``probe_eiv_bias_err_m`` (SIMEX at the probe),
+        chosen filter), ``h_corrected_bootstrap_ci95_m`` (the paired bootstrap's percentiles alone) and
+        ``h_corrected_random_width_m`` (their width widened for few blocks: the part more data narrows),
+        ``probe_eiv_bias_m`` and ``probe_eiv_bias_err_m`` (SIMEX at the probe),
         ``distortion_correction_m`` (the extrapolation's step, ``h_corrected - (h - eiv_bias)``).
 
     Notes
@@ -488,7 +552,8 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
         with_error=True, cog_method=cog_method)
     nan = float("nan")
     out = {"probe_eiv_bias_m": b_p, "probe_eiv_bias_err_m": e_p, "h_corrected_m": nan,
-           "h_corrected_ci95_m": (nan, nan), "distortion_correction_m": nan}
+           "h_corrected_ci95_m": (nan, nan), "h_corrected_bootstrap_ci95_m": (nan, nan),
+           "h_corrected_random_width_m": nan, "distortion_correction_m": nan}
     b_p = float(b_p) if np.isfinite(b_p) else 0.0
     e_p = float(e_p) if np.isfinite(e_p) else 0.0
     if not (np.isfinite(r) and np.isfinite(h) and np.isfinite(h_probe)) or float(w_p) <= float(choice.window_s):
@@ -503,12 +568,14 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
                                        h_bounds=h_bounds, counts=block_counts(coefs, length))
     with np.errstate(invalid="ignore"):     # unbounded replicates (+-inf at both filters) give NaN: unbounded
         reps = combine(hb_c, hb_p)
-    lo, hi = percentiles95(reps, nb if nb == nb_p else 0)
+    boot = percentiles95(reps, nb if nb == nb_p else 0)
     k = student_factor(nb)
     e = 2.0 * float(np.sqrt((r * e_c) ** 2 + e_p ** 2) / (r - 1.0))
-    lo, hi = h0 - k * (h0 - lo), h0 + k * (hi - h0)
+    lo, hi = h0 - k * (h0 - boot[0]), h0 + k * (boot[1] - h0)
+    random_width = hi - lo
     if np.isfinite(sliding_m) and sliding_m != 0.0:
         e = float(np.hypot(e, 2.0 * sliding_err_m))
         lo, hi = min(lo, lo - sliding_m), max(hi, hi - sliding_m)
-    out.update(h_corrected_m=h0, h_corrected_ci95_m=(lo - e, hi + e), distortion_correction_m=h0 - (h - b_c))
+    out.update(h_corrected_m=h0, h_corrected_ci95_m=(lo - e, hi + e), h_corrected_bootstrap_ci95_m=boot,
+               h_corrected_random_width_m=random_width, distortion_correction_m=h0 - (h - b_c))
     return out

@@ -93,7 +93,7 @@ def sensitivities(coef: np.ndarray, h: float) -> np.ndarray:
 
 def needed_sensitivity(rmse_nm: float, min_sharpness: float, step_m: float = SHARPNESS_STEP_M) -> float:
     """RMS sensitivity ``S`` [N m per m] whose quadratic RMSE curve rises by ``min_sharpness`` at ``+-step_m``."""
-    return float(rmse_nm * math.sqrt((1.0 + min_sharpness) ** 2 - 1.0) / step_m)
+    return float(rmse_nm * math.sqrt(max((1.0 + min_sharpness) ** 2 - 1.0, 0.0)) / step_m)
 
 
 def predicted_sharpness(sensitivity: float, rmse_nm: float, step_m: float = SHARPNESS_STEP_M) -> float:
@@ -233,7 +233,8 @@ class Excitation:
         """
         s_n = needed_sensitivity(self.rmse_nm, min_sharpness, step_m)
         q = 1.0
-        if sharpness is not None and math.isfinite(sharpness) and self.sensitivity_nm_per_m > 0:
+        if sharpness is not None and math.isfinite(sharpness) and sharpness > 0 and self.sensitivity_nm_per_m > 0:
+            # a curve that does not rise (sharpness <= 0: its minimum at a bound, or flat) calibrates nothing
             q = needed_sensitivity(self.rmse_nm, sharpness, step_m) / self.sensitivity_nm_per_m
         s_o, a_m, gain = q * self.other_sensitivity_nm_per_m, self.speed_change_accel_rms_mps2, q * self.gain
         rest = math.sqrt(max(s_n * s_n - s_o * s_o, 0.0)) if math.isfinite(s_o) else float("nan")

@@ -33,7 +33,7 @@ JSON's ``uncertainty.excitation`` whether h is identifiable or not (:func:`excit
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Sequence
 
 import numpy as np
@@ -84,6 +84,19 @@ class Interval:
         Why not ("" when identifiable).
     sharpness : float
         Relative RMSE rise at h* +- 0.1 m.
+    extra : dict
+        More keys of the JSON's ``uncertainty`` (``turning_rms_ms2``, ``excitation``).
+    data_reasons : tuple of str
+        The reasons that concern the data alone (duration, turning, blocks, sharpness), which hold for
+        every estimate of h from them; ``reason`` adds the one about the interval (unbounded, too wide).
+    random_width_m : float
+        The width of the interval's random part [m] (the bootstrap's, widened for few blocks).
+    usable_s : tuple of float
+        Usable seconds per recording (what more recording a too-wide interval needs).
+    duration_s : float
+        Seconds of valid samples, all recordings together.
+    more_for_data : tuple of (float, int)
+        Seconds to add to one take and runs to add for the duration and block criteria (0 when they hold).
     """
 
     h_m: float
@@ -96,6 +109,46 @@ class Interval:
     reason: str
     sharpness: float
     extra: dict = field(default_factory=dict)
+    data_reasons: tuple = ()
+    random_width_m: float = float("nan")
+    usable_s: tuple = ()
+    duration_s: float = float("nan")
+    more_for_data: tuple = (0.0, 0)
+
+    def for_estimate(self, h_m: float, ci95_m, bootstrap_ci95_m, random_width_m: float) -> "Interval":
+        """The verdict on another estimate of h from the same data, blocks and curve, with its own interval.
+
+        Parameters
+        ----------
+        h_m : float
+            The estimate [m] (e.g. h corrected for the pose noise and the filter's distortion).
+        ci95_m : (float, float)
+            Its 95 % interval [m] (non-finite ends: not bounded by the data).
+        bootstrap_ci95_m : (float, float)
+            Its bootstrap percentiles alone [m].
+        random_width_m : float
+            The width of its interval's random part [m].
+
+        Returns
+        -------
+        Interval
+            This interval's blocks, sharpness and data reasons, with ``h_m`` and the intervals given;
+            ``identifiable`` and ``reason`` judge the given interval (bounded, at most
+            :data:`MAX_CI_WIDTH_M` wide), and ``extra["excitation"]``'s ``record_more_s`` and
+            ``more_runs_needed`` are those it needs.
+        """
+        lo, hi = (float(v) for v in ci95_m)
+        text, width_s, width_runs = _interval_reason(lo, hi, float(random_width_m), self.usable_s, self.n_blocks,
+                                                     self.block_s, self.duration_s, self.sharpness)
+        reasons = list(self.data_reasons) + ([text] if text else [])
+        extra = dict(self.extra)
+        if isinstance(extra.get("excitation"), dict):
+            extra["excitation"] = dict(extra["excitation"],
+                                       record_more_s=json_float(max(self.more_for_data[0], width_s)),
+                                       more_runs_needed=int(max(self.more_for_data[1], width_runs)))
+        boot = tuple(float(v) for v in bootstrap_ci95_m)
+        return replace(self, h_m=float(h_m), ci95_m=(lo, hi), bootstrap_ci95_m=boot, identifiable=not reasons,
+                       reason="; ".join(reasons), extra=extra, random_width_m=float(random_width_m))
 
     def to_json(self) -> dict:
         f = json_float
@@ -198,7 +251,7 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
     reasons = []
     if not np.isfinite(h):
         return Interval(h, (np.nan, np.nan), (np.nan, np.nan), np.nan, 0, eiv_bias_m, False, "no valid sample",
-                        float("nan"))
+                        float("nan"), data_reasons=("no valid sample",))
     exc = measure_excitation(coefs, h, float(fit.rmse_nm), states)
     usable = exc.usable_s if exc.usable_s else tuple(k * dt for k in n_rec)
     more_s, more_runs = more_data_for_seconds(usable, MIN_DURATION_S)
@@ -237,20 +290,32 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         reasons.append(f"too little excitation: the RMSE curve rises only {100 * fit.sharpness:.0f} % at h +- 0.1 m "
                        f"(at least {100 * MIN_SHARPNESS:.0f} % needed, which riding longer does not change): "
                        + _excitation_text(exc, needs))
-    width_more_s = width_runs = 0
-    if not (np.isfinite(lo2) and np.isfinite(hi2)):
-        reasons.append("the data do not bound h: bootstrap optima reach the edge of the search range "
-                       f"({nb} block{'' if nb == 1 else 's'} of {length * dt:.1f} s in {duration:.1f} s of usable "
-                       f"states, curve sharpness {fit.sharpness:.2f}: more runs like these or more excitation "
-                       "bound it)")
-    elif hi2 - lo2 > MAX_CI_WIDTH_M:
-        text, width_more_s, width_runs = _width_text(hi2 - lo2, random_width, usable)
+    data_reasons = tuple(reasons)
+    text, width_more_s, width_runs = _interval_reason(lo2, hi2, random_width, usable, nb, length * dt, duration,
+                                                      float(fit.sharpness))
+    if text:
         reasons.append(text)
-    more = {"record_more_s": max(more_s if duration < MIN_DURATION_S else 0.0, block_more_s, width_more_s),
-            "more_runs_needed": max(more_runs if duration < MIN_DURATION_S else 0, block_runs, width_runs)}
+    for_data = (max(more_s if duration < MIN_DURATION_S else 0.0, block_more_s),
+                max(more_runs if duration < MIN_DURATION_S else 0, block_runs))
+    more = {"record_more_s": max(for_data[0], width_more_s), "more_runs_needed": max(for_data[1], width_runs)}
     ex = excitation_json(exc, needs, usable, nb, length * dt, more)
     return Interval(h, (lo2, hi2), boot, length * dt, nb, eiv_bias_m, not reasons, "; ".join(reasons),
-                    float(fit.sharpness), {"turning_rms_ms2": json_float(turning_ms2), "excitation": ex})
+                    float(fit.sharpness), {"turning_rms_ms2": json_float(turning_ms2), "excitation": ex},
+                    data_reasons, float(random_width), tuple(usable), float(duration), for_data)
+
+
+def _interval_reason(lo: float, hi: float, random_width: float, usable, nb: int, block_s: float, duration: float,
+                     sharpness: float) -> tuple[str | None, float, int]:
+    """Why an interval ``[lo, hi]`` is no identification (None when it is bounded and at most
+    :data:`MAX_CI_WIDTH_M` wide), with the seconds to add to one take and the runs to add that its width needs."""
+    if not (np.isfinite(lo) and np.isfinite(hi)):
+        return ("the data do not bound h: bootstrap optima reach the edge of the search range "
+                f"({nb} block{'' if nb == 1 else 's'} of {block_s:.1f} s in {duration:.1f} s of usable "
+                f"states, curve sharpness {sharpness:.2f}: more runs like these or more excitation "
+                "bound it)", 0.0, 0)
+    if hi - lo > MAX_CI_WIDTH_M:
+        return _width_text(hi - lo, random_width, usable)
+    return None, 0.0, 0
 
 
 def _runs(k: int) -> str:

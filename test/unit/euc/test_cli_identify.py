@@ -159,12 +159,15 @@ def test_identify_with_the_selected_effect_recovers_h(sloped, tmp_path, capsys):
     curve = np.array(js["models"]["3dof+ground_slope"]["rmse_curve_nm"])
     assert np.nanmin(curve) >= js["rmse_nm"] - 1e-9              # the refined optimum is at least as good
     # the interval beside the extended h is the extended model's, and holds the truth; the 3-DoF
-    # model's (biased by the slope) is under base_model with its own h
+    # model's (biased by the slope) is under base_model with its own headline h (corrected), whose fit
+    # at the chosen filter is that model's diagnostic
     lo, hi = js["h_ci95_m"]
     assert lo < H_TRUE < hi and hi - lo < 0.05, (lo, hi)
     base = js["base_model"]
-    assert base["model"] == "3dof" and base["h_m"] == pytest.approx(plain["h_m"], abs=1e-3)
-    assert js["uncertainty"]["method"].startswith("block sandwich") and "h_corrected_m" not in js
+    assert base["model"] == "3dof" and base["diagnostics"]["h_at_chosen_filter_m"] == pytest.approx(plain["h_m"],
+                                                                                                      abs=1e-3)
+    assert base["h_m"] != base["diagnostics"]["h_at_chosen_filter_m"]
+    assert js["uncertainty"]["method"].startswith("block sandwich") and "diagnostics" not in js
     assert base["h_ci95_m"] != js["h_ci95_m"] and "uncertainty" in base
 
 

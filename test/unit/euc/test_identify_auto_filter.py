@@ -1,5 +1,6 @@
 """identify's default filter, chosen from the recording: h within 1 mm of the truth on rides of both
-simulators (noise-free), and an interval that contains the truth."""
+simulators (noise-free), and intervals that contain the truth (the headline's to within the micrometre
+SIMEX removes from noise-free poses)."""
 from __future__ import annotations
 
 import numpy as np
@@ -12,6 +13,11 @@ from euc_ros.core.states.load import load_states
 #: Noise-free rides: the filter leaves a distortion the chosen window keeps far below this (measured
 #: below 0.03 mm on both simulators, docs/studies/h_bias_worldsim.md); the 1.2 s fixed filter misses by 0.5-8 mm.
 TOLERANCE_M = 1e-3
+#: On noise-free poses SIMEX still measures a "noise" (the motion's own third differences) and the
+#: headline h, corrected for it, moves by about a micrometre that its interval does not hold (measured
+#: 0.4-1.7 um on these rides; docs/studies/h_correction.md, clean rows). The h at the chosen filter
+#: (a diagnostic), whose interval holds both the fit and the noise-corrected fit, has no such term.
+NOISE_FREE_SIMEX_M = 5e-6
 
 
 def _identify(session_path, csvs):
@@ -40,9 +46,12 @@ def test_auto_filter_recovers_h_on_generator_rides(seed, rate, tmp_path):
     # move h by about a micrometre, which no term of the interval holds)
     paths = write_ride(ride, tmp_path / "fine", Capture(decimals=9), seed=seed, name=f"ws{seed}")
     ident, _ = _identify(paths["session"], [paths["csv"]])
+    assert ident.corrected
     lo, hi = ident.interval
+    assert lo - NOISE_FREE_SIMEX_M <= ride.h <= hi + NOISE_FREE_SIMEX_M, (lo - ride.h, hi - ride.h)
+    # the interval of the h at the chosen filter holds the truth and has the filter's floor: not narrower than twice it
+    lo, hi = ident.interval_at_filter
     assert lo <= ride.h <= hi, (lo - ride.h, hi - ride.h)
-    # the interval has the filter's floor: not narrower than twice it
     assert hi - lo >= 2 * ident.uncertainty["uncertainty"]["filter_floor_m"]
 
 
@@ -56,8 +65,10 @@ def test_auto_filter_recovers_h_on_project_simulator_rides(tmp_path):
     write_ride(result, tmp_path)
     h_true = result.config.h
     ident, choice = _identify(tmp_path / "session.yaml", sorted(tmp_path.glob("*.csv")))
-    assert abs(ident.h - h_true) < TOLERANCE_M
+    assert abs(ident.h - h_true) < TOLERANCE_M and ident.corrected
     lo, hi = ident.interval
+    assert lo - NOISE_FREE_SIMEX_M <= h_true <= hi + NOISE_FREE_SIMEX_M, (lo - h_true, hi - h_true)
+    lo, hi = ident.interval_at_filter
     assert lo <= h_true <= hi, (lo - h_true, hi - h_true)
 
 
