@@ -141,7 +141,7 @@ def test_without_static_peers_the_hosts_do_not_discover_each_other(ros_domain, t
     with Launcher([recorder], stream=log) as rec_launcher:
         assert wait_for(lambda: "recording to" in log.getvalue(), 30.0), log.getvalue()
         with Launcher([ingest], stream=log) as ingest_launcher:
-            assert wait_for(lambda: "waiting for 1 subscription" in log.getvalue(), 30.0), log.getvalue()
+            assert wait_for(lambda: "waiting for mocap/frame subscriptions 0/1" in log.getvalue(), 30.0), log.getvalue()
             # a static-peer match takes well under a second once both run; give it 6 s
             matched = ingest_launcher.wait(timeout=6.0, until=lambda: "replay finished" in log.getvalue())
             assert not matched and "mocap_ingest" not in ingest_launcher.exit_codes, log.getvalue()
