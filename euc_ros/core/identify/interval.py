@@ -60,6 +60,10 @@ MAX_TURNING_MS2 = 0.5
 MAX_CI_WIDTH_M = 0.15
 #: Fewest bootstrap blocks for an identifiable h (fewer give no meaningful percentiles).
 MIN_BLOCKS = 4
+#: RMS longitudinal acceleration beyond any ride [m/s^2]: holding it, the rider leans atan(a / g) = 17 deg
+#: forward or back the whole time (EUC rides reach peaks of 1-2 m/s^2). Advice that needs more is not
+#: advice about excitation: such a residual is an effect the model lacks.
+MAX_RIDE_ACCEL_RMS_MPS2 = 3.0
 
 
 @dataclass
@@ -357,7 +361,13 @@ def _excitation_text(exc: Excitation, needs: Needs) -> str:
     else:
         need = f"speed changes giving an RMS acceleration of about {a_n:.2f} m/s^2" + (
             f", about {_times(k)} times these recordings'" if np.isfinite(k) else "")
-    return f"{had}, h needs {need}"
+    text = f"{had}, h needs {need}"
+    if np.isfinite(a_n) and a_n > MAX_RIDE_ACCEL_RMS_MPS2:
+        lean = np.degrees(np.arctan(a_n / 9.81))
+        text += (f"; no ride gives that (a rider would lean about {lean:.0f} deg the whole time): a residual this far "
+                 "above what the ride's excitation explains is more likely an effect the 3-DoF model lacks (run "
+                 "`euc-ros residual` on these recordings) than too little excitation")
+    return text
 
 
 def _width_text(width: float, random_width: float, usable) -> tuple[str, float, int]:

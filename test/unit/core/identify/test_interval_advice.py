@@ -192,3 +192,22 @@ def test_the_default_ride_is_identifiable_with_its_margins_in_the_json(tmp_path)
     assert ex["sensitivity_nm_per_m"] > ex["sensitivity_needed_nm_per_m"]
     assert 0 <= ex["speed_change_factor_needed"] < 1 and ex["accel_rms_mps2"] > ex["accel_rms_needed_mps2"]
     assert len(ex["speed_change_mps"]) == 3 and all(v > 2.0 for v in ex["speed_change_mps"])
+
+
+def test_a_missing_effect_is_not_advised_as_too_little_excitation(tmp_path):
+    """A 2.5 deg slope nobody declared leaves a residual no excitation could bound: the advice would ask for
+    accelerations no rider can hold, so it names the likelier cause (an effect the model lacks) instead of
+    only asking for more speed change; a clean ride of the same manoeuvre gets no such line."""
+    from euc_ros.core.identify.interval import MAX_RIDE_ACCEL_RMS_MPS2
+    from euc_ros.core.identify.pipeline import identify_recordings
+    from euc_ros.core.ridesim.effects import EffectSet
+    from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
+    from euc_ros.core.ridesim.writers import write_ride
+
+    for name, effects in (("slope", {"ground_slope": {"alpha_deg": 2.5}}), ("flat", {})):
+        folder = tmp_path / name
+        write_ride(simulate_ride(RideConfig(runs=2, seed=7, effects=EffectSet(effects))), folder)
+        data = identify_recordings(folder / "session.yaml", sorted(folder.glob("deceleration_*.csv"))).data
+        needed = data["uncertainty"]["excitation"]["speed_change_accel_rms_needed_mps2"]
+        said = "effect the 3-DoF model lacks" in (data["identifiability_reason"] or "")
+        assert said == (name == "slope") == (needed > MAX_RIDE_ACCEL_RMS_MPS2), (name, needed, data["identifiable"])
