@@ -483,7 +483,9 @@ def test_csv_source_file_stamps_and_loop(rigs, small_csv):
     np.testing.assert_array_equal(stamps, expect)
     arr = np.array(rig.probe.arrivals[:130])
     span1 = arr[59] - arr[0]
-    assert abs(span1 - 0.1475) < 0.03, span1                                 # x4: 0.59 s in 0.1475 s
+    # x4: 0.59 s in 0.1475 s; never faster (the pacing), and later only by what a loaded host delays (the
+    # other test worker shares the two cores): an upper bound that tells pacing from no pacing at all (x1: 0.59 s)
+    assert 0.1475 - 0.03 < span1 < 0.5, span1
     assert abs((arr[60] - arr[59]) - 0.0025) < 0.02                          # next loop one period later
     rig.spin_until(lambda: rig.probe.last_diag(lambda v: int(v["frames"]) >= 130) is not None)
     vals = rig.probe.last_diag(lambda v: int(v["frames"]) >= 130)
