@@ -119,20 +119,18 @@ def worse_fit_warnings(fits) -> list[str]:
 
 
 @dataclass(frozen=True)
-class IdentifyRun:
-    """What one identification made: the result, its JSON document, the states and the parameters.
+class AnalysisRun:
+    """What one analysis of files made: its JSON document, the states and the parameters.
 
     Attributes
     ----------
-    identification : HIdentification
     data : dict
-        The analysis JSON (``euc-ros identify --json``).
+        The analysis JSON (the command's ``--json``).
     states : list of RiderStates
     params : EucParams
         The session's nominal parameters.
     """
 
-    identification: HIdentification
     data: dict
     states: list
     params: EucParams
@@ -145,6 +143,18 @@ class IdentifyRun:
         str
         """
         return json.dumps(self.data, indent=2) + "\n"
+
+
+@dataclass(frozen=True)
+class IdentifyRun(AnalysisRun):
+    """An identification's :class:`AnalysisRun` with its result.
+
+    Attributes
+    ----------
+    identification : HIdentification
+    """
+
+    identification: HIdentification | None = None
 
 
 def identify_recordings(session_path, recordings: Sequence, settings: ReconstructionSettings | None = None, *,
@@ -222,4 +232,4 @@ def identify_recordings(session_path, recordings: Sequence, settings: Reconstruc
     data["cog"] = cog_faults(states)
     data["warnings"] = collect_warnings(states) + worse_fit_warnings(ident.fits)
     data["inputs"] = inputs_record(session_path, recordings)
-    return IdentifyRun(ident, data, states, params)
+    return IdentifyRun(data=data, states=states, params=params, identification=ident)

@@ -636,8 +636,7 @@ class GroupSparseDiscovery(Discovery):
     Parameters
     ----------
     families : sequence of Family
-        The basis (default :data:`~.families.FAMILIES`; a :class:`~.families.FunctionFamily` adds a function
-        of one's own).
+        The basis (default :data:`~.families.FAMILIES`, or a selection of it).
     search : GroupSearch
         The search over the groups (:class:`~.search.GroupSearch`).
     """

@@ -18,14 +18,13 @@ euc_ros.core.errors.ConfigError: key '--alpha': must be in (0, 1), got 1.5
 """
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass, field
 from typing import Callable, Iterable, Sequence
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
-from euc_ros.core.identify.pipeline import sliding_prior
+from euc_ros.core.identify.pipeline import AnalysisRun, sliding_prior
 from euc_ros.core.identify.simex import SimexShare
 from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.effects import make_candidates
@@ -94,32 +93,15 @@ class ResidualOptions:
 
 
 @dataclass(frozen=True)
-class ResidualRun:
-    """What one residual analysis made: the result, its JSON document, the states and the parameters.
+class ResidualRun(AnalysisRun):
+    """A residual analysis' :class:`~euc_ros.core.identify.pipeline.AnalysisRun` with its result.
 
     Attributes
     ----------
     result : ResidualResult
-    data : dict
-        The analysis JSON (``euc-ros residual --json``).
-    states : list of RiderStates
-    params : EucParams
-        The session's nominal parameters.
     """
 
-    result: ResidualResult
-    data: dict
-    states: list
-    params: EucParams
-
-    def to_json(self) -> str:
-        """The JSON text, indented, with a final newline.
-
-        Returns
-        -------
-        str
-        """
-        return json.dumps(self.data, indent=2) + "\n"
+    result: ResidualResult | None = None
 
 
 def final_identifiability(data: dict) -> dict:
@@ -249,4 +231,4 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     data["cog"] = cog_faults(states)
     data.update(final_identifiability(data))
     data["inputs"] = inputs_record(session_path, recordings)
-    return ResidualRun(result, data, states, params)
+    return ResidualRun(data=data, states=states, params=params, result=result)
