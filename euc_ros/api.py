@@ -215,7 +215,8 @@ def identify(session: str | Path, recordings: str | Path | Sequence[str | Path],
             warnings.warn(line, ModelFitWarning, stacklevel=2)
         effects = {**applied.effects, **effects}
     settings, rest = _settings(options)
-    grid = HGrid(**{k: rest.pop(f"h_{k[:-2]}") for k in ("min_m", "max_m", "step_m") if f"h_{k[:-2]}" in rest})
+    options_of_grid = {"h_min": "min_m", "h_max": "max_m", "h_step": "step_m"}
+    grid = HGrid(**{field: rest.pop(option) for option, field in options_of_grid.items() if option in rest})
     run = identify_recordings(os.fspath(session), recs, settings, grid=grid, effects=effects, **rest)
     data = run.data
     ci = _pair(data.get("h_ci95_m"))
