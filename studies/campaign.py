@@ -10,6 +10,7 @@ from dataclasses import dataclass
 
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import analyze
+from euc_ros.core.residual.selector import ForwardSelector
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, reconstruct_states
 
 #: Acceleration and deceleration runs (3 + 3), alternating direction.
@@ -202,7 +203,8 @@ def null_calibration_trial(seed: int, alphas=(0.01, 0.05, 0.1, 0.2)) -> list[dic
     states, session, series = simulate_states({}, seed, keep_series=True)
     params = EucParams.from_session(session)
     nf = make_noise_floor(series, states, session, params)
-    return [_trial_row(None, seed, analyze(states, params, noise_floor_of=nf, alpha=a).to_json()) for a in alphas]
+    return [_trial_row(None, seed, analyze(states, params, noise_floor_of=nf,
+                                           selector=ForwardSelector(alpha=a)).to_json()) for a in alphas]
 
 
 def power_trial(family: str | None, seed: int, magnitude: dict | None = None, *, noise_floor: bool = True) -> dict:
@@ -230,6 +232,6 @@ def family_cut(family: str, seed: int, magnitude: dict) -> float:
 
     states, session, _ = simulate_states({family: magnitude}, seed)
     out = analyze(states, EucParams.from_session(session), candidates=make_candidates([family]),
-                  discover=False, min_gain=0.0, alpha=0.5).to_json()
+                  discovery=False, selector=ForwardSelector(alpha=0.5, min_gain=0.0)).to_json()
     row = next(c for c in out["candidates"] if c["effect"] == family)
     return 1.0 - row["rmse_after_nm"] / out["rmse_before_nm"]

@@ -20,11 +20,13 @@ import numpy as np
 
 from euc_ros.core.identify.cog_height import uncertainty_of_h
 from euc_ros.core.identify.fit import fit_h
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts, perturb_session
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import DEFAULT_H_M, RideConfig, simulate_ride
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, reconstruct_states
+from euc_ros.core.states.settings import ReconstructionSettings
 from euc_ros.core.states.skeleton import COG_METHODS, SkeletonModel
 
 #: Sliding amplitudes of the campaign [m] (RMS of the 3-D pivot sliding of every rider body).
@@ -147,9 +149,10 @@ def h_interval(states, series, session, params, fit, method: str) -> dict:
     and sliding SIMEX biases)."""
     for st, s in zip(states, series):
         st.meta["series"] = s
-    unc = uncertainty_of_h(states, session, params, fit, window_s=DEFAULT_WINDOW_S, polyorder=DEFAULT_SG_POLYORDER,
-                           phi_definition="hinge", cog_method=method, h_bounds=(0.1, 1.2), tolerances={},
-                           with_budget=False)
+    unc = uncertainty_of_h(states, session, params, fit,
+                           reconstruction=ReconstructionSettings(window_s=DEFAULT_WINDOW_S,
+                                                                 polyorder=DEFAULT_SG_POLYORDER, cog_method=method),
+                           options=IntervalOptions(h_bounds=(0.1, 1.2), tolerances={}, with_budget=False))
     lo, hi = unc["h_ci95_m"]
     u = unc["uncertainty"]
     inside = lo is not None and hi is not None and lo <= DEFAULT_H_M <= hi

@@ -34,6 +34,7 @@ from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.session import load_session  # noqa: E402
 from euc_ros.core.states.filter_choice import choose_filter  # noqa: E402
 from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
+from euc_ros.core.states.settings import ReconstructionSettings  # noqa: E402
 from euc_ros.core.worldsim import Capture, simulate_ride, write_ride  # noqa: E402
 from euc_ros.core.worldsim.excitation import PROFILE_KINDS  # noqa: E402
 
@@ -150,7 +151,8 @@ def main(argv=None) -> int:
             st = reconstruct_states(s, session, window_s=w, polyorder=ch.polyorder)
             coefs = coefficients_for([st], params, "3dof", None)
             h = pooled_fit(coefs, DEFAULT_H_GRID).h_m
-            b, be = eiv_bias([s], session, params, h, window_s=w, polyorder=ch.polyorder, with_error=True)
+            b, be = eiv_bias([s], session, params, h, reconstruction=ReconstructionSettings(window_s=w,
+                             polyorder=ch.polyorder), with_error=True)
             hc, hce = eiv_corrected_h([s], session, params, coefs, h, window_s=w, polyorder=ch.polyorder)
             row[f"{f:g}"] = {"window_s": w, "err": 1e3 * (h - ride.h), "simex": 1e3 * (h - b - ride.h),
                              "simex_se": 1e3 * be, "obj": 1e3 * (hc - ride.h), "obj_se": 1e3 * hce}

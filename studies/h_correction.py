@@ -48,12 +48,14 @@ sys.path.insert(0, str(REPO))
 
 from euc_ros.core.identify.cog_height import identify_h  # noqa: E402
 from euc_ros.core.identify.fit import pooled_h_of_states  # noqa: E402
+from euc_ros.core.identify.options import IntervalOptions  # noqa: E402
 from euc_ros.core.io.recordings import load_recording  # noqa: E402
 from euc_ros.core.mocap.noise import pose_noise_draws, pose_noise_series  # noqa: E402
 from euc_ros.core.model.terms import EucParams  # noqa: E402
 from euc_ros.core.session import load_session  # noqa: E402
 from euc_ros.core.states.filter_choice import NOISE_POWER, choose_filter  # noqa: E402
 from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402
+from euc_ros.core.states.settings import ReconstructionSettings  # noqa: E402
 
 RATES = (100.0, 120.0, 240.0, 360.0)
 MANEUVERS = ("deceleration", "acceleration", "constant_speed", "figure_eight")
@@ -79,8 +81,8 @@ def identify(series_list, session, clean=None) -> dict:
         st = reconstruct_states(s, session, window_s=choice.window_s, polyorder=choice.polyorder)
         st.meta["series"] = s
         states.append(st)
-    ident = identify_h(states, session, with_budget=False, window_s=choice.window_s, polyorder=choice.polyorder,
-                       filter_choice=choice)
+    ident = identify_h(states, session, filter_choice=choice, reconstruction=ReconstructionSettings(),
+                       uncertainty=IntervalOptions(with_budget=False))
     u = ident.uncertainty["uncertainty"]
     nan = float("nan")
     out = {"window_s": choice.window_s, "polyorder": choice.polyorder, "probe": list(choice.probe),

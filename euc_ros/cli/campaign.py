@@ -60,14 +60,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     z.add_argument("--effect", action="append", default=[], metavar="NAME", help="hidden effect (repeatable)")
     z.add_argument("--param", action="append", default=[], metavar="NAME=VALUE", help="effect parameter")
     z.add_argument("--no-noise", action="store_true", help="noise-free poses")
-    from euc_ros.cli.open_world import DURATION_S as OW_DURATION_S
-    from euc_ros.cli.open_world import RATE_HZ as OW_RATE_HZ
-    from euc_ros.cli.open_world import RTOL as OW_RTOL
+    from euc_ros.core.openworld.study import DURATION_S as OW_DURATION_S
+    from euc_ros.core.openworld.study import RATE_HZ as OW_RATE_HZ
+    from euc_ros.core.openworld.study import RTOL as OW_RTOL
 
     w = sub.add_parser("open-world", help="hidden random laws in generator rides: a per-family table",
                        epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
-    w.add_argument("--seeds", choices=("tuning", "report"), default="tuning",
-                   help="the fixed seed set (euc_ros/core/worldsim/open_world_seeds.py) [tuning]")
+    w.add_argument("--seeds", choices=("tuning", "report", "held-out"), default="tuning",
+                   help="the fixed seed set (euc_ros/core/worldsim/open_world_seeds.py): tuning for development, "
+                        "report (the published table; a development set now), held-out (the next table, run "
+                        "once) [tuning]")
     w.add_argument("--per-family", type=int, default=50, metavar="N", help="rides per family: the set's first N [50]")
     w.add_argument("--families", type=lambda t: [f.strip() for f in t.split(",") if f.strip()], default=None,
                    metavar="A,B", help="families (default: none,lab_field,wheel,speed,drift,dynamic)")
@@ -95,11 +97,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def tasks_from_args(args) -> list[cmp.Task]:
     if args.mode == "open-world":
-        from euc_ros.cli import open_world as ow
+        from euc_ros.core.openworld import study
 
-        specs = ow.tasks(args.seeds, args.per_family, args.families or ow.FAMILIES,
-                         duration=args.duration or ow.DURATION_S, rate_hz=args.rate or ow.RATE_HZ,
-                         rtol=args.rtol or ow.RTOL)
+        specs = study.tasks(args.seeds, args.per_family, args.families or study.FAMILIES,
+                            duration=args.duration or study.DURATION_S, rate_hz=args.rate or study.RATE_HZ,
+                            rtol=args.rtol or study.RTOL)
         return [cmp.Task(name, "open_world", seed=seed, simulate=opts) for name, seed, opts in specs]
     if args.mode == "sessions":
         folders = []
@@ -154,7 +156,7 @@ def main(args: argparse.Namespace) -> int:
     tasks = tasks_from_args(args)
     kept = []
     if getattr(args, "reuse", None):
-        from euc_ros.cli import open_world as ow
+        from euc_ros.core.openworld import study
 
         names = {t.name for t in tasks}
         earlier = {}
@@ -162,7 +164,7 @@ def main(args: argparse.Namespace) -> int:
             if not Path(path).is_file():
                 raise ConfigError(f"{path}: no such results file", key="--reuse")
             rows_then = ([json.loads(line) for line in Path(path).read_text(encoding="utf-8").splitlines() if line]
-                         if str(path).endswith(".jsonl") else ow.read_rows(path))
+                         if str(path).endswith(".jsonl") else study.read_rows(path))
             earlier.update({r["task"]: r for r in rows_then if r["status"] == "ok" and r["task"] in names})
         kept = [earlier[n] for n in sorted(earlier)]
         tasks = [t for t in tasks if t.name not in earlier]
@@ -215,21 +217,23 @@ def main(args: argparse.Namespace) -> int:
 
 def _open_world_outputs(args, rows: list[dict], out: Path, where: str, wall_s: float) -> int:
     """results.csv, summary.json, the Markdown table and its figure of an open-world run."""
-    from euc_ros.cli import open_world as ow
+    from euc_ros.cli import open_world as report
+    from euc_ros.core.openworld import study
+    from euc_ros.core.openworld.judge import summarize
     from euc_ros.core.worldsim.open_world_seeds import SEED_SETS
 
-    ow.write_rows(rows, out / "results.csv")
-    summ = ow.summarize(rows)
+    study.write_rows(rows, out / "results.csv")
+    summ = summarize(rows)
     seeds = SEED_SETS[args.seeds][:args.per_family]
     opts = {"--families": ",".join(args.families) if args.families else None, "--duration": args.duration,
             "--rate": args.rate, "--rtol": args.rtol, "--workers": args.workers}
     command = (f"euc-ros campaign open-world --seeds {args.seeds} --per-family {args.per_family} --out {args.out}"
                + "".join(f" {k} {v}" for k, v in opts.items() if v is not None) + (" --serial" if args.serial else ""))
     meta = {"command": command, "seed_set": args.seeds, "per_family": args.per_family,
-            "seed_range": f"seeds {seeds[0]}-{seeds[-1]}", "families": args.families or list(ow.FAMILIES),
-            "duration_s": args.duration or ow.DURATION_S, "rate_hz": args.rate or ow.RATE_HZ,
-            "rtol": args.rtol or ow.RTOL,
-            "date": time.strftime("%Y-%m-%d"), "machine": ow.machine(), "where": where, "wall_s": wall_s}
+            "seed_range": f"seeds {seeds[0]}-{seeds[-1]}", "families": args.families or list(study.FAMILIES),
+            "duration_s": args.duration or study.DURATION_S, "rate_hz": args.rate or study.RATE_HZ,
+            "rtol": args.rtol or study.RTOL,
+            "date": time.strftime("%Y-%m-%d"), "machine": report.machine(), "where": where, "wall_s": wall_s}
     if args.seeds != "report":
         meta["note"] = ("A run on the tuning seeds (development and pilots), not the reported study: that is "
                         "`euc-ros campaign open-world --seeds report --per-family 50 --out DIR "
@@ -238,10 +242,10 @@ def _open_world_outputs(args, rows: list[dict], out: Path, where: str, wall_s: f
     (out / "summary.json").write_text(json.dumps(summ, indent=2) + "\n", encoding="utf-8")
     md = Path(args.table) if args.table else out / "open_world.md"
     png = Path(args.figure) if args.figure else out / "open_world.png"
-    fig = ow.figure(rows, summ, png) if any(r["status"] == "ok" for r in rows) else None
+    fig = report.figure(rows, summ, png) if any(r["status"] == "ok" for r in rows) else None
     md.parent.mkdir(parents=True, exist_ok=True)
-    md.write_text(ow.markdown(summ, rows, meta, fig, md), encoding="utf-8")
-    print("\n".join(ow.table_lines(summ)))
+    md.write_text(report.markdown(summ, rows, meta, fig, md), encoding="utf-8")
+    print("\n".join(report.table_lines(summ)))
     failed = sum(r["status"] != "ok" for r in rows)
     print(f"open-world: {len(rows) - failed} of {len(rows)} rides ok; results in {out}, table {md}")
     return 0 if failed == 0 else 1

@@ -54,7 +54,7 @@ class Task:
     simulate : dict
         Options of the simulated ride: ``maneuver``, ``runs``, ``duration_s``, ``effects`` (list), ``params``
         (dict), ``noise`` (bool); for ``open_world`` the ``family`` and ``duration_s``, ``rate_hz``, ``rtol``
-        (:mod:`euc_ros.cli.open_world`).
+        (:mod:`euc_ros.core.openworld.study`).
     residual : bool
         Also run ``euc-ros residual``.
     """
@@ -128,10 +128,10 @@ def _simulate(task: Task, out: Path) -> tuple[str, list[str], float]:
 def run_task(task: Task) -> dict:
     """Run one task; a row of :data:`COLUMNS` (``status`` ``ok`` or ``failed`` with the error).
 
-    An ``open_world`` task gives a row of :data:`euc_ros.cli.open_world.COLUMNS` instead.
+    An ``open_world`` task gives a row of :data:`euc_ros.core.openworld.study.COLUMNS` instead.
     """
     if task.kind == "open_world":
-        from euc_ros.cli.open_world import run_task as run_open_world
+        from euc_ros.core.openworld.study import run_task as run_open_world
 
         return run_open_world(task)
     row = {c: None for c in COLUMNS}

@@ -31,7 +31,7 @@ import numpy as np
 from euc_ros.cli.outputs import Output, check_outputs
 from euc_ros.core.errors import InputError
 from euc_ros.core.io.bags import read_mocap_bag, write_mocap_bag
-from euc_ros.core.mocap.ingest import capture_start_ns, format_capture_start
+from euc_ros.core.mocap.capture_time import capture_start_ns, format_capture_start
 
 HELP = "convert a Motive CSV export to a bag (PoseStamped per body, optional MocapFrame) and back"
 

@@ -13,7 +13,7 @@ Output: a table on stdout; with ``--json OUT`` the analysis output of the record
 Extended model. ``--effect NAME`` (repeatable) with ``--param EFFECT.NAME=VALUE``
 (repeatable), or ``--from-residual residual.json`` (its ``effect`` and ``effect_parameters``), adds
 the effects the residual analysis selected to the 3-DoF model
-(:class:`~euc_ros.core.model.extended.ExtendedModel`, parameters fixed at the given values). h is
+(:class:`~euc_ros.core.model.extended.Model`, parameters fixed at the given values). h is
 then identified for that model too, on the same grid and with the same refinement, and the JSON is
 headed by it: ``"model": "3dof+ground_slope"``.
 """

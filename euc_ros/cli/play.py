@@ -135,7 +135,7 @@ class BagSource:
     def _frames(self):
         """``(stamp_ns, topic, cdr)`` of the frames assembled from the bag's per-body poses, from the start on."""
         from euc_ros.core.io.bags import read_mocap_bag
-        from euc_ros.core.mocap.ingest import Frame
+        from euc_ros.core.mocap.frame import Frame
         from euc_ros.ros.convert import frame_to_raw
 
         STAMP_FILE_TIME = 1   # euc_msgs/MocapFrame: capture start time plus frame / rate

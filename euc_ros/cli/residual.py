@@ -32,7 +32,8 @@ HELP = "trace the M_d1 - M_d2 residual to a missing physical effect; report the 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``euc-ros residual``."""
     from euc_ros.cli.identify import add_sliding_prior_argument
-    from euc_ros.core.residual.analysis import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
+    from euc_ros.core.residual.analysis import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S
+    from euc_ros.core.residual.selector import DEFAULT_ALPHA, DEFAULT_MIN_GAIN
 
     parser.add_argument("session", metavar="SESSION.yaml", help="session file (docs/session.md)")
     parser.add_argument("recordings", metavar="RECORDING", nargs="+",

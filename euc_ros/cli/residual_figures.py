@@ -300,7 +300,7 @@ def _on_recording(rec, t_all: np.ndarray, mask: np.ndarray, *values: np.ndarray)
 def draw_residual_time(result, recs, states, data: dict):
     """M_d1 - M_d2 over time, one panel per recording: the base 3-DoF model and the final one; the spans
     without usable samples shaded (occlusion gaps, the filter's ends, frames not recorded)."""
-    from euc_ros.core.residual.selection import Model
+    from euc_ros.core.model.extended import Model
 
     plt = pyplot()
     base_ok, _ = h_status(data)
@@ -337,7 +337,7 @@ def _draw_signature(result, rec, st, data: dict):
     """The residual against the selected effect's contribution: over time (always readable, also for an
     effect that is nearly constant, such as rolling resistance at one sign of the speed), and as a scatter
     when the contribution varies enough to spread the points."""
-    from euc_ros.core.residual.selection import Model
+    from euc_ros.core.model.extended import Model
 
     plt = pyplot()
     _, final_ok = h_status(data)

@@ -28,6 +28,8 @@ neither needs the other). Each name is a module (``errors``) or a subpackage (``
 * ``ridesim``: the ride simulator (shares no code with the model, by design); ``worldsim``: a second,
   independent ride generator (its own dynamics, controllers and writer) that the analyses are tested on;
   ``unicycle``: the autonomous unicycle of the steering paper.
+* ``openworld``: the open-world study (generator rides with hidden random laws and the ride simulator's
+  soft-tissue artefacts, traced by the residual analysis and judged against the truth).
 """
 
 #: The core's layers from the bottom up; each entry a tuple of sibling modules or subpackages.
@@ -41,4 +43,5 @@ LAYERS: tuple[tuple[str, ...], ...] = (
     ("identify",),
     ("residual", "online"),
     ("ridesim", "unicycle", "worldsim"),
+    ("openworld",),
 )

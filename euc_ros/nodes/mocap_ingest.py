@@ -7,9 +7,10 @@ the capture time; a server that sends nothing is said on the console after 3 s).
 
 Bad input never stops the node: duplicate and out-of-order stamps or frame numbers, malformed
 NatNet packets and invalid poses are dropped (or published untracked) and counted in the
-diagnostics. The logic lives in :mod:`euc_ros.core.mocap.ingest`; this module only wires ROS. The up axis
-is checked against the first seconds of data (``check_up_axis``): a contradiction ends the node
-with exit code 2.
+diagnostics. The logic lives in :mod:`euc_ros.core.mocap` (:mod:`~euc_ros.core.mocap.frame`,
+:mod:`~euc_ros.core.mocap.tracking`, :mod:`~euc_ros.core.mocap.decimation` and the modules the sources use);
+this module only wires ROS. The up axis is checked against the first seconds of data (``check_up_axis``): a
+contradiction ends the node with exit code 2.
 """
 from __future__ import annotations
 
@@ -23,7 +24,9 @@ from tf2_msgs.msg import TFMessage
 
 from euc_ros.core.errors import EucError
 from euc_ros.core.io import cdr_frame
-from euc_ros.core.mocap.ingest import Frame, TrackingStats, ViewDecimator
+from euc_ros.core.mocap.decimation import ViewDecimator
+from euc_ros.core.mocap.frame import Frame
+from euc_ros.core.mocap.tracking import TrackingStats
 from euc_ros.core.mocap.up_axis_watch import UpAxisWatch
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
@@ -107,7 +110,7 @@ class MocapIngest(Node):
     ===========  ===============================  ======================================  ============================
 
     Parameters: :data:`SPECS`. ``view_rate`` (120 Hz) shows every frame up to 120 Hz and every 3rd at
-    360 Hz, by frame number when the frames have one (:class:`~euc_ros.core.mocap.ingest.ViewDecimator`).
+    360 Hz, by frame number when the frames have one (:class:`~euc_ros.core.mocap.decimation.ViewDecimator`).
 
     Parameters
     ----------

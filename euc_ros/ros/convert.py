@@ -11,7 +11,7 @@ from euc_msgs.msg import MocapFrame
 from geometry_msgs.msg import Pose, PoseStamped, TransformStamped
 
 from euc_ros.core.io import cdr_frame
-from euc_ros.core.mocap.ingest import Frame
+from euc_ros.core.mocap.frame import Frame
 
 if TYPE_CHECKING:
     from rosbags.interfaces import Qos

@@ -18,7 +18,7 @@ import pytest
 from euc_ros.cli.main import main
 from euc_ros.core.io.bags import check_bag, read_bag
 from euc_ros.core.io.motive_csv import read_motive_csv
-from euc_ros.core.mocap.ingest import capture_start_ns
+from euc_ros.core.mocap.capture_time import capture_start_ns
 from euc_ros.ros.launcher import Launcher, NodeSpec
 
 pytestmark = [pytest.mark.ros, pytest.mark.integration, pytest.mark.slow]

@@ -26,7 +26,7 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.core.errors import ConfigError, InputError  # noqa: E402
-from euc_ros.core.mocap.ingest import Frame  # noqa: E402
+from euc_ros.core.mocap.frame import Frame  # noqa: E402
 from euc_ros.core.online.estimators import RiderStateEstimator  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402
 from euc_ros.core.states.kinematics import reconstruct_states  # noqa: E402

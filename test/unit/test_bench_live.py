@@ -9,7 +9,7 @@ pytest.importorskip("euc_msgs.msg", reason="the euc_msgs interfaces are not buil
 
 from euc_ros.bench.common import cpu_fraction, cpu_seconds  # noqa: E402
 from euc_ros.bench.live_sweep import extra_bodies  # noqa: E402
-from euc_ros.core.mocap.ingest import Frame  # noqa: E402
+from euc_ros.core.mocap.frame import Frame  # noqa: E402
 from euc_ros.core.mocap.series import MocapSeries  # noqa: E402
 
 

@@ -16,7 +16,7 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.fit import fit_h, pooled_h_of_states
 from euc_ros.core.identify.interval import json_float
 from euc_ros.core.memory import release_free_memory
-from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 
 #: Default tolerances of the session's nominal values for the h range (user-overridable).
 DEFAULT_TOLERANCES = {
@@ -73,8 +73,8 @@ def _absolute(tol, nominal: float) -> float:
     return abs(nominal) * float(tol[:-1]) / 100.0 if isinstance(tol, str) else float(tol)
 
 
-def budget(series_list, states, session, params, h: float, *, window_s: float, polyorder: int,
-           phi_definition: str = "hinge", tolerances: dict | None = None, cog_method: str = "segments") -> dict:
+def budget(series_list, states, session, params, h: float, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,
+           tolerances: dict | None = None) -> dict:
     """dh/dp for every nominal value and the h range for the tolerances.
 
     Model-only values are perturbed in :class:`EucParams` on the reconstructed states; the segment CoM
@@ -117,9 +117,7 @@ def budget(series_list, states, session, params, h: float, *, window_s: float, p
     for dz in (step, -step):
         s2 = shifted(dz)
         # each recording's states made when the fit asks for them and reduced to their coefficients at once
-        hs.append(pooled_h_of_states((reconstruct_states(s, s2, phi_definition=phi_definition, window_s=window_s,
-                                                         polyorder=polyorder, cog_method=cog_method, lean=True)
-                                      for s in series_list), params))
+        hs.append(pooled_h_of_states((reconstruction.reconstruct(s, s2, lean=True) for s in series_list), params))
         release_free_memory()         # the shifted reconstruction's temporaries
     d = (hs[0] - hs[1]) / (2 * step)
     tol = _absolute(tolerances["rider.segments.com_offset"], 0.0)

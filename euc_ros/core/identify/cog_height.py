@@ -42,16 +42,21 @@ from euc_ros.core.identify.interval import (
     student_factor,
     turning_rms,
 )
-from euc_ros.core.identify.simex import SimexShare, eiv_bias, eiv_biases
+from euc_ros.core.identify.options import FULL_INTERVAL, H_BOUNDS, IntervalOptions, Measured
+from euc_ros.core.identify.simex import eiv_bias, eiv_biases
 from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
 from euc_ros.core.memory import release_free_memory
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates, reconstruct_states
+from euc_ros.core.states.kinematics import RiderStates
 from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
+from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 
-#: Lowest and highest h the interval may reach [m] (the ends of the default grid).
-H_BOUNDS = (0.1, 1.2)
+#: The reconstruction whose filter is the chosen one (or the default without a choice).
+AUTO = ReconstructionSettings()
+
+__all__ = ["H_BOUNDS", "HIdentification", "FilterPair", "identify_h", "uncertainty_of_h", "extended_uncertainty",
+           "probe_coefficients", "filter_floor", "distortion_corrected"]
 
 
 @dataclass(frozen=True)
@@ -121,29 +126,36 @@ class HIdentification:
 
 
 def identify_h(states: Sequence[RiderStates], session, params: EucParams | None = None, *,
-               h_grid=DEFAULT_H_GRID, h_bounds: tuple[float, float] = H_BOUNDS, models: Sequence[str] = MODELS,
+               reconstruction: ReconstructionSettings = AUTO, filter_choice=None,
+               h_grid=DEFAULT_H_GRID, models: Sequence[str] = MODELS,
                effects: dict[str, dict[str, float]] | None = None, model: str | None = None,
-               settings: dict | None = None, uncertainty: bool = True, with_budget: bool = True,
-               sliding: bool = True, tolerances: dict | None = None, window_s: float = DEFAULT_WINDOW_S,
-               polyorder: int = DEFAULT_SG_POLYORDER, phi_definition: str = "hinge", cog_method: str = "segments",
-               simex_share: SimexShare | None = None, filter_choice=None,
-               sliding_prior: SlidingPrior | None = None, link_sliding: dict | None = None) -> HIdentification:
+               settings: dict | None = None, uncertainty: IntervalOptions | None = FULL_INTERVAL,
+               measured: Measured | None = None) -> HIdentification:
     """Identify h from reconstructed recordings, with its interval.
 
     Parameters
     ----------
     states : sequence of RiderStates
-        The recordings' states, reconstructed with ``window_s``, ``polyorder``, ``phi_definition`` and
-        ``cog_method``. The interval needs each recording's poses in ``states[i].meta["series"]``; without
-        them the errors-in-variables biases and the budget are left out.
+        The recordings' states, reconstructed with ``reconstruction``. The interval needs each recording's
+        poses in ``states[i].meta["series"]``; without them the errors-in-variables biases and the budget
+        are left out.
     session : Session
         The recordings' session (the budget perturbs its nominal values).
     params : EucParams, optional
         Nominal parameters (default: the session's).
+    reconstruction : ReconstructionSettings
+        How the states were reconstructed (the biases reconstruct the recordings again alike); with
+        ``"auto"`` (default) the filter is ``filter_choice``'s, or without one the fixed default
+        (:data:`~euc_ros.core.states.settings.FIXED_DEFAULT`).
+    filter_choice : FilterChoice or WindowChoice, optional
+        The filter chosen from the data (:func:`~euc_ros.core.states.filter_choice.choose_filter`)
+        the states were reconstructed with; its ``probe`` gives the interval a floor for the
+        distortion the filter leaves (:func:`filter_floor`), and h corrected for the pose noise and that
+        distortion (:func:`distortion_corrected`), which becomes the headline h of a 3-DoF head (the
+        JSON's ``h_m`` with ``h_ci95_m``; the fit at the chosen filter goes under ``diagnostics``).
+        Without it (a fixed window) there are neither: the headline is the fit.
     h_grid : array_like
         CoG heights of the grid search [m], increasing.
-    h_bounds : tuple of float
-        Lowest and highest h the bootstrap's grid may reach [m].
     models : sequence of {"3dof", "2dof"}
         The paper's models to fit (the interval needs ``3dof``).
     effects : dict, optional
@@ -153,38 +165,23 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         The model heading the JSON document (default: the extended model with ``effects``, else ``3dof``).
     settings : dict, optional
         Stored in the fits (and the JSON).
-    uncertainty : bool
-        Compute the interval, identifiability and biases (the slow part).
-    with_budget : bool
-        Also the budget over the nominal values (re-identifies h once per value).
-    sliding : bool
-        Include the soft-tissue sliding's SIMEX bias in the interval.
-    tolerances : dict, optional
-        Tolerances of the nominal values for the budget (default :data:`~.budget.DEFAULT_TOLERANCES`).
-    window_s, polyorder, phi_definition, cog_method
-        How the states were reconstructed (the biases reconstruct the recordings again alike).
-    simex_share : SimexShare, optional
-        Holds SIMEX's first replicate when the residual's noise floor made it already.
-    filter_choice : FilterChoice or WindowChoice, optional
-        The filter chosen from the data (:func:`~euc_ros.core.states.filter_choice.choose_filter`)
-        that ``window_s`` and ``polyorder`` come from; its ``probe`` gives the interval a floor for the
-        distortion the filter leaves (:func:`filter_floor`), and h corrected for the pose noise and that
-        distortion (:func:`distortion_corrected`), which becomes the headline h of a 3-DoF head (the
-        JSON's ``h_m`` with ``h_ci95_m``; the fit at the chosen filter goes under ``diagnostics``).
-        Without it (a fixed window) there are neither: the headline is the fit.
-    sliding_prior : SlidingPrior, optional
-        The soft-tissue sliding all the rider's bodies share, which no link shows
-        (:mod:`.sliding_prior`; default: as large as the sliding the links show); its effect on h
-        extends the intervals.
-    link_sliding : dict, optional
-        What the rigid links show (:func:`~euc_ros.core.states.link_sliding.estimate_sliding` of the
-        recordings) when the caller measured it already (default: ``filter_choice``'s, else measured here).
+    uncertainty : IntervalOptions or None
+        What the interval, identifiability and biases include (the slow part); None: the fits alone.
+    measured : Measured, optional
+        What the caller measured on these recordings already (SIMEX's first replicate, the links' sliding;
+        default: the links' sliding of ``filter_choice``, else measured here).
 
     Returns
     -------
     HIdentification
+
+    Raises
+    ------
+    ConfigError
+        A fixed filter in ``reconstruction`` other than ``filter_choice``'s.
     """
     params = EucParams.from_session(session) if params is None else params
+    reconstruction = _fixed_filter(reconstruction, filter_choice)
     fits = fit_h(states, params, h_grid, models=models, settings=settings)
     head = model or "3dof"
     if effects:
@@ -201,11 +198,8 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         h = float(fits.pooled[head].h_m)
     if not uncertainty or pooled3 is None:
         return HIdentification(h, (float("nan"), float("nan")), None, "", head, fits, None, h_at_filter=h)
-    unc = uncertainty_of_h(states, session, params, pooled3, window_s=window_s, polyorder=polyorder,
-                           phi_definition=phi_definition, cog_method=cog_method, h_bounds=h_bounds,
-                           sliding=sliding, tolerances=tolerances, with_budget=with_budget,
-                           simex_share=simex_share, filter_choice=filter_choice, sliding_prior=sliding_prior,
-                           link_sliding=link_sliding)
+    unc = uncertainty_of_h(states, session, params, pooled3, reconstruction=reconstruction,
+                           filter_choice=filter_choice, options=uncertainty, measured=measured)
     if head != "3dof" and effects and head in fits.pooled:
         unc = extended_uncertainty(unc, states, params, effects, h, base_h=float(pooled3.h_m))
     elif head != "3dof":                     # a 2-DoF head keeps its own h_m (the fit's)
@@ -217,6 +211,25 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         h, ci_fit = float(unc["h_m"]), _pair(unc["diagnostics"]["h_at_chosen_filter_ci95_m"])
     return HIdentification(h, ci, bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
                            unc, corrected, h_fit, ci_fit)
+
+
+def _fixed_filter(reconstruction: ReconstructionSettings, choice) -> ReconstructionSettings:
+    """``reconstruction`` with its filter fixed: ``choice``'s when it is ``"auto"``, else the default filter.
+
+    Raises
+    ------
+    ConfigError
+        A fixed filter other than ``choice``'s.
+    """
+    if reconstruction.is_auto:
+        if choice is None:
+            return reconstruction.with_filter(FIXED_DEFAULT.window_s, FIXED_DEFAULT.polyorder)
+        return reconstruction.with_filter(choice.window_s, choice.polyorder)
+    if choice is not None and (abs(float(reconstruction.window_s) - float(choice.window_s)) > 1e-9
+                               or int(reconstruction.polyorder) != int(choice.polyorder)):
+        raise ConfigError(f"the states' filter ({reconstruction.window_s} s, order {reconstruction.polyorder}) is not "
+                          f"the chosen one ({choice.window_s} s, order {choice.polyorder})", key="--window-s")
+    return reconstruction
 
 
 def _pair(ci) -> tuple[float, float]:
@@ -282,14 +295,21 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
     return out
 
 
-def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, fit: ModelFit, *, window_s: float,
-                     polyorder: int, phi_definition: str = "hinge", cog_method: str = "segments",
-                     h_bounds: tuple[float, float] = H_BOUNDS, sliding: bool = True, tolerances: dict | None = None,
-                     with_budget: bool = True, simex_share: SimexShare | None = None, filter_choice=None,
-                     sliding_prior: SlidingPrior | None = None, link_sliding: dict | None = None) -> dict:
+def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, fit: ModelFit, *,
+                     reconstruction: ReconstructionSettings = AUTO, filter_choice=None,
+                     options: IntervalOptions = FULL_INTERVAL, measured: Measured | None = None) -> dict:
     """Interval, identifiability, errors-in-variables bias and budget of the pooled 3-DoF h (JSON-ready).
 
-    ``fit`` is the pooled 3-DoF fit of ``states``; the other arguments are those of :func:`identify_h`.
+    Parameters
+    ----------
+    states, session, params
+        As for :func:`identify_h`.
+    fit : ModelFit
+        The pooled 3-DoF fit of ``states``.
+    reconstruction, filter_choice, measured
+        As for :func:`identify_h`.
+    options : IntervalOptions
+        What the interval includes.
 
     Returns
     -------
@@ -305,7 +325,10 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         ``uncertainty.bootstrap_ci95_m`` are its paired bootstrap's (``uncertainty.method``), and
         ``h_range_m`` is centred on it. Without them the headline is ``fit.h_m`` (no ``h_m`` key).
     """
-    tolerances = dict(DEFAULT_TOLERANCES) if tolerances is None else tolerances
+    rec = _fixed_filter(reconstruction, filter_choice)
+    measured = measured or Measured()
+    h_bounds = options.h_bounds
+    tolerances = dict(DEFAULT_TOLERANCES) if options.tolerances is None else options.tolerances
     series = [st.meta.get("series") for st in states]
     out = {}
     bias = err = float("nan")
@@ -317,37 +340,35 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         # SIMEX at the chosen filter, and at the probe from the same re-noised recordings; the probe's own h is
         # fitted after (its replicates' h do not depend on it: the bias is their mean minus it), so its
         # coefficients are not held through the replicates
-        filters = [(window_s, polyorder, fit.h_m)]
+        filters = [(rec.window_s, rec.polyorder, fit.h_m)]
         if with_probe and float(filter_choice.probe[0]) > float(filter_choice.window_s):
             filters.append((float(filter_choice.probe[0]), int(filter_choice.probe[1]), 0.0))
-        biases = eiv_biases(series, session, params, filters, phi_definition=phi_definition, cog_method=cog_method,
-                            share=simex_share)
+        biases = eiv_biases(series, session, params, filters, reconstruction=rec, share=measured.simex_share)
         bias, err = biases[0]
     if with_probe:
-        probe = probe_coefficients(series, session, params, filter_choice, phi_definition=phi_definition,
-                                   cog_method=cog_method)
+        probe = probe_coefficients(series, session, params, filter_choice, reconstruction=rec)
         h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
     if len(biases) > 1:
         probe_eiv = (biases[1][0] - h_probe, biases[1][1])
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
-    slide = measured = None
-    if have_series and sliding:
+    slide = links = None
+    if have_series and options.sliding:
         try:
-            measured = link_sliding or getattr(filter_choice, "sliding", None) or estimate_sliding(series, session)
+            links = measured.link_sliding or getattr(filter_choice, "sliding", None) \
+                or estimate_sliding(series, session)
         except ConfigError:      # no chain link between the recorded bodies: no sliding measurable
-            measured = None
-    if have_series and sliding and measured is not None:
+            links = None
+    if have_series and options.sliding and links is not None:
         try:
-            slide = sliding_bias(series, session, params, fit.h_m, window_s=window_s, polyorder=polyorder,
-                                 phi_definition=phi_definition, cog_method=cog_method, sliding=measured)
+            slide = sliding_bias(series, session, params, fit.h_m, reconstruction=rec, sliding=links)
         except ConfigError:      # the chain cannot be estimated from these recordings
             slide = None
     # the sliding all bodies share, which no link shows: a stated prior, propagated by re-simulation
     # (its default size is the measured sliding: none when the sliding is left out)
-    prior = sliding_prior or SlidingPrior()
+    prior = options.sliding_prior or SlidingPrior()
     if prior.rms_m is None:
-        prior = dataclasses.replace(prior, rms_m=rms_from_sliding(measured, session, MIN_SLIDING_M))
+        prior = dataclasses.replace(prior, rms_m=rms_from_sliding(links, session, MIN_SLIDING_M))
     spread = prior_spread(states, params, fit.h_m, prior) if np.isfinite(fit.h_m) else None
     prior_range = tuple(spread["sliding_prior_range_m"]) if spread else (0.0, 0.0)
     total, total_err = bias, err
@@ -357,8 +378,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
     floor = None
     if probe is not None:
-        floor = filter_floor(series, session, params, fit.h_m, filter_choice, phi_definition=phi_definition,
-                             cog_method=cog_method, h_probe=h_probe)
+        floor = filter_floor(series, session, params, fit.h_m, filter_choice, reconstruction=rec, h_probe=h_probe)
     coefs = coefficients_for(states, params, "3dof", None)
     iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
                   h_bounds=h_bounds, turning_ms2=turning_rms(states),
@@ -367,11 +387,10 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     release_free_memory()             # the replicates' and the probe's temporaries, before the bootstraps
     if probe is not None:
         slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
-        corrected = distortion_corrected(series, session, params, coefs, probe, fit.h_m, h_probe, filter_choice,
-                                         window=states[0].window, dt=states[0].dt, eiv_bias_m=bias,
-                                         eiv_bias_err_m=err, sliding_m=slide_m, sliding_err_m=slide_err,
-                                         h_bounds=h_bounds, phi_definition=phi_definition, cog_method=cog_method,
-                                         probe_eiv=probe_eiv)
+        pair = FilterPair(filter_choice, coefs, probe, fit.h_m, h_probe, states[0].window, states[0].dt)
+        corrected = distortion_corrected(series, session, params, pair, eiv=(bias, err), sliding=(slide_m, slide_err),
+                                         h_bounds=h_bounds, reconstruction=rec, probe_eiv=probe_eiv)
+        del pair
     del coefs, probe                  # per-sample coefficients: not kept through the budget
     head = iv
     if corrected is not None:
@@ -403,10 +422,9 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     if corrected is not None:
         out["uncertainty"].update({k: json_float(v) for k, v in corrected.items()})
     out["h_std_m"] = _std_of(*head.bootstrap_ci95_m)
-    if with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
+    if options.with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
         release_free_memory()         # the bootstraps' temporaries, before the budget's reconstructions
-        b = budget(series, states, session, params, fit.h_m, window_s=window_s, polyorder=polyorder,
-                   phi_definition=phi_definition, tolerances=tolerances, cog_method=cog_method)
+        b = budget(series, states, session, params, fit.h_m, reconstruction=rec, tolerances=tolerances)
         if head is not iv:            # the sensitivities are the fit's; the range is centred on the headline h
             shift = head.h_m - fit.h_m
             b["h_range_m"] = [None if v is None else float(v + shift) for v in b["h_range_m"]]
@@ -420,19 +438,35 @@ def _std_of(lo: float, hi: float) -> float | None:
     return float((hi - lo) / 3.92) if np.isfinite(lo) and np.isfinite(hi) else None
 
 
-def probe_coefficients(series_list, session, params: EucParams, choice, *, phi_definition: str = "hinge",
-                       cog_method: str = "segments") -> list[np.ndarray]:
+def probe_coefficients(series_list, session, params: EucParams, choice, *,
+                       reconstruction: ReconstructionSettings = FIXED_DEFAULT) -> list[np.ndarray]:
     """The recordings' 3-DoF residual coefficients with the probe filter ``choice.probe``
-    (:func:`~euc_ros.core.identify.fit.coefficients_for`), each recording's states dropped once reduced."""
-    w, p = choice.probe
-    return [coefficients_for([reconstruct_states(s, session, phi_definition=phi_definition, window_s=float(w),
-                                                 polyorder=int(p), cog_method=cog_method, lean=True)],
-                             params, "3dof", None)[0]
+    (:func:`~euc_ros.core.identify.fit.coefficients_for`), each recording's states dropped once reduced.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings' poses.
+    session : Session
+        Their session.
+    params : EucParams
+        The model's parameters.
+    choice : FilterChoice or WindowChoice
+        The chosen filter with its ``probe`` = ``(window_s, polyorder)``.
+    reconstruction : ReconstructionSettings
+        The reconstruction but its filter.
+
+    Returns
+    -------
+    list of ndarray (6, n_i)
+    """
+    probe = reconstruction.with_filter(*choice.probe)
+    return [coefficients_for([probe.reconstruct(s, session, lean=True)], params, "3dof", None)[0]
             for s in series_list]
 
 
-def filter_floor(series_list, session, params: EucParams, h: float, choice, *, phi_definition: str = "hinge",
-                 cog_method: str = "segments", h_probe: float | None = None) -> dict:
+def filter_floor(series_list, session, params: EucParams, h: float, choice, *,
+                 reconstruction: ReconstructionSettings = FIXED_DEFAULT, h_probe: float | None = None) -> dict:
     """Bound on the bias of h the chosen filter's distortion leaves, from h with the probe filter [m].
 
     Parameters
@@ -446,6 +480,8 @@ def filter_floor(series_list, session, params: EucParams, h: float, choice, *, p
     choice : FilterChoice or WindowChoice
         The chosen filter; ``probe`` = ``(window_s, polyorder)`` of the companion filter whose RMS
         distortion of the accelerations is ``probe_ratio`` (about 2) times the chosen one's.
+    reconstruction : ReconstructionSettings
+        The reconstruction but its filter.
     h_probe : float, optional
         h with the probe filter [m], when already fitted (else fitted here).
 
@@ -468,8 +504,7 @@ def filter_floor(series_list, session, params: EucParams, h: float, choice, *, p
     better than this: a noise-free interval (a few micrometres of bootstrap) gets this width.
     """
     if h_probe is None:
-        coefs = probe_coefficients(series_list, session, params, choice, phi_definition=phi_definition,
-                                   cog_method=cog_method)
+        coefs = probe_coefficients(series_list, session, params, choice, reconstruction=reconstruction)
         h_probe = pooled_fit(coefs, DEFAULT_H_GRID).h_m
     r = _probe_ratio(choice)
     r = r if np.isfinite(r) else 2.0
@@ -484,35 +519,55 @@ def _probe_ratio(choice) -> float:
     return float(r) if r is not None and np.isfinite(r) and r > 1.0 else float("nan")
 
 
-def distortion_corrected(series_list, session, params: EucParams, coefs, probe_coefs, h: float, h_probe: float,
-                         choice, *, window: int, dt: float, eiv_bias_m: float, eiv_bias_err_m: float,
-                         sliding_m: float = 0.0, sliding_err_m: float = 0.0, h_bounds: tuple[float, float] = H_BOUNDS,
-                         phi_definition: str = "hinge", cog_method: str = "segments", n_boot: int = 1000,
-                         seed: int = 0, probe_eiv: tuple[float, float] | None = None) -> dict:
+@dataclass(frozen=True)
+class FilterPair:
+    """The pooled 3-DoF fits of the same recordings at the chosen filter and at its probe.
+
+    Parameters
+    ----------
+    choice : FilterChoice or WindowChoice
+        The chosen filter with its ``probe`` and ``probe_ratio``.
+    coefs, probe_coefs : sequence of ndarray (6, n_i)
+        The recordings' residual coefficients with the chosen filter and with the probe filter
+        (:func:`probe_coefficients`).
+    h, h_probe : float
+        The pooled 3-DoF h with the chosen filter and with the probe filter [m].
+    window : int
+        The chosen filter's window [samples] (the bootstrap's shortest block).
+    dt : float
+        Sample period [s].
+    """
+
+    choice: object
+    coefs: Sequence
+    probe_coefs: Sequence
+    h: float
+    h_probe: float
+    window: int
+    dt: float
+
+
+def distortion_corrected(series_list, session, params: EucParams, pair: FilterPair, *, eiv: tuple[float, float],
+                         sliding: tuple[float, float] = (0.0, 0.0), h_bounds: tuple[float, float] = H_BOUNDS,
+                         reconstruction: ReconstructionSettings = FIXED_DEFAULT, n_boot: int = 1000, seed: int = 0,
+                         probe_eiv: tuple[float, float] | None = None) -> dict:
     """h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
 
     Parameters
     ----------
     series_list, session, params
         As for :func:`filter_floor`.
-    coefs, probe_coefs : sequence of ndarray (6, n_i)
-        The recordings' residual coefficients with the chosen filter and with the probe filter
-        (:func:`probe_coefficients`).
-    h, h_probe : float
-        The pooled 3-DoF h with the chosen filter and with the probe filter [m].
-    choice : FilterChoice or WindowChoice
-        The chosen filter with its ``probe`` and ``probe_ratio``.
-    window : int
-        The chosen filter's window [samples] (the bootstrap's shortest block).
-    dt : float
-        Sample period [s].
-    eiv_bias_m, eiv_bias_err_m : float
-        SIMEX's bias of ``h`` and its standard error [m] (:func:`~euc_ros.core.identify.simex.eiv_bias`;
+    pair : FilterPair
+        The fits at the chosen filter and at its probe.
+    eiv : (float, float)
+        SIMEX's bias of ``pair.h`` and its standard error [m] (:func:`~euc_ros.core.identify.simex.eiv_bias`;
         NaN: no noise measurable, taken as 0).
-    sliding_m, sliding_err_m : float
+    sliding : (float, float)
         The soft-tissue sliding's bias of h and its standard error [m] (:mod:`.sliding`; 0 when none
         is seen): not subtracted (a rigid rider's pose noise can pass for sliding), but the interval
         contains the estimate corrected for it too, as ``h_ci95_m`` does.
+    reconstruction : ReconstructionSettings
+        The reconstruction but its filter (SIMEX at the probe when ``probe_eiv`` is not given).
     h_bounds, n_boot, seed
         As for :func:`~euc_ros.core.identify.interval.interval` (the same seed pairs the replicates
         with those of ``h_ci95_m``).
@@ -543,13 +598,14 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
     for few blocks) and by twice the standard error of the combined SIMEX corrections (the two
     taken independent, which their common draws only make smaller).
     """
+    choice, coefs, probe_coefs, h, h_probe = pair.choice, pair.coefs, pair.probe_coefs, pair.h, pair.h_probe
+    (eiv_bias_m, eiv_bias_err_m), (sliding_m, sliding_err_m) = eiv, sliding
     w_p, p_p = choice.probe
     r = _probe_ratio(choice)
     b_c = float(eiv_bias_m) if np.isfinite(eiv_bias_m) else 0.0
     e_c = float(eiv_bias_err_m) if np.isfinite(eiv_bias_err_m) else 0.0
     b_p, e_p = probe_eiv if probe_eiv is not None else eiv_bias(
-        series_list, session, params, h_probe, window_s=float(w_p), polyorder=int(p_p), phi_definition=phi_definition,
-        with_error=True, cog_method=cog_method)
+        series_list, session, params, h_probe, reconstruction=reconstruction.with_filter(w_p, p_p), with_error=True)
     nan = float("nan")
     out = {"probe_eiv_bias_m": b_p, "probe_eiv_bias_err_m": e_p, "h_corrected_m": nan,
            "h_corrected_ci95_m": (nan, nan), "h_corrected_bootstrap_ci95_m": (nan, nan),
@@ -563,8 +619,8 @@ def distortion_corrected(series_list, session, params: EucParams, coefs, probe_c
         return (r * (hc - b_c) - (hp - b_p)) / (r - 1.0)
 
     h0 = combine(h, h_probe)
-    hb_c, length, nb, _ = block_bootstrap(coefs, h, window, dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
-    hb_p, _, nb_p, _ = block_bootstrap(probe_coefs, h_probe, window, dt, n_boot=n_boot, seed=seed,
+    hb_c, length, nb, _ = block_bootstrap(coefs, h, pair.window, pair.dt, n_boot=n_boot, seed=seed, h_bounds=h_bounds)
+    hb_p, _, nb_p, _ = block_bootstrap(probe_coefs, h_probe, pair.window, pair.dt, n_boot=n_boot, seed=seed,
                                        h_bounds=h_bounds, counts=block_counts(coefs, length))
     with np.errstate(invalid="ignore"):     # unbounded replicates (+-inf at both filters) give NaN: unbounded
         reps = combine(hb_c, hb_p)

@@ -1,7 +1,7 @@
 """h of the 3-DoF model extended with effects the residual analysis selected, on the same grid and with
 the same refinement as the paper's models (:mod:`.fit`).
 
-The residual of a sample is ``M_d1 - M_d2`` of :class:`~euc_ros.core.model.extended.ExtendedModel` with
+The residual of a sample is ``M_d1 - M_d2`` of :class:`~euc_ros.core.model.extended.Model` with
 the effects' parameters fixed (:func:`extended_inputs` gives the samples); :func:`fit_from_sse` turns a
 sum of squares over h into a :class:`~euc_ros.core.identify.fit.ModelFit` as the paper's fits do.
 """
@@ -12,10 +12,10 @@ from scipy.optimize import minimize_scalar
 
 from euc_ros.core.filters.derivatives import savgol_derivatives
 from euc_ros.core.identify.fit import SHARPNESS_STEP_M, ModelFit
-from euc_ros.core.model.extended import ExtendedModel
+from euc_ros.core.model.extended import Model
 from euc_ros.core.states.contexts import prepare
 
-#: The extended model's input arrays, by name (:meth:`~euc_ros.core.model.extended.ExtendedModel.torques`).
+#: The extended model's input arrays, by name (:meth:`~euc_ros.core.model.extended.Model.torques`).
 EXTENDED_KEYS = ("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
                   "psi_dot", "theta")
 
@@ -76,7 +76,7 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
     """Identify h for the 3-DoF model extended with ``effects``, per recording and pooled.
 
     The residual of a sample is ``M_d1 - M_d2`` of
-    :class:`~euc_ros.core.model.extended.ExtendedModel` with the effects' parameters fixed (see
+    :class:`~euc_ros.core.model.extended.Model` with the effects' parameters fixed (see
     :func:`extended_inputs` for the samples). The sum of squares is evaluated at every h of the grid
     (vectorized over samples), then refined as for the paper's models.
 
@@ -87,7 +87,7 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
     per_recording : list of ModelFit
     pooled : ModelFit
     """
-    model = ExtendedModel(params, effects)
+    model = Model.from_report(params, effects)
     inputs = extended_inputs(states, params, effects)
 
     def residual(k: int, h: float) -> np.ndarray:
@@ -105,11 +105,11 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
             cache[(k, h)] = float(np.dot(e, e))
         return cache[(k, h)]
 
-    per = [fit_from_sse(lambda h, k=k: sse_rec(k, h), h_grid, int(masks[k].sum()), model.name)
+    per = [fit_from_sse(lambda h, k=k: sse_rec(k, h), h_grid, int(masks[k].sum()), model.label)
            for k in range(len(inputs))]
     pooled = fit_from_sse(lambda h: sum(sse_rec(k, h) for k in range(len(inputs))), h_grid,
-                           int(sum(m.sum() for m in masks)), model.name)
-    return model.name, per, pooled
+                           int(sum(m.sum() for m in masks)), model.label)
+    return model.label, per, pooled
 
 
 def extended_interval(states, params, effects: dict, h: float, block_s: float, *, level: float = 0.95
@@ -124,7 +124,7 @@ def extended_interval(states, params, effects: dict, h: float, block_s: float, *
     """
     from scipy.stats import t as student
 
-    model = ExtendedModel(params, effects)
+    model = Model.from_report(params, effects)
     inputs = extended_inputs(states, params, effects)
     step = 1e-5
     jr, jj, blocks = [], [], []

@@ -27,9 +27,10 @@ import numpy as np
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.budget import parse_tolerances
 from euc_ros.core.identify.cog_height import HIdentification, identify_h
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.identify.sliding_prior import SlidingPrior
 from euc_ros.core.io.provenance import inputs_record
-from euc_ros.core.model.extended import ExtendedModel
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.session import load_session
 from euc_ros.core.states.load import cog_faults, collect_warnings, load_states, usage_table
@@ -207,7 +208,7 @@ def identify_recordings(session_path, recordings: Sequence, settings: Reconstruc
     session = load_session(session_path)
     params = EucParams.from_session(session)
     if effects:
-        ExtendedModel(params, effects)  # unknown effects and missing parameters fail before any long read
+        Model.from_report(params, effects)  # unknown effects and missing parameters fail before any long read
     states = load_states(session, recordings, settings, progress=progress, keep_series=uncertainty)
     choice = states[0].meta.get("filter")
     if choice is not None:
@@ -217,12 +218,11 @@ def identify_recordings(session_path, recordings: Sequence, settings: Reconstruc
               "window_s": settings.window_s, "window_samples": states[0].window, "polyorder": settings.polyorder,
               "h_grid": {"min_m": float(h_values[0]), "max_m": float(h_values[-1]), "step_m": grid.step_m},
               "gravity_m_per_s2": float(params.g)}
-    ident = identify_h(states, session, params, h_grid=h_values, h_bounds=(grid.min_m, grid.max_m), effects=effects,
-                       model=model, settings=record, uncertainty=uncertainty, sliding=sliding,
-                       tolerances=tolerances if tolerances is not None else parse_tolerances([]),
-                       window_s=settings.window_s, polyorder=settings.polyorder,
-                       phi_definition=settings.phi_definition, cog_method=settings.cog_method,
-                       filter_choice=choice, sliding_prior=sliding_prior(sliding_prior_mm))
+    options = IntervalOptions(h_bounds=(grid.min_m, grid.max_m), sliding=sliding,
+                              sliding_prior=sliding_prior(sliding_prior_mm),
+                              tolerances=tolerances if tolerances is not None else parse_tolerances([]))
+    ident = identify_h(states, session, params, reconstruction=settings, filter_choice=choice, h_grid=h_values,
+                       effects=effects, model=model, settings=record, uncertainty=options if uncertainty else None)
     data = ident.to_dict()
     if choice is not None:
         data["filter"] = choice.to_json()

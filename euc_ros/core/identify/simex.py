@@ -14,7 +14,7 @@ from euc_ros.core.filters.derivatives import window_samples
 from euc_ros.core.identify.fit import DEFAULT_H_GRID, coefficients_for, pooled_fit, pooled_h_of_states
 from euc_ros.core.memory import release_free_memory
 from euc_ros.core.mocap.noise import estimate_pose_noise, pose_noise_draws, pose_noise_series
-from euc_ros.core.states.kinematics import iter_states_filters, reconstruct_states
+from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 
 #: Re-noised reconstructions of every recording in :func:`eiv_bias`: 2 antithetic pairs. Measured on
 #: 6 simulated 7 s runs (seed 7), the bias' scatter over 8 seeds: 6 independent replicates 0.99 mm
@@ -59,26 +59,23 @@ class SimexShare:
         return self.h_m
 
 
-def _share_key(series_list, window_s, polyorder, phi_definition, cog_method, seed, params) -> tuple:
+def _share_key(series_list, window_s, polyorder, rec: ReconstructionSettings, seed, params) -> tuple:
     """What a replicate's h depends on besides the recordings (the window in samples: ``window_s`` of
     1.2 s and of 145 / 120 s are one filter)."""
 
     windows = tuple(window_samples(1.0 / s.rate_hz, window_s=window_s, polyorder=polyorder) for s in series_list)
-    return windows, int(polyorder), phi_definition, cog_method, int(seed), params
+    return windows, int(polyorder), rec.phi_definition, rec.cog_method, rec.max_gap, int(seed), params
 
 
-def _replicate_states(series_list, noise, draws, sign, session, *, window_s, polyorder, phi_definition, cog_method):
+def _replicate_states(series_list, noise, draws, sign, session, rec: ReconstructionSettings):
 
     # the noisy recordings are made block by block as the states are reconstructed (never whole)
-    return [reconstruct_states(pose_noise_series(s, sp, sr, noise=z, sign=sign), session,
-                               phi_definition=phi_definition, window_s=window_s, polyorder=polyorder,
-                               cog_method=cog_method)
+    return [rec.reconstruct(pose_noise_series(s, sp, sr, noise=z, sign=sign), session)
             for s, (sp, sr), z in zip(series_list, noise, draws)]
 
 
-def first_replicate(series_list, session, params, *, window_s: float, polyorder: int, phi_definition: str = "hinge",
-                    cog_method: str = "segments", seed: int = SIMEX_SEED, share: SimexShare | None = None,
-                    use=None):
+def first_replicate(series_list, session, params, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,
+                    seed: int = SIMEX_SEED, share: SimexShare | None = None, use=None):
     """The states of :func:`eiv_bias`'s first replicate (the recordings with their estimated white pose
     noise added once more: pair 1, ``+z``), or None when the noise cannot be estimated. With ``share``
     its h is kept for :func:`eiv_bias`.
@@ -95,9 +92,9 @@ def first_replicate(series_list, session, params, *, window_s: float, polyorder:
         return None
     rng = np.random.default_rng(seed)
     draws = [pose_noise_draws(s, rng) for s in series_list]
-    states = _replicate_states(series_list, noise, draws, 1.0, session, window_s=window_s, polyorder=polyorder,
-                               phi_definition=phi_definition, cog_method=cog_method)
-    share.key = _share_key(series_list, window_s, polyorder, phi_definition, cog_method, seed, params)
+    rec = reconstruction
+    states = _replicate_states(series_list, noise, draws, 1.0, session, rec)
+    share.key = _share_key(series_list, rec.window_s, rec.polyorder, rec, seed, params)
     if use is None:
         share.h_m = pooled_h_of_states(list(states), params)      # a copy of the list: the states are returned
         return states
@@ -108,10 +105,9 @@ def first_replicate(series_list, session, params, *, window_s: float, polyorder:
     return out
 
 
-def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyorder: int,
-             phi_definition: str = "hinge", replicates: int = SIMEX_REPLICATES, seed: int = SIMEX_SEED,
-             with_error: bool = False, cog_method: str = "segments", antithetic: bool = True,
-             share: SimexShare | None = None):
+def eiv_bias(series_list, session, params, h: float, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,
+             replicates: int = SIMEX_REPLICATES, seed: int = SIMEX_SEED, with_error: bool = False,
+             antithetic: bool = True, share: SimexShare | None = None):
     """Errors-in-variables bias of h by SIMEX [m]: ``mean(h with the noise doubled) - h``.
 
     The noise of the recordings as given is estimated (:func:`estimate_pose_noise`); adding the same
@@ -128,18 +124,19 @@ def eiv_bias(series_list, session, params, h: float, *, window_s: float, polyord
     ``share``: a :class:`SimexShare` whose first replicate (made by :func:`first_replicate` with the
     same settings) is used instead of being made again.
     """
-    (bias, err), = eiv_biases(series_list, session, params, [(window_s, polyorder, h)],
-                              phi_definition=phi_definition, replicates=replicates, seed=seed, cog_method=cog_method,
-                              antithetic=antithetic, share=share)
+    rec = reconstruction
+    (bias, err), = eiv_biases(series_list, session, params, [(rec.window_s, rec.polyorder, h)], reconstruction=rec,
+                              replicates=replicates, seed=seed, antithetic=antithetic, share=share)
     return (bias, err) if with_error else bias
 
 
-def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "hinge",
-               replicates: int = SIMEX_REPLICATES, seed: int = SIMEX_SEED, cog_method: str = "segments",
-               antithetic: bool = True, share: SimexShare | None = None) -> list[tuple[float, float]]:
+def eiv_biases(series_list, session, params, filters, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,
+               replicates: int = SIMEX_REPLICATES, seed: int = SIMEX_SEED, antithetic: bool = True,
+               share: SimexShare | None = None) -> list[tuple[float, float]]:
     """:func:`eiv_bias` with its standard error at several Savitzky-Golay filters, from the same replicates.
 
-    ``filters``: ``(window_s, polyorder, h)`` per filter, ``h`` the h fitted with that filter. Every
+    ``filters``: ``(window_s, polyorder, h)`` per filter, ``h`` the h fitted with that filter
+    (``reconstruction`` gives the rest: its own filter is not used). Every
     replicate's noisy recording is made, and its geometry evaluated, once for all filters
     (:func:`~euc_ros.core.states.kinematics.iter_states_filters`: one filter's states at a time); each
     filter's result is the one :func:`eiv_bias` gives for it alone, number for number. Returns
@@ -153,8 +150,8 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
         return [(nan, nan) for _ in filters]
     rng = np.random.default_rng(seed)
     release_free_memory()                   # what the steps before left freed, before the replicates
-    known = share.lookup(series_list, _share_key(series_list, filters[0][0], filters[0][1], phi_definition,
-                                                 cog_method, seed, params)) if len(filters) == 1 else None
+    known = share.lookup(series_list, _share_key(series_list, filters[0][0], filters[0][1], reconstruction,
+                                                 seed, params)) if len(filters) == 1 else None
 
     def h_of(draws, sign) -> list[float]:
         # fit_h's pooled 3-DoF h per filter; each recording's states are reduced to their residual
@@ -163,8 +160,7 @@ def eiv_biases(series_list, session, params, filters, *, phi_definition: str = "
         fitted: list[float | None] = [None] * len(filters)     # per filter, its h once fitted
         for s, (sp, sr), z in zip(series_list, noise, draws):
             noisy = pose_noise_series(s, sp, sr, noise=z, sign=sign)
-            made = iter_states_filters(noisy, session, [(w, p) for w, p, _ in filters],
-                                       phi_definition=phi_definition, cog_method=cog_method, shared=True, lean=True)
+            made = reconstruction.iter_filters(noisy, session, [(w, p) for w, p, _ in filters], shared=True, lean=True)
             # a counter, not enumerate(): enumerate's reused (k, item) tuple would keep this filter's states
             # alive while the generator makes the next filter's
             for k in range(len(filters)):

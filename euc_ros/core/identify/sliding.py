@@ -31,8 +31,8 @@ import numpy as np
 
 from euc_ros.core.identify.fit import pooled_h_of_states
 from euc_ros.core.rotations import rotation_matrices
-from euc_ros.core.states.kinematics import reconstruct_states
 from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
+from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 from euc_ros.core.states.skeleton import SkeletonModel
 
 
@@ -61,9 +61,8 @@ def add_sliding(series, sliding: dict, rng: np.random.Generator):
     return dataclasses.replace(series, position=pos)
 
 
-def sliding_bias(series_list, session, params, h: float, *, window_s: float, polyorder: int,
-                 phi_definition: str = "hinge", cog_method: str = "segments", replicates: int = 3, seed: int = 2,
-                 sliding: dict | None = None) -> dict:
+def sliding_bias(series_list, session, params, h: float, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,
+                 replicates: int = 3, seed: int = 2, sliding: dict | None = None) -> dict:
     """SIMEX bias of h from the sliding the links show, extrapolated quadratically.
 
     The measured sliding is added once and twice again (sliding variance times 2 and 3); a parabola
@@ -90,11 +89,9 @@ def sliding_bias(series_list, session, params, h: float, *, window_s: float, pol
         scaled = dict(sliding, rms_m=[r * np.sqrt(level) for r in sliding["rms_m"]])
         for _ in range(replicates):
             noisy = [add_sliding(s, scaled, rng) for s in series_list]
-            skel = SkeletonModel.estimate(noisy, session) if cog_method == "skeleton" else None
+            skel = SkeletonModel.estimate(noisy, session) if reconstruction.cog_method == "skeleton" else None
             # each recording's states reduced to their coefficients as they are made (no per-recording fits)
-            hs[level].append(pooled_h_of_states((reconstruct_states(s, session, phi_definition=phi_definition,
-                                                                    window_s=window_s, polyorder=polyorder,
-                                                                    cog_method=cog_method, skeleton=skel, lean=True)
+            hs[level].append(pooled_h_of_states((reconstruction.reconstruct(s, session, skeleton=skel, lean=True)
                                                  for s in noisy), params))
             del noisy, skel                   # before the next replicate's are made
     h2, h3 = float(np.nanmean(hs[1])), float(np.nanmean(hs[2]))

@@ -39,7 +39,7 @@ from euc_ros.core.errors import InputError
 from euc_ros.core.io.cdr import ENCAPSULATION_LE, HEAD, pad, split_stamp
 from euc_ros.core.io.mcap_fast import McapFile
 from euc_ros.core.io.msgdefs import make_typestore
-from euc_ros.core.mocap.ingest import frame_from_named_poses
+from euc_ros.core.mocap.message_frames import frame_from_named_poses
 from euc_ros.core.mocap.series import MocapSeries
 
 log = logging.getLogger(__name__)

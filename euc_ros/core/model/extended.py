@@ -1,30 +1,39 @@
-"""The paper's model extended with selected effects, for ``identify`` and the online torque estimator.
+"""The paper's 3-DoF model extended with effects: one :class:`Model` for the residual analysis, ``identify``
+and the online torque estimator.
 
-Step 5 of the residual analysis: once an effect is selected (``euc-ros residual`` reports its name and
-parameters), the extended model computes M_d1 and M_d2 with the effect's generalized force or
-parameter change included, so the residual drops in the offline identification and live.
+A model is a list of effects (:class:`~euc_ros.core.model.effects.Candidate`) with the parameter vector
+``x = [h, theta_1..., theta_2...]``. The residual analysis fits ``x`` (:meth:`Model.residual`); once an effect
+is selected (``euc-ros residual`` reports its name and parameters), :meth:`Model.from_report` builds the
+model with those values fixed and :meth:`Model.torques` computes M_d1 and M_d2 with the effect's generalized
+force or parameter change included, so the residual drops in the offline identification and live.
 
 Examples
 --------
 >>> from euc_ros.core.session import default_session
 >>> from euc_ros.core.model.terms import EucParams
->>> model = ExtendedModel(EucParams.from_session(default_session(), 0.61), {"ground_slope": {"alpha_deg": 2.0}})
->>> model.name
-'3dof+ground_slope'
+>>> model = Model.from_report(EucParams.from_session(default_session(), 0.61), {"ground_slope": {"alpha_deg": 2.0}})
+>>> model.name, model.label, model.n_params
+('ground_slope', '3dof+ground_slope', 2)
+>>> model.x_.round(4).tolist()
+[0.61, 2.0]
 """
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.model.effects import FloorGeometry, ModelContext, make_candidates, theta_from_report
+from euc_ros.core.model.effects import Candidate, FloorGeometry, ModelContext, make_candidates, theta_from_report
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.model.torque import torques
+from euc_ros.core.model.torque import torque_difference, torques
 
 #: Effects that need the recording's geometry (future samples) and are offline only.
 OFFLINE_ONLY = {"mocap_time_offset"}
+
+#: h bounds of the joint fits [m].
+H_BOUNDS = (0.05, 1.6)
 
 
 def parse_effect_assignments(effects: list[str], assignments: list[str]) -> dict[str, dict[str, float]]:
@@ -55,58 +64,193 @@ def parse_effect_assignments(effects: list[str], assignments: list[str]) -> dict
     return out
 
 
-class ExtendedModel:
-    """M_d1 and M_d2 of the 3-DoF model plus configured effects.
+def m11(p: EucParams):
+    """First diagonal entry of the mass matrix, eq (6): m + m0 + mw + Jw / R^2."""
+    return p.m + p.m0 + p.mw + p.Jw / np.asarray(p.R, float) ** 2
+
+
+
+@dataclass
+class Model:
+    """The paper's 3-DoF model plus a list of effects; parameter vector ``x = [h, theta_1..., theta_2...]``.
 
     Parameters
     ----------
-    params : EucParams
-        Nominal parameters including the identified h.
-    effects : mapping
-        ``{effect name: {parameter: value}}`` with the names and units of the residual report.
-    online : bool
-        Refuse effects that need future samples (time offsets).
+    effects : list of Candidate
+        The effects, in selection order.
+    params_ : EucParams, optional
+        Nominal parameters of a model with fixed values (:meth:`from_report`; used by :meth:`torques`).
+    x_ : ndarray, optional
+        The fixed parameter vector of such a model (``x_[0]`` is ``params_.h``).
     """
 
-    def __init__(self, params: EucParams, effects: Mapping[str, Mapping[str, float]] | None = None, *,
-                 online: bool = False):
-        self.params = params
+    effects: list[Candidate] = field(default_factory=list)
+    params_: EucParams | None = field(default=None, compare=False, repr=False)
+    x_: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+    @classmethod
+    def from_report(cls, params: EucParams, effects: Mapping[str, Mapping[str, float]] | None = None, *,
+                    online: bool = False) -> "Model":
+        """The model of reported effects with their values fixed (``identify --effect``, ``torque_estimator``).
+
+        Parameters
+        ----------
+        params : EucParams
+            Nominal parameters including the identified h.
+        effects : mapping
+            ``{effect name: {parameter: value}}`` with the names and units of the residual report.
+        online : bool
+            Refuse effects that need future samples (time offsets).
+
+        Returns
+        -------
+        Model
+            With ``params_`` and ``x_`` set.
+
+        Raises
+        ------
+        ConfigError
+            An unknown effect, a missing parameter, or with ``online`` an effect that needs future samples.
+        """
         effects = dict(effects or {})
-        self.candidates = make_candidates(list(effects))
+        cands = make_candidates(list(effects))
         # a ground slope measured as the floor of a level lab (residual JSON: level_lab = 1) is the floor
         # geometry model, not gravity tilted against the mocap frame
-        for k, c in enumerate(self.candidates):
+        for k, c in enumerate(cands):
             vals = effects[c.name]
             if c.name == "ground_slope" and float(vals.get("level_lab", 0.0)):
-                self.candidates[k] = FloorGeometry(float(vals.get("alpha_deg", 0.0)),
-                                                   float(vals.get("alpha_y_deg", 0.0)))
+                cands[k] = FloorGeometry(float(vals.get("alpha_deg", 0.0)), float(vals.get("alpha_y_deg", 0.0)))
         if online:
-            bad = [c.name for c in self.candidates if c.name in OFFLINE_ONLY]
+            bad = [c.name for c in cands if c.name in OFFLINE_ONLY]
             if bad:
                 raise ConfigError(f"effect {bad[0]!r} needs future samples and is available offline only",
                                   key="effects")
-        self.thetas = [theta_from_report(c, effects[c.name]) for c in self.candidates]
+        x = np.concatenate([[float(params.h)]] + [theta_from_report(c, effects[c.name]) for c in cands])
+        return cls(cands, params, x)
 
     @property
-    def name(self) -> str:
-        """``3dof`` or ``3dof+<effect>+...``."""
-        return "+".join(["3dof"] + [c.name for c in self.candidates])
+    def label(self) -> str:
+        """``3dof`` or ``3dof+<effect>+...`` (the name of the model in ``identify`` and live)."""
+        return "+".join(["3dof"] + [c.name for c in self.effects])
 
     def torques(self, *, t, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot, psi=0.0,
                 psi_dot=0.0, theta=0.0, h=None, extras=None) -> tuple[np.ndarray, np.ndarray]:
-        """M_d1, M_d2 [N m] for samples (arrays of equal length or scalars)."""
+        """M_d1, M_d2 [N m] of the model with its fixed values (:meth:`from_report`) for samples.
+
+        Parameters
+        ----------
+        t, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot, psi, psi_dot, theta
+            The samples' states (arrays of equal length or scalars) [SI].
+        h : float, optional
+            h to use instead of the fixed one [m].
+        extras : dict, optional
+            Further inputs some effects need (the recording's geometry).
+
+        Returns
+        -------
+        tuple of ndarray
+            M_d1 and M_d2 [N m].
+        """
+        if self.params_ is None or self.x_ is None:
+            raise ConfigError("the model has no fixed values: build it with Model.from_report", key="effects")
         arrays = [np.atleast_1d(np.asarray(v, float)) for v in
                   (t, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot, psi, psi_dot, theta)]
         n = max(a.shape[0] for a in arrays)
         arrays = [np.broadcast_to(a, (n,)) for a in arrays]
-        params = self.params if h is None else self.params.with_h(h)
+        params = self.params_ if h is None else self.params_.with_h(h)
         ctx = ModelContext(*arrays, params=params, extras=dict(extras or {}))
-        for c, th in zip(self.candidates, self.thetas):
+        _, thetas = self.split(self.x_)
+        for c, th in zip(self.effects, thetas):
             c.modify(ctx, th)
-        for c, th in zip(self.candidates, self.thetas):
+        for c, th in zip(self.effects, thetas):
             dQ = c.force(ctx, th)
             if dQ is not None:
                 ctx.add_force(dQ)
-
         return torques(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot, ctx.phi_ddot,
                        ctx.p(), extra_Q=ctx.extra_Q)
+
+    @property
+    def name(self) -> str:
+        """``none`` or the effect names joined with ``+`` in selection order."""
+        return "+".join(c.name for c in self.effects) or "none"
+
+    @property
+    def n_params(self) -> int:
+        """1 (h) plus every effect's parameters."""
+        return 1 + sum(c.n_params for c in self.effects)
+
+    def split(self, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
+        """Return (h, [theta per effect])."""
+        out, k = [], 1
+        for c in self.effects:
+            out.append(np.asarray(x[k:k + c.n_params], float))
+            k += c.n_params
+        return float(x[0]), out
+
+    def residual(self, rec, x: np.ndarray, extra_dQ: np.ndarray | None = None
+                 ) -> tuple[np.ndarray, np.ndarray]:
+        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec`` (a prepared
+        recording, :class:`~euc_ros.core.states.contexts.Recording`; ``extra_dQ``: a further generalized force,
+        for the discovery's sensitivities)."""
+        h, thetas = self.split(x)
+        ctx = rec.ctx.copy()
+        ctx.overrides["h"] = h
+        ctx.params = ctx.params.with_h(h)
+        mask = np.ones(ctx.t.shape[0], bool)
+        for c, th in zip(self.effects, thetas):
+            c.modify(ctx, th)
+            if ctx.mask is not None:
+                mask &= ctx.mask
+                ctx.mask = None
+        for c, th in zip(self.effects, thetas):
+            dQ = c.force(ctx, th)
+            if dQ is not None:
+                ctx.add_force(dQ)
+        if extra_dQ is not None:
+            ctx.add_force(extra_dQ)
+        p_mod = ctx.p()
+        diff = torque_difference(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot,
+                                 ctx.phi_ddot, p_mod, extra_Q=ctx.extra_Q)
+        # M_d1 - M_d2 = R m11 (x_ddot - x_ddot*): compare models on the acceleration mismatch scaled by the
+        # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
+        # For the base model and every effect that keeps R and m this is exactly M_d1 - M_d2.
+        p_nom = rec.ctx.params
+        ratio = (p_nom.R * m11(p_nom)) / (np.asarray(p_mod.R, float) * m11(p_mod))
+        r = diff * ratio
+        mask &= np.isfinite(r)
+        return np.where(mask, r, 0.0), mask
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Lower and upper bounds of ``x``."""
+        lo = [H_BOUNDS[0]] + [q.low for c in self.effects for q in c.params]
+        hi = [H_BOUNDS[1]] + [q.high for c in self.effects for q in c.params]
+        return np.array(lo), np.array(hi)
+
+    def scales(self) -> np.ndarray:
+        """Typical magnitudes of ``x`` (least-squares scaling)."""
+        return np.array([0.1] + [q.scale for c in self.effects for q in c.params])
+
+    def starts(self, h0: float, fixed: np.ndarray | None = None) -> list[np.ndarray]:
+        """Starting points: the last effect's starts appended to ``fixed`` (the previous fit) or defaults."""
+        head = np.array([h0]) if fixed is None else np.asarray(fixed, float)
+        known = head.size - 1
+        rest = []
+        k = 0
+        for c in self.effects:
+            if k >= known:
+                rest.append(c.starts())
+            k += c.n_params
+        if not rest:
+            return [head]
+        combos = [head]
+        for options in rest:
+            combos = [np.concatenate([base, s]) for base in combos for s in options]
+        return combos
+
+    def report(self, x: np.ndarray) -> dict[str, float]:
+        """All effect parameters by their reported names."""
+        _, thetas = self.split(x)
+        out: dict[str, float] = {}
+        for c, th in zip(self.effects, thetas):
+            out.update(c.report(th))
+        return out

@@ -13,7 +13,7 @@ A node only converts messages and calls these (functional core, imperative shell
   of ``M_d1 - M_d2`` and the online h estimate out. It returns ``None`` for a state that is not
   usable, so a NaN never reaches a published torque. It ages its windows over missing states and
   resets on a jump back in time; optionally it evaluates the model extended with the effects the
-  residual analysis selected (:class:`~euc_ros.core.model.extended.ExtendedModel`).
+  residual analysis selected (:class:`~euc_ros.core.model.extended.Model`).
 * :class:`FrameSequencer`: frame numbers for the state estimator from a live stream (repeated and
   out-of-order frames dropped, restarts detected, numbers made from stamps when the source has none).
 """
@@ -28,7 +28,7 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.causal import STATE_ESTIMATORS, streaming_filter
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
 from euc_ros.core.mocap.bridging import PoseBridge
-from euc_ros.core.model.extended import ExtendedModel, parse_effect_assignments
+from euc_ros.core.model.extended import Model, parse_effect_assignments
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques, torques_2dof, torques_one
 from euc_ros.core.online.window import OnlineHEstimator, SlidingRmse
@@ -458,9 +458,9 @@ class TorqueEstimator:
         Excitation needed before the online h is given [N m/m].
     extra_Q : callable, optional
         ``extra_Q(state) -> (3,)`` additional generalized force [N, N m, N m] (model extensions).
-    model : ExtendedModel, optional
+    model : Model, optional
         The 3-DoF model extended with effects of the residual analysis
-        (:class:`~euc_ros.core.model.extended.ExtendedModel`, built with ``online=True``): when
+        (:class:`~euc_ros.core.model.extended.Model`, built with ``online=True``): when
         given, ``M_d1``, ``M_d2``, the residual and its RMSE are the extended model's, evaluated at
         ``params.h``, and ``model`` of each sample is its name (``"3dof+ground_slope"``). The 2-DoF
         torques and the online h stay those of the paper's models.
@@ -477,7 +477,7 @@ class TorqueEstimator:
     def __init__(self, params: EucParams, dt: float, *, rmse_window_s: float = 5.0, h_window_s: float = 30.0,
                  h_update_every: int | None = None, correlation_samples: float | None = None,
                  min_sensitivity: float = 5.0,
-                 extra_Q: Callable | None = None, model: "ExtendedModel | None" = None,
+                 extra_Q: Callable | None = None, model: Model | None = None,
                  psi_rate_window_s: float = 0.3, base_h: float | None = None) -> None:
         if not (dt > 0 and rmse_window_s > 0 and h_window_s > 0):
             raise ConfigError("dt, rmse_window_s and h_window_s must be > 0", key="rmse_window_s")
@@ -497,7 +497,7 @@ class TorqueEstimator:
             h_update_every = max(1, int(round(H_UPDATE_S / self.dt)))
         self._h = OnlineHEstimator(params, max(3, int(round(h_window_s / self.dt))), update_every=h_update_every,
                                    correlation_samples=k, min_sensitivity=min_sensitivity)
-        names = {c.name for c in getattr(model, "candidates", ())}
+        names = {c.name for c in (model.effects if model is not None else ())}
         self._needs_psi_rate = "tilt_gravity" in names
         self._psi_rate = (StreamingSavgol(window_samples(self.dt, window_s=max(psi_rate_window_s, 6 * self.dt),
                                                          polyorder=3), 3, self.dt, lag=0)
@@ -515,7 +515,7 @@ class TorqueEstimator:
     def model_name(self) -> str:
         """``"3dof"``, ``"3dof+extra"`` or the extended model's name."""
         if self.model is not None:
-            return self.model.name
+            return self.model.label
         return "3dof" if self.extra_Q is None else "3dof+extra"
 
     def reset(self) -> None:
@@ -551,7 +551,7 @@ class TorqueEstimator:
             For an extended model (its parameters, h among them, are fitted together: restart with them).
         """
         if self.model is not None:
-            raise ConfigError(f"h of the extended model {self.model.name} is fitted with its effects; restart the "
+            raise ConfigError(f"h of the extended model {self.model.label} is fitted with its effects; restart the "
                               "node with the new h and effect_parameters", key="h")
         if not (np.isfinite(h) and h > 0):
             raise ConfigError(f"h must be a positive length in m, got {h!r}", key="h")
@@ -689,7 +689,7 @@ def series_torques(series, states: RiderStateEstimator,
 
 
 def extended_model_from_config(params: EucParams, effects: Sequence[str], assignments: Sequence[str],
-                               *, key: str = "effects") -> "ExtendedModel | None":
+                               *, key: str = "effects") -> Model | None:
     """The online extended model of the ``effects`` / ``effect_parameters`` settings, or None for none.
 
     Parameters
@@ -721,4 +721,4 @@ def extended_model_from_config(params: EucParams, effects: Sequence[str], assign
             raise ConfigError(f"effect {effect!r} is not in the list of effects {names}", key=f"{key}: {item}")
     if not names:
         return None
-    return ExtendedModel(params, parse_effect_assignments(names, items), online=True)
+    return Model.from_report(params, parse_effect_assignments(names, items), online=True)

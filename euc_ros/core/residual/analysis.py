@@ -70,7 +70,7 @@ from euc_ros.core.residual.selection import (
     geometric_h,
     held_out,
 )
-from euc_ros.core.residual.selector import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, ForwardSelector, Selector
+from euc_ros.core.residual.selector import ForwardSelector, Selector
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
 from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, forget_shift_caches, prepare
 from euc_ros.core.states.floor import RADIUS_TOL_M, floor_from_states, rolling_radius_from_floor
@@ -94,8 +94,7 @@ NOISE_FLOOR_FACTOR = 1.5
 # ------------------------------------------------------------------------------------------------ the driver
 def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Sequence[Candidate] | None = None,
             selector: Selector | None = None, discovery: Discovery | bool | None = True,
-            alpha: float = DEFAULT_ALPHA, min_gain: float = DEFAULT_MIN_GAIN, max_effects: int = 3,
-            n_folds: int | None = None, use_geometry: bool = True, discover: bool = True,
+            n_folds: int | None = None, use_geometry: bool = True,
             noise_floor_of: Callable[[Model, np.ndarray], float] | None = None,
             analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, plausible: dict | None = None,
             progress: Callable[[str], None] | None = None) -> ResidualResult:
@@ -112,25 +111,18 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         The library (default: all of :data:`~euc_ros.core.model.effects.LIBRARY`).
     selector : Selector, optional
         The selection of named effects; its ``alpha`` and ``min_gain`` are also the discovery's test
-        (default: :class:`~.selector.ForwardSelector` built from ``alpha``, ``min_gain``, ``max_effects``).
+        (default: :class:`~.selector.ForwardSelector` with its defaults: a family-wise level of
+        :data:`~.selector.DEFAULT_ALPHA` per step, a minimum relative gain of
+        :data:`~.selector.DEFAULT_MIN_GAIN`, at most 3 effects).
     discovery : Discovery, bool or None
-        What looks for structure the named effects leave: a :class:`~.discovery.Discovery`; True (default):
-        :class:`~.discovery.GroupSparseDiscovery` with its defaults; None or False: no discovery.
-    alpha : float
-        Family-wise significance level of each selection step (max-T over the candidates,
-        :func:`~euc_ros.core.residual.significance.max_t_adjusted`); ignored with ``selector``.
-    min_gain : float
-        Minimum relative cut of the held-out RMSE for a selection; ignored with ``selector``.
-    max_effects : int
-        Most named effects to select; ignored with ``selector``.
+        What looks for structure the named effects leave, after them: a :class:`~.discovery.Discovery`;
+        True (default): :class:`~.discovery.GroupSparseDiscovery` with its defaults; None or False: no
+        discovery.
     n_folds : int, optional
         Segments per run of the held-out folds (default: enough for :data:`~.folds.MIN_FOLDS` folds).
     use_geometry : bool
         Measure the floor from the wheel's contact path: a floor tilted or uneven in the mocap frame goes
         into the model as geometry; a flat one may measure the rolling radius.
-    discover : bool
-        After the named effects, look for structure left in the residual (False: no discovery, whatever
-        ``discovery``).
     noise_floor_of : callable, optional
         ``(model, x) -> RMS [N m]``: the residual's noise floor for a fitted model (the recordings' pose
         noise propagated, :func:`euc_ros.core.residual.noise.noise_floor`); without it the significance
@@ -149,8 +141,8 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     ResidualResult
     """
     say = progress or (lambda _m: None)
-    rules = selector if selector is not None else ForwardSelector(alpha, min_gain, max_effects)
-    finder = (GroupSparseDiscovery() if discovery is True else discovery or None) if discover else None
+    rules = selector if selector is not None else ForwardSelector()
+    finder = GroupSparseDiscovery() if discovery is True else discovery or None
     candidates = with_plausible(list(candidates) if candidates is not None else make_candidates(), plausible or {})
     setup = prepare_setup(states, params, n_folds=n_folds, use_geometry=use_geometry,
                           analysis_rate_hz=analysis_rate_hz, say=say)

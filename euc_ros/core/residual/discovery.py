@@ -40,6 +40,7 @@ from typing import Sequence
 
 import numpy as np
 
+from euc_ros.core.model.extended import H_BOUNDS, Model
 from euc_ros.core.residual.families import FAMILIES, Families, Family
 from euc_ros.core.residual.groups import (
     DiscoveredEffect,
@@ -52,7 +53,7 @@ from euc_ros.core.residual.groups import (
     point_gains,
 )
 from euc_ros.core.residual.search import GroupSearch, independent_columns
-from euc_ros.core.residual.selection import H_BOUNDS, HeldOut, Model, fit_model, held_out
+from euc_ros.core.residual.selection import HeldOut, fit_model, held_out
 from euc_ros.core.residual.shrinkage import fit_with_free
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
 from euc_ros.core.states.contexts import Recording

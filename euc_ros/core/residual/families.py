@@ -26,6 +26,8 @@ family              argument                        columns (level = complexity)
                                                     (level 1), and their squares (critically damped second
                                                     order, level 2): a force obeying its own linear
                                                     dynamics driven by a state
+a user's family     one of :data:`ARGUMENTS`        the user's ``basis(x, level) -> (n, m)``
+                                                    (:meth:`Family.custom`)
 ==================  ==============================  =========================================================
 
 Not in any family: accelerations and pitch angles themselves (the residual is linear in them, so such
@@ -43,13 +45,14 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 from numpy.polynomial import legendre
 from scipy import signal
 from scipy.interpolate import BSpline
 
+from euc_ros.core.errors import ConfigError
 from euc_ros.core.memory import release_free_memory
 
 #: (coordinate, point) of the forces' directions and points of application.
@@ -105,10 +108,61 @@ class Family:
     argument_unit: str
     function: str
     per_unit: str = "1"
+    basis: Callable[[np.ndarray, int], np.ndarray] | None = None
+    levels: int = 1
 
     @property
     def key(self) -> str:
         return f"{self.family}: {self.function}"
+
+    @classmethod
+    def custom(cls, family: str, argument: str, basis: Callable[[np.ndarray, int], np.ndarray], *,
+               levels: int = 1, function: str | None = None) -> "Family":
+        """A family of the user's basis functions of one signal of the recordings (``kind="custom"``).
+
+        Parameters
+        ----------
+        family : str
+            Its name in the report.
+        argument : str
+            The signal the functions take, one of :data:`ARGUMENTS` (its unit is the report's).
+        basis : callable
+            ``basis(x, level) -> ndarray (n, m)``: the columns at complexity ``level`` (0 to ``levels - 1``)
+            of the argument's samples ``x`` (n,); ``m`` may depend on the level only. A force along the
+            group's direction is ``basis(x, level) @ c``.
+        levels : int
+            Complexity levels (nested or not: each is a group of its own).
+        function : str, optional
+            The force's form in the report (default ``f(<argument>)``).
+
+        Returns
+        -------
+        Family
+
+        Raises
+        ------
+        ConfigError
+            An unknown argument, no level, or a basis that does not give finite (n, m) columns.
+
+        Examples
+        --------
+        >>> fam = Family.custom("tyre wear", "wheel_angle", lambda th, lv: np.cos(th)[:, None])
+        >>> fam.key, fam.argument_unit, fam.levels
+        ('tyre wear: f(wheel_angle)', 'rad', 1)
+        """
+        if argument not in ARGUMENTS:
+            raise ConfigError(f"expected one of {', '.join(ARGUMENTS)}, got {argument!r}", key="argument")
+        if int(levels) < 1:
+            raise ConfigError(f"need at least one level, got {levels}", key="levels")
+        probe = np.linspace(-1.0, 1.0, 7)
+        for lv in range(int(levels)):
+            with np.errstate(all="ignore"):
+                C = np.asarray(basis(probe, lv), float)
+            if C.ndim != 2 or C.shape[0] != probe.size or C.shape[1] < 1 or not np.all(np.isfinite(C)):
+                raise ConfigError(f"basis(x, {lv}) must give finite columns of shape (len(x), m), got "
+                                  f"shape {C.shape}", key="basis")
+        return cls("custom", (argument,), family, argument, ARGUMENTS[argument][1],
+                   function or f"f({argument})", "1", basis, int(levels))
 
 
 def _family_list() -> list[Family]:
@@ -132,8 +186,26 @@ def _family_list() -> list[Family]:
 FAMILIES = tuple(_family_list())
 
 
+#: The signals a user's family (:meth:`Family.custom`) may take: name -> (how it is made from a recording's
+#: signals, its unit).
+ARGUMENTS = {
+    "x_dot": (lambda sig: sig["v"], "m/s"),
+    "|x_dot|": (lambda sig: np.abs(sig["v"]), "m/s"),
+    "path_s": (lambda sig: sig["s"], "m"),
+    "wheel_angle": (lambda sig: sig["s"] / sig["R"], "rad"),
+    "lab_x": (lambda sig: sig["X"], "m"),
+    "lab_y": (lambda sig: sig["Y"], "m"),
+    "psi": (lambda sig: sig["psi"], "rad"),
+    "phi_dot": (lambda sig: sig["phi_dot"], "rad/s"),
+    "gamma_dot": (lambda sig: sig["gamma_dot"], "rad/s"),
+    "t": (lambda sig: sig["t"], "s"),
+}
+
+
 def n_levels(fam: Family) -> int:
     """Complexity levels of a family."""
+    if fam.kind == "custom":
+        return fam.levels
     return {"lab": len(LAB_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
             "drift": MAX_DRIFT_DEGREE + 1, "dyn": 2}[fam.kind]
 
@@ -278,6 +350,12 @@ class Families:
             lo, hi = self.runs.get(s["name"], (np.inf, -np.inf))
             self.runs[s["name"]] = (min(lo, float(s["t"].min())), max(hi, float(s["t"].max())))
         self.run_names = list(self.runs)
+        # a user's families: their argument's observed range (the report's grid)
+        for fam in families:
+            if fam.kind == "custom" and fam.option[0] not in self.ranges:
+                x = np.concatenate([np.asarray(ARGUMENTS[fam.option[0]][0](s), float)[s["index"]] if "index" in s
+                                    else np.asarray(ARGUMENTS[fam.option[0]][0](s), float) for s in sigs])
+                self.ranges[fam.option[0]] = (float(np.min(x)), float(np.max(x)), []) if x.size else (0.0, 0.0, [])
         self._cache: OrderedDict = OrderedDict()
         self.families: list[Family] = []
         kept: list[np.ndarray] = []
@@ -310,6 +388,8 @@ class Families:
     def width(self, f: int, level: int) -> int:
         """Columns of family ``f`` at ``level``."""
         kind = self.families[f].kind
+        if kind == "custom":
+            return int(np.shape(self.families[f].basis(np.linspace(-1.0, 1.0, 7), level))[1])
         if kind in ("lab", "speed"):
             name = self.families[f].option[0] if kind == "lab" else "speed"
             degree = (LAB_LEVELS if kind == "lab" else SPLINE_LEVELS)[level][0]
@@ -334,6 +414,8 @@ class Families:
         """The family's columns (n, m) at ``level`` on one recording's signals (a lab coordinate's spline basis
         is made once per signals and level, for every modifier)."""
         v = sig["v"]
+        if fam.kind == "custom":
+            return np.asarray(fam.basis(np.asarray(ARGUMENTS[fam.option[0]][0](sig), float), level), float)
         if fam.kind == "lab":
             coord, mod = fam.option
             proj = np.cos(sig["psi"]) if coord == "X" else np.sin(sig["psi"])
@@ -441,6 +523,10 @@ class Families:
         """
         fam = self.families[f]
         g = GRID_POINTS
+        if fam.kind == "custom":
+            lo, hi, _ = self.ranges[fam.option[0]]
+            grid = np.linspace(lo, hi, g)
+            return grid, np.asarray(fam.basis(grid, level), float)[None], [""]
         if fam.kind == "lab":
             lo, hi, _ = self.ranges[fam.option[0]]
             grid = np.linspace(lo, hi, g)

@@ -12,6 +12,7 @@ import numpy as np
 from scipy import stats
 
 from euc_ros.core.model.effects import Candidate, ParamInfo, jacobian_G
+from euc_ros.core.model.extended import Model
 from euc_ros.core.residual.families import (
     POINT_UNITS,
     POINTS,
@@ -22,7 +23,7 @@ from euc_ros.core.residual.families import (
 )
 from euc_ros.core.residual.folds import SAMPLES_PER_BLOCK
 from euc_ros.core.residual.search import GroupSearch
-from euc_ros.core.residual.selection import HeldOut, Model, block_offsets
+from euc_ros.core.residual.selection import HeldOut, block_offsets
 from euc_ros.core.states.contexts import Recording
 
 

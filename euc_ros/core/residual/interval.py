@@ -30,8 +30,9 @@ from typing import Sequence
 
 import numpy as np
 
+from euc_ros.core.model.extended import H_BOUNDS, Model
 from euc_ros.core.residual.folds import with_blocks
-from euc_ros.core.residual.selection import H_BOUNDS, Model, block_offsets, fit_model, model_jacobian
+from euc_ros.core.residual.selection import block_offsets, fit_model, model_jacobian
 from euc_ros.core.states.contexts import Recording, prepare
 
 #: Level of the intervals.

@@ -26,11 +26,12 @@ import numpy as np
 
 from euc_ros.core.identify.simex import SIMEX_SEED, first_replicate
 from euc_ros.core.mocap.noise import renoised
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.selection import Model
 from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, prepare
 from euc_ros.core.states.floor import floor_from_states
 from euc_ros.core.states.kinematics import RiderStates, reconstruct_states
+from euc_ros.core.states.settings import ReconstructionSettings
 
 
 def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *, seed: int = 0,
@@ -97,8 +98,9 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
 
         if window_s is not None:
             # the replicate's states go to the floor, then (dropped) to SIMEX's h: never beside its fit
-            out = first_replicate(series_list, session, params, window_s=window_s, polyorder=st0.polyorder,
-                                  phi_definition=st0.phi_definition, cog_method=getattr(st0, "cog_method", "segments"),
+            rec = ReconstructionSettings(window_s=window_s, polyorder=st0.polyorder, phi_definition=st0.phi_definition,
+                                         cog_method=getattr(st0, "cog_method", "segments"))
+            out = first_replicate(series_list, session, params, reconstruction=rec,
                                   seed=SIMEX_SEED if seed is None else seed, share=share, use=floor_of)
             if out is not None:
                 return out

@@ -24,21 +24,17 @@ from typing import Callable, Iterable, Sequence
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
+from euc_ros.core.identify.options import IntervalOptions, Measured
 from euc_ros.core.identify.pipeline import AnalysisRun, sliding_prior
 from euc_ros.core.identify.simex import SimexShare
 from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.analysis import (
-    DEFAULT_ALPHA,
-    DEFAULT_MIN_GAIN,
-    RESIDUAL_POLYORDER,
-    RESIDUAL_WINDOW_S,
-    analyze,
-)
+from euc_ros.core.residual.analysis import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S, analyze
 from euc_ros.core.residual.interval import base_widening, filter_refit
 from euc_ros.core.residual.noise import make_noise_floor
 from euc_ros.core.residual.result import ResidualResult
+from euc_ros.core.residual.selector import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, ForwardSelector
 from euc_ros.core.session import load_session
 from euc_ros.core.states.filter_choice import data_filters
 from euc_ros.core.states.link_sliding import sliding_or_none, usable_poses
@@ -195,16 +191,16 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     simex = SimexShare()
     noise_of = make_noise_floor(series, states, session, params, share=simex) \
         if all(s is not None for s in series) else None
-    result = analyze(states, params, candidates=cands, alpha=options.alpha, min_gain=options.min_gain,
-                     max_effects=options.max_effects, use_geometry=options.use_geometry,
-                     discover=options.discover, noise_floor_of=noise_of, progress=say)
+    result = analyze(states, params, candidates=cands,
+                     selector=ForwardSelector(options.alpha, options.min_gain, options.max_effects),
+                     discovery=options.discover, use_geometry=options.use_geometry, noise_floor_of=noise_of,
+                     progress=say)
     data = result.to_json()
     # how well the data determine the base model's h (identify's interval and identifiability)
-    budget = {"with_budget": True, "tolerances": tolerances} if tolerances else {"with_budget": False}
-    base = identify_h(states, session, params, models=("3dof",), window_s=settings.window_s,
-                      polyorder=settings.polyorder, phi_definition=settings.phi_definition,
-                      cog_method=settings.cog_method, simex_share=simex,
-                      sliding_prior=sliding_prior(sliding_prior_mm), link_sliding=links, **budget).uncertainty
+    iv = IntervalOptions(sliding_prior=sliding_prior(sliding_prior_mm), with_budget=bool(tolerances),
+                         tolerances=tolerances or None)
+    base = identify_h(states, session, params, reconstruction=settings, models=("3dof",), uncertainty=iv,
+                      measured=Measured(simex_share=simex, link_sliding=links)).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
     if result.final_interval is not None:

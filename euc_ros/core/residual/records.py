@@ -10,10 +10,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from euc_ros.core.model.effects import Candidate
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.folds import Fold
 from euc_ros.core.residual.result import CandidateResult
-from euc_ros.core.residual.selection import Fit, HeldOut, Model
+from euc_ros.core.residual.selection import Fit, HeldOut
 from euc_ros.core.states.contexts import Recording
 from euc_ros.core.states.floor import FloorFit
 

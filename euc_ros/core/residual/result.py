@@ -8,8 +8,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from euc_ros.core.model.extended import Model
 from euc_ros.core.residual.interval import FinalInterval
-from euc_ros.core.residual.selection import HeldOut, Model
+from euc_ros.core.residual.selection import HeldOut
 from euc_ros.core.states.floor import FloorFit
 
 

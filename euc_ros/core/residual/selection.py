@@ -9,15 +9,15 @@ The residual of a model is ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - dQ))
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
 from scipy import optimize, stats
 
 from euc_ros.core.model.effects import Candidate
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams, bias_terms, consistency_weights, gravity_forces, mass_matrix
-from euc_ros.core.model.torque import torque_difference
 from euc_ros.core.residual.folds import folds_of
 from euc_ros.core.states.contexts import Recording, hinge_path
 from euc_ros.core.states.kinematics import RiderStates
@@ -30,10 +30,6 @@ FIT_TOL = 1e-6
 #: An effect is undetectable when its generalized force projects on w = [R, 1, 1] by less than this
 #: fraction of its size (it lies in the span of the input directions).
 DETECTABILITY_TOL = 1e-6
-
-
-#: h bounds of the joint fits [m].
-H_BOUNDS = (0.05, 1.6)
 
 
 #: Plausible rider CoG heights above the ankle hinge [m] (adult riders standing on pedals: the paper's
@@ -53,98 +49,6 @@ AT_BOUND_FRACTION = 1e-3
 
 
 @dataclass
-class Model:
-    """The base model plus a list of candidate effects; parameter vector ``[h, theta_1..., theta_2...]``."""
-
-    effects: list[Candidate] = field(default_factory=list)
-
-    @property
-    def name(self) -> str:
-        """``none`` or the effect names joined with ``+`` in selection order."""
-        return "+".join(c.name for c in self.effects) or "none"
-
-    @property
-    def n_params(self) -> int:
-        """1 (h) plus every effect's parameters."""
-        return 1 + sum(c.n_params for c in self.effects)
-
-    def split(self, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
-        """Return (h, [theta per effect])."""
-        out, k = [], 1
-        for c in self.effects:
-            out.append(np.asarray(x[k:k + c.n_params], float))
-            k += c.n_params
-        return float(x[0]), out
-
-    def residual(self, rec: Recording, x: np.ndarray, extra_dQ: np.ndarray | None = None
-                 ) -> tuple[np.ndarray, np.ndarray]:
-        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``
-        (``extra_dQ``: a further generalized force, for the discovery's sensitivities)."""
-        h, thetas = self.split(x)
-        ctx = rec.ctx.copy()
-        ctx.overrides["h"] = h
-        ctx.params = ctx.params.with_h(h)
-        mask = np.ones(ctx.t.shape[0], bool)
-        for c, th in zip(self.effects, thetas):
-            c.modify(ctx, th)
-            if ctx.mask is not None:
-                mask &= ctx.mask
-                ctx.mask = None
-        for c, th in zip(self.effects, thetas):
-            dQ = c.force(ctx, th)
-            if dQ is not None:
-                ctx.add_force(dQ)
-        if extra_dQ is not None:
-            ctx.add_force(extra_dQ)
-        p_mod = ctx.p()
-        diff = torque_difference(ctx.gamma, ctx.phi, ctx.gamma_dot, ctx.phi_dot, ctx.x_ddot, ctx.gamma_ddot,
-                                 ctx.phi_ddot, p_mod, extra_Q=ctx.extra_Q)
-        # M_d1 - M_d2 = R m11 (x_ddot - x_ddot*): compare models on the acceleration mismatch scaled by the
-        # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
-        # For the base model and every effect that keeps R and m this is exactly M_d1 - M_d2.
-        p_nom = rec.ctx.params
-        ratio = (p_nom.R * _m11(p_nom)) / (np.asarray(p_mod.R, float) * _m11(p_mod))
-        r = diff * ratio
-        mask &= np.isfinite(r)
-        return np.where(mask, r, 0.0), mask
-
-    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of ``x``."""
-        lo = [H_BOUNDS[0]] + [q.low for c in self.effects for q in c.params]
-        hi = [H_BOUNDS[1]] + [q.high for c in self.effects for q in c.params]
-        return np.array(lo), np.array(hi)
-
-    def scales(self) -> np.ndarray:
-        """Typical magnitudes of ``x`` (least-squares scaling)."""
-        return np.array([0.1] + [q.scale for c in self.effects for q in c.params])
-
-    def starts(self, h0: float, fixed: np.ndarray | None = None) -> list[np.ndarray]:
-        """Starting points: the last effect's starts appended to ``fixed`` (the previous fit) or defaults."""
-        head = np.array([h0]) if fixed is None else np.asarray(fixed, float)
-        known = head.size - 1
-        rest = []
-        k = 0
-        for c in self.effects:
-            if k >= known:
-                rest.append(c.starts())
-            k += c.n_params
-        if not rest:
-            return [head]
-        combos = [head]
-        for options in rest:
-            combos = [np.concatenate([base, s]) for base in combos for s in options]
-        return combos
-
-    def report(self, x: np.ndarray) -> dict[str, float]:
-        """All effect parameters by their reported names."""
-        _, thetas = self.split(x)
-        out: dict[str, float] = {}
-        for c, th in zip(self.effects, thetas):
-            out.update(c.report(th))
-        return out
-
-
-@dataclass
 class Fit:
     """A model fitted on some recordings."""
 
@@ -157,11 +61,6 @@ class Fit:
     def h(self) -> float:
         """Fitted CoG height [m]."""
         return float(self.x[0])
-
-
-def _m11(p: EucParams):
-    """First diagonal entry of the mass matrix, eq (6): m + m0 + mw + Jw / R^2."""
-    return p.m + p.m0 + p.mw + p.Jw / np.asarray(p.R, float) ** 2
 
 
 def _stack_residual(model: Model, recs: Sequence[Recording], x: np.ndarray) -> np.ndarray:

@@ -13,6 +13,10 @@ Examples
 1.425
 >>> ReconstructionSettings(window_s=1.2).polyorder      # a fixed window takes the default order
 6
+>>> ReconstructionSettings().reconstruct(None, None)
+Traceback (most recent call last):
+    ...
+euc_ros.core.errors.ConfigError: key '--window-s': reconstructing needs a filter: fix it with with_filter() or window_s
 >>> ReconstructionSettings(phi_definition="knee")
 Traceback (most recent call last):
     ...
@@ -24,7 +28,14 @@ from dataclasses import dataclass, replace
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
-from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, PHI_DEFINITIONS
+from euc_ros.core.states.kinematics import (
+    DEFAULT_SG_POLYORDER,
+    DEFAULT_WINDOW_S,
+    PHI_DEFINITIONS,
+    RiderStates,
+    iter_states_filters,
+    reconstruct_states,
+)
 from euc_ros.core.states.skeleton import COG_METHODS
 
 
@@ -96,3 +107,61 @@ class ReconstructionSettings:
         ReconstructionSettings
         """
         return replace(self, window_s=float(window_s), polyorder=int(polyorder))
+
+    def _fixed(self) -> None:
+        if self.is_auto:
+            raise ConfigError("reconstructing needs a filter: fix it with with_filter() or window_s", key="--window-s")
+
+    def reconstruct(self, series, session, *, skeleton=None, lean: bool = False) -> RiderStates:
+        """A recording's states with these settings (:func:`~euc_ros.core.states.kinematics.reconstruct_states`).
+
+        Parameters
+        ----------
+        series : MocapSeries
+            The recording's poses.
+        session : Session
+            Its session.
+        skeleton : SkeletonModel, optional
+            The chain fitted to the recordings (``cog_method="skeleton"``; default: fitted to ``series``).
+        lean : bool
+            Keep only what the fits need.
+
+        Returns
+        -------
+        RiderStates
+
+        Raises
+        ------
+        ConfigError
+            The filter is ``"auto"`` (not fixed yet).
+        """
+        self._fixed()
+        return reconstruct_states(series, session, phi_definition=self.phi_definition, window_s=float(self.window_s),
+                                  polyorder=int(self.polyorder), max_gap=self.max_gap, cog_method=self.cog_method,
+                                  skeleton=skeleton, lean=lean)
+
+    def iter_filters(self, series, session, filters, *, skeleton=None, shared: bool = False, lean: bool = False):
+        """A recording's states at several filters, one at a time
+        (:func:`~euc_ros.core.states.kinematics.iter_states_filters`); the filter of these settings is not used.
+
+        Parameters
+        ----------
+        series : MocapSeries
+            The recording's poses.
+        session : Session
+            Its session.
+        filters : sequence of (float, int)
+            ``(window_s, polyorder)`` per filter.
+        skeleton, shared, lean
+            As for :func:`~euc_ros.core.states.kinematics.iter_states_filters`.
+
+        Returns
+        -------
+        generator of RiderStates
+        """
+        return iter_states_filters(series, session, filters, phi_definition=self.phi_definition, max_gap=self.max_gap,
+                                   cog_method=self.cog_method, skeleton=skeleton, shared=shared, lean=lean)
+
+
+#: The fixed filter of the analyses that are not given one (the interval's re-reconstructions, the studies).
+FIXED_DEFAULT = ReconstructionSettings(window_s=DEFAULT_WINDOW_S)

@@ -12,7 +12,7 @@ class MocapSource:
     ==============================================  =====================================================
     node member the source uses                     for
     ==============================================  =====================================================
-    ``publish_frame(frame, stamp_source=None)``     a core :class:`~euc_ros.core.mocap.ingest.Frame` to publish
+    ``publish_frame(frame, stamp_source=None)``     a core :class:`~euc_ros.core.mocap.frame.Frame` to publish
     ``set_bodies(bodies)``                          the bodies its frames carry, in order
     ``received`` (int, incremented)                 inputs handled (poses, datagrams, CSV frames)
     ``input_error(exc)``                            an input it could not use (dropped, counted, logged)

@@ -2,7 +2,7 @@
 
 Stamps are the replay start plus ``(frame - first frame) / rate`` (``stamp_mode: replay``) or the
 file's capture start time plus ``frame / rate`` (``stamp_mode: file``); ``stamp_source`` FILE_TIME.
-When frames are due and what they are stamped is :class:`~euc_ros.core.mocap.ingest.ReplayClock`; this
+When frames are due and what they are stamped is :class:`~euc_ros.core.mocap.replay.ReplayClock`; this
 module waits for the start (``start_delay``, ``wait_subscribers``, ``wait_topics``), publishes, and ends
 the node (``exit_when_done``).
 
@@ -25,7 +25,9 @@ from euc_msgs.msg import MocapFrame
 from rclpy.duration import Duration
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap.ingest import Frame, ReplayClock, capture_start_ns
+from euc_ros.core.mocap.capture_time import capture_start_ns
+from euc_ros.core.mocap.frame import Frame
+from euc_ros.core.mocap.replay import ReplayClock
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.matching import MatchGate
 from euc_ros.ros.mocap_sources.base import MocapSource

@@ -14,7 +14,8 @@ import time
 
 from euc_msgs.msg import MocapFrame
 
-from euc_ros.core.mocap.ingest import SilenceWatch, frame_from_natnet, natnet_capture_stamp
+from euc_ros.core.mocap.message_frames import frame_from_natnet, natnet_capture_stamp
+from euc_ros.core.mocap.silence import SilenceWatch
 from euc_ros.ros.mocap_sources.base import MocapSource
 
 #: Time without frames before the console is told [s] (the diagnostics say STALE after 1 s).

@@ -2,7 +2,7 @@
 
 * ``topic_type: pose_stamped``: one ``geometry_msgs/PoseStamped`` per body on
   ``<topic_prefix>/<Body>/pose`` (vrpn_mocap convention, Z-up), assembled into frames by header
-  stamp (:class:`~euc_ros.core.mocap.ingest.PoseSynchronizer`); frame number -1 (unknown).
+  stamp (:class:`~euc_ros.core.mocap.synchronizer.PoseSynchronizer`); frame number -1 (unknown).
 * ``topic_type: rigid_bodies``: one ``mocap4r2_msgs/RigidBodies`` per frame (the MOCAP4ROS2 OptiTrack
   driver), converted from the session's up axis, with the driver's frame numbers.
 
@@ -16,7 +16,8 @@ from euc_msgs.msg import MocapFrame
 from geometry_msgs.msg import PoseStamped
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.mocap.ingest import PoseSynchronizer, frame_from_named_poses
+from euc_ros.core.mocap.message_frames import frame_from_named_poses
+from euc_ros.core.mocap.synchronizer import PoseSynchronizer
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.mocap_sources.base import MocapSource

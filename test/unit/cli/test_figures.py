@@ -442,7 +442,7 @@ def test_h_status_follows_the_document():
 
 def test_residual_time_shades_gaps_and_states_the_h(rolling_run, strict):
     result, data, states, _, recs = rolling_run
-    from euc_ros.core.residual.selection import Model
+    from euc_ros.core.model.extended import Model
 
     for identifiable, expected in ((False, f"h not identifiable (best fit {result.h_base:.3f} m, not for use)"),
                                    (True, f"h = {result.h_base:.3f} m")):

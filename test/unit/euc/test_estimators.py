@@ -191,11 +191,11 @@ def _truth_states(run):
 def _plain_and_extended(ride, effects, rmse_window_s):
     """Outputs of a 3-DoF and of an extended-model TorqueEstimator (h 0.61 m) on the true states of the
     ride's first run; and the extended estimator."""
-    from euc_ros.core.model.extended import ExtendedModel
+    from euc_ros.core.model.extended import Model
 
     p = EucParams.from_session(ride.session, 0.61)
     plain = TorqueEstimator(p, 1 / 120, rmse_window_s=rmse_window_s)
-    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=rmse_window_s, model=ExtendedModel(p, effects, online=True))
+    ext = TorqueEstimator(p, 1 / 120, rmse_window_s=rmse_window_s, model=Model.from_report(p, effects, online=True))
     states = _truth_states(ride.runs[0])
     return [plain.update(x) for x in states], [ext.update(x) for x in states], ext
 
@@ -239,7 +239,7 @@ def test_the_base_model_is_tracked_beside_an_extended_one(sloped_ride):
     """With ``base_h`` the 3-DoF model's sliding RMSE runs beside the extended model's, sample for sample as
     a plain estimator at that h computes it: on the sloped ride the slope model fits better; a slope claimed
     with the wrong sign fits worse than the base model, which is what the node warns about."""
-    from euc_ros.core.model.extended import ExtendedModel
+    from euc_ros.core.model.extended import Model
 
     p = EucParams.from_session(sloped_ride.session, 0.61)
     states = _truth_states(sloped_ride.runs[0])
@@ -247,7 +247,7 @@ def test_the_base_model_is_tracked_beside_an_extended_one(sloped_ride):
     plain = [plain_estimator.update(x) for x in states]
     for alpha, better in ((3.0, True), (-3.0, False)):
         ext = TorqueEstimator(p, 1 / 120, rmse_window_s=2.0, base_h=0.61,
-                              model=ExtendedModel(p, {"ground_slope": {"alpha_deg": alpha}}, online=True))
+                              model=Model.from_report(p, {"ground_slope": {"alpha_deg": alpha}}, online=True))
         out = [ext.update(x) for x in states]
         base = np.array([o.extra["rmse_base_nm"] for o in out])
         np.testing.assert_allclose(base, [o.rmse_window_nm for o in plain], rtol=1e-9)

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from euc_ros.core.identify.cog_height import identify_h
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.session import load_session
 from euc_ros.core.states.load import load_states
 
@@ -20,12 +21,15 @@ TOLERANCE_M = 1e-3
 NOISE_FREE_SIMEX_M = 5e-6
 
 
+#: The interval without the budget and the sliding terms.
+QUICK = IntervalOptions(with_budget=False, sliding=False)
+
+
 def _identify(session_path, csvs):
     session = load_session(session_path)
     states = load_states(session, [str(c) for c in csvs], keep_series=True)
     choice = states[0].meta["filter"]
-    ident = identify_h(states, session, with_budget=False, sliding=False, window_s=choice.window_s,
-                       polyorder=choice.polyorder, filter_choice=choice)
+    ident = identify_h(states, session, filter_choice=choice, uncertainty=QUICK)
     return ident, choice
 
 
@@ -97,8 +101,8 @@ def test_coloured_pose_noise_is_seen_by_the_links_and_h_stays_honest(monkeypatch
             st = reconstruct_states(s, ride.session, window_s=choice.window_s, polyorder=choice.polyorder)
             st.meta["series"] = s
             states.append(st)
-        return choice, identify_h(states, ride.session, params, models=("3dof",), with_budget=False,
-                                  window_s=choice.window_s, polyorder=choice.polyorder, filter_choice=choice)
+        return choice, identify_h(states, ride.session, params, models=("3dof",), filter_choice=choice,
+                                  uncertainty=IntervalOptions(with_budget=False))
 
     choice, ident = run()
     assert choice.noise_model == "coloured" and choice.sliding["rms_max_m"] >= fc.COLOURED_LINK_RMS_M

@@ -11,6 +11,7 @@ from euc_ros.cli.main import main
 from euc_ros.core.identify.budget import parse_tolerances
 from euc_ros.core.identify.cog_height import HIdentification, identify_h
 from euc_ros.core.identify.fit import fit_h
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.simulate import DEFAULT_H_M, RideConfig, simulate_ride
 from euc_ros.core.ridesim.writers import write_ride
@@ -38,7 +39,7 @@ def states(ride):
 
 @pytest.fixture(scope="module")
 def ident(ride, states) -> HIdentification:
-    return identify_h(states, ride.session, with_budget=False)
+    return identify_h(states, ride.session, uncertainty=IntervalOptions(with_budget=False))
 
 
 def test_h_with_its_interval_contains_the_truth(ident):
@@ -66,14 +67,14 @@ def test_result_is_frozen_and_serialises(ident):
 
 
 def test_without_uncertainty_no_interval(ride, states):
-    quick = identify_h(states, ride.session, uncertainty=False)
+    quick = identify_h(states, ride.session, uncertainty=None)
     assert quick.identifiable is None and quick.uncertainty is None
     assert all(np.isnan(v) for v in quick.interval)
     assert "h_ci95_m" not in quick.to_dict()
 
 
 def test_an_extended_model_heads_the_document(ride, states):
-    ext = identify_h(states, ride.session, uncertainty=False, effects={"rolling_resistance": {"c_rr": 0.0}})
+    ext = identify_h(states, ride.session, uncertainty=None, effects={"rolling_resistance": {"c_rr": 0.0}})
     assert ext.model == "3dof+rolling_resistance"
     assert ext.to_dict()["model"] == "3dof+rolling_resistance"
     # a zero-strength effect changes nothing: the extended fit equals the paper's
@@ -91,7 +92,8 @@ def test_the_command_writes_what_the_library_returns(ride, tmp_path):
     written = json.loads(out.read_text())
     session = load_session(session_file)
     states = load_states(session, csvs, ReconstructionSettings(window_s=1.2, polyorder=6), keep_series=True)
-    lib = json.loads(json.dumps(identify_h(states, session, sliding=False, tolerances=parse_tolerances([])).to_dict()))
+    lib = json.loads(json.dumps(identify_h(
+        states, session, uncertainty=IntervalOptions(sliding=False, tolerances=parse_tolerances([]))).to_dict()))
     for key in ("h_m", "rmse_nm", "h_ci95_m", "identifiable", "identifiability_reason", "uncertainty", "h_std_m",
                 "h_range_m", "uncertainty_budget"):
         assert written[key] == lib[key], key

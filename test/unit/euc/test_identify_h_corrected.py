@@ -8,6 +8,7 @@ import pytest
 from scipy.stats import t as student
 
 from euc_ros.core.identify.cog_height import identify_h
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.io.recordings import load_recording
 from euc_ros.core.mocap.noise import pose_noise_draws, pose_noise_series
 from euc_ros.core.session import load_session
@@ -29,8 +30,8 @@ def _identify(series, session):
     choice = choose_filter([series], session)
     st = reconstruct_states(series, session, window_s=choice.window_s, polyorder=choice.polyorder)
     st.meta["series"] = series
-    return identify_h([st], session, with_budget=False, sliding=False, window_s=choice.window_s,
-                      polyorder=choice.polyorder, filter_choice=choice)
+    return identify_h([st], session, filter_choice=choice,
+                      uncertainty=IntervalOptions(with_budget=False, sliding=False))
 
 
 @pytest.fixture(scope="module")

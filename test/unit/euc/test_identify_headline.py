@@ -16,10 +16,12 @@ from euc_ros.cli.main import main
 from euc_ros.core.identify import cog_height
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.ridesim.writers import write_ride
 from euc_ros.core.states.filter_choice import choose_filter
 from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.settings import ReconstructionSettings
 
 #: Top-level keys of identify's JSON that are a value of h, or its interval, std or range.
 H_KEYS = {"h_m", "h_ci95_m", "h_std_m", "h_range_m"}
@@ -128,16 +130,17 @@ def _states(ride):
 
 def test_the_library_result_is_the_headline(ride):
     states, choice = _states(ride)
-    ident = identify_h(states, ride.session, with_budget=False, sliding=False, window_s=choice.window_s,
-                       polyorder=choice.polyorder, filter_choice=choice)
+    ident = identify_h(states, ride.session, filter_choice=choice,
+                       uncertainty=IntervalOptions(with_budget=False, sliding=False))
     data = ident.to_dict()
     assert ident.corrected and ident.h == data["h_m"] and ident.identifiable is data["identifiable"]
     assert list(ident.interval) == data["h_ci95_m"]
     assert ident.h_at_filter == data["diagnostics"]["h_at_chosen_filter_m"] == ident.fits.pooled["3dof"].h_m
     assert list(ident.interval_at_filter) == data["diagnostics"]["h_at_chosen_filter_ci95_m"]
     # a fixed window (what residual's base model uses): no corrected h, the uncertainty keys are the fit's
-    plain = identify_h(states, ride.session, with_budget=False, sliding=False, window_s=choice.window_s,
-                       polyorder=choice.polyorder)
+    plain = identify_h(states, ride.session,
+                       reconstruction=ReconstructionSettings().with_filter(choice.window_s, choice.polyorder),
+                       uncertainty=IntervalOptions(with_budget=False, sliding=False))
     assert not plain.corrected and plain.h == plain.h_at_filter == plain.fits.pooled["3dof"].h_m
     assert "h_m" not in plain.uncertainty and "diagnostics" not in plain.uncertainty
     assert plain.interval == plain.interval_at_filter
@@ -155,8 +158,8 @@ def test_identifiable_judges_the_headline_interval(ride, monkeypatch):
         return out
 
     monkeypatch.setattr(cog_height, "distortion_corrected", widened)
-    ident = identify_h(states, ride.session, with_budget=False, sliding=False, window_s=choice.window_s,
-                       polyorder=choice.polyorder, filter_choice=choice)
+    ident = identify_h(states, ride.session, filter_choice=choice,
+                       uncertainty=IntervalOptions(with_budget=False, sliding=False))
     lo, hi = ident.interval_at_filter
     assert ident.corrected and hi - lo < MAX_CI_WIDTH_M
     assert ident.identifiable is False and "interval is 30 cm wide" in ident.reason, ident.reason
@@ -175,7 +178,7 @@ def test_an_unbounded_headline_interval_is_not_identifiable(ride, monkeypatch):
         return out
 
     monkeypatch.setattr(cog_height, "distortion_corrected", unbounded)
-    ident = identify_h(states, ride.session, with_budget=False, sliding=False, window_s=choice.window_s,
-                       polyorder=choice.polyorder, filter_choice=choice)
+    ident = identify_h(states, ride.session, filter_choice=choice,
+                       uncertainty=IntervalOptions(with_budget=False, sliding=False))
     assert ident.identifiable is False and "the data do not bound h" in ident.reason
     assert ident.to_dict()["h_ci95_m"][1] is None

@@ -16,6 +16,7 @@ from scipy.signal import butter, sosfiltfilt
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.interval import extend_by_prior
+from euc_ros.core.identify.options import IntervalOptions
 from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
@@ -57,8 +58,9 @@ def slid(request):
 
 def _interval(slid, prior_m):
     session, params, states = slid
-    ident = identify_h(states, session, params, models=("3dof",), with_budget=False, sliding=False,
-                       sliding_prior=SlidingPrior(rms_m=prior_m))
+    ident = identify_h(states, session, params, models=("3dof",),
+                       uncertainty=IntervalOptions(with_budget=False, sliding=False,
+                                                   sliding_prior=SlidingPrior(rms_m=prior_m)))
     return ident.h, ident.uncertainty["h_ci95_m"], ident.uncertainty["uncertainty"]
 
 

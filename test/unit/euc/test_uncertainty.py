@@ -24,6 +24,7 @@ from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 
 # the experiment harnesses live in studies/ at the repository root, outside the package
 sys.path.insert(0, str(Path(__file__).resolve().parents[3]))
@@ -70,8 +71,7 @@ def test_errors_in_variables_bias_is_measured_on_the_data():
     clean = simulate_ride(RideConfig(noise=MocapNoise(0.0, 0.0, 0.0), **cfg))
     params, _, fit = _identify(noisy)
     _, _, fit_clean = _identify(clean)
-    b = eiv_bias([r.mocap for r in noisy.runs], noisy.session, params, fit.h_m, window_s=1.2, polyorder=6,
-                   replicates=3)
+    b = eiv_bias([r.mocap for r in noisy.runs], noisy.session, params, fit.h_m, replicates=3)
     actual = fit.h_m - fit_clean.h_m
     assert actual < -1e-3 and b < -1e-3                 # noise biases h low
     assert abs(b - actual) < 0.5 * abs(actual) + 1e-3
@@ -91,7 +91,7 @@ def test_budget_predicts_a_ride_with_a_heavier_rider():
     heavy = simulate_ride(RideConfig(runs=3, seed=5, effects=make_effects(["rider_mass_error"], {"delta_m_kg": 8.0})))
     params, states, fit = _identify(base)
     _, _, fit_heavy = _identify(heavy)
-    b = budget([r.mocap for r in base.runs], states, base.session, params, fit.h_m, window_s=1.2, polyorder=6)
+    b = budget([r.mocap for r in base.runs], states, base.session, params, fit.h_m)
     predicted = -8.0 * b["sensitivity"]["rider.mass"]["dh_dp"]       # the nominal mass is 8 kg too low
     actual = fit_heavy.h_m - fit.h_m
     assert np.sign(predicted) == np.sign(actual)
@@ -157,8 +157,9 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     """The residual's noise floor reconstructs SIMEX's first replicate once (SimexShare); eiv_bias given the
     share returns exactly what it returns when it reconstructs that replicate itself, and the share holds
     the h of that replicate's states (not, e.g., of the recording as given)."""
+    from euc_ros.core.model.extended import Model
     from euc_ros.core.residual.noise import make_noise_floor
-    from euc_ros.core.residual.selection import Model, fit_base_h
+    from euc_ros.core.residual.selection import fit_base_h
     from euc_ros.core.states.contexts import prepare
 
     ride = simulate_ride(RideConfig(maneuver="deceleration", runs=2, seed=3))
@@ -168,10 +169,10 @@ def test_the_noise_floor_replicate_is_simex_first_replicate():
     x = np.array([fit_base_h(prepare(states, params))])
     floor = make_noise_floor(series, states, ride.session, params, share=share)(Model(), x)
     assert np.isfinite(floor) and floor > 0
-    noisy = first_replicate(series, ride.session, params, window_s=1.2, polyorder=6)
+    noisy = first_replicate(series, ride.session, params)
     h1 = fit_h(noisy, params, models=("3dof",)).pooled["3dof"].h_m
     assert share.h_m == h1 != fit.h_m
-    kw = dict(window_s=1.2, polyorder=6, with_error=True)
+    kw = dict(with_error=True)
     shared = eiv_bias(series, ride.session, params, fit.h_m, share=share, **kw)
     alone = eiv_bias(series, ride.session, params, fit.h_m, **kw)
     assert shared == alone
@@ -196,7 +197,8 @@ def test_simex_at_two_filters_is_each_filter_alone():
     h_short = fit_h([reconstruct_states(s, ride.session, window_s=0.6, polyorder=4) for s in series], params,
                     models=("3dof",)).pooled["3dof"].h_m
     both = eiv_biases(series, ride.session, params, [(1.2, 6, fit.h_m), (0.6, 4, h_short)])
-    alone = [eiv_bias(series, ride.session, params, fit.h_m, window_s=1.2, polyorder=6, with_error=True),
-             eiv_bias(series, ride.session, params, h_short, window_s=0.6, polyorder=4, with_error=True)]
+    short = ReconstructionSettings(window_s=0.6, polyorder=4)
+    alone = [eiv_bias(series, ride.session, params, fit.h_m, reconstruction=FIXED_DEFAULT, with_error=True),
+             eiv_bias(series, ride.session, params, h_short, reconstruction=short, with_error=True)]
     assert both == alone
     assert both[0][0] != both[1][0]

@@ -8,7 +8,7 @@ rclpy_serialization = pytest.importorskip("rclpy.serialization", reason="rclpy i
 euc_msgs = pytest.importorskip("euc_msgs.msg", reason="the euc_msgs interfaces are not built (./run setup)")
 
 from euc_ros.core.io import cdr_frame  # noqa: E402
-from euc_ros.core.mocap.ingest import Frame  # noqa: E402
+from euc_ros.core.mocap.frame import Frame  # noqa: E402
 from euc_ros.ros import convert  # noqa: E402
 
 MocapFrame = euc_msgs.MocapFrame

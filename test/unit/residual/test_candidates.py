@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 
 from euc_ros.core.model.effects import LIBRARY, ModelContext, make_candidates, theta_from_report
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
-from euc_ros.core.residual.selection import Model, detectability
+from euc_ros.core.residual.selection import detectability
 from euc_ros.core.ridesim.effects import make_effects
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride

@@ -31,7 +31,7 @@ def slope_rides():
     for s in SEEDS:
         states, params = P.ride({"ground_slope": {"alpha_deg": 2.0}}, seed=s)
         out.append((states, params, analyze(states, params, candidates=make_candidates(["ground_slope"]),
-                                            discover=False)))
+                                            discovery=False)))
     return out
 
 
@@ -98,8 +98,8 @@ def test_the_refit_with_the_data_filter_moves_h_towards_the_truth_and_widens_the
 
 
 def test_an_h_the_data_do_not_bound_gets_no_bounded_interval():
+    from euc_ros.core.model.extended import H_BOUNDS
     from euc_ros.core.residual.interval import FinalInterval, base_widening
-    from euc_ros.core.residual.selection import H_BOUNDS
 
     fi = FinalInterval(h_m=0.6, h_se_m=0.005, quantile=2.0, parameters_ci95={}, n_blocks=20)
     assert fi.h_ci95_m == pytest.approx((0.59, 0.61))

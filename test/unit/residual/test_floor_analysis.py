@@ -19,7 +19,7 @@ import math
 import numpy as np
 import pytest
 
-from euc_ros.core.model.extended import ExtendedModel
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import analyze
 from euc_ros.core.ridesim.effects import make_effects
@@ -83,9 +83,9 @@ def test_the_level_lab_slope_carries_into_the_extended_model():
     states, params = ride(floor)
     out = analyze(states, params).to_json()
     p = params.with_h(out["h_after_m"])
-    level = ExtendedModel(p, {})
-    geo = ExtendedModel(p, {"ground_slope": out["effect_parameters"]})
-    tilted = ExtendedModel(p, {"ground_slope": {"alpha_deg": out["effect_parameters"]["alpha_deg"]}})
+    level = Model.from_report(p, {})
+    geo = Model.from_report(p, {"ground_slope": out["effect_parameters"]})
+    tilted = Model.from_report(p, {"ground_slope": {"alpha_deg": out["effect_parameters"]["alpha_deg"]}})
     rms = {}
     for name, model in (("level", level), ("geo", geo), ("tilted", tilted)):
         r = []

@@ -13,9 +13,10 @@ import pytest
 from scipy import optimize
 
 from euc_ros.core.model.effects import ModelContext, make_candidates
+from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.folds import folds_of, residual_block_length, with_blocks
-from euc_ros.core.residual.selection import Model, fit_base_h, fit_model, held_out, model_jacobian
+from euc_ros.core.residual.selection import fit_base_h, fit_model, held_out, model_jacobian
 from euc_ros.core.states.contexts import Recording, decimation_step, prepare
 from euc_ros.core.states.kinematics import reconstruct_states
 

@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from euc_ros.core.residual.selection import HeldOut, Model
+from euc_ros.core.model.extended import Model
+from euc_ros.core.residual.selection import HeldOut
 from euc_ros.core.residual.significance import max_t_adjusted, paired_block_test
 
 

@@ -57,9 +57,10 @@ def test_the_noise_floor_is_the_noise_contribution_of_a_simulated_ride():
     recording without noise (``mocap_clean``) is the noise's contribution. One re-noised realisation
     estimates its RMS with a relative standard error of about 1/sqrt(2 n_blocks), n_blocks ~ 60
     independent ~0.35 s stretches of filtered noise in 3 x 7 s (~0.09); 3 of those allowed."""
+    from euc_ros.core.model.extended import Model
     from euc_ros.core.model.terms import EucParams
     from euc_ros.core.residual.noise import make_noise_floor
-    from euc_ros.core.residual.selection import Model, fit_base_h
+    from euc_ros.core.residual.selection import fit_base_h
     from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
     from euc_ros.core.states.contexts import prepare
     from euc_ros.core.states.kinematics import reconstruct_states

@@ -89,7 +89,7 @@ def test_quadratic_drag_at_the_contact_is_not_named_aero_drag(contact_drag_ride)
 def test_a_wider_plausible_range_names_it_again(contact_drag_ride):
     """The caller's range replaces the library's: the same fit is then named (the range is the only gate)."""
     states, params = contact_drag_ride
-    out = analyze(states, params, candidates=make_candidates(["aero_drag"]), discover=False,
+    out = analyze(states, params, candidates=make_candidates(["aero_drag"]), discovery=False,
                   plausible={"aero_drag.cda_m2": (0.2, 2.0)}).to_json()
     assert out["effect"] == "aero_drag" and not out["refused"]
     assert out["effect_parameters"]["cda_m2"] > 1.0

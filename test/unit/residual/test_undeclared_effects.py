@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from euc_ros.core.residual.analysis import DEFAULT_ALPHA
+from euc_ros.core.residual.selector import DEFAULT_ALPHA
 
 # the experiment harnesses live in studies/ at the repository root, outside the package
 sys.path.insert(0, str(Path(__file__).resolve().parents[3]))

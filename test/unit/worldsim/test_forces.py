@@ -1,4 +1,4 @@
-"""Hidden force laws: applied by virtual power, energy balance with their work, draws, calibration, the study."""
+"""Hidden force laws: applied by virtual power, energy balance with their work, draws; the study's command."""
 from __future__ import annotations
 
 import csv
@@ -253,55 +253,7 @@ def test_bad_input_is_a_clear_error():
         F.calibrate(_law("drift"), {}, np.zeros(2), P, 0.3, 1.5)
 
 
-def test_study_draws_respect_their_ranges():
-    from euc_ros.cli import open_world as ow
-
-    draws = np.array([[r.uniform(*ow.ARTEFACT_MM), r.uniform(*F.RATIO_RANGE)]
-                      for r in (ow.ride_rng(s, f) for s in range(100) for f in ow.FAMILIES)])
-    assert draws[:, 0].min() >= 0 and draws[:, 0].max() <= 10 and draws[:, 0].max() > 9
-    assert draws[:, 1].min() >= 0.2 and draws[:, 1].max() <= 0.5
-
-
-# -- calibration --------------------------------------------------------------------------------------
-@pytest.mark.parametrize("family,seed", [("speed", 3), ("dynamic", 5)])
-def test_calibration_gives_the_target_ratio_along_the_ride_with_the_law(family, seed, tmp_path):
-    """With a given floor, the law's effect along the ride with it gives the target ratio within the stated bound.
-
-    The law is scaled along the ride without it, then corrected once along the ride with it (the controllers
-    respond to the law): ``open_world.RATIO_TOLERANCE``, measured on tuning seeds.
-    """
-    from euc_ros.cli import open_world as ow
-
-    r = ow.make_ride(seed, family, tmp_path, duration=6.0, floor_fn=lambda *_: 0.4)
-    # the first run is the one calibrated along; the others carry the same law over their own profiles
-    assert abs(F.ratio_of(0.4, ow._seen_rms([r["ride"]], ow.RATE_HZ)) - r["ratio_target"]) <= ow.RATIO_TOLERANCE
-    assert len(r["csvs"]) == ow.RUNS and len(r["rides"]) == ow.RUNS
-    assert all(rd.spec.force == r["law"] for rd in r["rides"])
-    assert len({float(rd.truth["x_dot"][0]) for rd in r["rides"]}) == ow.RUNS      # profiles of their own
-    truth = json.loads(r["truth"].read_text(encoding="utf-8"))
-    assert truth["force"]["family"] == family and len(truth["effect"]) == len(truth["t"])
-
-
-# -- the study ------------------------------------------------------------------------------------------
-def test_judge_reads_names_discoveries_and_families():
-    from euc_ros.cli import open_world as ow
-
-    law = _law("speed", 0)
-    law = dataclasses.replace(law, params={**law.params, "parity": "odd"})
-    base = {"rmse_before_nm": 1.0, "rmse_after_nm": 0.4}
-    j = ow.judge({**base, "effect": "viscous_friction", "discovered": []}, "speed", law)
-    assert j["right_name"] and not j["false_name"] and j["explained"]
-    j = ow.judge({**base, "effect": "ground_slope+discovered",
-                  "discovered": [{"formula": "c x_dot", "point": "contact", "coordinate": "x"}]}, "speed", law)
-    assert j["false_name"] and j["explained"] and j["family_match"] is None
-    j = ow.judge({**base, "effect": "discovered", "discovered": [{"formula": "c t", "family": "time"}]}, "speed", law)
-    assert j["family_match"] is False and not j["explained"]
-    j = ow.judge({**base, "effect": "discovered", "discovered": [{"formula": "c v", "family": "Speed"}]}, "speed", law)
-    assert j["family_match"] and j["explained"]
-    j = ow.judge({"rmse_before_nm": 1.0, "rmse_after_nm": 0.9, "effect": "none"}, "none", None)
-    assert j["explained"] is None and not j["false_name"] and j["library_names"] == []
-
-
+# -- the study's command (its rides, rows and judging: test/unit/openworld/) -------------------------------
 @pytest.mark.slow
 def test_campaign_open_world_runs_end_to_end(tmp_path):
     from euc_ros.cli.main import main

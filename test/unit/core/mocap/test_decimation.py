@@ -1,26 +1,22 @@
-"""Replay clock, view decimation and stream silence of the ingest (euc_ros.core.mocap.ingest), with time as an argument.
+"""View decimation (euc_ros.core.mocap.decimation), with time as an argument.
 
-View decimation: NatNet frames are stamped with the receive time minus the reported latency, so their
+NatNet frames are stamped with the receive time minus the reported latency, so their
 stamps jitter by milliseconds around the 8.3 ms period of a 120 Hz capture. A real 120 Hz capture lost
 the poses of 20-26 of 518 frames to the stamp rule (3/4 of the view period since the last frame shown);
 decimated by frame number, every frame of a 120 Hz source is shown and every 3rd of a 360 Hz one,
 whatever the jitter. The jitter here (2 ms rms, Gaussian, seeded) makes the stamp rule lose frames too
 (asserted, so the test would notice if it stopped exercising the problem).
-
-Replay stamps are integers computed from float seconds exactly as the node computed them inline
-(the same expression), so they compare with ``==``.
 """
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from euc_ros.core.mocap.ingest import ReplayClock, SilenceWatch, ViewDecimator, replay_schedule
+from euc_ros.core.mocap.decimation import ViewDecimator
 
 S0 = 1_700_000_000 * 10**9
 
 
-# -- ViewDecimator -----------------------------------------------------------------------------------------------------
 def jittered(rate_hz: float, n: int, seed: int = 5, rms_s: float = 0.002, first: int = 1000) -> tuple:
     """Frame numbers and receive-minus-latency stamps [ns] of ``n`` frames at ``rate_hz``."""
     rng = np.random.default_rng(seed)
@@ -89,77 +85,3 @@ def test_frames_without_numbers_are_decimated_by_stamp():
     dec = ViewDecimator(120.0)
     assert [s for s in stamps if dec.due(-1, int(s))] == stamps[::3].tolist()
     assert dec.due(-1, int(stamps[0]))                      # stamps went back: shown
-
-
-# -- ReplayClock -------------------------------------------------------------------------------------------------------
-RATE = 100.0
-T = np.arange(10, 70) / RATE                                # frames 10..69
-
-
-def inline_replay_stamp(t, k, start_ns, loop_index, span_s):
-    """The expression the node used."""
-    return start_ns + int(round((float(t[k]) - float(t[0]) + loop_index * span_s) * 1e9))
-
-
-def test_replay_frames_are_due_on_the_schedule_with_replay_stamps():
-    clock = ReplayClock(T, 2.0, 1 / RATE)
-    assert clock.due(0.0) == ([], None) and not clock.started
-    clock.start(100.0, S0)
-    schedule = replay_schedule(T, 2.0)
-    got, event = clock.due(100.0 + schedule[4] + 1e-9)
-    assert [k for k, _ in got] == [0, 1, 2, 3, 4] and event is None
-    got2, _ = clock.due(100.0 + schedule[-1] - 1e-6)
-    assert [k for k, _ in got2] == list(range(5, 59))
-    got3, event = clock.due(100.0 + schedule[-1])
-    assert [k for k, _ in got3] == [59] and event == "end" and clock.done
-    stamps = [s for _, s in got + got2 + got3]
-    assert stamps == [inline_replay_stamp(T, k, S0, 0, clock.loop_span_s) for k in range(60)]
-    assert np.all(np.diff(stamps) == 10_000_000)
-    assert clock.due(1e9) == ([], None)
-
-
-def test_file_stamps_are_the_capture_start_plus_the_recorded_time():
-    clock = ReplayClock(T, 4.0, 1 / RATE, file_start_ns=S0)
-    clock.start(5.0, 123)
-    got, event = clock.due(1e6)
-    assert event == "end" and [s for _, s in got] == [S0 + int(round(float(t) * 1e9)) for t in T]
-
-
-def test_a_looping_replay_keeps_replay_stamps_increasing_by_one_period():
-    clock = ReplayClock(T, 1.0, 1 / RATE, loop=True)
-    clock.start(0.0, S0)
-    stamps, events = [], []
-    for now in np.arange(0.0, 1.5, 0.003):
-        got, event = clock.due(float(now))
-        stamps += [s for _, s in got]
-        events.append(event)
-    assert events.count("loop") == 2 and "end" not in events and not clock.done
-    assert np.all(np.diff(stamps) == 10_000_000)            # across the seams too
-    assert len(stamps) == 60 * 2 + 30                         # loops of 0.6 s; 0.297 s into the third
-
-
-def test_an_empty_recording_ends_at_once():
-    clock = ReplayClock(np.array([]), 1.0, 0.0, loop=True)
-    clock.start(0.0, S0)
-    assert clock.due(0.0) == ([], "end")
-
-
-# -- SilenceWatch ------------------------------------------------------------------------------------------------------
-def test_silence_warns_after_the_delay_repeats_and_reports_the_return():
-    w = SilenceWatch(3.0, 10.0)
-    assert w.check(1.0) is None                             # not started
-    w.start(0.0)
-    assert w.check(2.9) is None
-    assert w.check(3.0) == pytest.approx(3.0)
-    assert w.check(5.0) is None and w.check(12.9) is None   # throttled
-    assert w.check(13.0) == pytest.approx(13.0)
-    assert w.data(14.0) == pytest.approx(14.0)              # back after a warned silence: news
-    assert w.data(14.1) is None and w.check(16.0) is None
-    assert w.check(17.2) == pytest.approx(3.1)              # a new silence
-
-
-def test_first_data_is_news_even_without_a_warning():
-    w = SilenceWatch(3.0, 10.0)
-    w.start(10.0)
-    assert w.data(10.5) == pytest.approx(0.5)
-    assert w.data(10.6) is None and w.check(11.0) is None
