@@ -20,6 +20,7 @@ import yaml
 from euc_ros.core.errors import InputError
 from euc_ros.core.io import bags
 from euc_ros.core.io.bags import BagWriter, check_bag, inspect_bag, read_bag, read_mocap_bag, recover_bag
+from euc_ros.core.io.bags.common import scan_mcap
 from euc_ros.core.io.msgdefs import euc_msgs_definitions, make_typestore
 from euc_ros.core.mocap.series import MocapSeries
 
@@ -278,7 +279,7 @@ def test_write_raw_many_errors(tmp_path):
 
 def test_small_chunks_are_used(written):
     path, _, _ = written
-    scan, _ = bags._scan_mcap(mcap_of(path))
+    scan, _ = scan_mcap(mcap_of(path))
     assert scan.n_chunks >= 10 and scan.footer and scan.error is None
 
 
@@ -374,7 +375,7 @@ def test_recover_truncated_copy(written, tmp_path):
     f = mcap_of(bag)
     data = f.read_bytes()
     f.write_bytes(data[: len(data) // 2])
-    scan, _ = bags._scan_mcap(f)
+    scan, _ = scan_mcap(f)
     report = recover_bag(bag)
     assert report["messages"] == scan.n_messages > 0 and report["chunks"] == scan.n_chunks
     assert report["stopped_at"] is not None

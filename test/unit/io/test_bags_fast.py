@@ -9,6 +9,9 @@ import pytest
 
 from euc_ros.core.io import bags
 from euc_ros.core.io.bags import BagWriter, read_bag, read_mocap_bag, write_mocap_bag
+from euc_ros.core.io.bags import mocap as mocap_bags
+from euc_ros.core.io.bags.common import bag_info
+from euc_ros.core.io.bags.fast_mcap import read_mocap_fast
 from euc_ros.core.io.mcap_fast import McapFile, read_channels
 from euc_ros.core.io.msgdefs import make_typestore
 from euc_ros.core.mocap.series import MocapSeries
@@ -35,17 +38,18 @@ def make_series(n=400, b=5, seed=3, dropped=()) -> MocapSeries:
 
 
 def reference(bag: Path, **kw) -> MocapSeries:
-    """read_mocap_bag through rosbags only (the fast path switched off for this call)."""
-    fast = bags._read_mocap_fast
-    bags._read_mocap_fast = lambda *a, **k: None
+    """read_mocap_bag through rosbags only (the fast path switched off for this call, where the reader looks
+    it up)."""
+    fast = mocap_bags.read_mocap_fast
+    mocap_bags.read_mocap_fast = lambda *a, **k: None
     try:
         return read_mocap_bag(bag, **kw)
     finally:
-        bags._read_mocap_fast = fast
+        mocap_bags.read_mocap_fast = fast
 
 
 def takes_fast_path(bag: Path, prefix="/vrpn_mocap", frame_topic=None) -> bool:
-    return bags._read_mocap_fast(Path(bag), bags._bag_info(Path(bag)), prefix, frame_topic, 0.25) is not None
+    return read_mocap_fast(Path(bag), bag_info(Path(bag)), prefix, frame_topic, 0.25) is not None
 
 
 def assert_same(got: MocapSeries, want: MocapSeries) -> None:

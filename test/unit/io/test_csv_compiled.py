@@ -10,6 +10,7 @@ import pytest
 
 from euc_ros.core.io import motive_csv
 from euc_ros.core.io.csv_compiled import parse_rows
+from euc_ros.core.io.motive_csv import block as motive_block
 
 REAL = Path(__file__).resolve().parents[3].parent / "shared" / "data" / "motive_real"
 needs_real = pytest.mark.skipif(not REAL.is_dir(), reason=f"real Motive exports not available ({REAL} is absent)")
@@ -71,9 +72,9 @@ def test_two_rows_asked_of_one_is_given_up():
 
 def _both(path: Path, monkeypatch):
     """The reader with the compiled path on every file, and with numpy's alone."""
-    monkeypatch.setattr(motive_csv, "_COMPILED_MIN_BYTES", 0)
+    monkeypatch.setattr(motive_block, "_COMPILED_MIN_BYTES", 0)
     fast = motive_csv.read_motive_csv(path)
-    monkeypatch.setattr(motive_csv, "_COMPILED_MIN_BYTES", 1 << 62)
+    monkeypatch.setattr(motive_block, "_COMPILED_MIN_BYTES", 1 << 62)
     slow = motive_csv.read_motive_csv(path)
     return fast, slow
 
@@ -98,7 +99,7 @@ def test_real_exports_read_the_same_with_and_without_it(name, monkeypatch):
     try:
         fast, slow = _both(REAL / name, monkeypatch)
     except Exception as e:                      # a file the reader refuses is refused alike by both
-        monkeypatch.setattr(motive_csv, "_COMPILED_MIN_BYTES", 1 << 62)
+        monkeypatch.setattr(motive_block, "_COMPILED_MIN_BYTES", 1 << 62)
         with pytest.raises(type(e)):
             motive_csv.read_motive_csv(REAL / name)
         return

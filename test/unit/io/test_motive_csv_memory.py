@@ -31,7 +31,9 @@ import sys
 import numpy as np
 import pytest
 
+from euc_ros.core.errors import InputError
 from euc_ros.core.io import motive_csv
+from euc_ros.core.io.motive_csv import block as motive_block
 from euc_ros.core.io.motive_csv import write_motive_csv
 from euc_ros.core.mocap.series import MocapSeries
 
@@ -72,9 +74,9 @@ def test_peak_memory_is_the_result_plus_a_bounded_working_set(tmp_path):
     increase = out["rss"]["increase_mb"]
     if increase is None:
         pytest.skip("no VmRSS/VmHWM in /proc/self/status")
-    chunk = min(motive_csv._CHUNK_BYTES, max(motive_csv._CHUNK_BYTES_MIN,
-                                             path.stat().st_size // motive_csv._CHUNKS_AT_LEAST))
-    assert chunk < motive_csv._CHUNK_BYTES      # a file of this size is read in smaller chunks
+    chunk = min(motive_block._CHUNK_BYTES, max(motive_block._CHUNK_BYTES_MIN,
+                                               path.stat().st_size // motive_block._CHUNKS_AT_LEAST))
+    assert chunk < motive_block._CHUNK_BYTES      # a file of this size is read in smaller chunks
     bound = 1.5 * out["result_mb"] + CHUNKS * chunk / 2**20 + SLACK_MB
     assert increase <= bound, (f"read_motive_csv raised the RSS by {increase:.1f} MB on a {file_mb:.1f} MB file "
                                f"(result {out['result_mb']:.1f} MB); bound {bound:.1f} MB; {out['rss']}")
@@ -94,11 +96,11 @@ def _small_export(tmp_path, n=300):
 
 
 def _read_with_chunks(path, chunk_bytes, monkeypatch):
-    monkeypatch.setattr(motive_csv, "_CHUNK_BYTES", chunk_bytes)
-    monkeypatch.setattr(motive_csv, "_CHUNKS_AT_LEAST", 1)   # chunks of exactly chunk_bytes
+    monkeypatch.setattr(motive_block, "_CHUNK_BYTES", chunk_bytes)
+    monkeypatch.setattr(motive_block, "_CHUNKS_AT_LEAST", 1)   # chunks of exactly chunk_bytes
     try:
         return motive_csv.read_motive_csv(path)
-    except motive_csv.InputError as exc:
+    except InputError as exc:
         return str(exc)
 
 

@@ -14,7 +14,8 @@ from pathlib import Path
 import pytest
 import yaml
 
-from euc_ros.core.io.bags import BagWriter, _check_metadata, check_bag
+from euc_ros.core.io.bags import BagWriter, check_bag
+from euc_ros.core.io.bags.check import _check_metadata
 
 FIXTURE = Path(__file__).parent / "data" / "rosbag2_jazzy"
 
