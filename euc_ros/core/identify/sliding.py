@@ -25,40 +25,12 @@ flex in a real ride count as sliding, which widens the interval (conservative).
 """
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 
 from euc_ros.core.identify.fit import pooled_h_of_states
-from euc_ros.core.rotations import rotation_matrices
-from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
+from euc_ros.core.states.link_sliding import MIN_SLIDING_M, add_sliding, estimate_sliding
 from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 from euc_ros.core.states.skeleton import SkeletonModel
-
-
-def _surrogate(rng: np.random.Generator, n: int, rate_hz: float, spectrum) -> np.ndarray:
-    """(n, 3) Gaussian series with the given normalised power spectrum and unit 3-D RMS."""
-    f = np.fft.rfftfreq(n, 1.0 / rate_hz)
-    sf, sp = spectrum
-    amp = np.sqrt(np.interp(f, sf, sp, left=0.0, right=0.0))
-    z = (rng.normal(0.0, 1.0, (f.size, 3)) + 1j * rng.normal(0.0, 1.0, (f.size, 3))) * amp[:, None]
-    x = np.fft.irfft(z, n=n, axis=0)
-    r = np.sqrt(np.mean(np.sum(x ** 2, 1)))
-    return x / r if r > 0 else x
-
-
-def add_sliding(series, sliding: dict, rng: np.random.Generator):
-    """A copy of ``series`` with independent surrogate sliding added to every rider body's pivot."""
-    pos = series.position.copy()
-    n = series.n_frames
-    for nm, rms in zip(sliding["bodies"], sliding["rms_m"]):
-        if nm not in series.bodies or rms <= 0:
-            continue
-        i = series.bodies.index(nm)
-        d = _surrogate(rng, n, series.rate_hz, sliding["spectrum"]) * rms
-        R = rotation_matrices(series.quat[i])
-        pos[i] = pos[i] + np.einsum("nij,nj->ni", R, d)
-    return dataclasses.replace(series, position=pos)
 
 
 def sliding_bias(series_list, session, params, h: float, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,

@@ -11,11 +11,14 @@ and the sliding whose bias of h identify measures (:mod:`euc_ros.core.identify.s
 """
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 from scipy.optimize import nnls
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.robust import median
+from euc_ros.core.rotations import rotation_matrices
 from euc_ros.core.states.skeleton import DEFAULT_LINKS, SkeletonFitConfig
 
 #: Below this RMS sliding [m] the bias is not computed (0): white noise and round-off.
@@ -192,3 +195,27 @@ def link_deviation(series, a: str, b: str, vector: np.ndarray, usable=None):
                         np.ascontiguousarray(series.quat, dtype=float), np.ascontiguousarray(usable),
                         series.bodies.index(a), series.bodies.index(b), np.asarray(vector, dtype=float))
 
+
+def _surrogate(rng: np.random.Generator, n: int, rate_hz: float, spectrum) -> np.ndarray:
+    """(n, 3) Gaussian series with the given normalised power spectrum and unit 3-D RMS."""
+    f = np.fft.rfftfreq(n, 1.0 / rate_hz)
+    sf, sp = spectrum
+    amp = np.sqrt(np.interp(f, sf, sp, left=0.0, right=0.0))
+    z = (rng.normal(0.0, 1.0, (f.size, 3)) + 1j * rng.normal(0.0, 1.0, (f.size, 3))) * amp[:, None]
+    x = np.fft.irfft(z, n=n, axis=0)
+    r = np.sqrt(np.mean(np.sum(x ** 2, 1)))
+    return x / r if r > 0 else x
+
+
+def add_sliding(series, sliding: dict, rng: np.random.Generator):
+    """A copy of ``series`` with independent surrogate sliding added to every rider body's pivot."""
+    pos = series.position.copy()
+    n = series.n_frames
+    for nm, rms in zip(sliding["bodies"], sliding["rms_m"]):
+        if nm not in series.bodies or rms <= 0:
+            continue
+        i = series.bodies.index(nm)
+        d = _surrogate(rng, n, series.rate_hz, sliding["spectrum"]) * rms
+        R = rotation_matrices(series.quat[i])
+        pos[i] = pos[i] + np.einsum("nij,nj->ni", R, d)
+    return dataclasses.replace(series, position=pos)
