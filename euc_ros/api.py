@@ -82,7 +82,9 @@ class Result:
 
 @dataclass(frozen=True)
 class ResidualResult(Result):
-    """What ``residual`` reports; besides :class:`Result` (whose ``h`` is the final model's):
+    """What ``residual`` reports.
+
+    Besides :class:`Result` (whose ``h`` is the final model's):
 
     Attributes
     ----------
@@ -125,8 +127,7 @@ def _paths(recordings: str | os.PathLike | Sequence[str | os.PathLike]) -> list[
 
 
 def _settings(options: dict, default=None):
-    """The :class:`~euc_ros.core.states.settings.ReconstructionSettings` of the reconstruction options, and
-    the rest of the options."""
+    """The reconstruction options as :class:`~euc_ros.core.states.settings.ReconstructionSettings`, and the rest."""
     from dataclasses import replace
 
     from euc_ros.core.states.settings import ReconstructionSettings

@@ -132,8 +132,9 @@ def _key(row: dict) -> str:
 
 
 def differing_rows(rows: list[dict], reference: list[dict]) -> list[str]:
-    """Tasks whose row differs from the reference's in any column but ``seconds``, or is missing in either, or
-    stands in another place (the rows are sorted by task).
+    """Tasks whose row differs from the reference's, is missing in either, or stands in another place.
+
+    A row differs when any column but ``seconds`` does; the rows are sorted by task.
 
     Examples
     --------

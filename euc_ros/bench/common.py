@@ -105,8 +105,9 @@ def cpu_seconds(pid: int) -> float | None:
 
 
 def cpu_fraction(series: list[tuple[float, float]], t0: float, t1: float) -> float:
-    """Mean CPU use (1 = one core) between wall times ``t0`` and ``t1`` from ``(wall time, CPU seconds)``
-    samples (interpolated), NaN without samples around the interval.
+    """Mean CPU use (1 = one core) between wall times ``t0`` and ``t1``.
+
+    From ``(wall time, CPU seconds)`` samples (interpolated); NaN without samples around the interval.
 
     Examples
     --------

@@ -145,6 +145,19 @@ def rt_env(realtime: int | None) -> dict:
 
 
 def probe_spec(out: Path, realtime: int | None = None):
+    """The probe process of a latency chain (:mod:`euc_ros.bench.probe`).
+
+    Parameters
+    ----------
+    out : Path
+        The probe's output file.
+    realtime : int or None
+        SCHED_FIFO priority (:func:`rt_env`); None: none.
+
+    Returns
+    -------
+    NodeSpec
+    """
     return NodeSpec(sys.executable, name="probe", args=["-m", "euc_ros.bench.probe", "--out", str(out)],
                     ros_args=False, required=False, env=rt_env(realtime))
 
@@ -186,7 +199,8 @@ def measure_floor(n_frames: int, rate_hz: float, n_bodies: int, out_dir: Path, t
                   realtime: int | None = None) -> dict:
     """Run the bare relay chain with the probe; returns :func:`analyze` plus ``peak_rss_mb``.
 
-    ``realtime``: SCHED_FIFO priority of every process of the chain (as the pipeline's critical ones)."""
+    ``realtime``: SCHED_FIFO priority of every process of the chain (as the pipeline's critical ones).
+    """
     probe_out = out_dir / "floor_probe.npz"
     relay = ["-m", "euc_ros.bench.relay"]
     env = rt_env(realtime)

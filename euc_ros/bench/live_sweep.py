@@ -49,8 +49,11 @@ CACHE_VERSION = 1
 
 
 def extra_bodies(series, n_bodies: int):
-    """``series`` with rigid bodies added up to ``n_bodies``: copies of its bodies 3 m, 6 m, ... to the
-    side (named ``<body>_c<k>``), tracked where the original is. Returns ``series`` if it has enough."""
+    """``series`` with rigid bodies added up to ``n_bodies``.
+
+    Copies of its bodies 3 m, 6 m, ... to the side (named ``<body>_c<k>``), tracked where the original is.
+    Returns ``series`` if it has enough.
+    """
     n0 = len(series.bodies)
     if n_bodies <= n0:
         return series

@@ -76,9 +76,12 @@ def bag_counts(bag: Path) -> dict[str, int]:
 
 
 def lost_frames(bag: Path, parts: list[list[str]]) -> dict:
-    """Where a lossy step lost: per topic, the missing frames as ``[first, last, count]`` runs of frame
-    indices (frame stamps of the publisher's other topics give the frames it sent) and the time of the
-    first missing frame after its publisher's first [ms]. ``parts``: the topics of each publisher."""
+    """Where a lossy step lost, per topic: the runs of missing frames and the time of the first missing frame.
+
+    The missing frames are ``[first, last, count]`` runs of frame indices (frame stamps of the publisher's
+    other topics give the frames it sent); the time [ms] is that of the first missing frame after its
+    publisher's first. ``parts``: the topics of each publisher.
+    """
     store = make_typestore()
     stamps: dict[str, list[int]] = {}
     for topic, msgtype, _, raw in read_bag(bag, raw=True):
@@ -116,8 +119,9 @@ def fast_publisher_env() -> dict:
 def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s: float = 120.0,
                  publishers: int = 1, recorder_env: dict | None = None, publisher_env: dict | None = None,
                  qos: str = "reliable") -> dict:
-    """One ladder step: recorder + ``publishers`` blast processes sharing the mix (``qos``: ``reliable``,
-    the pipeline's, or ``best_effort``, a mocap driver's; the recorder matches it).
+    """One ladder step: recorder + ``publishers`` blast processes sharing the mix.
+
+    ``qos``: ``reliable``, the pipeline's, or ``best_effort``, a mocap driver's; the recorder matches it.
 
     ``publisher_env`` defaults to :func:`fast_publisher_env` (pass ``{}`` for Fast DDS' defaults). Returns
     sent, recorded, lost, the achieved rate, the recorder's CPU while the mix was published (seconds,
@@ -181,8 +185,10 @@ def measure_step(frame_rate: float, duration_s: float, out_dir: Path, timeout_s:
 
 
 def measure_publisher_alone(n_frames: int, out_dir: Path, timeout_s: float = 60.0) -> dict:
-    """One blast process with no subscriber publishing ``n_frames`` frames of the mix as fast as it goes:
-    its CPU per message [us] and rate."""
+    """One blast process with no subscriber publishing ``n_frames`` frames of the mix as fast as it goes.
+
+    Returns its CPU per message [us] and rate.
+    """
     result = out_dir / "blast_alone.json"
     spec = NodeSpec(sys.executable, name="blast", ros_args=False, env=fast_publisher_env(), required=False,
                     args=["-m", "euc_ros.bench.relay", "blast", "--frame-rate", "1000000", "--duration",
@@ -241,8 +247,10 @@ def measure_rosbags(n_frames: int, out: str) -> dict:
 
 
 def _ladder(ctx: BenchContext, out: Path, rates, bisect: int, qos: str) -> list[dict]:
-    """Steps up ``rates`` until a loss or the publishers' saturation, then ``bisect`` steps between the
-    last lossless and the first lossy rate."""
+    """Steps up ``rates`` until a loss or the publishers' saturation, then bisects.
+
+    ``bisect`` steps between the last lossless and the first lossy rate.
+    """
     steps = []
 
     def step(rate: int, why: str) -> dict:

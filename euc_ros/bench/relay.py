@@ -192,9 +192,11 @@ def _stamped_template(msg, tf: bool) -> tuple[bytearray, list[int]]:
 
 
 def blast_mix(n_bodies: int) -> list[tuple]:
-    """The pipeline's message mix of one frame, ``[(topic, message class, message), ...]``: a MocapFrame of
-    ``n_bodies``, one PoseStamped per body, a TFMessage of their transforms, a RiderState, a TorqueEstimate
-    (stamps left at 0: a publisher sets them per frame)."""
+    """The pipeline's message mix of one frame, ``[(topic, message class, message), ...]``.
+
+    A MocapFrame of ``n_bodies``, one PoseStamped per body, a TFMessage of their transforms, a RiderState, a
+    TorqueEstimate (stamps left at 0: a publisher sets them per frame).
+    """
     from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
     from geometry_msgs.msg import PoseStamped, TransformStamped
     from tf2_msgs.msg import TFMessage

@@ -43,8 +43,11 @@ def _timed(fn, repeats: int) -> tuple[list[float], list[float], object]:
 
 
 def measure_ride(runs: int, method: str, repeats: int = REPEATS, duration_s: float | None = None) -> dict:
-    """Whole rides on one core: ``{"cpu_s": [...], "wall_s": [...], "recorded_s", "rtf": [...]}`` (``duration_s``:
-    recorded seconds per run, default the maneuver's)."""
+    """Whole rides on one core: CPU and wall seconds, recorded seconds and real-time factors.
+
+    Returns ``{"cpu_s": [...], "wall_s": [...], "recorded_s", "rtf": [...]}`` (``duration_s``: recorded
+    seconds per run, default the maneuver's).
+    """
     from euc_ros.core.ridesim import RideConfig, simulate_ride
 
     simulate_ride(RideConfig(maneuver=MANEUVER, runs=1, seed=0, duration_s=0.5, method=method))

@@ -41,9 +41,11 @@ REPEATS = {False: 3, True: 1}
 
 
 def _prime_csv_parser(paths) -> None:
-    """The compiled CSV parser's one-time import and load (about 0.4 s), untimed, when a recording is a CSV: the
-    warm-up's short CSV is read by numpy (the compiled parser starts at 16 MB of data rows), so without this the
-    first timed read of the long CSV would pay it (as a process's first long CSV does, once)."""
+    """The compiled CSV parser's one-time import and load (about 0.4 s), untimed, when a recording is a CSV.
+
+    The warm-up's short CSV is read by numpy (the compiled parser starts at 16 MB of data rows), so without
+    this the first timed read of the long CSV would pay it (as a process's first long CSV does, once).
+    """
     if any(str(p).lower().endswith(".csv") for p in paths):
         from euc_ros.core.io.csv_compiled import parse_rows
 
@@ -64,7 +66,9 @@ def measure_load(path: str, warmup_path: str | None = None) -> dict:
 
 
 def measure_command(argv: list[str], warmup_argv: list[str] | None = None, *, entry: str, repeats: int = 1) -> dict:
-    """Run ``euc-ros ARGV`` in process on one core ``repeats`` times; ``{"wall_s", "cpu_s"`` (medians),
+    """Run ``euc-ros ARGV`` in process on one core ``repeats`` times.
+
+    Returns ``{"wall_s", "cpu_s"`` (medians),
     ``"wall_runs_s", "cpu_runs_s", "warmup_s", "exit_code", "cpu"}``.
 
     ``entry``: the command-line entry point, ``module:function`` (:attr:`BenchContext.command`).

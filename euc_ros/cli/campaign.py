@@ -96,6 +96,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def tasks_from_args(args) -> list[cmp.Task]:
+    """The campaign's tasks from the command line.
+
+    ``open-world``: the open-world study's tasks; ``sessions``: one per session folder (a folder with
+    session.yaml) in ``--root``; else one per simulated seed.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    list of Task
+
+    Raises
+    ------
+    ConfigError
+        A root that is not a folder, no session folder, or a ``--param`` that is not ``NAME=VALUE``.
+    """
     if args.mode == "open-world":
         from euc_ros.core.openworld import study
 

@@ -96,8 +96,10 @@ def seed_tasks(seeds, simulate: dict, *, residual: bool = False) -> list[Task]:
 
 
 def _analysis_json(command: str, session: str, recordings: list[str]) -> dict:
-    """The JSON document of ``identify`` or ``residual`` on these files (the library's pipelines, as the
-    commands run them), or RuntimeError with the command's one-line error."""
+    """The JSON document of ``identify`` or ``residual`` on these files, or RuntimeError.
+
+    The library's pipelines, as the commands run them; the RuntimeError carries the command's one-line error.
+    """
     from euc_ros.core.errors import EucError
     from euc_ros.core.identify.pipeline import identify_recordings
     from euc_ros.core.residual.pipeline import trace_residual

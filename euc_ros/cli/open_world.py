@@ -50,8 +50,11 @@ def table_lines(summ: dict) -> list[str]:
 
 
 def figure(rows: list[dict], summ: dict, path) -> Path:
-    """Three panels: the per-family percentages; the measured against the design ratio; the h error in
-    units of the interval's half width against the artefact level."""
+    """Three panels: per-family percentages, measured against design ratio, h error against artefact level.
+
+    The per-family percentages; the measured against the design ratio; the h error in units of the interval's
+    half width against the artefact level.
+    """
     from euc_ros.cli.plots import pyplot, save_figure
 
     plt = pyplot()
@@ -163,6 +166,12 @@ def markdown(summ: dict, rows: list[dict], meta: dict, figure_path: Path | None,
 
 
 def machine() -> str:
+    """The machine in one line for the report: architecture, CPU count, Python and OS.
+
+    Returns
+    -------
+    str
+    """
     import os
 
     return f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}, {platform.system()}"

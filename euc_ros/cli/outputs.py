@@ -84,8 +84,10 @@ def write_output(path, text: str, option: str = "--json") -> None:
 
 
 def _probe_writable(anchor: Path) -> str | None:
-    """Create and remove a file in ``anchor``: the reason it fails (a read-only or virtual file system,
-    where permission bits and ``os.access`` say yes), or None."""
+    """Create and remove a file in ``anchor``: the reason it fails, or None.
+
+    This finds a read-only or virtual file system, where permission bits and ``os.access`` say yes.
+    """
     try:
         with tempfile.NamedTemporaryFile(dir=anchor, prefix=".euc_ros_probe_"):
             return None

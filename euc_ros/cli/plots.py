@@ -83,8 +83,10 @@ def configure_from_args(args) -> None:
 
 
 def pyplot():
-    """Return ``matplotlib.pyplot`` with the non-interactive Agg backend (imported on first use) and the
-    font settings of :data:`FONT_RC`."""
+    """Return ``matplotlib.pyplot`` with the non-interactive Agg backend and the font settings of :data:`FONT_RC`.
+
+    It is imported on first use.
+    """
     import matplotlib
 
     matplotlib.use("Agg", force=True)
@@ -179,8 +181,9 @@ def mark_gaps(ax, spans: np.ndarray, *, label: str | None = None):
 
 
 def break_at_jumps(t: np.ndarray, *ys: np.ndarray) -> tuple[np.ndarray, ...]:
-    """``t`` and ``ys`` with a NaN sample inserted where the time step jumps (frames not recorded), so a
-    line drawn through them breaks there instead of bridging the gap.
+    """``t`` and ``ys`` with a NaN sample inserted where the time step jumps (frames not recorded).
+
+    A line drawn through them breaks there instead of bridging the gap.
 
     Returns ``(t, *ys)``; unchanged when no step exceeds 1.5 times the median step.
     """
@@ -217,8 +220,10 @@ def _data_points(ax) -> np.ndarray:
 
 
 def _has_content(ax) -> bool:
-    """Whether ``ax`` shows something: a line with a finite point, data collections, patches, images, tables
-    or text (shaded gaps alone are no content)."""
+    """Whether ``ax`` shows something (shaded gaps alone are no content).
+
+    Something is a line with a finite point, data collections, patches, images, tables or text.
+    """
     lines = [ln for ln in ax.get_lines() if np.isfinite(np.asarray(ln.get_xydata(), float)).all(axis=1).any()]
     return bool(lines or [c for c in ax.collections if c.get_gid() != GAP_GID] or ax.patches or ax.images
                 or ax.tables or [t for t in ax.texts if t.get_text().strip()])

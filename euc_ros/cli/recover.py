@@ -20,6 +20,12 @@ HELP = "rebuild a readable bag from a truncated or metadata-less one (recorder k
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``euc-ros recover``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+    """
     parser.add_argument("bag", help="damaged bag directory or .mcap file")
     parser.add_argument("--out", default=None, metavar="DIR",
                         help="new bag directory (must not exist; default: BAG_recovered next to BAG)")

@@ -160,8 +160,10 @@ def format_summary(data: dict) -> str:
 
 
 def console_warnings(data: dict) -> list[str]:
-    """The warnings to print once each: the recordings' and the analysis', without those the summary shows
-    already (a refused name is a line of the verdict)."""
+    """The warnings to print once each: the recordings' and the analysis'.
+
+    Without those the summary shows already (a refused name is a line of the verdict).
+    """
     said = tuple(r["text"] for r in data.get("refused", []))
     out = [w for w in list(data.get("warnings", [])) + list(data.get("analysis_warnings", []))
            if not (said and w.startswith(said))]

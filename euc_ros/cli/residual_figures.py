@@ -147,8 +147,9 @@ def candidate_rows(data: dict) -> list[CandidateRow]:
 
 
 def h_status(data: dict) -> tuple[bool | None, bool | None]:
-    """Whether the data identify the base model's h (``h_m``) and the final model's (``h_after_m``), as the
-    console says: the document's ``identifiable`` and ``h_after_identifiable``.
+    """Whether the data identify the base model's h (``h_m``) and the final model's (``h_after_m``).
+
+    As the console says: the document's ``identifiable`` and ``h_after_identifiable``.
 
     Without them (a document that did not assess them, such as ``ResidualResult.to_json``) the status is
     None (not assessed), except that a final interval ``h_after_ci95_m`` with an open end is not identified.
@@ -162,9 +163,11 @@ def h_status(data: dict) -> tuple[bool | None, bool | None]:
 
 
 def draw_candidates(data: dict):
-    """The candidate table of a residual JSON document (:func:`candidate_rows`) as a Figure: one row per
-    candidate with its status, coloured by it (:data:`STATUS_COLOURS`), and the reasons of the refused and
-    not admissible ones under the table."""
+    """The candidate table of a residual JSON document (:func:`candidate_rows`) as a Figure.
+
+    One row per candidate with its status, coloured by it (:data:`STATUS_COLOURS`), and the reasons of the
+    refused and not admissible ones under the table.
+    """
     plt = pyplot()
     rows = candidate_rows(data)
     notes = [line for r in rows if r.note for line in textwrap.wrap(r.note, 140, subsequent_indent="    ")]
@@ -195,8 +198,9 @@ def draw_candidates(data: dict):
 
 
 def draw_h_range(data: dict):
-    """The h of every model the data cannot tell apart (``tied_models``), between the base model (its
-    ``h_ci95_m``) and the final model (``h_after_ci95_m``), each interval a bar; None without tied models.
+    """The h of every model the data cannot tell apart (``tied_models``), each interval a bar; None without tied models.
+
+    Drawn between the base model (its ``h_ci95_m``) and the final model (``h_after_ci95_m``).
 
     An interval end the data do not bound (None) is an arrow to the axis edge; a model without an interval
     of its own (a tied model without ``h_ci95_m``) is a point.
@@ -298,8 +302,11 @@ def _on_recording(rec, t_all: np.ndarray, mask: np.ndarray, *values: np.ndarray)
 
 
 def draw_residual_time(result, recs, states, data: dict):
-    """M_d1 - M_d2 over time, one panel per recording: the base 3-DoF model and the final one; the spans
-    without usable samples shaded (occlusion gaps, the filter's ends, frames not recorded)."""
+    """M_d1 - M_d2 over time, one panel per recording.
+
+    The base 3-DoF model and the final one; the spans without usable samples shaded (occlusion gaps, the
+    filter's ends, frames not recorded).
+    """
     from euc_ros.core.model.extended import Model
 
     plt = pyplot()
@@ -334,9 +341,11 @@ def draw_residual_time(result, recs, states, data: dict):
 
 
 def _draw_signature(result, rec, st, data: dict):
-    """The residual against the selected effect's contribution: over time (always readable, also for an
-    effect that is nearly constant, such as rolling resistance at one sign of the speed), and as a scatter
-    when the contribution varies enough to spread the points."""
+    """The residual against the selected effect's contribution.
+
+    Over time (always readable, also for an effect that is nearly constant, such as rolling resistance at one
+    sign of the speed), and as a scatter when the contribution varies enough to spread the points.
+    """
     from euc_ros.core.model.extended import Model
 
     plt = pyplot()
@@ -407,8 +416,10 @@ def _draw_floor(fl, states, params):
 
 
 def discovered_figure(rows: list[dict], path: Path) -> Path:
-    """Each discovered function over its argument's observed range with its 95 % band (one panel per row of
-    the residual JSON's ``discovered``; a drift has one curve per recording)."""
+    """Each discovered function over its argument's observed range with its 95 % band.
+
+    One panel per row of the residual JSON's ``discovered``; a drift has one curve per recording.
+    """
     plt = pyplot()
     fig, axes = plt.subplots(len(rows), 1, figsize=(7.5, 2.6 * len(rows) + 0.4), squeeze=False)
     for ax, d in zip(axes[:, 0], rows):

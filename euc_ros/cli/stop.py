@@ -6,8 +6,10 @@ import threading
 
 
 class StopSignals:
-    """Within ``with StopSignals() as stop:``, SIGINT and SIGTERM set the event ``stop`` instead of raising;
-    the previous handlers come back on exit. The command checks the event between steps."""
+    """Within ``with StopSignals() as stop:``, SIGINT and SIGTERM set the event ``stop`` instead of raising.
+
+    The previous handlers come back on exit. The command checks the event between steps.
+    """
 
     def __init__(self) -> None:
         self.event = threading.Event()

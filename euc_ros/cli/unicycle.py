@@ -41,6 +41,13 @@ MAP_YAW_RATE = 15.0
 
 
 def add_model_args(p: argparse.ArgumentParser) -> None:
+    """The model options (Table I defaults) of a ``euc-ros unicycle`` subcommand.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The subcommand's parser.
+    """
     d = UnicycleParams()
     g = p.add_argument_group("model (Table I defaults)")
     g.add_argument("--wheel-mass", type=float, default=d.m, metavar="KG", help=f"wheel mass m (default {d.m})")
@@ -51,6 +58,16 @@ def add_model_args(p: argparse.ArgumentParser) -> None:
 
 
 def params_from_args(args: argparse.Namespace):
+    """The :class:`UnicycleParams` of the model options (:func:`add_model_args`).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    UnicycleParams
+    """
     return UnicycleParams(m=args.wheel_mass, m0=args.point_mass, R=args.radius, g=args.gravity)
 
 

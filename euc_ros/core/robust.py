@@ -48,8 +48,10 @@ def _median_1d(x: np.ndarray) -> float:
 
 
 def median(a, axis: int | None = None, keepdims: bool = False):
-    """:func:`numpy.median` of ``a`` (float64), over everything (``axis`` None) or along ``axis``; equal to
-    numpy's bit for bit (module docstring)."""
+    """:func:`numpy.median` of ``a`` (float64), over everything (``axis`` None) or along ``axis``.
+
+    Equal to numpy's bit for bit (module docstring).
+    """
     a = np.asarray(a, dtype=float)
     if axis is None:
         out = _median_1d(a.ravel())

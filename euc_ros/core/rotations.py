@@ -51,8 +51,10 @@ def yaw_tilt_pitch_from_quat(q) -> np.ndarray:
 
 
 def rotation_matrices(q) -> np.ndarray:
-    """Return rotation matrices (..., 3, 3) for quaternions (..., 4) (x, y, z, w; normalised here);
-    NaN where q is not finite or zero."""
+    """Return rotation matrices (..., 3, 3) for quaternions (..., 4) (x, y, z, w; normalised here).
+
+    NaN where q is not finite or zero.
+    """
     q = np.asarray(q, dtype=float)
     n2 = np.einsum("...i,...i->...", q, q)
     ok = np.isfinite(n2) & (n2 > 0)
@@ -103,8 +105,10 @@ def canonical_quat(q) -> np.ndarray:
 
 
 def quat_multiply(a, b) -> np.ndarray:
-    """Hamilton product ``a b`` of quaternions (..., 4) in (x, y, z, w) order (broadcasting): the rotation
-    ``b`` followed by ``a`` in the fixed frame, i.e. ``R(a b) = R(a) R(b)``."""
+    """Hamilton product ``a b`` of quaternions (..., 4) in (x, y, z, w) order (broadcasting).
+
+    The rotation ``b`` followed by ``a`` in the fixed frame, i.e. ``R(a b) = R(a) R(b)``.
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     av, aw = a[..., :3], a[..., 3:]

@@ -1,4 +1,4 @@
-"""Node container ``pipeline_container``: several pipeline nodes in one process, linked in-process.
+r"""Node container ``pipeline_container``: several pipeline nodes in one process, linked in-process.
 
 ROS 2's answer to hops that cost more than their work is composition: the nodes stay separate
 nodes (own names, parameters, diagnostics, topics) but share a process, and a message from one
@@ -23,8 +23,8 @@ one :class:`~euc_ros.ros.executor.LeanExecutor`.
 Usage (``--nodes`` before ``--ros-args``; one ``--params-file`` per node, as their sections are
 keyed by node name)::
 
-    pipeline_container --nodes mocap_ingest,rider_state,torque_estimator --ros-args \\
-        --params-file config/mocap_ingest.yaml --params-file config/rider_state.yaml \\
+    pipeline_container --nodes mocap_ingest,rider_state,torque_estimator --ros-args \
+        --params-file config/mocap_ingest.yaml --params-file config/rider_state.yaml \
         --params-file config/torque_estimator.yaml -p session_file:=session.yaml -p csv_path:=ride.csv
 
 A ``-p`` override applies to every node that declares the parameter (``session_file`` to both

@@ -7,10 +7,13 @@ the capture time; a server that sends nothing is said on the console after 3 s).
 
 Bad input never stops the node: duplicate and out-of-order stamps or frame numbers, malformed
 NatNet packets and invalid poses are dropped (or published untracked) and counted in the
-diagnostics. The logic lives in :mod:`euc_ros.core.mocap` (:mod:`~euc_ros.core.mocap.frame`,
-:mod:`~euc_ros.core.mocap.tracking`, :mod:`~euc_ros.core.mocap.decimation` and the modules the sources use);
-this module only wires ROS. The up axis is checked against the first seconds of data (``check_up_axis``): a
-contradiction ends the node with exit code 2.
+diagnostics; an input a source cannot use (an :class:`~euc_ros.core.errors.EucError`) is dropped with a
+warning (``input_errors``), and any other exception, a bug, is logged with its traceback and counted apart
+(``unexpected_errors``, :class:`~euc_ros.ros.runtime.CallbackErrors`). The logic lives in
+:mod:`euc_ros.core.mocap` (:mod:`~euc_ros.core.mocap.frame`, :mod:`~euc_ros.core.mocap.tracking`,
+:mod:`~euc_ros.core.mocap.decimation` and the modules the sources use); this module only wires ROS. The
+up axis is checked against the first seconds of data (``check_up_axis``): a contradiction ends the node
+with exit code 2.
 """
 from __future__ import annotations
 
@@ -33,7 +36,7 @@ from euc_ros.ros import interfaces as itf
 from euc_ros.ros.intra import LocalFanout
 from euc_ros.ros.mocap_sources import make_source, up_axis_config
 from euc_ros.ros.params import ParamSpec, declare_params
-from euc_ros.ros.runtime import main_for
+from euc_ros.ros.runtime import CallbackErrors, main_for
 
 SPECS = (
     ParamSpec("source", "csv", "where poses come from", choices=("csv", "topics", "natnet")),
@@ -123,8 +126,10 @@ class MocapIngest(Node):
         Where the frames come from (:mod:`euc_ros.ros.mocap_sources`).
     stats : TrackingStats
         Frame and tracking counters (``frames``, ``dropped``, ``duplicates``, ``out_of_order``...).
-    published, received, errors : int
-        MocapFrames published; inputs handled (poses, NatNet messages, CSV frames); inputs dropped on error.
+    published, received : int
+        MocapFrames published; inputs handled (poses, NatNet messages, CSV frames).
+    drops : CallbackErrors
+        Inputs dropped on bad input (:meth:`input_error`) or on an unexpected error (:meth:`unexpected_error`).
     """
 
     NAME = "mocap_ingest"
@@ -142,7 +147,8 @@ class MocapIngest(Node):
         self.diag_pub = itf.diagnostics_publisher(self)
         self.pose_pubs: dict[str, object] = {}
         self.stats = TrackingStats(self.bodies, restart_frames=cfg["restart_frames"])
-        self.published = self.received = self.errors = self.view_published = 0
+        self.published = self.received = self.view_published = 0
+        self.drops = CallbackErrors(self, "input dropped")
         self._last_frame_wall: float | None = None
         self.up_watch: UpAxisWatch | None = None
         self.source = make_source(self, cfg)
@@ -167,10 +173,18 @@ class MocapIngest(Node):
                     self.pose_pubs[body] = self.create_publisher(PoseStamped, itf.body_pose_topic(body),
                                                                  itf.RELIABLE_QOS, event_callbacks=itf.pub_events())
 
-    def input_error(self, exc: Exception) -> None:
-        """Count and log (throttled) an input that could not be used."""
-        self.errors += 1
-        self.get_logger().warning(f"input dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+    @property
+    def errors(self) -> int:
+        """Inputs dropped on bad input (:meth:`input_error`)."""
+        return self.drops.errors
+
+    def input_error(self, exc: EucError) -> None:
+        """Count and log (throttled) an input that could not be used (a source's ``except EucError``)."""
+        self.drops.input_error(exc)
+
+    def unexpected_error(self) -> None:
+        """Count and log (throttled, with its traceback) the exception being handled: a bug in a source's callback."""
+        self.drops.unexpected_error()
 
     def publish_frame(self, frame: Frame, stamp_source: int | None = None) -> None:
         """Publish one frame (dropped and counted when repeated or out of order), its poses and TF."""
@@ -226,7 +240,8 @@ class MocapIngest(Node):
         out = {"source": self.config["source"], "frames": st.frames, "rate_hz": st.frame_rate_hz(),
                "dropped_frames": st.dropped, "duplicates_dropped": st.duplicates,
                "out_of_order_dropped": st.out_of_order, "restarts": st.restarts, "malformed_dropped": st.malformed,
-               "input_errors": self.errors, "inputs": self.received, "view_frames": self.view_published}
+               "input_errors": self.drops.errors,
+               "unexpected_errors": self.drops.unexpected, "inputs": self.received, "view_frames": self.view_published}
         for key, value in self.source.counters().items():
             out[key] = out[key] + value if key in out else value
         return out

@@ -14,7 +14,10 @@ Every ``period`` seconds it publishes one ``diagnostic_msgs/DiagnosticArray`` wi
 * ``monitor: motor torque``: peak abs(M_d1) against ``motor_limit_nm``.
 
 Each status is STALE when its stream has sent nothing for ``timeout_s``. WARN starts at
-``warn_fraction`` of a limit, ERROR above it.
+``warn_fraction`` of a limit, ERROR above it. Each also counts the messages of its stream that could not be
+read: ``messages_not_read`` (an :class:`~euc_ros.core.errors.EucError`, with a warning) and
+``unexpected_errors`` (any other exception, a bug logged with its traceback); the monitor keeps running
+(:class:`~euc_ros.ros.runtime.CallbackErrors`).
 """
 from __future__ import annotations
 
@@ -24,14 +27,14 @@ import time
 from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import MocapFrame, RiderState, TorqueEstimate
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 
+from euc_ros.core.errors import EucError
 from euc_ros.core.online import monitoring as mon
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.drain import SubscriptionDrain
 from euc_ros.ros.params import ParamSpec, declare_params
-from euc_ros.ros.runtime import main_for
+from euc_ros.ros.runtime import CallbackErrors, main_for
 
 SPECS = (
     ParamSpec("period", 1.0, "period of the diagnostics", "s", 0.02, 60.0),
@@ -57,6 +60,10 @@ SPECS = (
 
 STATUS_NAMES = ("monitor: mocap", "monitor: model consistency", "monitor: rider lean", "monitor: EUC attitude",
                 "monitor: motor torque")
+#: The input stream each status judges (its messages that could not be read are counted in its values).
+STATUS_STREAMS = {"monitor: mocap": itf.MOCAP_FRAME, "monitor: model consistency": itf.TORQUE,
+                  "monitor: rider lean": itf.RIDER_STATE, "monitor: EUC attitude": itf.RIDER_STATE,
+                  "monitor: motor torque": itf.TORQUE}
 
 
 class Monitor(Node):
@@ -99,6 +106,8 @@ class Monitor(Node):
         self._torque: TorqueEstimate | None = None
         self.last: dict[str, mon.Health] = {}
         self.received = {"frames": 0, "states": 0, "torques": 0}
+        self.drops = {topic: CallbackErrors(self, f"{topic}: message not read", key="messages_not_read")
+                      for topic in (itf.MOCAP_FRAME, itf.RIDER_STATE, itf.TORQUE)}
         self.reports = 0
         self.diag_pub = itf.diagnostics_publisher(self)
         # frames, states and torques are counted, not acted on one by one: taken in batches (one executor
@@ -115,12 +124,14 @@ class Monitor(Node):
                     itf.TORQUE: (self._on_torque, TorqueEstimate)}
         for topic, _, datas in batch:
             handler, cls = handlers[topic]
+            drops = self.drops[topic]
             for raw in datas:
                 try:
-                    handler(raw if cls is None else deserialize_message(raw, cls))
-                except Exception as exc:   # never die on input
-                    self.get_logger().warning(f"{topic}: message not read: {type(exc).__name__}: {exc}",
-                                              throttle_duration_sec=5.0)
+                    handler(raw if cls is None else convert.deserialize(raw, cls))
+                except EucError as exc:    # bad input: dropped, counted, warned
+                    drops.input_error(exc)
+                except Exception:          # a bug: logged with its traceback; the node never dies on input
+                    drops.unexpected_error()
 
     def _on_frame(self, raw: bytes) -> None:
         self.received["frames"] += 1
@@ -193,7 +204,8 @@ class Monitor(Node):
         arr.header.stamp = self.get_clock().now().to_msg()
         for name in STATUS_NAMES:
             h = health[name]
-            arr.status.append(convert.status(name, h.level, h.message, h.values,
+            values = dict(h.values, **self.drops[STATUS_STREAMS[name]].counts)
+            arr.status.append(convert.status(name, h.level, h.message, values,
                                              "mocap" if name == "monitor: mocap" else "euc"))
         self.diag_pub.publish(arr)
         self.reports += 1

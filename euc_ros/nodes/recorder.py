@@ -140,7 +140,8 @@ class Recorder(Node):
 
         As ros2 bag record does, the publishers' offered QoS go into metadata.yaml (a player uses them).
         The connection is made at the topic's first message, when its publisher is known even if it
-        appeared long after the topic's subscribers, or at close for a topic that got nothing."""
+        appeared long after the topic's subscribers, or at close for a topic that got nothing.
+        """
         type_name = self._unwritten.pop(topic)
         try:
             profiles = [bag_qos(p.qos_profile) for p in self.get_publishers_info_by_topic(topic)]
@@ -161,7 +162,8 @@ class Recorder(Node):
     def close(self) -> None:
         """Close the bag (called by the runtime on shutdown): the bag is complete after this.
 
-        What the subscriptions still hold (taken by rcl before the shutdown) is written first."""
+        What the subscriptions still hold (taken by rcl before the shutdown) is written first.
+        """
         try:
             self._on_messages(self._drain.take_all())
         except Exception as exc:   # the middleware may be gone already: keep what was written
@@ -180,9 +182,11 @@ _run = main_for(Recorder)
 
 
 def main(args: list[str] | None = None) -> None:
-    """Run the Recorder node (``--ros-args --params-file FILE`` to configure) with
-    :data:`~euc_ros.ros.fastdds.RECORDER_PROFILE` unless the Fast DDS transports are chosen already
-    (:func:`~euc_ros.ros.fastdds.transport_env`)."""
+    """Run the Recorder node (``--ros-args --params-file FILE`` to configure).
+
+    It uses :data:`~euc_ros.ros.fastdds.RECORDER_PROFILE` unless the Fast DDS transports are chosen already
+    (:func:`~euc_ros.ros.fastdds.transport_env`).
+    """
     chosen = transport_env(os.environ)
     os.environ.update(chosen)          # before rclpy.init: Fast DDS reads it when the participant is created
     if chosen:

@@ -19,7 +19,11 @@ Bad input never stops the node:
 * repeated and out-of-order frames are dropped; a frame numbering that restarts or a stamp that jumps
   back by more than ``restart_jump`` restarts the filters
   (:class:`~euc_ros.core.online.estimators.FrameSequencer`); frames without a number (``-1``, topic
-  sources) are numbered from their stamps.
+  sources) are numbered from their stamps;
+* a frame that cannot be used (an :class:`~euc_ros.core.errors.EucError`: bytes that are no MocapFrame) is
+  dropped with a warning and counted (``errors`` in the diagnostics); any other exception is a bug, logged
+  with its traceback and counted apart (``unexpected_errors``): the node keeps running
+  (:class:`~euc_ros.ros.runtime.CallbackErrors`).
 """
 from __future__ import annotations
 
@@ -28,6 +32,7 @@ import time
 from euc_msgs.msg import MocapFrame, RiderState
 from rclpy.node import Node
 
+from euc_ros.core.errors import EucError
 from euc_ros.core.filters.causal import LOW_LAG_S, STATE_ESTIMATORS
 from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP
 from euc_ros.core.io.cdr_flat import FlatEncoder
@@ -40,7 +45,7 @@ from euc_ros.ros import interfaces as itf
 from euc_ros.ros.intra import LocalFanout
 from euc_ros.ros.params import ParamSpec, declare_params, required_session
 from euc_ros.ros.rate_gate import NodeRateGate
-from euc_ros.ros.runtime import drain, main_for
+from euc_ros.ros.runtime import CallbackErrors, drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (docs/session.md): rider segments and EUC geometry (required)"),
@@ -121,7 +126,8 @@ class RiderStateNode(Node):
         self._build(rate)
         self.rate_gate = NodeRateGate(self, rate, self._build, lambda item: self._process(*item),
                                       min_span_s=cfg["rate_measure_s"])
-        self.counts = {"frames": 0, "states": 0, "no_euc": 0, "no_rider": 0, "errors": 0}
+        self.counts = {"frames": 0, "states": 0, "no_euc": 0, "no_rider": 0, "errors": 0, "unexpected_errors": 0}
+        self.drops = CallbackErrors(self, "frame dropped", self.counts)
         names, fractions, _ = self.session.segment_arrays()
         self.presence = BodyPresence([self.session.euc.body] + [n for n, f in zip(names, fractions) if f > 0])
         self._origin_ns: int | None = None
@@ -156,9 +162,13 @@ class RiderStateNode(Node):
     def _on_frame(self, raw: bytes) -> None:
         try:
             item = convert.raw_to_frame(raw)
-        except Exception as exc:   # never die on input
+        except EucError as exc:    # bytes that are no MocapFrame: dropped, counted, warned
             self.counts["frames"] += 1
-            self._frame_error(exc)
+            self.drops.input_error(exc)
+            return
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            self.counts["frames"] += 1
+            self.drops.unexpected_error()
             return
         self._on_frame_local(item)
 
@@ -169,14 +179,13 @@ class RiderStateNode(Node):
         frame = item[0]
         try:
             self.presence.update(frame.bodies, frame.tracked)
-        except Exception as exc:   # never die on input
-            self._frame_error(exc)
+        except EucError as exc:
+            self.drops.input_error(exc)
+            return
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            self.drops.unexpected_error()
             return
         self.rate_gate.push(frame.frame_number, frame.stamp_ns, item)
-
-    def _frame_error(self, exc: Exception) -> None:
-        self.counts["errors"] += 1
-        self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
 
     def _process(self, frame, frame_id: str) -> None:
         try:
@@ -193,9 +202,11 @@ class RiderStateNode(Node):
                 self.counts["no_euc"] += 1
             t = (frame.stamp_ns - self._origin_ns) * 1e-9
             samples = self.estimator.update(number, t, frame.position, frame.quat, frame.tracked, frame.bodies)
-        except Exception as exc:   # never die on input
-            self.counts["errors"] += 1
-            self.get_logger().warning(f"frame dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+        except EucError as exc:    # bad input: dropped, counted, warned
+            self.drops.input_error(exc)
+            return
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            self.drops.unexpected_error()
             return
         local = isinstance(self.state_pub, LocalFanout)
         for s in samples:
@@ -230,8 +241,9 @@ class RiderStateNode(Node):
             level, message = convert.STALE, "no frames yet" if c["frames"] == 0 else "no frames for > 1 s"
         elif missing:
             level, message = convert.WARN, f"{missing} in the last {self.config['diagnostics_period']:g} s"
-        elif c["errors"]:
-            level, message = convert.WARN, f"{c['errors']} frame(s) could not be used"
+        elif c["errors"] or c["unexpected_errors"]:
+            level, message = convert.WARN, f"{c['errors'] + c['unexpected_errors']} frame(s) could not be used" + (
+                f" ({c['unexpected_errors']} by an unexpected error: see the log)" if c["unexpected_errors"] else "")
         else:
             level, message = convert.OK, f"publishing states {self.estimator.lag_s:.3f} s after their frames"
         convert.publish_status(self, self.diag_pub, "rider_state: states", level, message, values,

@@ -11,7 +11,10 @@ ROS.
 A NaN never reaches a published torque: a state that is not usable (no rider, a NaN derivative, a
 torque that would not be finite) is not published and only counted in the diagnostics. States
 missing from the stream age the sliding windows by the time they cover; a jump back in time (a
-restarted upstream) or a gap longer than the RMSE window resets them, so nothing stale is published.
+restarted upstream) or a gap longer than the RMSE window resets them, so nothing stale is published. A
+state that cannot be used (an :class:`~euc_ros.core.errors.EucError`) is dropped with a warning and
+counted (``errors``); any other exception is a bug, logged with its traceback and counted apart
+(``unexpected_errors``): the node keeps running (:class:`~euc_ros.ros.runtime.CallbackErrors`).
 """
 from __future__ import annotations
 
@@ -22,7 +25,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from euc_msgs.msg import RiderState, TorqueEstimate
 from rclpy.node import Node
 
-from euc_ros.core.errors import ConfigError
+from euc_ros.core.errors import ConfigError, EucError
 from euc_ros.core.identify.model_file import read_model_file
 from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.model.terms import EucParams
@@ -31,7 +34,7 @@ from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
 from euc_ros.ros.params import ParamSpec, declare_params, required_session
 from euc_ros.ros.rate_gate import NodeRateGate
-from euc_ros.ros.runtime import drain, main_for
+from euc_ros.ros.runtime import CallbackErrors, drain, main_for
 
 SPECS = (
     ParamSpec("session_file", "", "session file (docs/session.md): rider and EUC parameters (required)"),
@@ -86,6 +89,9 @@ class TorqueEstimatorNode(Node):
         Its ``counts`` are published in the diagnostics.
     published : int
         TorqueEstimate messages published.
+    drops : CallbackErrors
+        States dropped on bad input (``errors`` in the diagnostics) or on an unexpected error, a bug logged
+        with its traceback (``unexpected_errors``).
     """
 
     NAME = "torque_estimator"
@@ -105,7 +111,7 @@ class TorqueEstimatorNode(Node):
         self._build(rate)
         self.rate_gate = NodeRateGate(self, rate, self._build, self._process, min_span_s=0.03, min_frames=4)
         self.published = 0
-        self.errors = 0
+        self.drops = CallbackErrors(self, "state dropped")
         self.last = None
         self._origin_ns: int | None = None
         self._last_state_wall: float | None = None
@@ -158,6 +164,11 @@ class TorqueEstimatorNode(Node):
                  + (f", {', '.join(applied.assignments())}" if applied.effects else ""))
         return applied.h_m, list(applied.effects), applied.assignments(), applied.base_h_m
 
+    @property
+    def errors(self) -> int:
+        """States dropped on bad input (:attr:`drops`)."""
+        return self.drops.errors
+
     def on_parameter(self, name: str, value) -> None:
         """``ros2 param set /torque_estimator h 0.58``: torques use the new h from the next state on."""
         if name == "h":
@@ -182,9 +193,11 @@ class TorqueEstimatorNode(Node):
         self._last_state_wall = time.monotonic()
         try:
             stamp = msg.stamp_ns if type(msg) is convert.LocalState else convert.stamp_to_ns(msg.header.stamp)
-        except Exception as exc:   # never die on input
-            self.errors += 1
-            self.get_logger().warning(f"state dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+        except EucError as exc:    # bad input: dropped, counted, warned
+            self.drops.input_error(exc)
+            return
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            self.drops.unexpected_error()
             return
         self.rate_gate.push(-1, stamp, msg)
 
@@ -199,9 +212,11 @@ class TorqueEstimatorNode(Node):
             state = SimpleNamespace(t=(stamp - self._origin_ns) * 1e-9, frame=-1, valid=True,
                                     **{k: float(getattr(src, k)) for k in _STATE_FIELDS})
             out = self.estimator.update(state)
-        except Exception as exc:   # never die on input
-            self.errors += 1
-            self.get_logger().warning(f"state dropped: {type(exc).__name__}: {exc}", throttle_duration_sec=5.0)
+        except EucError as exc:    # bad input: dropped, counted, warned
+            self.drops.input_error(exc)
+            return
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            self.drops.unexpected_error()
             return
         if out is None:
             return
@@ -221,7 +236,8 @@ class TorqueEstimatorNode(Node):
         nan = float("nan")
         values = {"states": c["states"], "published": self.published, "not_usable": c["invalid"],
                   "resets": c["resets"], "repeated_dropped": c["repeated"], "missing_states": c["missing"],
-                  "errors": self.errors, "model": self.estimator.model_name, "h_m": float(self.estimator.params.h),
+                  "errors": self.drops.errors, "unexpected_errors": self.drops.unexpected,
+                  "model": self.estimator.model_name, "h_m": float(self.estimator.params.h),
                   "rmse_window_nm": last.rmse_window_nm if last else nan,
                   "h_online_m": last.h_online_m if last else nan,
                   "h_online_std_m": last.h_online_std_m if last else nan,

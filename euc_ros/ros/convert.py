@@ -10,6 +10,7 @@ from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from euc_msgs.msg import MocapFrame
 from geometry_msgs.msg import Pose, PoseStamped, TransformStamped
 
+from euc_ros.core.errors import InputError
 from euc_ros.core.io import cdr_frame
 from euc_ros.core.mocap.frame import Frame
 
@@ -72,18 +73,33 @@ def msg_to_frame(msg: MocapFrame) -> Frame:
                   np.array(msg.tracked, bool), np.array(msg.mean_marker_error, float))
 
 
+def deserialize(raw: bytes, msg_class):
+    """A raw subscription's bytes -> a message of ``msg_class`` (rclpy's deserializer).
+
+    Raises
+    ------
+    InputError
+        Bytes that are not a ``msg_class`` message (rclpy raises its RMWError, a RuntimeError, for them).
+    """
+    from rclpy.serialization import deserialize_message
+
+    try:
+        return deserialize_message(raw, msg_class)
+    except RuntimeError as exc:
+        raise InputError(f"{len(raw)} bytes that are not a {msg_class.__name__}: {exc}") from None
+
+
 def raw_to_frame(raw: bytes) -> tuple[Frame, str]:
     """Serialized ``euc_msgs/MocapFrame`` (a raw subscription's bytes) -> (core :class:`Frame`, frame_id).
 
     Little-endian CDR is read with numpy (:mod:`euc_ros.core.io.cdr_frame`); anything else goes through
-    rclpy's deserializer, so every valid message is read.
+    rclpy's deserializer, so every valid message is read; bytes that neither reads are an InputError
+    (:func:`deserialize`).
     """
     try:
         d = cdr_frame.decode(raw)
     except cdr_frame.CdrError:
-        from rclpy.serialization import deserialize_message
-
-        msg = deserialize_message(raw, MocapFrame)
+        msg = deserialize(raw, MocapFrame)
         return msg_to_frame(msg), msg.header.frame_id
     return _frame(d.stamp_ns, d.frame_number, d.bodies, d.position, d.quat, d.tracked, d.mean_marker_error), d.frame_id
 
@@ -136,8 +152,11 @@ def rigid_bodies_arrays(msg) -> tuple[list[str], np.ndarray, np.ndarray]:
 
 
 def status(name: str, level: int, message: str, values: dict, hardware_id: str) -> DiagnosticStatus:
-    """A DiagnosticStatus as diagnostic_updater makes them: ``name`` = ``"<node>: <check>"``, the
-    ``hardware_id`` it concerns, key/value pairs (floats printed with 4 significant digits)."""
+    """A DiagnosticStatus as diagnostic_updater makes them.
+
+    ``name`` = ``"<node>: <check>"``, the ``hardware_id`` it concerns, key/value pairs (floats printed with 4
+    significant digits).
+    """
     st = DiagnosticStatus(level=bytes([level]) if isinstance(level, int) else level, name=name,
                           message=message, hardware_id=hardware_id)
     st.values = [KeyValue(key=k, value=(f"{v:.4g}" if isinstance(v, float) and not math.isnan(v) else str(v)))
@@ -159,8 +178,10 @@ OK, WARN, ERROR, STALE = (DiagnosticStatus.OK, DiagnosticStatus.WARN, Diagnostic
 
 
 class LocalState:
-    """A rider state handed over in-process (:mod:`euc_ros.nodes.container`) instead of a RiderState message:
-    its header stamp [ns], frame id and the core sample (same field names as the message)."""
+    """A rider state handed over in-process (:mod:`euc_ros.nodes.container`) instead of a RiderState message.
+
+    Its header stamp [ns], frame id and the core sample (same field names as the message).
+    """
 
     __slots__ = ("stamp_ns", "frame_id", "sample")
 
@@ -172,8 +193,9 @@ _FLAT_KINDS = {"boolean": "bool", "double": "float64", "string": "string"}
 
 
 def flat_fields(msg_class) -> list[tuple[str, str]]:
-    """The fields after ``header`` of a flat message class as :class:`~euc_ros.core.io.cdr_flat.FlatEncoder`
-    wants them: ``(dotted name, kind)``, nested float64 structs (``geometry_msgs/Point``) expanded.
+    """The fields after ``header`` of a flat message class as :class:`~euc_ros.core.io.cdr_flat.FlatEncoder` wants them.
+
+    ``(dotted name, kind)``, nested float64 structs (``geometry_msgs/Point``) expanded.
 
     Raises ValueError for a field type the flat encoder cannot write (then publish the message object).
     """
@@ -259,8 +281,11 @@ def torque_values(out) -> tuple:
 
 
 def bag_qos(profile) -> "Qos":
-    """A publisher's offered QoS (rclpy) as rosbag2 stores it in ``offered_qos_profiles`` (rosbags' Qos:
-    the same policy numbers as rmw; durations as sec/nsec, infinite = rmw's 9223372036 s 854775807 ns)."""
+    """A publisher's offered QoS (rclpy) as rosbag2 stores it in ``offered_qos_profiles``.
+
+    As rosbags' Qos: the same policy numbers as rmw; durations as sec/nsec, infinite = rmw's 9223372036 s
+    854775807 ns.
+    """
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
     def duration(d) -> QosTime:

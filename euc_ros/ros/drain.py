@@ -120,15 +120,46 @@ class SubscriptionDrain(Waitable):
             self._stack = None
 
     def get_num_entities(self) -> NumberOfEntities:
+        """The entities this waitable adds to a wait set: one per raw subscription.
+
+        Returns
+        -------
+        NumberOfEntities
+        """
         return NumberOfEntities(len(self.subs))
 
     def add_to_wait_set(self, wait_set) -> None:
+        """Add the raw subscriptions to ``wait_set`` and remember their indices.
+
+        Parameters
+        ----------
+        wait_set
+            rclpy's wait set of this executor cycle.
+        """
         self._indices = [compat.add_to_wait_set(wait_set, handle) for _, _, handle, _ in self.subs]
 
     def is_ready(self, wait_set) -> bool:
+        """Whether a raw subscription of this drain is ready in ``wait_set``.
+
+        Parameters
+        ----------
+        wait_set
+            The wait set after the wait.
+
+        Returns
+        -------
+        bool
+        """
         return any(compat.subscription_ready(wait_set, i) for i in self._indices)
 
     def take_data(self):
+        """Take every message the subscriptions hold (:meth:`take_all`).
+
+        Returns
+        -------
+        list of tuple
+            ``[(topic, type name, [cdr bytes...]), ...]``, handed to :meth:`execute`.
+        """
         return self.take_all()
 
     async def execute(self, taken_data) -> None:

@@ -101,7 +101,7 @@ class LeanExecutor(SingleThreadedExecutor):
         self._closed = False
 
     def wake(self) -> None:
-        """rclpy calls this when a node adds or destroys an entity: list them again next spin."""
+        """Called by rclpy when a node adds or destroys an entity: list them again next spin."""
         self._dirty = True
         super().wake()
 
@@ -147,14 +147,43 @@ class LeanExecutor(SingleThreadedExecutor):
         self._ents = None
 
     def add_node(self, node) -> bool:
+        """Add ``node``; its entities are listed again on the next spin.
+
+        Parameters
+        ----------
+        node : rclpy.node.Node
+
+        Returns
+        -------
+        bool
+            True when the node was added (rclpy's ``add_node``).
+        """
         self._dirty = True
         return super().add_node(node)
 
     def remove_node(self, node) -> None:
+        """Remove ``node`` and release the held entities.
+
+        Parameters
+        ----------
+        node : rclpy.node.Node
+        """
         self._release()
         super().remove_node(node)
 
     def shutdown(self, timeout_sec: float | None = None) -> bool:
+        """Stop spinning, release the held entities and shut the executor down.
+
+        Parameters
+        ----------
+        timeout_sec : float or None
+            Seconds to wait for callbacks in progress (None: as long as they take).
+
+        Returns
+        -------
+        bool
+            True when the callbacks finished in time (rclpy's ``shutdown``).
+        """
         self._closed = True
         self._release()
         return super().shutdown(timeout_sec)

@@ -26,9 +26,11 @@ def uses_fast_dds(env) -> bool:
 
 
 def transport_env(env, cwd=".", profile: Path = RECORDER_PROFILE) -> dict:
-    """The variables to add to ``env`` so that Fast DDS uses ``profile``: ``{}`` when the transports are
-    chosen already (see :data:`TRANSPORT_CHOICES`; Fast DDS also reads ``DEFAULT_FASTRTPS_PROFILES.xml``
-    from the working directory) or the RMW is not Fast DDS."""
+    """The variables to add to ``env`` so that Fast DDS uses ``profile``.
+
+    ``{}`` when the transports are chosen already (see :data:`TRANSPORT_CHOICES`; Fast DDS also reads
+    ``DEFAULT_FASTRTPS_PROFILES.xml`` from the working directory) or the RMW is not Fast DDS.
+    """
     if not uses_fast_dds(env) or any(env.get(k) for k in TRANSPORT_CHOICES) \
             or (Path(cwd) / "DEFAULT_FASTRTPS_PROFILES.xml").exists():
         return {}

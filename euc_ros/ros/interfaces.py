@@ -34,8 +34,11 @@ MOCAP_INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=400, reliabi
 
 
 def mocap_input_qos(reliability: str) -> QoSProfile:
-    """The live mocap input's QoS: :data:`MOCAP_INPUT_QOS`, or reliable (``"reliable"``) when every publisher
-    is reliable (a bag replayed by ``euc-ros play``): then nothing is dropped, even on a starved host."""
+    """The live mocap input's QoS.
+
+    :data:`MOCAP_INPUT_QOS`, or reliable (``"reliable"``) when every publisher is reliable (a bag replayed by
+    ``euc-ros play``): then nothing is dropped, even on a starved host.
+    """
     if reliability == "reliable":
         return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=MOCAP_INPUT_QOS.depth,
                           reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE)

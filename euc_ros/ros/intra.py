@@ -1,5 +1,7 @@
-"""In-process delivery between nodes of one process (:mod:`euc_ros.nodes.container`): the links, and the
-publisher that hands its messages to in-process handlers before the middleware."""
+"""In-process delivery between nodes of one process (:mod:`euc_ros.nodes.container`).
+
+The links, and the publisher that hands its messages to in-process handlers before the middleware.
+"""
 from __future__ import annotations
 
 

@@ -346,8 +346,10 @@ class _Context:
         return "".join(out)
 
     def _eval(self, element: Element, attribute: str, expression: str) -> bool | str | int | float:
-        """Evaluate a comparison of quoted strings, or a choice of two constants by one: the Python ``$(eval)``
-        accepts here."""
+        """Evaluate a comparison of quoted strings, or a choice of two constants by one.
+
+        These are the Python expressions ``$(eval)`` accepts here.
+        """
         def bad() -> ConfigError:
             return self.error(element, f"{attribute}: $(eval) of {expression!r}: only comparisons of quoted "
                                        "strings are supported ('a' == 'b', 'a' != 'b', joined with and, or, "
@@ -534,8 +536,10 @@ def launch_arguments(path: str | Path) -> list[LaunchArgument]:
 
 
 def parse_launch_arguments(items: Sequence[str]) -> dict[str, str]:
-    """``['source:=csv', 'bag:=out']`` -> ``{'source': 'csv', 'bag': 'out'}`` (ros2 launch syntax; the
-    last of duplicates wins)."""
+    """``['source:=csv', 'bag:=out']`` -> ``{'source': 'csv', 'bag': 'out'}``.
+
+    The ros2 launch syntax; the last of duplicates wins.
+    """
     out = {}
     for item in items:
         name, sep, value = item.partition(":=")

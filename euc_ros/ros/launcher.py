@@ -70,9 +70,12 @@ def _format_value(value: Any) -> str:
 
 
 def _package_lib_dirs() -> list[Path]:
-    """Where ``ros2 run euc_ros X`` would look: ``<prefix>/lib/euc_ros`` of the install this module comes
-    from (a colcon install space: ``<prefix>/lib/python3.X/site-packages/euc_ros``), then of every
-    ``AMENT_PREFIX_PATH`` entry that indexes the package."""
+    """Where ``ros2 run euc_ros X`` would look.
+
+    ``<prefix>/lib/euc_ros`` of the install this module comes from (a colcon install space:
+    ``<prefix>/lib/python3.X/site-packages/euc_ros``), then of every ``AMENT_PREFIX_PATH`` entry that indexes
+    the package.
+    """
     package = Path(__file__).resolve().parents[1]          # .../euc_ros
     dirs = []
     if package.parent.name in ("site-packages", "dist-packages"):
@@ -84,8 +87,11 @@ def _package_lib_dirs() -> list[Path]:
 
 
 def resolve_executable(executable: str) -> str:
-    """Find a node executable or console script: in this install's ``lib/euc_ros`` (colcon, as ``ros2
-    run`` does), next to this Python (the venv's bin, pip installs), then on PATH."""
+    """Find a node executable or console script.
+
+    In this install's ``lib/euc_ros`` (colcon, as ``ros2 run`` does), next to this Python (the venv's bin, pip
+    installs), then on PATH.
+    """
     if os.sep in executable:
         return executable
     candidates = [d / executable for d in _package_lib_dirs()] + [Path(sys.executable).parent / executable]

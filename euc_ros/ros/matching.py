@@ -35,8 +35,10 @@ class MatchGate:
         return [f"{what} {have}/{need}" for what, have, need in self.wants() if have < need]
 
     def ready(self, now: float, on_missing: Callable[[list[str]], None] | None = None) -> bool:
-        """True once everything matched and ``settle_s`` passed (monotonic ``now`` [s]); ``on_missing(missing)``
-        is called while something is missing."""
+        """True once everything matched and ``settle_s`` passed (monotonic ``now`` [s]).
+
+        ``on_missing(missing)`` is called while something is missing.
+        """
         if self.matched_at is None:
             missing = self.missing()
             if missing:

@@ -148,8 +148,11 @@ def required_session(node_name: str, config: dict[str, Any]) -> tuple[Session, s
 
 
 def check_value(spec: ParamSpec, value: Any) -> Any:
-    """The value of ``spec`` as the node uses it (choice spelt by YAML as a bool mapped back, int to float
-    for a double); ValueError saying what is accepted when it is outside the choices or range."""
+    """The value of ``spec`` as the node uses it, or ValueError saying what is accepted.
+
+    A choice spelt by YAML as a bool is mapped back, an int becomes a float for a double; the ValueError comes
+    when the value is outside the choices or range.
+    """
     if isinstance(value, tuple):
         value = list(value)
     if spec.choices and isinstance(spec.default, str):
@@ -166,9 +169,12 @@ def check_value(spec: ParamSpec, value: Any) -> Any:
 
 
 def watch_params(node: Node, specs: Sequence[ParamSpec], config: dict[str, Any], apply=None) -> None:
-    """React to ``ros2 param set`` (the parameter services): a ``live`` parameter is checked against its
-    declaration, stored in ``config`` and passed to ``apply(name, value)`` (which may raise ConfigError
-    or ValueError to refuse); any other is refused with the reason. rcl has already checked the type."""
+    """React to ``ros2 param set`` (the parameter services).
+
+    A ``live`` parameter is checked against its declaration, stored in ``config`` and passed to
+    ``apply(name, value)`` (which may raise ConfigError or ValueError to refuse); any other is refused with
+    the reason. rcl has already checked the type.
+    """
     from rcl_interfaces.msg import SetParametersResult
 
     by_name = {s.name: s for s in specs}

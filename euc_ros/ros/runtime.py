@@ -5,12 +5,14 @@ In rclpy 7.1 (Jazzy) both SIGINT and SIGTERM end ``spin`` with ``ExternalShutdow
 with code 0, whether it was spinning or still starting (a node executable: :mod:`euc_ros.ros.startup`
 until ``rclpy.init`` has returned). The nodes spin on :class:`~euc_ros.ros.executor.LeanExecutor`,
 rclpy's public executor where :mod:`~euc_ros.ros.rclpy_compat` refuses rclpy's private API (said once
-on the console).
+on the console). A callback that cannot use its input drops it through :class:`CallbackErrors` and the node
+keeps running.
 """
 from __future__ import annotations
 
 import gc
 import sys
+import traceback
 import warnings
 from typing import Callable
 
@@ -28,6 +30,9 @@ from euc_ros.sched import realtime_from_env
 SHUTDOWN_RACE_S = 0.5
 #: Whether :func:`drain` takes messages itself (rclpy's private API allowed in this process).
 _TAKE_DIRECTLY = rclpy_compat.private_api_problem() is None
+#: Throttle of the log lines of :class:`CallbackErrors` [s] (one for every node: rclpy refuses a call site's
+#: throttle to change).
+DROP_LOG_THROTTLE_S = 5.0
 
 
 def run_node(node_factory: Callable[[], Node], args: list[str] | None = None, *,
@@ -152,3 +157,92 @@ def drain(subscription, handler: Callable, limit: int = 256) -> int:
         handler(info[0])
         n += 1
     return n
+
+
+class CallbackErrors:
+    """The callback boundary of a live node: what its callbacks drop is logged and counted, and the node runs on.
+
+    Bad input (:class:`~euc_ros.core.errors.EucError`) is dropped with a warning. Any other exception is a
+    bug: it is logged at ERROR with its traceback and counted apart, so that the diagnostics tell the two
+    apart; the callback still returns, since a live node never dies on its input. A callback keeps the two
+    clauses in this order::
+
+        try:
+            ...
+        except EucError as exc:     # bad input: dropped, counted, warned
+            self.drops.input_error(exc)
+            return
+        except Exception:           # a bug: logged with its traceback, counted apart; the node runs on
+            self.drops.unexpected_error()
+            return
+
+    Both log lines are throttled (``throttle_duration_sec`` :data:`DROP_LOG_THROTTLE_S`, each kind on its own,
+    shared by the callbacks of one node). While the node's context shuts down (a stop signal), an exception is
+    the stop's doing, not a bug: it is logged at debug level only and not counted.
+
+    Parameters
+    ----------
+    node : rclpy.node.Node
+        The node whose logger reports the drops.
+    what : str
+        What a drop loses, at the start of each log line (``"frame dropped"``).
+    counts : dict, optional
+        The node's counters (published in its diagnostics) to count in; default a dict of its own.
+    key, unexpected_key : str
+        The names of the two counters in ``counts``: inputs dropped on an EucError, and on any other exception.
+
+    Attributes
+    ----------
+    counts : dict
+        The counters (``counts[key]`` and ``counts[unexpected_key]`` start at 0 unless present).
+    """
+
+    def __init__(self, node: Node, what: str, counts: dict | None = None, *, key: str = "errors",
+                 unexpected_key: str = "unexpected_errors") -> None:
+        self.node = node
+        self.what = what
+        self.counts = {} if counts is None else counts
+        self.key, self.unexpected_key = key, unexpected_key
+        self.counts.setdefault(key, 0)
+        self.counts.setdefault(unexpected_key, 0)
+
+    @property
+    def errors(self) -> int:
+        """Inputs dropped on an :class:`~euc_ros.core.errors.EucError`."""
+        return self.counts[self.key]
+
+    @property
+    def unexpected(self) -> int:
+        """Inputs dropped on any other exception (bugs)."""
+        return self.counts[self.unexpected_key]
+
+    def input_error(self, exc: EucError, what: str | None = None) -> None:
+        """Count an input dropped on ``exc`` and warn with its message (throttled).
+
+        Parameters
+        ----------
+        exc : EucError
+            Why the input could not be used.
+        what : str, optional
+            What was dropped, instead of the instance's ``what``.
+        """
+        self.counts[self.key] += 1
+        self.node.get_logger().warning(f"{what or self.what}: {type(exc).__name__}: {exc}",
+                                       throttle_duration_sec=DROP_LOG_THROTTLE_S)
+
+    def unexpected_error(self, what: str | None = None) -> None:
+        """Count the exception being handled (call it in an ``except`` clause) and log it with its traceback.
+
+        Parameters
+        ----------
+        what : str, optional
+            What was dropped, instead of the instance's ``what``.
+        """
+        log = self.node.get_logger()
+        what = what or self.what
+        if not self.node.context.ok():      # stopping: publishing or taking on a shut-down context fails
+            log.debug(f"{what} while stopping: {traceback.format_exc(limit=1).strip()}")
+            return
+        self.counts[self.unexpected_key] += 1
+        log.error(f"{what}: unexpected error (a bug: please report it; the node keeps running)\n"
+                  f"{traceback.format_exc().rstrip()}", throttle_duration_sec=DROP_LOG_THROTTLE_S)

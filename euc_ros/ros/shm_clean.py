@@ -53,8 +53,10 @@ def mapped_shm_files(proc: Path = Path("/proc"), shm: Path = Path("/dev/shm")) -
 
 def stale_fastdds_files(shm: Path = Path("/dev/shm"), proc: Path = Path("/proc"), *,
                         min_age_s: float = MIN_AGE_S) -> list[Path]:
-    """The Fast DDS port and segment files in ``shm`` (with their semaphores and lock files) that are
-    ours, older than ``min_age_s`` and mapped by no process."""
+    """The Fast DDS port and segment files in ``shm`` that are ours, older than ``min_age_s`` and mapped by no process.
+
+    The files come with their semaphores and lock files.
+    """
     if not shm.is_dir():
         return []
     now, uid = time.time(), os.getuid()

@@ -51,12 +51,12 @@ def install_for(argv: list[str]) -> bool:
 
 
 def running() -> None:
-    """rclpy is initialised: its handlers take the signals from now on."""
+    """After rclpy's initialisation: its handlers take the signals from now on."""
     _state["running"] = True
 
 
 def stopped() -> None:
-    """rclpy has shut down (its handlers are gone): Python's default handling of SIGINT and SIGTERM again."""
+    """After rclpy's shutdown (its handlers are gone): Python's default handling of SIGINT and SIGTERM again."""
     if not _state["installed"]:
         return
     try:

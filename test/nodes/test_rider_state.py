@@ -133,8 +133,8 @@ class Pipe:
         torque_nodes = self._torque_nodes()
         if len(self.torques) < sum(t.published for t in torque_nodes) + self.removed_torques:
             return False
-        return all(t.estimator.counts["states"] + t.errors + t.rate_gate.held >= states - t._pipe_base
-                   for t in torque_nodes)
+        return all(t.estimator.counts["states"] + t.drops.errors + t.drops.unexpected + t.rate_gate.held
+                   >= states - t._pipe_base for t in torque_nodes)
 
     def wait_matched(self):
         self.spin_until(self.matched, what="publishers and subscriptions to match")

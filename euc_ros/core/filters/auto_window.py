@@ -106,13 +106,16 @@ def _dft_length(f: np.ndarray, dt: float) -> int | None:
 
 
 def welch_linear(x: np.ndarray, fs: float, nperseg: int) -> tuple[np.ndarray, np.ndarray]:
-    """Welch's one-sided power spectral density of ``x`` [unit^2/Hz]: what ``scipy.signal.welch(x, fs,
-    nperseg=nperseg, detrend="linear")`` gives (periodic Hann windows, half overlap, each segment's
-    least-squares line removed, the segments' mean), with every segment detrended, windowed and transformed
-    at once. scipy removes the lines one segment at a time by least squares; here each segment is projected
-    off ``[1, t]`` (orthogonal, so the same line): equal to round-off (``test_auto_window``).
+    """Welch's one-sided power spectral density of ``x`` [unit^2/Hz].
 
-    Returns ``(freqs [Hz], psd)``."""
+    What ``scipy.signal.welch(x, fs, nperseg=nperseg, detrend="linear")`` gives (periodic Hann windows, half
+    overlap, each segment's least-squares line removed, the segments' mean), with every segment detrended,
+    windowed and transformed at once. scipy removes the lines one segment at a time by least squares; here
+    each segment is projected off ``[1, t]`` (orthogonal, so the same line): equal to round-off
+    (``test_auto_window``).
+
+    Returns ``(freqs [Hz], psd)``.
+    """
     x = np.asarray(x, dtype=float)
     n = int(nperseg)
     step = n - n // 2
@@ -133,16 +136,18 @@ BRIDGED_GAP = DEFAULT_MAX_GAP
 
 
 def _bridged_stretches(y: np.ndarray, min_len: int, max_gap: int = BRIDGED_GAP):
-    """Runs of ``y`` of at least ``min_len`` samples, continued across gaps of at most ``max_gap`` missing
-    samples (:func:`~euc_ros.core.filters.derivatives.gap_stretches`, as the states are), which are linearly
-    interpolated.
+    """Runs of ``y`` of at least ``min_len`` samples, continued across gaps of at most ``max_gap`` missing samples.
+
+    The runs are found as for the states (:func:`~euc_ros.core.filters.derivatives.gap_stretches`); the gaps'
+    samples are linearly interpolated.
 
     A spectrum through second differences needs the stretch's samples on one grid, and zeroing (masking) the
     differences a gap touches would mix their high-frequency power (white noise's second differences rise as
     f^4) into the low bins. An interpolated sample follows its neighbours: with a share q of single samples
     interpolated, white noise's power at angular frequency w (per sample) becomes ``1 - q/2 + 2 q cos w`` of
     itself (to first order in q), about ``1 - 2 q`` over the top of the band where the floor is read (2 % for
-    1 % of the frames dropped, 20 % for 10 %); the motion, far below, is the same."""
+    1 % of the frames dropped, 20 % for 10 %); the motion, far below, is the same.
+    """
     ok = np.isfinite(y)
     out = []
     for a, b in gap_stretches(np.arange(y.size), ok, max_gap):
@@ -294,8 +299,10 @@ RISE_BANDS_PER_OCTAVE = 4
 
 
 def _noise_rise_start(f: np.ndarray, S: np.ndarray, n_avg: float, f_min: float) -> float:
-    """Where the noise takes over the spectrum from below: the start of the final stretch over which the
-    acceleration spectrum ``(2 pi f)^4 S(f)`` only rises (within its estimate's scatter) [Hz].
+    """Where the noise takes over the spectrum from below.
+
+    The start of the final stretch over which the acceleration spectrum ``(2 pi f)^4 S(f)`` only rises (within
+    its estimate's scatter) [Hz].
 
     A motion's acceleration spectrum falls off above its band; pose noise, white or coloured (a first
     order low-pass: flat, then ``f^-2``), gives an acceleration spectrum rising as ``f^4`` or ``f^2``
@@ -342,7 +349,7 @@ def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) ->
 def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[str, float] | None = None, *,
                   orders: Sequence[int] = DEFAULT_ORDERS, max_window_s: float = MAX_WINDOW_S,
                   segment_s: float = SEGMENT_S, noise_power: int = 1, coloured: bool = False) -> WindowChoice:
-    """Choose the Savitzky-Golay window and order from a recording's raw signals.
+    r"""Choose the Savitzky-Golay window and order from a recording's raw signals.
 
     Parameters
     ----------
@@ -386,8 +393,8 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
 
     .. math::
 
-        B_s^2 = \\int |H_2(f) / (2\\pi i f)^2 - 1|^2 A_s(f)\\, df, \\qquad
-        V_s = \\sigma_s^2 \\sum_j w_{2,j}^2,
+        B_s^2 = \int |H_2(f) / (2\pi i f)^2 - 1|^2 A_s(f)\, df, \qquad
+        V_s = \sigma_s^2 \sum_j w_{2,j}^2,
 
     the distortion and the noise variance of the filtered acceleration. The choice minimizes the
     summed relative mean-square error ``sum_s (B_s^2 + V_s) / P_s``: with noise-free poses this is
@@ -448,8 +455,11 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
     df = f[1] - f[0]
     w2 = (2 * np.pi * f) ** 2
     def evaluate(coloured: bool):
-        """The candidates scored with the white noise floor (``coloured`` False) or with the noise as
-        measured above the motion's band, which may be coloured (True)."""
+        """The candidates scored with the white noise floor or with the noise as measured above the motion's band.
+
+        ``coloured`` False: the white floor; True: the noise measured above the motion's band, which may be
+        coloured.
+        """
         S_sig, cutoff, S_noise = {}, {}, {}
         for n in names:
             S = np.where(np.isfinite(specs[n][1]), specs[n][1], np.inf)

@@ -157,9 +157,11 @@ def savgol_coefficients(window: int, polyorder: int, dt: float, positions,
 
 
 def _savgol_factors(window: int, polyorder: int, positions, derivs: tuple) -> tuple:
-    """``(q, solves, c, derivs)`` of :func:`savgol_coefficients`: the QR factor ``q`` (window, p + 1) of the
-    Legendre basis and, per derivative, the (p + 1, m) triangular solve; small beside the (m, window)
-    coefficients they make."""
+    """``(q, solves, c, derivs)`` of :func:`savgol_coefficients`.
+
+    The QR factor ``q`` (window, p + 1) of the Legendre basis and, per derivative, the (p + 1, m) triangular
+    solve; small beside the (m, window) coefficients they make.
+    """
     from scipy.linalg import qr, solve_triangular
 
     c = (window - 1) / 2.0
@@ -186,8 +188,10 @@ def _assemble(q: np.ndarray, solves: tuple, c: float, derivs: tuple, dt: float) 
 
 @functools.lru_cache(maxsize=32)
 def _stretch_factors(w: int, polyorder: int) -> tuple:
-    """:func:`_savgol_factors` of :func:`_stretch_coefficients` (cached: the analyses filter many series with
-    the same window; a few (p + 1, w) arrays each, read-only)."""
+    """:func:`_savgol_factors` of :func:`_stretch_coefficients`, cached.
+
+    The analyses filter many series with the same window; a few (p + 1, w) arrays each, read-only.
+    """
     half = (w - 1) // 2
     edges = np.arange(half)
     q, solves, c, derivs = _savgol_factors(w, polyorder, np.concatenate(([half], edges, edges + half + 1)), (0, 1, 2))
@@ -197,9 +201,12 @@ def _stretch_factors(w: int, polyorder: int) -> tuple:
 
 
 def _stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
-    """Centre and edge coefficients of :func:`_filter_stretch`: (3, w, w), row 0 the centre, rows 1 to half
-    the first half samples', the rest the last half's. Made from cached factors on each call (the same
-    numbers as :func:`savgol_coefficients`) and not kept: 3 w^2 numbers (0.7 MB at w = 171)."""
+    """Centre and edge coefficients of :func:`_filter_stretch`.
+
+    An array (3, w, w), row 0 the centre, rows 1 to half the first half samples', the rest the last half's.
+    Made from cached factors on each call (the same numbers as :func:`savgol_coefficients`) and not kept:
+    3 w^2 numbers (0.7 MB at w = 171).
+    """
     return _assemble(*_stretch_factors(int(w), int(polyorder)), float(dt))
 
 

@@ -1,5 +1,6 @@
-"""CDR bytes of flat messages (a header, then booleans, float64s, strings and nested float64 structs) without
-message objects: the live path's RiderState and TorqueEstimate at up to 500 Hz.
+"""CDR bytes of flat messages without message objects: the live path's RiderState and TorqueEstimate at up to 500 Hz.
+
+A flat message is a header, then booleans, float64s, strings and nested float64 structs.
 
 Publishing a message object through rclpy converts every field from Python to C and then serializes it;
 for a RiderState that costs about twice a publication of the same message as bytes (measured on this
@@ -29,7 +30,7 @@ _KINDS = ("bool", "float64", "string")
 
 
 class FlatEncoder:
-    """Serialize one flat message type from field values given in definition order.
+    r"""Serialize one flat message type from field values given in definition order.
 
     Parameters
     ----------
@@ -42,7 +43,7 @@ class FlatEncoder:
     >>> enc = FlatEncoder([("ok", "bool"), ("a", "float64"), ("b", "float64"), ("s", "string")])
     >>> raw = enc.encode(1_500_000_000, "world", (True, 1.0, 2.0, "hi"))
     >>> len(raw), raw[:4]
-    (51, b'\\x00\\x01\\x00\\x00')
+    (51, b'\x00\x01\x00\x00')
     """
 
     def __init__(self, fields: Sequence[tuple[str, str]]) -> None:
@@ -61,8 +62,11 @@ class FlatEncoder:
         self.n_fields = len(self.names)
 
     def encode(self, stamp_ns: int, frame_id: str, values: Sequence) -> bytes:
-        """The CDR bytes: header (``stamp_ns`` [ns], clamped at 0; ``frame_id``), then ``values`` in the
-        order of the fields (floats are written as float64, NaN kept; booleans as 0/1)."""
+        """The CDR bytes: header, then ``values`` in the order of the fields.
+
+        The header holds ``stamp_ns`` [ns], clamped at 0, and ``frame_id``; floats are written as float64, NaN
+        kept; booleans as 0/1.
+        """
         if len(values) != self.n_fields:
             raise ValueError(f"expected {self.n_fields} values ({', '.join(self.names)}), got {len(values)}")
         out = header_bytes(stamp_ns, frame_id)

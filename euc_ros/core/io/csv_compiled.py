@@ -116,9 +116,11 @@ def _parse(buf, n_rows, width, pow10, out):
 
 
 def parse_rows(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
-    """The (n_rows, width) float matrix of ``n_rows`` LF- or CRLF-separated rows of ``width`` cells (NaN for a
-    blank cell), equal bit for bit to a correctly rounded reader's; None for anything outside the fast path
-    (module docstring)."""
+    """The (n_rows, width) float matrix of ``n_rows`` LF- or CRLF-separated rows of ``width`` cells.
+
+    NaN for a blank cell; equal bit for bit to a correctly rounded reader's; None for anything outside the
+    fast path (module docstring).
+    """
     buf = np.frombuffer(data, dtype=np.uint8)
     out = np.empty((n_rows, width))
     if n_rows <= 0 or width <= 0 or not _parse(buf, n_rows, width, _POW10, out):

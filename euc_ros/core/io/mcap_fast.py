@@ -1,11 +1,11 @@
-"""Minimal, ROS-free MCAP reader for indexed files with uncompressed chunks, vectorized with numpy.
+r"""Minimal, ROS-free MCAP reader for indexed files with uncompressed chunks, vectorized with numpy.
 
 Reads what :func:`euc_ros.core.io.bags.read_mocap_bag` needs from a rosbag2 MCAP file without a
 per-message Python loop: the summary section (schemas, channels, chunk indexes), then, per chunk,
 the message index record of each wanted channel, which lists the offsets of that channel's message
 records inside the chunk. Record headers are then read for all messages at once with numpy.
 
-MCAP layout used (https://mcap.dev/spec): magic ``\\x89MCAP0\\r\\n``; records ``opcode uint8,
+MCAP layout used (https://mcap.dev/spec): magic ``\x89MCAP0\r\n``; records ``opcode uint8,
 length uint64, content``; the file ends with a Footer record (``summary_start uint64,
 summary_offset_start uint64, summary_crc uint32``) and the magic. Opcodes: 0x03 Schema, 0x04
 Channel, 0x05 Message (``channel_id uint16, sequence uint32, log_time uint64, publish_time uint64,

@@ -61,8 +61,10 @@ REPO_EXTRA_DIR = Path(__file__).resolve().parents[3] / "extra_interfaces"
 
 
 def package_definitions(package: str) -> dict[str, str]:
-    """The ``.msg`` texts of an installed interface package (this prefix, then AMENT_PREFIX_PATH, then the
-    repository's extra_interfaces/); empty when none holds it."""
+    """The ``.msg`` texts of an installed interface package; empty when none holds it.
+
+    Searched in this prefix, then AMENT_PREFIX_PATH, then the repository's extra_interfaces/.
+    """
     prefixes = [Path(sys.prefix)] + [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
     dirs = [pre / "share" / package / "msg" for pre in prefixes] + [REPO_EXTRA_DIR / package / "msg"]
     for directory in dirs:

@@ -1,4 +1,4 @@
-"""Where a result came from: the session and recordings an analysis read, by path and content hash.
+r"""Where a result came from: the session and recordings an analysis read, by path and content hash.
 
 ``identify`` and ``residual`` write :func:`inputs_record` into their JSON (``inputs``; the recording
 format's section 5). Whatever applies a result to data (``identify --from-residual``, the live
@@ -14,12 +14,12 @@ Examples
 --------
 >>> import tempfile, pathlib
 >>> folder = pathlib.Path(tempfile.mkdtemp())
->>> _ = (folder / "session.yaml").write_text("rider: {}\\n")
->>> _ = (folder / "take.csv").write_text("Format Version,1.23\\n")
+>>> _ = (folder / "session.yaml").write_text("rider: {}\n")
+>>> _ = (folder / "take.csv").write_text("Format Version,1.23\n")
 >>> record = inputs_record(folder / "session.yaml", [folder / "take.csv"])
 >>> check_inputs(record, session=folder / "session.yaml", recordings=[folder / "take.csv"], source="r.json")
 []
->>> _ = (folder / "other.csv").write_text("Format Version,1.24\\n")
+>>> _ = (folder / "other.csv").write_text("Format Version,1.24\n")
 >>> check_inputs(record, recordings=[folder / "other.csv"], source="r.json")  # doctest: +ELLIPSIS
 Traceback (most recent call last):
     ...

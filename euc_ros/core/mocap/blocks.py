@@ -34,8 +34,10 @@ READ_FRAMES = 1024
 
 
 def pose_block(series, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(position, quat, tracked)`` of frames ``lo:hi`` of every body: views of a
-    :class:`~euc_ros.core.mocap.series.MocapSeries`, or a :class:`PerturbedSeries`' block."""
+    """``(position, quat, tracked)`` of frames ``lo:hi`` of every body.
+
+    Views of a :class:`~euc_ros.core.mocap.series.MocapSeries`, or a :class:`PerturbedSeries`' block.
+    """
     block = getattr(series, "pose_block", None)
     if block is not None:
         return block(lo, hi)
@@ -43,9 +45,11 @@ def pose_block(series, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.nda
 
 
 def release(series) -> None:
-    """Let a :class:`PerturbedSeries` drop what it keeps between block reads (its noise's recent blocks),
-    once a pass over its blocks is done; a plain recording has nothing to drop. Reading it again gives the
-    same poses."""
+    """Let a :class:`PerturbedSeries` drop what it keeps between block reads, once a pass over its blocks is done.
+
+    What it keeps is its noise's recent blocks; a plain recording has nothing to drop. Reading it again gives
+    the same poses.
+    """
     drop = getattr(series, "release", None)
     if drop is not None:
         drop()
@@ -96,10 +100,12 @@ class PerturbedSeries:
 
     @property
     def position(self) -> np.ndarray:
+        """Perturbed positions (b, n, 3) of the whole recording (made on each read)."""
         return self._perturb(0, self._base.n_frames)[0]
 
     @property
     def quat(self) -> np.ndarray:
+        """Perturbed quaternions (b, n, 4) of the whole recording (made on each read)."""
         return self._perturb(0, self._base.n_frames)[1]
 
     def materialize(self) -> MocapSeries:
@@ -155,8 +161,11 @@ class BlockNoise:
         self._cache.clear()
 
     def draw(self, lo: int, hi: int, dtype=float) -> np.ndarray:
-        """The draws of frames ``lo:hi``: (rows, hi - lo, width) float64 (``dtype`` None: as drawn, float32,
-        possibly a view of a kept block)."""
+        """The draws of frames ``lo:hi``.
+
+        An array (rows, hi - lo, width), float64 (``dtype`` None: as drawn, float32, possibly a view of a kept
+        block).
+        """
         k0, k1 = block_span(lo, hi)
         first = k0 * BLOCK_FRAMES
         if k1 - k0 == 1:

@@ -162,7 +162,7 @@ class PoseBridge:
         return out
 
     def _ready(self, row) -> bool:
-        """Can the oldest held frame be released (every missing body's gap decided)?"""
+        """Whether the oldest held frame can be released (every missing body's gap decided)."""
         if self._line[-1][0] - row[0] >= self.max_gap:
             return True
         return all(any(r[4][i] for r in self._line if r is not row) for i in np.flatnonzero(~row[4]))

@@ -1,5 +1,7 @@
-"""Motive's ``Capture Start Time``: :func:`capture_start_ns` / :func:`format_capture_start` convert its text to
-nanoseconds since the epoch and back (offline stamps are ``start + frame / rate``).
+"""Motive's ``Capture Start Time``.
+
+:func:`capture_start_ns` / :func:`format_capture_start` convert its text to nanoseconds since the epoch and
+back (offline stamps are ``start + frame / rate``).
 """
 from __future__ import annotations
 

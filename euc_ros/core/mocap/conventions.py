@@ -74,8 +74,9 @@ def _read_as(series) -> tuple[str, bool]:
 
 
 def poses_with_up(series, up: str, body: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Return (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up
-    (``body``: that body's only, (n, 3) and (n, 4)).
+    """Return (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up.
+
+    ``body``: that body's only, (n, 3) and (n, 4).
 
     ``series`` was read with ``series.meta["world_up"]`` (a Motive CSV) or is Z-up (a bag): with the
     other candidate the file's own axes are recovered and read again (docs/motive_csv.md).
@@ -93,8 +94,11 @@ def poses_with_up(series, up: str, body: int | None = None) -> tuple[np.ndarray,
 
 
 class _Thinned:
-    """Frames ``idx`` of a recording, for the up-axis tests: its times and tracked flags taken, its poses read one
-    body at a time (:func:`_body_poses`), never every body's at once."""
+    """Frames ``idx`` of a recording, for the up-axis tests.
+
+    Its times and tracked flags taken, its poses read one body at a time (:func:`_body_poses`), never every
+    body's at once.
+    """
 
     def __init__(self, series, idx: np.ndarray) -> None:
         self.base, self.idx = series, idx
@@ -111,8 +115,10 @@ def _body_poses(series, i: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _thinned(series):
-    """``series`` itself when it has at most :data:`MAX_FRAMES` frames, else a :class:`_Thinned` view of that
-    many evenly spaced frames."""
+    """``series`` itself when it has at most :data:`MAX_FRAMES` frames, else a :class:`_Thinned` view.
+
+    The view holds that many evenly spaced frames.
+    """
     n = series.n_frames
     if n <= MAX_FRAMES:
         return series

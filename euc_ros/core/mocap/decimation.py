@@ -1,5 +1,6 @@
-"""Decimation of a live stream for viewers: :class:`ViewDecimator` picks the frames whose poses are shown
-at about a viewing rate.
+"""Decimation of a live stream for viewers.
+
+:class:`ViewDecimator` picks the frames whose poses are shown at about a viewing rate.
 
 Time is always an argument (``stamp_ns``): nothing here reads a clock.
 """

@@ -27,8 +27,10 @@ class TakeIndex:
         self._seen: list[tuple[tuple, np.ndarray, str]] = []
 
     def same_as(self, series, name: str) -> str | None:
-        """The name of an earlier recording holding the same take as ``series`` (None: a new take, now
-        remembered as ``name``)."""
+        """The name of an earlier recording holding the same take as ``series``.
+
+        None: a new take, now remembered as ``name``.
+        """
         key, rows = _fingerprint(series)
         for k, r, other in self._seen:
             if k == key and r.shape == rows.shape:

@@ -1,5 +1,7 @@
-"""One assembled capture frame of a live stream (:class:`Frame`), the frame in which nothing is tracked
-(:func:`empty_frame`), and what a valid pose is (:func:`valid_pose`, :data:`QUAT_NORM_TOLERANCE`).
+"""One assembled capture frame of a live stream, the frame with nothing tracked, and what a valid pose is.
+
+The frame is a :class:`Frame`; the frame in which nothing is tracked is :func:`empty_frame`; a valid pose is
+what :func:`valid_pose` accepts (:data:`QUAT_NORM_TOLERANCE`).
 
 Every live source (pose topics, NatNet, CSV replay, bags) hands its poses on as a :class:`Frame`: Z-up world of
 REP-103, SI units, untracked bodies NaN, never zeros.

@@ -39,8 +39,10 @@ def span_unit(span_m: float) -> str | None:
 
 
 def median_span(series, bodies: list[str]) -> float:
-    """Median over frames of the largest distance between two tracked pivots of ``bodies`` [m]
-    (NaN when no frame has two of them tracked)."""
+    """Median over frames of the largest distance between two tracked pivots of ``bodies`` [m].
+
+    NaN when no frame has two of them tracked.
+    """
     rows = [series.bodies.index(b) for b in bodies if b in series.bodies]
     n = series.n_frames
     if len(rows) < 2 or n == 0:

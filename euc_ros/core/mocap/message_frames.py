@@ -1,6 +1,7 @@
-"""Core frames from one received message, in the Z-up world of REP-103: a decoded NatNet ``FrameOfData``
-(:func:`frame_from_natnet`, stamped with :func:`natnet_capture_stamp`) or a message of named poses
-(mocap4r2_msgs/RigidBodies, :func:`frame_from_named_poses`).
+"""Core frames from one received message, in the Z-up world of REP-103.
+
+A decoded NatNet ``FrameOfData`` (:func:`frame_from_natnet`, stamped with :func:`natnet_capture_stamp`) or a
+message of named poses (mocap4r2_msgs/RigidBodies, :func:`frame_from_named_poses`).
 """
 from __future__ import annotations
 
@@ -36,8 +37,9 @@ def natnet_capture_stamp(receive_ns: int, latency_s: float, max_latency_s: float
 
 def frame_from_named_poses(stamp_ns: int, frame_number: int, names, position, quat, bodies: list[str],
                            world_up: str = "z") -> tuple[Frame, list[str]]:
-    """Core :class:`Frame` from one message of named poses (mocap4r2_msgs/RigidBodies: one frame, every
-    body by name), in the Z-up world of REP-103.
+    """Core :class:`Frame` from one message of named poses, in the Z-up world of REP-103.
+
+    The message is a mocap4r2_msgs/RigidBodies: one frame, every body by name.
 
     Parameters
     ----------

@@ -1,5 +1,7 @@
-"""The pose-noise model of a recording: the white noise of every body's poses, estimated from the
-recording itself, and recordings with such noise added again.
+"""The pose-noise model of a recording.
+
+The white noise of every body's poses, estimated from the recording itself, and recordings with such noise
+added again.
 
 Two estimators, each serving its own consumer:
 
@@ -63,8 +65,9 @@ def _increments(quat: np.ndarray, ok: np.ndarray, block: int = 1 << 14) -> np.nd
 
 
 def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
-    """Per-body white pose noise estimated from the recording: (position sigma per axis [m],
-    rotation sigma per axis [rad]), each (b,).
+    """Per-body white pose noise estimated from the recording.
+
+    Returns (position sigma per axis [m], rotation sigma per axis [rad]), each (b,).
 
     Third differences of a smooth motion sampled at 100+ Hz are tiny; those of white noise have
     variance 20 sigma^2. Rotation: the increments between consecutive orientations (a first
@@ -107,7 +110,6 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
     ``noise`` (from :func:`pose_noise_draws`) and ``sign`` give antithetic recordings: the same draws
     with ``sign=-1`` are the mirrored noise (``-z``: the opposite positions and the inverse rotations).
     """
-
     if noise is None:
         noise = pose_noise_draws(series, rng)
     sp = np.asarray(sigma_pos, dtype=float)
@@ -131,7 +133,6 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
 
 def pose_noise_draws(series, rng):
     """The draws :func:`pose_noise_series` scales (one per body, frame and component, made by block)."""
-
     return BlockNoise(rng, series.position.shape[1], series.position.shape[0], 6)
 
 
@@ -158,8 +159,10 @@ def pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _same_hemisphere(q: np.ndarray) -> np.ndarray:
-    """Quaternions (n, 4) with signs made continuous (q and -q are one rotation): each sample flipped
-    when the product of sign changes since the first sample says so."""
+    """Quaternions (n, 4) with signs made continuous (q and -q are one rotation).
+
+    Each sample flipped when the product of sign changes since the first sample says so.
+    """
     dots = np.sum(q[1:] * q[:-1], axis=1)
     flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
     return q * flips[:, None]
@@ -185,10 +188,12 @@ def renoise(series, rng: np.random.Generator):
 
 
 def renoised(series, rng: np.random.Generator):
-    """:func:`renoise` as a :class:`~euc_ros.core.mocap.blocks.PerturbedSeries`: the same poses (the
-    draws of one :class:`~euc_ros.core.mocap.blocks.BlockNoise` seeded by one draw of ``rng``), made
-    block by block on demand (every body at once), so the re-noised recording never exists whole."""
+    """:func:`renoise` as a :class:`~euc_ros.core.mocap.blocks.PerturbedSeries`.
 
+    The same poses (the draws of one :class:`~euc_ros.core.mocap.blocks.BlockNoise` seeded by one draw of
+    ``rng``), made block by block on demand (every body at once), so the re-noised recording never exists
+    whole.
+    """
     sp, sq = pose_noise(series)
     b, n = series.position.shape[0], series.position.shape[1]
     noise = BlockNoise(rng, n, b, 7)

@@ -1,6 +1,7 @@
-"""Re-noised poses of many frames in one compiled loop (numba): what
-:func:`~euc_ros.core.mocap.noise.pose_noise_series` makes of a block of frames (positions plus scaled draws,
-quaternions turned by the scaled rotation-vector draws), without the float64 copy of the draws and the
+"""Re-noised poses of many frames in one compiled loop (numba).
+
+What :func:`~euc_ros.core.mocap.noise.pose_noise_series` makes of a block of frames (positions plus scaled
+draws, quaternions turned by the scaled rotation-vector draws), without the float64 copy of the draws and the
 block-sized temporaries of each step. The same formulas in the same order; equal to the numpy arithmetic to
 round-off (the sine and cosine may differ in the last bit between implementations). Compiled on first use and
 cached on disk (numba ``cache=True``, next to this file).
@@ -17,8 +18,9 @@ _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 @_jit
 def perturb_poses(position, quat, z, pos_scale, rot_scale, rotate, first):
-    """``(position + pos_scale z[..., :3], quat turned by rot_scale z[..., 3:])`` for the frames
-    ``first .. first + m - 1`` of ``position`` (b, n, 3) and ``quat`` (b, n, 4), ``m`` the draws' frames.
+    """``(position + pos_scale z[..., :3], quat turned by rot_scale z[..., 3:])`` for frames ``first .. first + m - 1``.
+
+    ``position`` is (b, n, 3) and ``quat`` (b, n, 4); ``m`` is the draws' number of frames.
 
     ``z`` (b, m, 6) the draws (any float type); ``pos_scale``, ``rot_scale`` (b,) per body (the sign of
     antithetic noise included); ``rotate`` (b,) bool: bodies whose quaternions are turned. A quaternion is

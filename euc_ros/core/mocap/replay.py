@@ -1,5 +1,7 @@
-"""Pacing of a replayed recording: :func:`replay_schedule` gives the wall-clock offsets of a replay at a
-rate factor; :class:`ReplayClock` the frames a replay has due at a wall-clock time, with their stamps.
+"""Pacing of a replayed recording.
+
+:func:`replay_schedule` gives the wall-clock offsets of a replay at a rate factor; :class:`ReplayClock` the
+frames a replay has due at a wall-clock time, with their stamps.
 
 Time is always an argument (``now_s``): nothing here reads a clock.
 """

@@ -69,8 +69,11 @@ class MocapSeries:
         return rate
 
     def _measured_rate(self) -> float:
-        """:func:`measured_rate_hz` of the frames, kept for the arrays it was measured on (the analyses ask for
-        the rate many times; a series given other ``t`` or ``frame`` arrays is measured again)."""
+        """:func:`measured_rate_hz` of the frames, kept for the arrays it was measured on.
+
+        The analyses ask for the rate many times; a series given other ``t`` or ``frame`` arrays is measured
+        again.
+        """
         kept = self.__dict__.get("_rate_of")
         if kept is not None and kept[0] is self.t and kept[1] is self.frame:
             return kept[2]

@@ -1,5 +1,6 @@
-"""Silence of a live stream: :class:`SilenceWatch` says when a stream has been silent long enough to warn,
-and when it is back.
+"""Silence of a live stream.
+
+:class:`SilenceWatch` says when a stream has been silent long enough to warn, and when it is back.
 
 Time is always an argument (``now_s``): nothing here reads a clock.
 """
@@ -30,8 +31,11 @@ class SilenceWatch:
         self.started_s = float(now_s)
 
     def data(self, now_s: float) -> float | None:
-        """Data arrived at ``now_s``; returns how long the stream was silent when this is news
-        (the first data, or the first after a warned silence) [s], else None."""
+        """Data arrived at ``now_s``.
+
+        Returns how long the stream was silent when this is news (the first data, or the first after a warned
+        silence) [s], else None.
+        """
         since = self.last_data_s if self.last_data_s is not None else self.started_s
         news = not self.ever or self.warned_s is not None
         self.last_data_s = float(now_s)

@@ -233,6 +233,20 @@ class RollingResistance(Candidate):
     formula = "dQ = [-c_rr (m+m0+mw) g tanh(x_dot/0.05), 0, 0]"
 
     def force(self, ctx, theta):
+        """Rolling resistance at the contact as a generalized force.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            ``[c_rr]``.
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``[-c_rr (m + m0 + mw) g tanh(x_dot / v0), 0, 0]``, v0 = :data:`ROLLING_SIGN_SPEED`.
+        """
         p = ctx.p()
         F = -theta[0] * (p.m + p.m0 + p.mw) * p.g * np.tanh(ctx.x_dot / ROLLING_SIGN_SPEED)
         return _x_force(F)
@@ -246,6 +260,20 @@ class ViscousFriction(Candidate):
     formula = "dQ = [-c_v x_dot, 0, 0]"
 
     def force(self, ctx, theta):
+        """Viscous friction at the contact as a generalized force.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            ``[c_v]`` [N s/m].
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``[-c_v x_dot, 0, 0]``.
+        """
         return _x_force(-theta[0] * ctx.x_dot)
 
 
@@ -257,6 +285,20 @@ class AeroDrag(Candidate):
     formula = "dQ = J_G^T F, F = -0.5 rho cda |v_G| v_G"
 
     def force(self, ctx, theta):
+        """Aerodynamic drag on the rider at G as a generalized force.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            ``[cda_m2]`` [m^2].
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``J_G^T F`` with ``F = -0.5 rho cda |v_G| v_G``.
+        """
         p = ctx.p()
         jx, jz = jacobian_G(ctx, p)
         qd = np.stack([ctx.x_dot, ctx.gamma_dot, ctx.phi_dot], axis=1)
@@ -274,6 +316,20 @@ class GroundSlope(Candidate):
     formula = "g = (-g sin(a) cos(psi), -g cos(a)); dQ = Q_g(tilted) - Q_g(vertical)"
 
     def force(self, ctx, theta):
+        """The change of the gravity forces when gravity tilts by the slope along the run's heading.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            ``[alpha_deg]`` [deg].
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``Q_g(tilted) - Q_g(vertical)``.
+        """
         p = ctx.p()
         a = np.deg2rad(theta[0])
         g = np.asarray(p.g, float)
@@ -295,6 +351,15 @@ class WheelRadiusError(Candidate):
     formula = "R -> R + delta_r"
 
     def modify(self, ctx, theta):
+        """Override the rolling radius: R -> R + delta_r.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["R"]``).
+        theta : numpy.ndarray
+            ``[delta_r_m]`` [m].
+        """
         ctx.overrides["R"] = ctx.params.R + theta[0]
 
 
@@ -306,6 +371,15 @@ class RiderMassError(Candidate):
     formula = "m -> m + delta_m"
 
     def modify(self, ctx, theta):
+        """Override the rider mass: m -> m + delta_m.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["m"]``).
+        theta : numpy.ndarray
+            ``[delta_m_kg]`` [kg].
+        """
         ctx.overrides["m"] = ctx.params.m + theta[0]
 
 
@@ -317,6 +391,15 @@ class RiderInertiaError(Candidate):
     formula = "J -> J + delta_J"
 
     def modify(self, ctx, theta):
+        """Override the rider pitch inertia: J -> J + delta_J.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["J"]``).
+        theta : numpy.ndarray
+            ``[delta_j_kgm2]`` [kg m^2].
+        """
         ctx.overrides["J"] = ctx.params.J + theta[0]
 
 
@@ -328,6 +411,15 @@ class TiltGravity(Candidate):
     formula = "g -> g + gain (g cos(theta) - a_c sin(theta) - g), a_c = psi_dot x_dot"
 
     def modify(self, ctx, theta):
+        """Override gravity with the in-plane gravity of a tilted, turning rider.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["g"]``).
+        theta : numpy.ndarray
+            ``[gain]``: ``g -> g + gain (g cos(theta) - a_c sin(theta) - g)``, ``a_c = psi_dot x_dot``.
+        """
         g = ctx.params.g
         a_c = ctx.psi_dot * ctx.x_dot
         ctx.overrides["g"] = g + theta[0] * (g * np.cos(ctx.theta) - a_c * np.sin(ctx.theta) - g)
@@ -349,9 +441,17 @@ class TimeVaryingH(Candidate):
 
     @property
     def checked(self):
+        """The reported parameters whose range is checked: the amplitude (:attr:`AMPLITUDE`) and the period."""
         return (self.AMPLITUDE, self.params[2])
 
     def starts(self):
+        """Initial guesses: zero amplitude at each period of :attr:`PERIOD_STARTS`.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            ``[a_sin, a_cos, period_s]`` per start.
+        """
         return [np.array([0.0, 0.0, T]) for T in self.PERIOD_STARTS]
 
     def __getstate__(self):
@@ -373,10 +473,33 @@ class TimeVaryingH(Candidate):
         return out
 
     def modify(self, ctx, theta):
+        """Override h with the varying height ``h + a sin(w t) + b cos(w t)``, ``w = 2 pi / T``.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["h"]``).
+        theta : numpy.ndarray
+            ``[a_sin, a_cos, period_s]``.
+        """
         dh, _, _ = self._profile(ctx.t, theta)
         ctx.overrides["h"] = ctx.params.h + dh
 
     def force(self, ctx, theta):
+        """The rheonomic force of the varying height on the rider's CoG.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            ``[a_sin, a_cos, period_s]``.
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``-m J_G^T [h_dd (sin phi, cos phi) + 2 h_d phi_d (cos phi, -sin phi)]``.
+        """
         p = ctx.p()
         _, hd, hdd = self._profile(ctx.t, theta)
         sphi, cphi = np.sin(ctx.phi), np.cos(ctx.phi)
@@ -386,6 +509,18 @@ class TimeVaryingH(Candidate):
         return -p.m * (jx * ax[:, None] + jz * az[:, None])
 
     def report(self, theta):
+        """The parameters as reported: the amplitude, period and phase of the sinusoid.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            ``[a_sin, a_cos, period_s]``.
+
+        Returns
+        -------
+        dict
+            ``amplitude_m`` (the hypot of a_sin and a_cos), ``period_s`` and ``phase_rad``.
+        """
         return {"amplitude_m": float(np.hypot(theta[0], theta[1])), "period_s": float(theta[2]),
                 "phase_rad": float(np.arctan2(theta[1], theta[0]))}
 
@@ -403,9 +538,28 @@ class MocapTimeOffset(Candidate):
     formula = "G(t) -> G(t + dt); phi, phi_dot, phi_ddot recomputed"
 
     def starts(self):
+        """Initial guesses of the offset: -40, 0 and 40 ms.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            ``[dt_ms]`` per start.
+        """
         return [np.array([v]) for v in (-40.0, 0.0, 40.0)]
 
     def modify(self, ctx, theta):
+        """Shift the rider's pitch phi and its rates as if the rider CoG were delayed by dt.
+
+        Nothing changes without ``ctx.extras['phi_shift']`` or at dt = 0.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``phi``, ``phi_dot``,
+            ``phi_ddot`` and ``mask``, the samples where the shift is finite).
+        theta : numpy.ndarray
+            ``[dt_ms]`` [ms].
+        """
         shift = ctx.extras.get("phi_shift")
         if shift is None or theta[0] == 0.0:
             return
@@ -422,6 +576,20 @@ class WheelBodyFriction(Candidate):
     formula = "dQ = -c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]"
 
     def force(self, ctx, theta):
+        """Friction torque between wheel and body as a generalized force.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            ``[c_wb]`` [N m s/rad].
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``-c_wb (x_dot/R - gamma_dot) [1/R, -1, 0]``.
+        """
         p = ctx.p()
         tau = -theta[0] * (ctx.x_dot / p.R - ctx.gamma_dot)
         return np.stack([tau / p.R, -tau, np.zeros_like(tau)], axis=1)
@@ -457,8 +625,11 @@ class FloorGeometry(Candidate):
         self.alpha_x_deg, self.alpha_y_deg = float(alpha_x_deg), float(alpha_y_deg)
 
     def _signals(self, ctx):
-        """Slope along travel and C_zdd: measured (extras), or of the plane ``alpha`` (a configured model:
-        ``tan a = tan(alpha_x) cos psi + tan(alpha_y) sin psi``, ``C_zdd = x_ddot tan a``)."""
+        """Slope along travel and C_zdd.
+
+        Measured (extras), or of the plane ``alpha`` (a configured model:
+        ``tan a = tan(alpha_x) cos psi + tan(alpha_y) sin psi``, ``C_zdd = x_ddot tan a``).
+        """
         a, czz = ctx.extras.get("floor_a"), ctx.extras.get("c_zdd")
         if a is None:
             tx, ty = (math.tan(math.radians(v)) if math.isfinite(v) else 0.0 for v in (self.alpha_x_deg,
@@ -469,10 +640,33 @@ class FloorGeometry(Candidate):
         return a, czz
 
     def modify(self, ctx, theta):
+        """Gravity in the gamma and phi rows: ``g -> g + C_zdd`` (the frame of C accelerates vertically).
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["g"]``).
+        theta : numpy.ndarray
+            Unused (no parameter is fitted).
+        """
         _, czz = self._signals(ctx)
         ctx.overrides["g"] = ctx.params.g + czz
 
     def force(self, ctx, theta):
+        """The x row's force of the measured floor against the level model (class docstring).
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            Unused (no parameter is fitted).
+
+        Returns
+        -------
+        numpy.ndarray
+            dQ (n, 3): ``[m_eq (x_dd - s_dd) + (1 - cos a) P_x - sin a P_z - m_tot g sin a, 0, 0]``.
+        """
         a, czz = self._signals(ctx)
         p = ctx.p()
         g0 = float(ctx.params.g)
@@ -489,6 +683,18 @@ class FloorGeometry(Candidate):
         return _x_force(m_eq * (ctx.x_ddot - s_dd) + (1 - ca) * Px - sa * Pz - m_tot * g0 * sa)
 
     def report(self, theta):
+        """The floor as reported (no parameter is fitted).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            Unused.
+
+        Returns
+        -------
+        dict
+            ``alpha_deg``, ``alpha_y_deg`` (the configured plane; NaN when the floor is measured) and ``level_lab`` 1.
+        """
         return {"alpha_deg": self.alpha_x_deg, "alpha_y_deg": self.alpha_y_deg, "level_lab": 1.0}
 
 

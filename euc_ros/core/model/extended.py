@@ -1,5 +1,6 @@
-"""The paper's 3-DoF model extended with effects: one :class:`Model` for the residual analysis, ``identify``
-and the online torque estimator.
+"""The paper's 3-DoF model extended with effects.
+
+One :class:`Model` for the residual analysis, ``identify`` and the online torque estimator.
 
 A model is a list of effects (:class:`~euc_ros.core.model.effects.Candidate`) with the parameter vector
 ``x = [h, theta_1..., theta_2...]``. The residual analysis fits ``x`` (:meth:`Model.residual`); once an effect
@@ -189,9 +190,11 @@ class Model:
 
     def residual(self, rec, x: np.ndarray, extra_dQ: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
-        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec`` (a prepared
-        recording, :class:`~euc_ros.core.states.contexts.Recording`; ``extra_dQ``: a further generalized force,
-        for the discovery's sensitivities)."""
+        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``.
+
+        ``rec`` is a prepared recording (:class:`~euc_ros.core.states.contexts.Recording`); ``extra_dQ``: a
+        further generalized force, for the discovery's sensitivities.
+        """
         h, thetas = self.split(x)
         ctx = rec.ctx.copy()
         ctx.overrides["h"] = h

@@ -150,8 +150,10 @@ def torque_difference(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_dd
 
 
 def _difference_constants(p: EucParams) -> tuple:
-    """``(R, m h, k = m l0 - m0 h0, m11, m22, m33)`` of :func:`torque_difference` (scalars or per-sample
-    arrays), formed once for its numpy and its compiled path alike (the same roundings)."""
+    """``(R, m h, k = m l0 - m0 h0, m11, m22, m33)`` of :func:`torque_difference` (scalars or per-sample arrays).
+
+    Formed once for its numpy and its compiled path alike (the same roundings).
+    """
     mh = p.m * p.h
     return (np.asarray(p.R, dtype=float), mh, p.m * p.l0 - p.m0 * p.h0, p.m_eq,
             p.J0 + p.m0 * p.h0 ** 2 + p.m * p.l0 ** 2, p.J + mh * p.h)
@@ -162,9 +164,11 @@ _COMPILED_MIN = 64
 
 
 def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
-    """:func:`torque_difference` by the compiled loop (:mod:`~euc_ros.core.model.torque_compiled`) for flat
-    arrays of one length and parameters that are scalars or per-sample arrays of that length (an effect that
-    moves h or g sample by sample); None otherwise (numpy's broadcasting then does it)."""
+    """:func:`torque_difference` by the compiled loop (:mod:`~euc_ros.core.model.torque_compiled`), or None.
+
+    For flat arrays of one length and parameters that are scalars or per-sample arrays of that length (an
+    effect that moves h or g sample by sample); None otherwise (numpy's broadcasting then does it).
+    """
     args = (g, ph, gd, pd, xdd, gdd, pdd)
     n = g.shape[0] if g.ndim == 1 else -1
     if n < _COMPILED_MIN or any(a.shape != (n,) for a in args):

@@ -1,7 +1,8 @@
-"""Compiled loop of :func:`~euc_ros.core.model.torque.torque_difference` (numba): the residual analysis
-evaluates ``M_d1 - M_d2`` some hundreds of times per run, and numpy's version makes some forty temporary
-arrays each time. The same expression, term by term in numpy's order, on each sample: equal to numpy's
-bit for bit (``test_torque.py``). Compiled on first use and cached on disk (numba ``cache=True``).
+"""Compiled loop of :func:`~euc_ros.core.model.torque.torque_difference` (numba).
+
+The residual analysis evaluates ``M_d1 - M_d2`` some hundreds of times per run, and numpy's version makes some
+forty temporary arrays each time. The same expression, term by term in numpy's order, on each sample: equal to
+numpy's bit for bit (``test_torque.py``). Compiled on first use and cached on disk (numba ``cache=True``).
 """
 from __future__ import annotations
 
@@ -12,10 +13,12 @@ import numba
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def torque_difference_loop(g, ph, gd, pd, xdd, gdd, pdd, S, extra, out):
-    """``M_d1 - M_d2`` per sample into ``out``. ``S`` (12, 1) or (12, n): the constants ``(R, R m11, -k, mh, m22,
-    -mh l0, m33, -mh, mh l0, k g, mh g, k)`` as :func:`~euc_ros.core.model.torque.torque_difference` forms them,
-    one column for every sample or one per sample (parameters given per sample); ``extra``: (n, 3) extra
-    generalized force, or (0, 3)."""
+    """``M_d1 - M_d2`` per sample into ``out``.
+
+    ``S`` (12, 1) or (12, n): the constants ``(R, R m11, -k, mh, m22, -mh l0, m33, -mh, mh l0, k g, mh g, k)``
+    as :func:`~euc_ros.core.model.torque.torque_difference` forms them, one column for every sample or one per
+    sample (parameters given per sample); ``extra``: (n, 3) extra generalized force, or (0, 3).
+    """
     has_extra = extra.shape[0] > 0
     per_sample = S.shape[1] > 1
     for i in range(out.shape[0]):

@@ -162,8 +162,10 @@ class RiderStateEstimator:
 
     @property
     def lag_s(self) -> float:
-        """Output delay [s] (the filter's centred lag; right after a body's gap of k frames the
-        bridge adds up to k frames once)."""
+        """Output delay [s]: the filter's centred lag.
+
+        Right after a body's gap of k frames the bridge adds up to k frames once.
+        """
         return self._split.lag_s if self._split is not None else self._euc.lag_s
 
     @property
@@ -542,8 +544,9 @@ class TorqueEstimator:
         return self._scalar
 
     def set_h(self, h: float) -> None:
-        """Use ``h`` [m] from the next state on (a value identified while the stream runs). The sliding
-        RMSE starts again: residuals under two values of h do not mix.
+        """Use ``h`` [m] from the next state on (a value identified while the stream runs).
+
+        The sliding RMSE starts again: residuals under two values of h do not mix.
 
         Raises
         ------

@@ -110,8 +110,11 @@ class HEstimate:
 
 
 def _dot(a: np.ndarray, b: np.ndarray) -> float:
-    """``a . b`` without BLAS: OpenBLAS's ddot starts its thread pool above ~10 000 elements (30 s at
-    360 Hz), whose spinning threads took a second core from a live node on a 2-core machine."""
+    """``a . b`` without BLAS.
+
+    OpenBLAS's ddot starts its thread pool above ~10 000 elements (30 s at 360 Hz), whose spinning threads
+    took a second core from a live node on a 2-core machine.
+    """
     return float(np.einsum("i,i->", a, b))
 
 
@@ -266,8 +269,10 @@ class OnlineHEstimator:
         return e, de
 
     def _grid_start(self, coef: np.ndarray) -> float:
-        """The coarse grid's minimum of S(h), on an evenly spread subset of at most GRID_SAMPLES samples
-        (it only picks the basin; a smooth function of h is located as well by the subset)."""
+        """The coarse grid's minimum of S(h), on an evenly spread subset of at most GRID_SAMPLES samples.
+
+        It only picks the basin; a smooth function of h is located as well by the subset.
+        """
         stride = max(1, coef.shape[1] // GRID_SAMPLES)
         c, a0, a1, a2, d0, d1 = coef[:, ::stride]
         H = self._grid[:, None]

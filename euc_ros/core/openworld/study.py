@@ -136,11 +136,14 @@ def floor_rmse(session, csv_paths) -> float:
 
 
 def seen_effect(effect, rate_hz: float) -> np.ndarray:
-    """A law's contribution to ``M_d1 - M_d2`` as the analysis sees it: through the Savitzky-Golay filter its
-    states are smoothed with (:data:`~euc_ros.core.residual.analysis.RESIDUAL_WINDOW_S`, order
+    """A law's contribution to ``M_d1 - M_d2`` as the analysis sees it.
+
+    Through the Savitzky-Golay filter its states are smoothed with
+    (:data:`~euc_ros.core.residual.analysis.RESIDUAL_WINDOW_S`, order
     :data:`~euc_ros.core.residual.analysis.RESIDUAL_POLYORDER`). The residual is linear in the accelerations,
-    which the filter smooths, so a law faster than the filter passes (a tyre's harmonics at speed) reaches
-    the residual attenuated; a perfect model can only explain what reaches it."""
+    which the filter smooths, so a law faster than the filter passes (a tyre's harmonics at speed) reaches the
+    residual attenuated; a perfect model can only explain what reaches it.
+    """
     from scipy.signal import savgol_filter
 
     from euc_ros.core.filters.derivatives import window_samples
@@ -152,9 +155,11 @@ def seen_effect(effect, rate_hz: float) -> np.ndarray:
 
 
 def _runs(seed: int, family: str, spec, n: int, rate_hz: float, rtol: float, force=None) -> list:
-    """The ride's further ``n - 1`` runs (the first is the seed's own draw):
-    :func:`~euc_ros.core.worldsim.simulate.another_run` (runs of the same rider, EUC, controllers and place; their own
-    profiles and disturbances), with ``force``."""
+    """The ride's further ``n - 1`` runs (the first is the seed's own draw).
+
+    :func:`~euc_ros.core.worldsim.simulate.another_run` (runs of the same rider, EUC, controllers and place;
+    their own profiles and disturbances), with ``force``.
+    """
     from euc_ros.core.worldsim.simulate import another_run, simulate
 
     out = []
@@ -309,9 +314,11 @@ def run_task(task) -> dict:
 
 def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float = DURATION_S,
           rate_hz: float = RATE_HZ, rtol: float = RTOL) -> list[tuple[str, int, dict]]:
-    """One task per family and seed: the first ``per_family`` seeds of ``seed_set`` (``tuning``, ``report``),
-    as ``(name, seed, options)`` (a campaign task of kind ``open_world``)."""
+    """One task per family and seed.
 
+    The first ``per_family`` seeds of ``seed_set`` (``tuning``, ``report``), as ``(name, seed, options)`` (a
+    campaign task of kind ``open_world``).
+    """
     if seed_set not in SEED_SETS:
         raise ConfigError(f"must be one of {tuple(SEED_SETS)}, got {seed_set!r}", key="--seeds")
     seeds = SEED_SETS[seed_set]

@@ -323,8 +323,10 @@ def _spline(c, j, i, dx):
 
 @_jit
 def _arms(p, t):
-    """:meth:`~euc_ros.core.ridesim.rider_motion.ArmKinematics.profile` at time t:
-    ``(h, h_dot, h_ddot, dJ, dJ_dot, H_dot)``."""
+    """:meth:`~euc_ros.core.ridesim.rider_motion.ArmKinematics.profile` at time t.
+
+    Returns ``(h, h_dot, h_ddot, dJ, dJ_dot, H_dot)``.
+    """
     arg = p.arm_w * t + p.arm_phase
     th = p.arm_amp * math.sin(arg)
     thd = p.arm_amp * p.arm_w * math.cos(arg)
@@ -379,8 +381,10 @@ def _solve4(e, r):
 
 @_jit
 def rhs(t, y, dy, p):
-    """Write d/dt of the state (:data:`~euc_ros.core.ridesim.simulate.STATE_NAMES`, then u, u_dot with pedals)
-    into ``dy``: :meth:`~euc_ros.core.ridesim.simulate._RunDynamics.rhs` compiled."""
+    """:meth:`~euc_ros.core.ridesim.simulate._RunDynamics.rhs` compiled: write d/dt of the state into ``dy``.
+
+    The state is :data:`~euc_ros.core.ridesim.simulate.STATE_NAMES`, then u, u_dot with pedals.
+    """
     x, gam, phi, xd, gd, pd = y[0], y[1], y[2], y[3], y[4], y[5]
     # rider CoG height h(t)
     dJ = dJ_dot = H_dot = 0.0
@@ -486,7 +490,7 @@ def _rms(v):
 
 @_jit
 def _initial_step(t0, y0, f0, t_bound, rtol, atol, p):
-    """scipy's ``select_initial_step`` (Hairer, Norsett, Wanner, Sec. II.4) for error order 7."""
+    """The ``select_initial_step`` of scipy (Hairer, Norsett, Wanner, Sec. II.4) for error order 7."""
     interval = abs(t_bound - t0)
     if interval == 0.0:
         return 0.0
@@ -630,8 +634,10 @@ def dop853(t0, t_bound, y0, rtol, atol, p):
 
 @_jit
 def dense(ts, ys, F, t):
-    """The dense solution at times t (any order) as (n_times, n_states): scipy's ``OdeSolution`` with
-    ``Dop853DenseOutput`` (at a step boundary, the earlier step)."""
+    """The dense solution at times t (any order) as (n_times, n_states).
+
+    As scipy's ``OdeSolution`` with ``Dop853DenseOutput`` (at a step boundary, the earlier step).
+    """
     nseg, n = F.shape[0], ys.shape[1]
     out = np.empty((t.size, n))
     for j in range(t.size):

@@ -55,8 +55,11 @@ class ExternalForce:
 
     @property
     def lab_fixed(self) -> bool:
-        """True when the force depends on lab position (the rope's anchor): the simulator then records every run
-        in the same lab frame (no re-centring of the track), so the anchor is one point of the recordings."""
+        """True when the force depends on lab position (the rope's anchor).
+
+        The simulator then records every run in the same lab frame (no re-centring of the track), so the
+        anchor is one point of the recordings.
+        """
         return self.kind in ("rope", "lab_bump")
 
     def generalized(self, *, x, gamma, phi, x_dot, gamma_dot, phi_dot, h, X, psi, R, l0):
@@ -96,4 +99,11 @@ class ExternalForce:
                 h * np.cos(phi) * Fx - h * np.sin(phi) * Fz)
 
     def to_dict(self) -> dict:
+        """The force as a plain mapping, for ``truth.json``.
+
+        Returns
+        -------
+        dict
+            ``kind`` and the force's parameters.
+        """
         return {"kind": self.kind, **self.params}

@@ -107,5 +107,12 @@ class FloorProfile:
         return a, a1
 
     def to_dict(self) -> dict:
+        """The floor as a plain mapping, for ``truth.json``.
+
+        Returns
+        -------
+        dict
+            ``components`` (each ``kind`` and its parameters), ``run_start_m`` and the ``frame``.
+        """
         return {"components": [{"kind": c.kind, **c.params} for c in self.components],
                 "run_start_m": self.run_start_m, "frame": "level lab (gravity along -Z)"}

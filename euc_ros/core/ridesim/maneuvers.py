@@ -69,7 +69,7 @@ class HeadingPath:
         return self.amplitude * k * np.cos(k * np.asarray(s) + self.phase)
 
     def dkappa(self, s):
-        """d kappa / d s [1/m^2] at arc length s."""
+        """The curvature's rate d kappa / d s [1/m^2] at arc length s."""
         k = 2 * np.pi / self.length
         return -self.amplitude * k * k * np.sin(k * np.asarray(s) + self.phase)
 
@@ -136,6 +136,18 @@ class Sinusoids:
     phases: tuple[float, ...]
 
     def __call__(self, t):
+        """The sum at times ``t`` [rad].
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times [s].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            A float for a scalar ``t``, else an array of ``t``'s shape.
+        """
         if np.ndim(t) == 0:  # scalar fast path (ODE right-hand side), same formula
             t = float(t)
             return sum(a * math.sin(2 * math.pi * f * t + p)

@@ -65,8 +65,10 @@ def random_layout(rng: np.random.Generator, n_markers: int = 4, spread_m: float 
 
 
 def rotation_covariance(layout, sigma_m: float) -> np.ndarray:
-    """Small-angle covariance (3, 3) [rad^2] of a fitted orientation, body frame:
-    ``sigma^2 (sum_i |r_i|^2 I - r_i r_i^T)^-1`` with ``r_i`` the markers about their centroid."""
+    """Small-angle covariance (3, 3) [rad^2] of a fitted orientation, body frame.
+
+    ``sigma^2 (sum_i |r_i|^2 I - r_i r_i^T)^-1`` with ``r_i`` the markers about their centroid.
+    """
     r = np.asarray(layout, dtype=float)
     r = r - r.mean(axis=0)
     inertia = np.einsum("ij,ij->", r, r) * np.eye(3) - r.T @ r

@@ -83,8 +83,10 @@ def rotations_to_quats(rot: np.ndarray) -> np.ndarray:
 
 
 def rotvec_to_quats(rv: np.ndarray) -> np.ndarray:
-    """Rotation vectors (..., 3) [rad] -> quaternions (..., 4) (x, y, z, w) (``Rotation.from_rotvec``'s formula,
-    with its series for angles below 1e-3 rad)."""
+    """Rotation vectors (..., 3) [rad] -> quaternions (..., 4) (x, y, z, w).
+
+    ``Rotation.from_rotvec``'s formula, with its series for angles below 1e-3 rad.
+    """
     rv = np.asarray(rv, float)
     angle = np.linalg.norm(rv, axis=-1, keepdims=True)
     small = angle <= 1e-3

@@ -41,8 +41,11 @@ ARM_SHOULDER = {"UAR": "UAR", "LAR": "UAR", "UAL": "UAL", "LAL": "UAL"}
 
 @dataclass(frozen=True)
 class PedalFlex:
-    """Pedals that flex under the rider's load (stiffness ``k_n_per_m`` along the EUC's axis, damping ratio
-    ``damping_ratio`` of the rider bouncing on them)."""
+    """Pedals that flex under the rider's load.
+
+    Stiffness ``k_n_per_m`` along the EUC's axis, damping ratio ``damping_ratio`` of the rider bouncing on
+    them.
+    """
 
     k_n_per_m: float = 1.0e5
     damping_ratio: float = 0.3
@@ -58,13 +61,22 @@ class PedalFlex:
         return 2.0 * self.damping_ratio * math.sqrt(self.k_n_per_m * rider_mass)
 
     def to_dict(self) -> dict:
+        """The pedals as a plain mapping, for ``truth.json``.
+
+        Returns
+        -------
+        dict
+            ``kind`` (``pedal_flex``) and the fields.
+        """
         return {"kind": "pedal_flex", **asdict(self)}
 
 
 @dataclass(frozen=True)
 class ArmSwing:
-    """Both arms swinging about the shoulders in the pitch plane: ``amplitude_deg`` at ``freq_hz``; the phase
-    of run k is ``phase_rad + k * phase_step_rad``."""
+    """Both arms swinging about the shoulders in the pitch plane.
+
+    ``amplitude_deg`` at ``freq_hz``; the phase of run k is ``phase_rad + k * phase_step_rad``.
+    """
 
     amplitude_deg: float = 10.0
     freq_hz: float = 1.0
@@ -78,6 +90,13 @@ class ArmSwing:
             raise ConfigError(f"must be in (0, 5] Hz, got {self.freq_hz}", key="arms.freq_hz")
 
     def to_dict(self) -> dict:
+        """The arm swing as a plain mapping, for ``truth.json``.
+
+        Returns
+        -------
+        dict
+            ``kind`` (``arm_swing``) and the fields.
+        """
         return {"kind": "arm_swing", **asdict(self)}
 
 
@@ -88,8 +107,10 @@ def _ry(a: np.ndarray) -> np.ndarray:
 
 
 class ArmKinematics:
-    """The swinging arms of one run on a :class:`~.skeleton.Skeleton` (rider mass ``mass``, CoG height ``h``
-    above the hinge with the arms at rest)."""
+    """The swinging arms of one run on a :class:`~.skeleton.Skeleton`.
+
+    Rider mass ``mass``, CoG height ``h`` above the hinge with the arms at rest.
+    """
 
     #: Step of the five-point derivative stencil in the arm angle [rad] (truncation ~ step^4, rounding ~1e-12).
     STEP = 1e-3
@@ -144,8 +165,11 @@ class ArmKinematics:
         return self.amp * s, self.amp * self.w * co, -self.amp * self.w * self.w * s
 
     def _tables(self, th):
-        """Functions of the arm angle: h, h', h'', beta, dJ, J' (= 2 sum m f (x x' + z z')),
-        K = sum m f (z x' - x z'), P = sum m f (z x'' - x z'') (five-point stencil in the angle)."""
+        """Functions of the arm angle.
+
+        h, h', h'', beta, dJ, J' (= 2 sum m f (x x' + z z')), K = sum m f (z x' - x z'),
+        P = sum m f (z x'' - x z'') (five-point stencil in the angle).
+        """
         d = self.STEP
         st = [self._relative(th + k * d) for k in (-2, -1, 0, 1, 2)]
         c = [s_[0] for s_ in st]
@@ -161,10 +185,13 @@ class ArmKinematics:
                 "P": np.einsum("b,bn->n", mf, z * c2[..., 0] - x * c2[..., 2])}
 
     def profile(self, t, exact: bool = False) -> dict:
-        """At times t: ``h, h_dot, h_ddot`` [m...], ``beta`` [rad], ``dJ`` [kg m^2], ``dJ_dot`` [kg m^2/s],
-        ``H`` [N m s], ``H_dot`` [N m] (the relative motion's angular momentum about the pitch axis,
-        ``theta_dot K``, and its rate ``theta_dot^2 P + theta_ddot K``). The functions of the arm angle come from cubic splines on a grid of
-        :data:`GRID` angles (``exact``: from the geometry at every call, 50x slower)."""
+        """The arm motion at times t: h and its rates, beta, dJ, dJ_dot, H and H_dot.
+
+        ``h, h_dot, h_ddot`` [m...], ``beta`` [rad], ``dJ`` [kg m^2], ``dJ_dot`` [kg m^2/s], ``H`` [N m s],
+        ``H_dot`` [N m] (the relative motion's angular momentum about the pitch axis, ``theta_dot K``, and its
+        rate ``theta_dot^2 P + theta_ddot K``). The functions of the arm angle come from cubic splines on a
+        grid of :data:`GRID` angles (``exact``: from the geometry at every call, 50x slower).
+        """
         scalar = np.ndim(t) == 0
         th, thd, thdd = (np.atleast_1d(v) for v in self.angle(t))
         if exact:

@@ -438,8 +438,11 @@ class _RunDynamics:
 
 
 def yaw_tilt_pitch_matrices(psi, theta, pitch) -> np.ndarray:
-    """``Rz(psi) Rx(theta) Ry(pitch)`` (..., 3, 3) in closed form (the matrices of
-    :func:`~euc_ros.core.rotations.quat_from_yaw_tilt_pitch`, without the quaternion round trip)."""
+    """``Rz(psi) Rx(theta) Ry(pitch)`` (..., 3, 3) in closed form.
+
+    The matrices of :func:`~euc_ros.core.rotations.quat_from_yaw_tilt_pitch`, without the quaternion round
+    trip.
+    """
     psi, theta, pitch = np.broadcast_arrays(*(np.asarray(v, float) for v in (psi, theta, pitch)))
     cz, sz, cx, sx, cy, sy = np.cos(psi), np.sin(psi), np.cos(theta), np.sin(theta), np.cos(pitch), np.sin(pitch)
     return np.stack([np.stack([cz * cy - sz * sx * sy, -sz * cx, cz * sy + sz * sx * cy], -1),
@@ -448,7 +451,7 @@ def yaw_tilt_pitch_matrices(psi, theta, pitch) -> np.ndarray:
 
 
 def _run_index(name: str) -> int:
-    """k (from 0) of a run named ``<maneuver>_NN`` (NN = k + 1)."""
+    """The index k (from 0) of a run named ``<maneuver>_NN`` (NN = k + 1)."""
     tail = name.rsplit("_", 1)[-1]
     return max(int(tail) - 1, 0) if tail.isdigit() else 0
 

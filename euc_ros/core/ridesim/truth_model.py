@@ -106,7 +106,7 @@ class PlanarParams:
 
     @property
     def total_mass(self) -> float:
-        """m + m0 + mw [kg]."""
+        """Total mass m + m0 + mw [kg]."""
         return self.m + self.m0 + self.mw
 
 
@@ -129,8 +129,10 @@ class _Numeric:
 
 @dataclass(frozen=True)
 class _Compiled(_Numeric):
-    """Lambdified pieces of the derived model (scalar ``math`` and vectorized ``numpy`` versions) and its sympy
-    expressions."""
+    """Lambdified pieces of the derived model and its sympy expressions.
+
+    Each piece comes in a scalar ``math`` and a vectorized ``numpy`` version.
+    """
 
     # sympy expressions kept for the docs, for independent checks and for code generation
     M: sp.Matrix
@@ -151,8 +153,10 @@ def _time_to_symbols(t, pairs) -> dict:
 
 
 def _substitute(e, subs):
-    """Apply :func:`_time_to_symbols`' map, second derivatives first (so that Derivative(f, t) inside
-    them is not replaced early)."""
+    """Apply :func:`_time_to_symbols`' map, second derivatives first.
+
+    Second derivatives go first so that Derivative(f, t) inside them is not replaced early.
+    """
     for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
         e = e.subs(k, subs[k])
     return e
@@ -165,8 +169,11 @@ def _lam(args, expr, module):
 
 
 def _extension(M, b, mass_args, m_entries, bias_args, syms) -> _Compiled:
-    """A model that extends the planar one (:func:`_derive`): its own mass matrix and bias, lambdified, with
-    the planar model's rider-CoG Jacobian and velocity (the rider's geometry is the same)."""
+    """A model that extends the planar one (:func:`_derive`).
+
+    Its own mass matrix and bias, lambdified, with the planar model's rider-CoG Jacobian and velocity (the
+    rider's geometry is the same).
+    """
     base = _derive()
     return _Compiled(
         mass_s=_lam(mass_args, m_entries, "math"), bias_s=_lam(bias_args, list(b), "math"),
@@ -459,7 +466,7 @@ class FloorModel:
                          np.stack([e[2], e[4], e[5]], -1)], -2)
 
     def bias(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1) -> np.ndarray:
-        """b (..., 3): velocity, rheonomic and floor-curvature terms minus gravity."""
+        """The bias b (..., 3): velocity, rheonomic and floor-curvature terms minus gravity."""
         args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a,
                                                                      a1)))
         e = self._c.bias_v(*args, *self._p)
@@ -476,9 +483,31 @@ class FloorModel:
         return self._plain.g_point_scalar(*args)
 
     def rider_cog_jacobian(self, *args):
+        """dG/dq (..., 2, 3) of the rider CoG, as :meth:`PlanarModel.rider_cog_jacobian`.
+
+        Parameters
+        ----------
+        *args
+            ``gam, phi, h``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self._plain.rider_cog_jacobian(*args)
 
     def rider_cog_velocity(self, *args):
+        """In-plane velocity of G (..., 2), as :meth:`PlanarModel.rider_cog_velocity`.
+
+        Parameters
+        ----------
+        *args
+            ``gam, phi, xd, gd, pd, h, hd``.
+
+        Returns
+        -------
+        numpy.ndarray
+        """
         return self._plain.rider_cog_velocity(*args)
 
 
@@ -561,7 +590,7 @@ class PedalModel:
         return np.stack(e, -1).reshape(gam.shape + (4, 4))
 
     def bias(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz) -> np.ndarray:
-        """b (..., 4): velocity and rheonomic terms minus gravity."""
+        """The bias b (..., 4): velocity and rheonomic terms minus gravity."""
         args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz)))
         e = self._c.bias_v(*args, *self._p)
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
@@ -579,8 +608,10 @@ class PedalModel:
         return np.linalg.solve(M, rhs[..., None])[..., 0]
 
     def rider_cog_jacobian(self, *args):
-        """dG/d(x, gamma, phi) of the unflexed geometry (u = 0): the simulator uses it only for forces at G,
-        which it does not combine with pedals."""
+        """dG/d(x, gamma, phi) of the unflexed geometry (u = 0).
+
+        The simulator uses it only for forces at G, which it does not combine with pedals.
+        """
         return PlanarModel(self.params, self._equations).rider_cog_jacobian(*args)
 
     def rider_cog_velocity(self, *args):

@@ -1,8 +1,9 @@
-"""Reconstructed recordings as the model's evaluation contexts: the valid samples of each run as a
-:class:`~euc_ros.core.model.effects.ModelContext` (decimated to an analysis rate, :func:`decimation_step`),
-with the hooks some effects need: the rider CoG shifted in time (``phi_shift``), the floor's slope under
-the wheel, the path travelled. The residual analysis and the identification with an extended model
-evaluate their models on these.
+"""Reconstructed recordings as the model's evaluation contexts.
+
+The valid samples of each run as a :class:`~euc_ros.core.model.effects.ModelContext` (decimated to an analysis
+rate, :func:`decimation_step`), with the hooks some effects need: the rider CoG shifted in time
+(``phi_shift``), the floor's slope under the wheel, the path travelled. The residual analysis and the
+identification with an extended model evaluate their models on these.
 """
 from __future__ import annotations
 
@@ -44,8 +45,10 @@ _SHIFT_BLOCK = 1 << 16
 
 
 def hinge_path(st: RiderStates, l0: float) -> np.ndarray:
-    """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis
-    (block by block: elementwise, so the same numbers as the whole at once)."""
+    """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis.
+
+    Computed block by block: elementwise, so the same numbers as the whole at once.
+    """
     n = st.C.shape[0]
     out = np.empty((n, 3))
     for lo in range(0, n, _SHIFT_BLOCK):
@@ -70,8 +73,10 @@ def _phi_about_hinge(G: np.ndarray, A: np.ndarray, psi: np.ndarray, theta: np.nd
 
 
 def _phi_about_hinge_turned(G: np.ndarray, A: np.ndarray, trig: tuple) -> np.ndarray:
-    """:func:`_phi_about_hinge` with the moving frame's ``(cos psi, sin psi, cos theta, sin theta)`` given (the
-    arithmetic of :func:`~euc_ros.core.states.geometry.to_moving_frame`, so the same numbers)."""
+    """:func:`_phi_about_hinge` with the moving frame's ``(cos psi, sin psi, cos theta, sin theta)`` given.
+
+    The arithmetic of :func:`~euc_ros.core.states.geometry.to_moving_frame`, so the same numbers.
+    """
     cp, sp, ct, st = trig
     n = G.shape[0]
     out = np.empty(n)
@@ -127,8 +132,10 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
 
 
 def forget_shift_caches(recs: Sequence[Recording]) -> None:
-    """Let the time-shift hooks of prepared recordings drop what they keep (:func:`_phi_shift_fn`: 8 numbers a
-    sample), e.g. once the analysis no longer fits a time offset; a hook called again makes it again."""
+    """Let the time-shift hooks of prepared recordings drop what they keep (:func:`_phi_shift_fn`: 8 numbers a sample).
+
+    For example once the analysis no longer fits a time offset; a hook called again makes it again.
+    """
     for rec in recs:
         forget = getattr(rec.ctx.extras.get("phi_shift"), "forget", None)
         if forget is not None:
@@ -199,11 +206,13 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
 
 
 class FullSignals(Mapping):
-    """A context's full-rate signals (every sample of the recording, NaN as 0), made from its states when
-    read: ``t`` (from the first sample), ``v`` (x_dot), ``s`` (path), ``psi`` (unwrapped), ``X``, ``Y`` (the
-    wheel centre), ``phi_dot``, ``gamma_dot``, and ``index`` (the analysed samples), ``window``,
-    ``polyorder`` (the states' filter). A reference to the states, not copies of eight of their arrays:
-    those are read a few times per analysis, while the contexts live through it."""
+    """A context's full-rate signals (every sample of the recording, NaN as 0), made from its states when read.
+
+    ``t`` (from the first sample), ``v`` (x_dot), ``s`` (path), ``psi`` (unwrapped), ``X``, ``Y`` (the wheel
+    centre), ``phi_dot``, ``gamma_dot``, and ``index`` (the analysed samples), ``window``, ``polyorder`` (the
+    states' filter). A reference to the states, not copies of eight of their arrays: those are read a few
+    times per analysis, while the contexts live through it.
+    """
 
     _KEYS = ("t", "v", "s", "psi", "X", "Y", "phi_dot", "gamma_dot", "index", "window", "polyorder")
 

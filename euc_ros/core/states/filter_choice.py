@@ -82,8 +82,10 @@ class FilterChoice:
         return getattr(self.choice, name)
 
     def to_json(self) -> dict:
-        """``choice.to_json()`` plus ``rate_hz`` (the rate it was chosen at) and, for several rates,
-        ``per_rate`` (each rate's own choice: window and order)."""
+        """``choice.to_json()`` plus ``rate_hz`` (the rate it was chosen at) and, for several rates, ``per_rate``.
+
+        ``per_rate``: each rate's own choice (window and order).
+        """
         out = dict(self.choice.to_json())
         rate = next((r for r, c in self.per_rate.items() if c is self.choice), None)
         out["rate_hz"] = rate
@@ -163,8 +165,11 @@ def choose_filter(series_list: Sequence, session, *, phi_definition: str = "hing
 
 def data_filtered(series: list, session, phi_definition: str,
                   sliding: dict | None = None) -> tuple[list, list | None, float]:
-    """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, with its
-    probe filter (None without one), and the probe's distortion ratio (``sliding``: as :func:`choose_filter`)."""
+    """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, and its probe filter.
+
+    Returns the states, the probe filter (None without one) and the probe's distortion ratio (``sliding``: as
+    :func:`choose_filter`).
+    """
     choice = choose_filter(series, session, phi_definition=phi_definition, sliding=sliding)
 
     probe = choice.probe
@@ -177,9 +182,12 @@ def data_filtered(series: list, session, phi_definition: str,
 
 
 def data_filters(series: list, session, phi_definition: str, sliding: dict | None = None) -> tuple:
-    """:func:`data_filtered` made when asked for: ``(make_chosen, make_probe or None, probe_ratio)``, each
-    ``make_*()`` the recordings' states with that filter (the same states). A caller that reduces the chosen
-    filter's states before asking for the probe's never holds both (each evaluates the geometry anew)."""
+    """:func:`data_filtered` made when asked for.
+
+    ``(make_chosen, make_probe or None, probe_ratio)``, each ``make_*()`` the recordings' states with that
+    filter (the same states). A caller that reduces the chosen filter's states before asking for the probe's
+    never holds both (each evaluates the geometry anew).
+    """
     choice = choose_filter(series, session, phi_definition=phi_definition, sliding=sliding)
 
     def make(window_s: float, polyorder: int):

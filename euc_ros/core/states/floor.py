@@ -67,6 +67,13 @@ class FloorFit:
     flat: bool                      # no slope and no deviation beyond the scatter
 
     def as_dict(self) -> dict:
+        """The fit as a plain mapping, with the angles also in degrees.
+
+        Returns
+        -------
+        dict
+            The fields, ``plane`` as a list, ``slope_deg`` and ``slope_along_travel_deg``.
+        """
         d = asdict(self)
         d["plane"] = list(self.plane)
         d["slope_deg"] = math.degrees(self.slope_rad)
@@ -85,8 +92,9 @@ def _robust_std(r: np.ndarray) -> float:
 
 def _soft_l1_fit(A: np.ndarray, z: np.ndarray, b0: np.ndarray, f_scale: float, *, max_iter: int = 200,
                  rtol: float = 1e-12) -> np.ndarray:
-    """The linear fit ``A b ~ z`` under scipy's ``soft_l1`` loss (``rho(s) = 2 (sqrt(1 + s) - 1)``,
-    ``s = (r / f_scale)^2``) by iteratively reweighted least squares.
+    """The linear fit ``A b ~ z`` under scipy's ``soft_l1`` loss by iteratively reweighted least squares.
+
+    The loss is ``rho(s) = 2 (sqrt(1 + s) - 1)``, ``s = (r / f_scale)^2``.
 
     The loss is convex, and its minimum solves ``sum w_i r_i a_i = 0`` with ``w = rho'(s) = 1 / sqrt(1 + s)``:
     each step solves the weighted normal equations (a few columns) with the weights of the last

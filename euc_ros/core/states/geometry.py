@@ -98,9 +98,11 @@ def _complete(position, quat, tracked) -> bool:
 
 
 def _compiled_geometry(position, quat, tracked, session, bodies: list, frames: slice | None = None) -> dict:
-    """:func:`frame_geometry` (``segments``) of the frames ``frames`` (default all) of (b, n) poses, the
-    :data:`GEOMETRY_KEYS` only, in one compiled loop
-    (:func:`~euc_ros.core.states.geometry_compiled.segments_geometry`: the same formulas, equal to round-off)."""
+    """:func:`frame_geometry` (``segments``) of the frames ``frames`` (default all) of (b, n) poses.
+
+    Only the :data:`GEOMETRY_KEYS`, in one compiled loop:
+    :func:`~euc_ros.core.states.geometry_compiled.segments_geometry` (the same formulas, equal to round-off).
+    """
     first, stop, _ = (frames or slice(None)).indices(np.shape(position)[1])
     idx, frac, off, total, complete = _segment_table(session, tuple(bodies))
     euc = session.euc
@@ -326,8 +328,10 @@ _SEGMENT_TABLES: dict = {}
 
 
 def _segment_table(session, bodies: tuple):
-    """Rows, mass fractions, CoM offsets of the weighted segments in ``bodies``, the fractions' sum,
-    and whether every weighted segment is among ``bodies`` (cached per session object and body list)."""
+    """The weighted segments in ``bodies``: rows, mass fractions, CoM offsets, the fractions' sum, completeness.
+
+    Completeness: whether every weighted segment is among ``bodies``. Cached per session object and body list.
+    """
     key = (id(session), bodies)
     hit = _SEGMENT_TABLES.get(key)
     if hit is not None and hit[0] is session:

@@ -1,6 +1,7 @@
-"""The segments geometry of many frames in one compiled loop (numba): what
-:func:`~euc_ros.core.states.geometry.frame_geometry` gives for ``cog_method="segments"``, for the outputs the
-states are made of (:data:`~euc_ros.core.states.geometry.GEOMETRY_KEYS`).
+"""The segments geometry of many frames in one compiled loop (numba).
+
+What :func:`~euc_ros.core.states.geometry.frame_geometry` gives for ``cog_method="segments"``, for the outputs
+the states are made of (:data:`~euc_ros.core.states.geometry.GEOMETRY_KEYS`).
 
 The vectorized numpy path makes some thirty temporaries of the block's size per call (rotation matrices,
 each body's rotated offset, the moving frame's components); a recording's geometry is evaluated several
@@ -22,8 +23,10 @@ _jit = numba.njit(cache=True, nogil=True, error_model="numpy")
 
 @_jit
 def _rotation(x, y, z, w):
-    """Rotation matrix entries of the quaternion (x, y, z, w), normalised (all NaN when not finite or zero);
-    :func:`~euc_ros.core.rotations.rotation_matrices`' arithmetic."""
+    """Rotation matrix entries of the quaternion (x, y, z, w), normalised (all NaN when not finite or zero).
+
+    :func:`~euc_ros.core.rotations.rotation_matrices`' arithmetic.
+    """
     n2 = x * x + y * y + z * z + w * w
     s = 2.0 / n2 if (n2 == n2 and n2 > 0.0 and n2 != math.inf) else math.nan
     xx, yy, zz = s * x * x, s * y * y, s * z * z
@@ -42,7 +45,8 @@ def _finite(a, b, c):
 @_jit
 def segments_geometry(position, quat, tracked, euc_row, pivot_to_wheel, l0, seg_rows, seg_frac, seg_off, total,
                       complete, first, stop):
-    """Per frame ``first .. stop - 1`` of ``position`` (b, n, 3), ``quat`` (b, n, 4), ``tracked`` (b, n):
+    """Per frame ``first .. stop - 1`` of ``position`` (b, n, 3), ``quat`` (b, n, 4), ``tracked`` (b, n).
+
     ``psi, theta, gamma, phi_eq3, phi_hinge`` (stop - first,), ``C, G`` (stop - first, 3),
     ``has_euc, has_rider`` (stop - first,).
 
@@ -122,10 +126,12 @@ def segments_geometry(position, quat, tracked, euc_row, pivot_to_wheel, l0, seg_
 
 @_jit
 def link_vectors(position, quat, usable, ja, jb, vector):
-    """``R_a^T (p_b - p_a) - vector`` (n, 3) of the link from body row ``ja`` to ``jb`` of ``position``
-    (b, n, 3), ``quat`` (b, n, 4), and where both bodies are ``usable`` (b, n); an unusable pose counts as a
-    zero pivot with the identity rotation (masked out by the caller).
-    :func:`~euc_ros.core.rotations.quat_rotate`'s arithmetic with the conjugate of ``a``'s quaternion."""
+    """``R_a^T (p_b - p_a) - vector`` (n, 3) of the link from body row ``ja`` to ``jb``, and where both are usable.
+
+    The bodies are rows of ``position`` (b, n, 3) and ``quat`` (b, n, 4); usable as ``usable`` (b, n) says. An
+    unusable pose counts as a zero pivot with the identity rotation (masked out by the caller).
+    :func:`~euc_ros.core.rotations.quat_rotate`'s arithmetic with the conjugate of ``a``'s quaternion.
+    """
     n = position.shape[1]
     d = np.empty((n, 3))
     both = np.empty(n, np.bool_)

@@ -201,11 +201,14 @@ def reconstruct_states_filters(series, session, filters, *, phi_definition: str 
 def iter_states_filters(series, session, filters, *, phi_definition: str = "hinge", max_gap: int = DEFAULT_MAX_GAP,
                         cog_method: str = "segments", skeleton: SkeletonModel | None = None,
                         shared: bool = False, lean: bool = False):
-    """:func:`reconstruct_states_filters` one filter at a time: a generator of the states of each filter, in
-    order, each made when asked for (a caller that reduces each before asking for the next never holds two
-    filters' states). The geometry is evaluated once, when the first is asked for. ``shared``: the states
-    of the filters but the last share the geometry's arrays they keep (G, the pitch angles, the heading...)
-    instead of copies, for a caller that only reads them. ``lean``: as for :func:`reconstruct_states`."""
+    """:func:`reconstruct_states_filters` one filter at a time.
+
+    A generator of the states of each filter, in order, each made when asked for (a caller that reduces each
+    before asking for the next never holds two filters' states). The geometry is evaluated once, when the
+    first is asked for. ``shared``: the states of the filters but the last share the geometry's arrays they
+    keep (G, the pitch angles, the heading...) instead of copies, for a caller that only reads them. ``lean``:
+    as for :func:`reconstruct_states`.
+    """
     filters = [(float(w), int(p)) for w, p in filters]
     if not filters:
         return
@@ -263,9 +266,11 @@ def _geometry(series, session, *, max_gap: int, cog_method: str, skeleton) -> di
 
 def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float, polyorder: int, max_gap: int,
                      cog_method: str, consume: bool, lean: bool = False) -> RiderStates:
-    """The states of one Savitzky-Golay filter from the geometry of :func:`_geometry` (``consume``: its
-    arrays may be dropped as they are filtered; else ``geo`` is left as given; ``lean``: as for
-    :func:`reconstruct_states`)."""
+    """The states of one Savitzky-Golay filter from the geometry of :func:`_geometry`.
+
+    ``consume``: its arrays may be dropped as they are filtered; else ``geo`` is left as given; ``lean``: as
+    for :func:`reconstruct_states`.
+    """
     src = series.meta.get("path", series.name or None)
     # without ``consume`` the states get arrays of their own (another filter's states share none)
     geo = geo if consume else {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in geo.items()}

@@ -155,8 +155,10 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
 
 
 def sliding_or_none(series_list, session, usable: list | None = None) -> dict | None:
-    """:func:`estimate_sliding` with the session's default chain, None when the chain has no link between the
-    recorded bodies."""
+    """:func:`estimate_sliding` with the session's default chain.
+
+    None when the chain has no link between the recorded bodies.
+    """
     try:
         return estimate_sliding(series_list, session, usable=usable)
     except ConfigError:
@@ -166,7 +168,8 @@ def sliding_or_none(series_list, session, usable: list | None = None) -> dict | 
 def usable_poses(series) -> np.ndarray:
     """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
 
-    Body by body (the temporaries are one body's, never a copy of the recording's quaternions)."""
+    Body by body (the temporaries are one body's, never a copy of the recording's quaternions).
+    """
     b, n = series.quat.shape[0], series.quat.shape[1]
     out = np.empty((b, n), dtype=bool)
     for i in range(b):

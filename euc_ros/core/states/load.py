@@ -176,9 +176,11 @@ LOW_USE_FRACTION = 0.5
 
 
 def samples_used(st) -> dict:
-    """How much of a recording the analysis uses: ``frames`` (its frame span, dropped frames
-    included), ``samples_used`` (valid states), ``samples_used_fraction``, ``bridged_frames`` (frames
-    with a body bridged across a short gap)."""
+    """How much of a recording the analysis uses.
+
+    ``frames`` (its frame span, dropped frames included), ``samples_used`` (valid states),
+    ``samples_used_fraction``, ``bridged_frames`` (frames with a body bridged across a short gap).
+    """
     frames = int(st.frame[-1] - st.frame[0] + 1) if st.n else 0
     used = int(st.valid.sum())
     return {"frames": frames, "samples_used": used,

@@ -141,8 +141,9 @@ class ReconstructionSettings:
                                   skeleton=skeleton, lean=lean)
 
     def iter_filters(self, series, session, filters, *, skeleton=None, shared: bool = False, lean: bool = False):
-        """A recording's states at several filters, one at a time
-        (:func:`~euc_ros.core.states.kinematics.iter_states_filters`); the filter of these settings is not used.
+        """A recording's states at several filters, one at a time; the filter of these settings is not used.
+
+        See :func:`~euc_ros.core.states.kinematics.iter_states_filters`.
 
         Parameters
         ----------

@@ -123,8 +123,11 @@ def _rotmats(quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _link_samples(P, Q, T, ia: int, ib: int, block: int = 1 << 14) -> tuple[np.ndarray, np.ndarray]:
-    """A link's samples over the frames where both bodies are usable: ``R_a^T (p_b - p_a)`` (m, 3) and
-    ``R_a^T R_b`` (m, 3, 3), computed block by block (no rotation matrices of the whole recording)."""
+    """A link's samples over the frames where both bodies are usable.
+
+    ``R_a^T (p_b - p_a)`` (m, 3) and ``R_a^T R_b`` (m, 3, 3), computed block by block (no rotation matrices of
+    the whole recording).
+    """
     def usable(i):
         okq = _rotmats_ok(Q[i])
         return okq & np.all(np.isfinite(P[i]), -1) & (True if T is None else T[i])
@@ -326,8 +329,10 @@ def link_deviations(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.n
 
 def detect_faults(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.ndarray,
                   threshold_m: np.ndarray | None = None) -> np.ndarray:
-    """Bodies (m, n) whose pose the chain cannot follow in a frame (swap: wrong pivot; flip: wrong
-    orientation); see the module docstring. Unusable bodies are not faults (they are untracked)."""
+    """Bodies (m, n) whose pose the chain cannot follow in a frame (swap: wrong pivot; flip: wrong orientation).
+
+    See the module docstring. Unusable bodies are not faults (they are untracked).
+    """
     thr = model.threshold_m if threshold_m is None else np.asarray(threshold_m, float)
     e = link_deviations(model, P, R, ok)
     bad = e > thr[:, None]                      # NaN compares False: a link with an untracked end is not bad
@@ -543,8 +548,10 @@ class OnlineSkeleton:
         self.fault_counts.clear()
 
     def calibrate(self, position, quat, tracked, bodies) -> tuple[SkeletonModel, np.ndarray | None]:
-        """Take one frame into the calibration (while it lasts); return the model and the fault
-        thresholds to use for this frame (``None``: the model's own)."""
+        """Take one frame into the calibration (while it lasts).
+
+        Returns the model and the fault thresholds to use for this frame (``None``: the model's own).
+        """
         if self.model is not None and not self._buf:
             return self.model, None
         bodies = list(bodies)

@@ -105,7 +105,7 @@ def points(q, p: PlantParams) -> dict[str, tuple[np.ndarray, np.ndarray]]:
 
 
 def newton_euler_system(q, qd, M_d, M_h, p: PlantParams, Q=None):
-    """Matrix and right-hand side of the Newton-Euler equations of the three bodies.
+    r"""Matrix and right-hand side of the Newton-Euler equations of the three bodies.
 
     Parameters
     ----------
@@ -137,10 +137,10 @@ def newton_euler_system(q, qd, M_d, M_h, p: PlantParams, Q=None):
 
     .. math::
 
-        a_C &= (\\ddot x, 0),\\\\
-        a_{G0} &= a_C + h_0 (\\ddot\\gamma\\, n(\\gamma) - \\dot\\gamma^2 e(\\gamma)),\\\\
-        a_A &= a_C - l_0 (\\ddot\\gamma\\, n(\\gamma) - \\dot\\gamma^2 e(\\gamma)),\\\\
-        a_G &= a_A + h (\\ddot\\phi\\, n(\\phi) - \\dot\\phi^2 e(\\phi)).
+        a_C &= (\ddot x, 0),\\
+        a_{G0} &= a_C + h_0 (\ddot\gamma\, n(\gamma) - \dot\gamma^2 e(\gamma)),\\
+        a_A &= a_C - l_0 (\ddot\gamma\, n(\gamma) - \dot\gamma^2 e(\gamma)),\\
+        a_G &= a_A + h (\ddot\phi\, n(\phi) - \dot\phi^2 e(\phi)).
 
     Forces: ground on wheel ``F_P = (F_t, N)`` at ``P = C - (0, R)``; body on wheel ``F_C`` at C
     (``-F_C`` on the body); body on rider ``F_A`` at A (``-F_A`` on the body); gravity on each centre
@@ -149,10 +149,10 @@ def newton_euler_system(q, qd, M_d, M_h, p: PlantParams, Q=None):
 
     .. math::
 
-        m_w a_C &= F_P + F_C + m_w g_v, &\\quad J_w \\ddot x / R &= -R F_t + M_d,\\\\
-        m_0 a_{G0} &= -F_C - F_A + m_0 g_v, &\\quad J_0 \\ddot\\gamma &= \\tau(C - G_0, -F_C)
-            + \\tau(A - G_0, -F_A) - M_d + M_h,\\\\
-        m a_G &= F_A + m g_v, &\\quad J \\ddot\\phi &= \\tau(A - G, F_A) - M_h,
+        m_w a_C &= F_P + F_C + m_w g_v, &\quad J_w \ddot x / R &= -R F_t + M_d,\\
+        m_0 a_{G0} &= -F_C - F_A + m_0 g_v, &\quad J_0 \ddot\gamma &= \tau(C - G_0, -F_C)
+            + \tau(A - G_0, -F_A) - M_d + M_h,\\
+        m a_G &= F_A + m g_v, &\quad J \ddot\phi &= \tau(A - G, F_A) - M_h,
 
     with ``g_v = (0, -g)`` and ``tau(r, F) = r_z F_x - r_x F_z``. They are linear in the unknowns
     ``(x_ddot, gamma_ddot, phi_ddot, F_t, N, F_C, F_A)``; terms without unknowns (gravity, the

@@ -55,7 +55,7 @@ class BandNoise:
 
 def band_noise(rng: np.random.Generator, period: float, f_lo: float, f_hi: float, rms: float,
                order_lo: int = 2, order_hi: int = 4) -> BandNoise:
-    """Draw Gaussian noise filtered by a Butterworth-type band-pass, as a sum of sinusoids.
+    r"""Draw Gaussian noise filtered by a Butterworth-type band-pass, as a sum of sinusoids.
 
     Parameters
     ----------
@@ -79,8 +79,8 @@ def band_noise(rng: np.random.Generator, period: float, f_lo: float, f_hi: float
     White Gaussian noise of period ``P`` has independent normal cosine and sine coefficients on the
     grid ``f_k = k / P``. Filtering multiplies them by the gain
 
-    .. math:: |H(f)| = \\frac{(f/f_{lo})^{n_l}}{\\sqrt{1 + (f/f_{lo})^{2n_l}}}
-              \\frac{1}{\\sqrt{1 + (f/f_{hi})^{2n_h}}},
+    .. math:: |H(f)| = \frac{(f/f_{lo})^{n_l}}{\sqrt{1 + (f/f_{lo})^{2n_l}}}
+              \frac{1}{\sqrt{1 + (f/f_{hi})^{2n_h}}},
 
     the magnitude of an order-``n_l`` Butterworth high-pass at ``f_lo`` in series with an order-``n_h``
     low-pass at ``f_hi``. The upper skirt is the steeper one: a disturbance torque's second

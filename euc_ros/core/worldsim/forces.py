@@ -1,4 +1,4 @@
-"""Hidden force laws of the open world: random laws by family, applied at random points by virtual power.
+r"""Hidden force laws of the open world: random laws by family, applied at random points by virtual power.
 
 A law is a scalar signal ``F = amplitude * shape(t, x, x_dot, gamma_dot, phi_dot, z)`` (a force [N], or a
 torque [N m] for the pitch-torque point) acting at a point of the rider or the EUC. Its shape is drawn
@@ -54,8 +54,8 @@ point ``A + d e(phi) + f n(phi)`` with ``e(a) = (sin a, cos a)``, ``n(a) = e'(a)
 
 Amplitude: the residual of the two model torques responds to ``Q`` through (:func:`residual_effect`)
 
-.. math:: \\Delta(M_{d1} - M_{d2}) = \\frac{R\\, m_{eq}\\, (R Q_x + Q_\\gamma + Q_\\phi)}
-          {R\\, m_{eq} - (m l_0 - m_0 h_0) \\cos\\gamma + m h \\cos\\phi},
+.. math:: \Delta(M_{d1} - M_{d2}) = \frac{R\, m_{eq}\, (R Q_x + Q_\gamma + Q_\phi)}
+          {R\, m_{eq} - (m l_0 - m_0 h_0) \cos\gamma + m h \cos\phi},
 
 the first row of the equations of motion times ``R`` minus the same with the acceleration ``x_ddot``
 the weighted sum of all rows (weights ``(R, 1, 1)``, which annihilate both inputs) predicts.
@@ -171,8 +171,10 @@ class Point:
 
 
 def draw_point(rng: np.random.Generator, stature: float) -> Point:
-    """A random point: uniform over :data:`POINTS`; a ``rider_x`` point 0.45-0.78 of the stature above the
-    ankle (hands to shoulders) and 0-0.3 m forward."""
+    """A random point, uniform over :data:`POINTS`.
+
+    A ``rider_x`` point 0.45-0.78 of the stature above the ankle (hands to shoulders) and 0-0.3 m forward.
+    """
     if not stature > 0:
         raise ConfigError(f"must be > 0 m, got {stature}", key="stature")
     kind = POINTS[int(rng.integers(len(POINTS)))]
@@ -329,6 +331,17 @@ class ForceLaw:
         return F[..., None] * self.point.jacobian(gamma, phi, p)
 
     def with_amplitude(self, amplitude: float) -> "ForceLaw":
+        """The same law with another amplitude.
+
+        Parameters
+        ----------
+        amplitude : float
+            The new amplitude.
+
+        Returns
+        -------
+        ForceLaw
+        """
         return replace(self, amplitude=float(amplitude))
 
     def describe(self) -> dict:
@@ -475,6 +488,16 @@ def effect_on(law: ForceLaw, truth: dict, t, p: PlantParams, x_offset: float = 0
 
 
 def rms(a) -> float:
+    """Root mean square of ``a``.
+
+    Parameters
+    ----------
+    a : array_like
+
+    Returns
+    -------
+    float
+    """
     a = np.asarray(a, dtype=float)
     return float(np.sqrt(np.mean(a * a)))
 

@@ -38,8 +38,11 @@ def make_source(node, config: dict) -> MocapSource:
 
 
 def up_axis_config(session_file: str, world_up: str):
-    """(session or None, the up axis to convert with) from the parameters: the session is the one source of
-    ``world_up``; a ``world_up`` parameter that contradicts it is a ConfigError naming both."""
+    """(session or None, the up axis to convert with) from the parameters.
+
+    The session is the one source of ``world_up``; a ``world_up`` parameter that contradicts it is a
+    ConfigError naming both.
+    """
     session = load_session(session_file) if session_file else None
     if session is None:
         return None, world_up or "y"

@@ -15,7 +15,8 @@ class MocapSource:
     ``publish_frame(frame, stamp_source=None)``     a core :class:`~euc_ros.core.mocap.frame.Frame` to publish
     ``set_bodies(bodies)``                          the bodies its frames carry, in order
     ``received`` (int, incremented)                 inputs handled (poses, datagrams, CSV frames)
-    ``input_error(exc)``                            an input it could not use (dropped, counted, logged)
+    ``input_error(exc)``                            an input it could not use (an EucError: dropped, counted, warned)
+    ``unexpected_error()``                          any other exception in its callbacks (a bug: logged, traceback)
     ``bodies``, ``world_up``, ``stats``             the configured bodies, the up axis, the counters
     ==============================================  =====================================================
 
@@ -55,8 +56,10 @@ class MocapSource:
         raise NotImplementedError
 
     def counters(self) -> dict:
-        """The source's counters for the stream diagnostics: a number under a name the node counts too
-        is added to the node's; other names are values of their own."""
+        """The source's counters for the stream diagnostics.
+
+        A number under a name the node counts too is added to the node's; other names are values of their own.
+        """
         return {}
 
     def close(self) -> None:

@@ -61,8 +61,10 @@ def parse_wait_topics(entries) -> list[tuple[str, int]]:
 
 
 class CsvReplay(MocapSource):
-    """Replay a Motive CSV export (parameters ``csv_path``, ``rate_factor``, ``loop``, ``stamp_mode``,
-    ``start_delay``, ``wait_subscribers``, ``wait_topics``, ``exit_when_done``, ``linger``).
+    """Replay a Motive CSV export.
+
+    Configured by the parameters ``csv_path``, ``rate_factor``, ``loop``, ``stamp_mode``, ``start_delay``,
+    ``wait_subscribers``, ``wait_topics``, ``exit_when_done``, ``linger``.
 
     Attributes
     ----------
@@ -75,9 +77,17 @@ class CsvReplay(MocapSource):
 
     @property
     def hardware_id(self) -> str:
+        """The capture system: ``csv:<file name>``."""
         return f"csv:{Path(self.config['csv_path']).name}"
 
     def setup(self) -> None:
+        """Read the CSV and start the replay timer (the start waits for :meth:`_wants`).
+
+        Raises
+        ------
+        ConfigError
+            Without ``csv_path``.
+        """
         from euc_ros.core.io.motive_csv import read_motive_csv, require_rigid_bodies
 
         node, cfg = self.node, self.config
@@ -116,9 +126,11 @@ class CsvReplay(MocapSource):
         return [p for p in (node.frame_pub, node.tf_pub, *node.pose_pubs.values()) if p is not None]
 
     def _wants(self) -> list[tuple[str, int, int]]:
-        """What the start waits for (:class:`~euc_ros.ros.matching.MatchGate`): the subscriptions matched by
-        ``mocap/frame``, and per ``wait_topics`` entry its subscriptions, as matched by this node's own
-        publisher of the topic, else as the ROS graph lists them."""
+        """What the start waits for (:class:`~euc_ros.ros.matching.MatchGate`).
+
+        The subscriptions matched by ``mocap/frame``, and per ``wait_topics`` entry its subscriptions, as
+        matched by this node's own publisher of the topic, else as the ROS graph lists them.
+        """
         node = self.node
         wants = [(f"{itf.MOCAP_FRAME} subscriptions", node.frame_pub.get_subscription_count(),
                   self.config["wait_subscribers"])]
@@ -144,8 +156,11 @@ class CsvReplay(MocapSource):
         return all(p.wait_for_all_acked(now) for p in self._stream_publishers())
 
     def _finished(self, now: float) -> bool:
-        """After the last frame: True once every subscriber has every frame (or :data:`ACK_TIMEOUT_S` passed)
-        and ``linger`` has passed since."""
+        """After the last frame: whether every subscriber has every frame and ``linger`` has passed since.
+
+        True once every subscriber has every frame (or :data:`ACK_TIMEOUT_S` passed) and ``linger`` has passed
+        since.
+        """
         if self._acked_at is None:
             acked = self._all_acked()
             if not acked and now < self._done_at + ACK_TIMEOUT_S:

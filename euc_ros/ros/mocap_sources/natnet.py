@@ -14,6 +14,7 @@ import time
 
 from euc_msgs.msg import MocapFrame
 
+from euc_ros.core.errors import EucError
 from euc_ros.core.mocap.message_frames import frame_from_natnet, natnet_capture_stamp
 from euc_ros.core.mocap.silence import SilenceWatch
 from euc_ros.ros.mocap_sources.base import MocapSource
@@ -27,9 +28,10 @@ SILENCE_CHECK_S = 0.5
 
 
 class NatNetSource(MocapSource):
-    """Frames from Motive over NatNet (parameters ``server_ip``, ``local_ip``, ``multicast``,
-    ``multicast_group``, ``command_port``, ``data_port``, ``keepalive_period``, ``max_latency``,
-    ``poll_period``, ``bodies``).
+    """Frames from Motive over NatNet.
+
+    Configured by the parameters ``server_ip``, ``local_ip``, ``multicast``, ``multicast_group``,
+    ``command_port``, ``data_port``, ``keepalive_period``, ``max_latency``, ``poll_period``, ``bodies``.
 
     Attributes
     ----------
@@ -46,9 +48,11 @@ class NatNetSource(MocapSource):
 
     @property
     def hardware_id(self) -> str:
+        """The capture system: ``natnet://<server_ip>``."""
         return f"natnet://{self.config['server_ip']}"
 
     def setup(self) -> None:
+        """Open the NatNet client and start its polling and silence timers."""
         from euc_ros.core.io.natnet_client import NatNetClient
 
         node, cfg = self.node, self.config
@@ -76,8 +80,11 @@ class NatNetSource(MocapSource):
         node = self.node
         try:
             messages = self.client.poll(0.0)
-        except Exception as exc:   # the client does not raise on input; be safe anyway
+        except EucError as exc:    # the client does not raise on input (it counts malformed packets); be safe anyway
             node.input_error(exc)
+            return
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            node.unexpected_error()
             return
         for m in messages:
             node.received += 1
@@ -89,8 +96,10 @@ class NatNetSource(MocapSource):
                     self._on_model_def(m)
                 elif isinstance(m, natnet.FrameOfData):
                     self._on_frame(m)
-            except Exception as exc:
+            except EucError as exc:
                 node.input_error(exc)
+            except Exception:      # a bug: logged with its traceback; the node never dies on input
+                node.unexpected_error()
 
     def _on_model_def(self, m) -> None:
         node = self.node
@@ -156,6 +165,14 @@ class NatNetSource(MocapSource):
         return what
 
     def counters(self) -> dict:
+        """The NatNet client's counters for the stream diagnostics.
+
+        Returns
+        -------
+        dict
+            ``malformed_dropped``, ``dropped_before_serverinfo``, ``dropped_before_modeldef``, ``natnet_version``,
+            ``send_errors``.
+        """
         client = self.client
         cs = client.stats
         return {"malformed_dropped": cs["malformed"], "dropped_before_serverinfo": cs["dropped_no_version"],
@@ -164,6 +181,7 @@ class NatNetSource(MocapSource):
                 "send_errors": cs["send_errors"]}
 
     def close(self) -> None:
+        """Close the NatNet client's sockets."""
         client = getattr(self, "client", None)
         if client is not None:
             client.close()

@@ -15,7 +15,7 @@ import time
 from euc_msgs.msg import MocapFrame
 from geometry_msgs.msg import PoseStamped
 
-from euc_ros.core.errors import ConfigError
+from euc_ros.core.errors import ConfigError, EucError
 from euc_ros.core.mocap.message_frames import frame_from_named_poses
 from euc_ros.core.mocap.synchronizer import PoseSynchronizer
 from euc_ros.ros import convert
@@ -24,8 +24,10 @@ from euc_ros.ros.mocap_sources.base import MocapSource
 
 
 class PoseTopics(MocapSource):
-    """Frames assembled from one PoseStamped stream per body (parameters ``bodies``, ``topic_prefix``,
-    ``sync_tolerance``, ``sync_timeout``, ``restart_jump``, ``input_reliability``).
+    """Frames assembled from one PoseStamped stream per body.
+
+    Configured by the parameters ``bodies``, ``topic_prefix``, ``sync_tolerance``, ``sync_timeout``,
+    ``restart_jump``, ``input_reliability``.
 
     Attributes
     ----------
@@ -36,13 +38,22 @@ class PoseTopics(MocapSource):
 
     @property
     def hardware_id(self) -> str:
+        """The capture system: ``topics:<topic_prefix>``."""
         return f"topics:{self.config['topic_prefix']}"
 
     @property
     def up_axis(self) -> str | None:
+        """None: PoseStamped topics are Z-up by contract."""
         return None                    # PoseStamped topics are Z-up by contract
 
     def setup(self) -> None:
+        """Subscribe to one PoseStamped topic per body and synchronize them into frames.
+
+        Raises
+        ------
+        ConfigError
+            Without ``bodies``.
+        """
         node, cfg = self.node, self.config
         if not node.bodies:
             raise ConfigError("parameter 'bodies' must list the rigid bodies with source 'topics'", key="bodies")
@@ -62,25 +73,38 @@ class PoseTopics(MocapSource):
             stamp, pos, quat = convert.pose_from_msg(msg)
             for frame in self.sync.push(body, stamp, pos, quat, arrival_ns=time.monotonic_ns()):
                 node.publish_frame(frame)
-        except Exception as exc:   # never die on input
+        except EucError as exc:    # bad input: dropped, counted, warned
             node.input_error(exc)
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            node.unexpected_error()
 
     def _flush(self) -> None:
         try:
             for frame in self.sync.flush(time.monotonic_ns()):
                 self.node.publish_frame(frame)
-        except Exception as exc:
+        except EucError as exc:
             self.node.input_error(exc)
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            self.node.unexpected_error()
 
     def counters(self) -> dict:
+        """The synchronizer's counters for the stream diagnostics.
+
+        Returns
+        -------
+        dict
+            ``duplicates_dropped``, ``out_of_order_dropped``, ``restarts`` and ``invalid_poses``.
+        """
         s = self.sync
         return {"duplicates_dropped": s.duplicates, "out_of_order_dropped": s.out_of_order, "restarts": s.restarts,
                 "invalid_poses": s.invalid}
 
 
 class RigidBodiesTopic(MocapSource):
-    """Frames from ``mocap4r2_msgs/RigidBodies`` messages (parameters ``rigid_bodies_topic``, ``bodies``,
-    ``input_reliability``); bodies not in ``bodies`` are ignored, with one warning per new name.
+    """Frames from ``mocap4r2_msgs/RigidBodies`` messages; bodies not in ``bodies`` are ignored.
+
+    Configured by the parameters ``rigid_bodies_topic``, ``bodies``, ``input_reliability``; an ignored body is
+    warned about once per new name.
 
     Attributes
     ----------
@@ -92,9 +116,17 @@ class RigidBodiesTopic(MocapSource):
 
     @property
     def hardware_id(self) -> str:
+        """The capture system: ``topics:<topic_prefix>``."""
         return f"topics:{self.config['topic_prefix']}"
 
     def setup(self) -> None:
+        """Subscribe to the RigidBodies topic.
+
+        Raises
+        ------
+        ConfigError
+            Without the mocap4r2_msgs interfaces.
+        """
         node, cfg = self.node, self.config
         try:
             from mocap4r2_msgs.msg import RigidBodies
@@ -124,5 +156,7 @@ class RigidBodiesTopic(MocapSource):
                 self.unknown_bodies.update(unknown)
                 node.get_logger().warning(f"ignoring bodies not in 'bodies': {', '.join(sorted(self.unknown_bodies))}")
             node.publish_frame(frame)
-        except Exception as exc:   # never die on input
+        except EucError as exc:    # bad input: dropped, counted, warned
             node.input_error(exc)
+        except Exception:          # a bug: logged with its traceback; the node never dies on input
+            node.unexpected_error()

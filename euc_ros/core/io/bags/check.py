@@ -1,6 +1,8 @@
-"""The structural check of a bag, :func:`check_bag`: metadata.yaml as ROS 2 Jazzy's decoder reads it,
-then every listed MCAP file (magic, footer, summary, every record of every chunk, counts against the
-statistics and metadata.yaml, decoding with mcap-ros2-support).
+"""The structural check of a bag, :func:`check_bag`.
+
+It checks metadata.yaml as ROS 2 Jazzy's decoder reads it, then every listed MCAP file (magic, footer,
+summary, every record of every chunk, counts against the statistics and metadata.yaml, decoding with
+mcap-ros2-support).
 """
 from __future__ import annotations
 
@@ -64,8 +66,11 @@ _QOS_POLICIES = {
 
 
 def _check_qos(q: dict, where: str, problems: list[str]) -> None:
-    """One ``offered_qos_profiles`` entry as the Jazzy decoder reads it (policy word or number, int depth,
-    {sec, nsec} durations, bool)."""
+    """One ``offered_qos_profiles`` entry as the Jazzy decoder reads it.
+
+    Each policy is a word or a number, the depth an int, the durations {sec, nsec}, and
+    ``avoid_ros_namespace_conventions`` a bool.
+    """
     for key, words in _QOS_POLICIES.items():
         v = q.get(key)
         if v is not None and not (_is_int(v) or v in words):

@@ -1,6 +1,8 @@
-"""What the bag modules share: message type names, the MCAP magic, the bag directory and its metadata,
-the checks that make a reader fail with one line naming the file (not a traceback), and the sequential
-MCAP scan of the structural check, recovery and inspection.
+"""What the bag modules share.
+
+Message type names, the MCAP magic, the bag directory and its metadata, the checks that make a reader
+fail with one line naming the file (not a traceback), and the sequential MCAP scan of the structural
+check, recovery and inspection.
 """
 from __future__ import annotations
 
@@ -17,6 +19,18 @@ RIGID_BODIES = "mocap4r2_msgs/msg/RigidBodies"     # the MOCAP4ROS2 drivers: one
 
 
 def bag_dir(path) -> Path:
+    """The bag directory of a path: the parent of a ``.mcap`` file, else the path itself.
+
+    Parameters
+    ----------
+    path : str or Path
+        Bag directory or its .mcap file.
+
+    Returns
+    -------
+    Path
+        The bag directory.
+    """
     p = Path(path)
     return p.parent if p.suffix == ".mcap" else p
 
@@ -77,6 +91,18 @@ def require_readable_bag(path) -> Path:
 
 
 def has_end_magic(file: Path) -> bool:
+    """True when ``file`` ends with the MCAP magic (the writer closed it with a footer).
+
+    Parameters
+    ----------
+    file : Path
+        MCAP file.
+
+    Returns
+    -------
+    bool
+        False when the file is shorter than two magics, lacks the end magic, or cannot be read.
+    """
     try:
         with open(file, "rb") as f:
             f.seek(0, 2)

@@ -1,5 +1,7 @@
-"""The fast route of :func:`~euc_ros.core.io.bags.mocap.read_mocap_bag`: the MCAP summary and message
-indexes read by :mod:`euc_ros.core.io.mcap_fast`, fixed-layout CDR decoded with numpy (docs/mcap_fast.md).
+"""The fast route of :func:`~euc_ros.core.io.bags.mocap.read_mocap_bag`.
+
+The MCAP summary and message indexes are read by :mod:`euc_ros.core.io.mcap_fast`, and fixed-layout CDR
+is decoded with numpy (docs/mcap_fast.md).
 
 :func:`read_mocap_fast` returns None whenever a bag needs the general route (rosbags); both give identical
 series.
@@ -160,8 +162,9 @@ def _poses_fast(mcap, conns: list, prefix: str, bag: Path, merge_tolerance: floa
 
 def read_mocap_fast(bag: Path, info: dict, prefix: str, frame_topic: str | None,
                      merge_tolerance: float) -> MocapSeries | None:
-    """:func:`~euc_ros.core.io.bags.mocap.read_mocap_bag` through :mod:`euc_ros.core.io.mcap_fast`; None when the
-    bag needs rosbags.
+    """:func:`~euc_ros.core.io.bags.mocap.read_mocap_bag` through :mod:`euc_ros.core.io.mcap_fast`.
+
+    Returns None when the bag needs rosbags.
 
     Handles one uncompressed, indexed MCAP file whose MocapFrame messages share one CDR layout (or
     PoseStamped topics). Topics are taken in metadata.yaml order, as rosbags lists its connections.

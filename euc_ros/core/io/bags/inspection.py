@@ -1,5 +1,8 @@
-"""Inspection, :func:`inspect_bag`: what a bag holds (topics, types, counts, rates, time span, storage)
-with the problems of the structural check."""
+"""Inspection, :func:`inspect_bag`.
+
+What a bag holds (topics, types, counts, rates, time span, storage) with the problems of the structural
+check.
+"""
 from __future__ import annotations
 
 import yaml

@@ -1,7 +1,8 @@
-"""Mocap series to and from bags: :func:`write_mocap_bag` and :func:`read_mocap_bag`
-(``euc_msgs/msg/MocapFrame``, ``mocap4r2_msgs/msg/RigidBodies`` and/or one ``geometry_msgs/msg/PoseStamped``
-per body; docs/bags.md), and the general route of the reader through rosbags (the fast one is
-:mod:`euc_ros.core.io.bags.fast_mcap`).
+"""Mocap series to and from bags: :func:`write_mocap_bag` and :func:`read_mocap_bag`.
+
+The bags hold ``euc_msgs/msg/MocapFrame``, ``mocap4r2_msgs/msg/RigidBodies`` and/or one
+``geometry_msgs/msg/PoseStamped`` per body (docs/bags.md). This module is also the general route of the
+reader, through rosbags (the fast one is :mod:`euc_ros.core.io.bags.fast_mcap`).
 """
 from __future__ import annotations
 
@@ -287,7 +288,8 @@ def _series_from_rigid_bodies(reader, conn, bag: Path) -> MocapSeries:
     """mocap4r2_msgs/RigidBodies (one message per frame, bodies by name) as stored: the driver's axes.
 
     Bodies are taken in order of first appearance; a body missing from a message, or with a pose that
-    is not finite with a unit quaternion, is a gap (NaN, untracked)."""
+    is not finite with a unit quaternion, is a gap (NaN, untracked).
+    """
     msgs = [reader.deserialize(data, conn.msgtype) for _, _, data in reader.messages(connections=[conn])]
     if not msgs:
         raise InputError(f"topic {conn.topic} holds no messages", path=bag)

@@ -1,6 +1,8 @@
-"""The vectorized ``geometry_msgs/msg/PoseStamped`` codec (little-endian CDR to and from numpy arrays)
-and the alignment of per-body PoseStamped arrays into one :class:`~euc_ros.core.mocap.series.MocapSeries`
-(both routes of :func:`~euc_ros.core.io.bags.mocap.read_mocap_bag` use it).
+"""The vectorized ``geometry_msgs/msg/PoseStamped`` codec and the alignment of per-body poses.
+
+The codec converts little-endian CDR to and from numpy arrays; the alignment merges per-body PoseStamped
+arrays into one :class:`~euc_ros.core.mocap.series.MocapSeries` (both routes of
+:func:`~euc_ros.core.io.bags.mocap.read_mocap_bag` use it).
 """
 from __future__ import annotations
 

@@ -1,6 +1,8 @@
-"""Reading bags: :func:`read_bag` iterates a bag's messages (rosbags' AnyReader), and :class:`readable_bag`
-gives the checked bag directory to read for a path (a standalone ``.mcap`` file is rebuilt into a temporary
-bag first).
+"""Reading bags: :func:`read_bag` and :class:`readable_bag`.
+
+:func:`read_bag` iterates a bag's messages (rosbags' AnyReader), and :class:`readable_bag` gives the
+checked bag directory to read for a path (a standalone ``.mcap`` file is rebuilt into a temporary bag
+first).
 """
 from __future__ import annotations
 
@@ -15,8 +17,9 @@ from euc_ros.core.io.msgdefs import make_typestore
 
 
 class readable_bag:
-    """Context manager: the bag directory to read for ``path``, checked
-    (:func:`~euc_ros.core.io.bags.common.require_readable_bag`).
+    """Context manager: the bag directory to read for ``path``.
+
+    The directory is checked (:func:`~euc_ros.core.io.bags.common.require_readable_bag`).
 
     A standalone ``.mcap`` file (no metadata.yaml listing it) is rebuilt into a temporary bag that
     lives until the block ends.

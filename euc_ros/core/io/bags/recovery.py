@@ -1,5 +1,8 @@
-"""Recovery, :func:`recover_bag`: a valid bag rebuilt from the complete chunks of a truncated MCAP file
-(a recorder killed before it closed the bag)."""
+"""Recovery, :func:`recover_bag`.
+
+A valid bag rebuilt from the complete chunks of a truncated MCAP file (a recorder killed before it closed
+the bag).
+"""
 from __future__ import annotations
 
 from pathlib import Path

@@ -318,7 +318,7 @@ ROS_DISTRO = "jazzy"
 
 
 def _set_ros_distro(meta: Path) -> None:
-    """rosbags writes ``ros_distro: rosbags``; rosbag2 writes the distribution: say ``jazzy`` (atomically)."""
+    """The rosbags writer says ``ros_distro: rosbags``; rosbag2 writes the distribution: say ``jazzy`` (atomically)."""
     try:
         text = meta.read_text(encoding="utf-8")
     except OSError:

@@ -1,6 +1,8 @@
-"""The data block of a Motive CSV export: the rows after the header, read in chunks of about 1 MB and
-converted by the compiled parser or numpy's C reader (a per-cell scan only where they fail, to name the
-line and column of an error), then turned into poses in place in arrays sized once (:func:`read_rows`).
+"""The data block of a Motive CSV export: the rows after the header, read by :func:`read_rows`.
+
+The rows are read in chunks of about 1 MB and converted by the compiled parser or numpy's C reader (a
+per-cell scan only where they fail, to name the line and column of an error), then turned into poses in
+place in arrays sized once.
 """
 from __future__ import annotations
 
@@ -241,9 +243,12 @@ def _fast(rows_bytes: bytes, n_rows: int, width: int) -> np.ndarray | None:
 
 
 def _fold_last(op, a: np.ndarray) -> np.ndarray:
-    """``op`` folded over a short last axis, one call per component: ``op.reduce(a, axis=-1)`` for
-    ``np.logical_and`` / ``np.logical_or`` / ``np.maximum`` (the same values, NaN propagating alike), where
-    numpy's reduction over a three- or four-long axis costs several times more."""
+    """``op`` folded over a short last axis, one call per component.
+
+    This is ``op.reduce(a, axis=-1)`` for ``np.logical_and`` / ``np.logical_or`` / ``np.maximum`` (the same
+    values, NaN propagating alike), where numpy's reduction over a three- or four-long axis costs several
+    times more.
+    """
     out = a[..., 0].copy()
     for i in range(1, a.shape[-1]):
         op(out, a[..., i], out=out)
@@ -258,7 +263,7 @@ def _compiled_rows(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
 
 
 def _loadtxt(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
-    """numpy's C text reader on an in-memory block; None unless it gives exactly (n_rows, width)."""
+    """With numpy's C text reader, convert an in-memory block; None unless it gives exactly (n_rows, width)."""
     try:
         values = np.loadtxt(io.BytesIO(data), dtype=float, delimiter=",", comments=None, ndmin=2)
     except ValueError:
@@ -269,8 +274,9 @@ def _loadtxt(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
 
 
 class _SeriesArrays:
-    """The arrays of a :class:`~euc_ros.core.mocap.series.MocapSeries`, sized once for every data row and filled
-    chunk by chunk.
+    """The arrays of a :class:`~euc_ros.core.mocap.series.MocapSeries`, sized once and filled chunk by chunk.
+
+    The arrays have room for every data row.
 
     Each chunk's float matrix is turned into poses in place (frame check, duplicate frames dropped,
     units, gaps, quaternion normalisation or Euler conversion, axis swap) and then freed, so the

@@ -1,5 +1,7 @@
-"""The header of a Motive CSV export: its key/value line and the Type, Name, ID, component and axis rows
-parsed into columns grouped by rigid body (:class:`Header`), its summary (rate, units, rotation type...),
+"""The header of a Motive CSV export: parsing, summary, :func:`read_motive_header` and checks.
+
+Its key/value line and the Type, Name, ID, component and axis rows are parsed into columns grouped by
+rigid body (:class:`Header`); then come its summary (rate, units, rotation type...),
 :func:`read_motive_header`, and the checks of what a file holds (:func:`require_rigid_bodies`).
 
 Also the format's constants and the ``world_up`` check that the reader and the writer share.
@@ -67,6 +69,34 @@ class BodyColumns:
 
 @dataclass
 class Header:
+    """The parsed header of a Motive CSV export (:func:`parse_header`).
+
+    Attributes
+    ----------
+    path : str
+        File the header was read from (for error messages).
+    meta : dict of str to str
+        Key/value pairs of line 1, key as written -> value (stripped).
+    meta_col : dict of str to int
+        Lower-case key -> 1-based column of its value on line 1.
+    axis_line : int
+        1-based line number of the "Frame,Time..." row.
+    data_offset : int
+        Byte offset of the first data row.
+    width : int
+        Number of columns declared by the header rows.
+    columns : list of _Column
+        Every column, Frame and Time first.
+    bodies : list of BodyColumns
+        Column groups of the rigid bodies, in file order.
+    row_lines : dict of str to int
+        "type"/"name"/"id"/"component" -> 1-based line number.
+    crlf : bool
+        Whether lines end in CRLF.
+    skipped : dict of str to list of str
+        Column type -> asset names not read (not rigid bodies), in file order.
+    """
+
     path: str
     meta: dict[str, str]            # key as written -> value (stripped)
     meta_col: dict[str, int]        # lower-case key -> 1-based column of its value on line 1
@@ -88,6 +118,18 @@ class Header:
 
 
 def decode(raw: bytes) -> str:
+    """Decode bytes as UTF-8, falling back to Latin-1.
+
+    Parameters
+    ----------
+    raw : bytes
+        Encoded text.
+
+    Returns
+    -------
+    str
+        The decoded text.
+    """
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError:
@@ -95,6 +137,27 @@ def decode(raw: bytes) -> str:
 
 
 def split_cells(text: str, path: str, line: int) -> list[str]:
+    """Split one CSV line into its cells (quotes handled as :mod:`csv` does).
+
+    Parameters
+    ----------
+    text : str
+        The line, without its line ending.
+    path : str
+        File name, for the error message.
+    line : int
+        1-based line number, for the error message.
+
+    Returns
+    -------
+    list of str
+        The cells (not stripped); empty for an empty line.
+
+    Raises
+    ------
+    InputError
+        The line cannot be split into cells.
+    """
     try:
         rows = list(csv.reader([text], skipinitialspace=False))
     except csv.Error as exc:
@@ -190,6 +253,25 @@ def _locate_rows(rows: list[list[str]], path: str) -> dict[str, int]:
 
 
 def parse_header(raw: bytes, path: str) -> Header:
+    """Parse the header rows at the start of a Motive CSV export.
+
+    Parameters
+    ----------
+    raw : bytes
+        The start of the file, at least up to and including the ``Frame`` row.
+    path : str
+        File name, for error messages.
+
+    Returns
+    -------
+    Header
+        The metadata, the columns grouped by rigid body, the skipped assets and the offset of the data rows.
+
+    Raises
+    ------
+    InputError
+        Malformed header, naming the file, line and column.
+    """
     rows, ends, crlf = _header_lines(raw, path)
     meta, meta_col = _parse_metadata(rows[0], path)
     idx = _locate_rows(rows, path)
@@ -406,12 +488,50 @@ def head_bytes(fh) -> bytes:
 
 
 def check_world_up(world_up: str) -> str:
+    """Check the configured up axis of the world frame.
+
+    Parameters
+    ----------
+    world_up : str
+        ``"y"`` or ``"z"``.
+
+    Returns
+    -------
+    str
+        ``world_up``, unchanged.
+
+    Raises
+    ------
+    ConfigError
+        ``world_up`` is neither ``"y"`` nor ``"z"``.
+    """
     if world_up not in ("y", "z"):
         raise ConfigError(f"must be 'y' or 'z', got {world_up!r}", key="world_up")
     return world_up
 
 
 def header_summary(hdr: Header, warnings: list[str]) -> dict:
+    """Summarize a parsed header: rate, units, rotation type and the metadata of line 1.
+
+    Parameters
+    ----------
+    hdr : Header
+        Parsed header.
+    warnings : list of str
+        Appended to with the assumptions made (missing Length Units or Rotation Type).
+
+    Returns
+    -------
+    dict
+        ``path``, ``take_name``, ``format_version``, ``rate_hz`` (export) [Hz], ``capture_rate_hz`` [Hz],
+        ``start_time`` (as written), ``rotation_type``, ``length_units``, ``coordinate_space``, ``header``
+        (all key/value pairs of line 1). Values missing from the file are None.
+
+    Raises
+    ------
+    InputError
+        Invalid frame rate, Length Units or Rotation Type, or rotation columns that do not match it.
+    """
     units, _ = _units(hdr, warnings)
     rot = _rotation_type(hdr, warnings)
     rate = _float_meta(hdr, "Export Frame Rate")

@@ -1,5 +1,7 @@
-"""Reading a Motive CSV export: :func:`read_motive_csv`, the header parsed (:mod:`.header`), the data
-rows read chunk by chunk (:mod:`.block`), then the checks and the metadata of the series.
+"""Reading a Motive CSV export: :func:`read_motive_csv`.
+
+The header is parsed (:mod:`.header`), the data rows read chunk by chunk (:mod:`.block`), then come the
+checks and the metadata of the series.
 """
 from __future__ import annotations
 

@@ -1,5 +1,7 @@
-"""Writing a Motive CSV export: :func:`write_motive_csv` (format 1.23, quaternions, metres, written
-atomically), which :func:`~euc_ros.core.io.motive_csv.reader.read_motive_csv` reads back.
+"""Writing a Motive CSV export: :func:`write_motive_csv`.
+
+The file is format 1.23, with quaternions, in metres, written atomically;
+:func:`~euc_ros.core.io.motive_csv.reader.read_motive_csv` reads it back.
 """
 from __future__ import annotations
 
