@@ -1,6 +1,6 @@
 """The undeclared-effect campaign: simulated rides with an effect the analysis is not told about.
 
-Shared by the tests (``test/unit/residual/test_undeclared_effects.py``) and by
+Shared by the tests (``test/unit/core/residual/test_undeclared_effects.py``) and by
 ``studies/residual_campaign.py``, which writes the table of the README. Each scenario is a family at a
 plausible magnitude.
 """

@@ -5,7 +5,7 @@ case is written as files and identified by ``euc-ros identify`` with its default
 the filter chosen from the data, the headline h corrected for the pose noise and the filter's distortion,
 with its interval) and classified: identifiable and covered, identifiable and missed, or declared not
 identifiable (with its reason). ``studies/coverage_study.py`` prints the README table;
-``test/unit/euc/test_uncertainty.py`` runs a small version.
+``test/unit/core/identify/test_uncertainty.py`` runs a small version.
 """
 from __future__ import annotations
 

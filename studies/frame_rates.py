@@ -12,7 +12,7 @@ For every rate this measures
 * the driving torques M_d1, M_d2 at the true h, interpolated onto the reference rate's capture
   times, and their RMS difference from the reference rate's (interior samples both have).
 
-``studies/rate_sweep.py`` prints the table of the README; ``test/unit/euc/test_rate_sweep.py`` runs a
+``studies/rate_sweep.py`` prints the table of the README; ``test/unit/core/identify/test_rate_sweep.py`` runs a
 small version.
 """
 from __future__ import annotations

@@ -12,7 +12,7 @@ A level-calibrated lab whose floor turns into a ramp at X = 15 m (5 cm blend), r
 speed; the chain of the nodes (RiderStateEstimator -> TorqueEstimator -> the monitor's consistency
 rule) fed frame by frame. Per filter the monitor threshold is calibrated on a level ride (seed 11)
 with :func:`euc_ros.core.online.alarm.rmse_threshold` (false-alarm probability 1e-8 per independent
-window, as test/unit/euc/test_low_lag_monitor.py). Reported per filter and slope: the threshold, the
+window, as test/unit/core/online/test_low_lag_monitor.py). Reported per filter and slope: the threshold, the
 largest sliding RMSE before the onset (false alarm if above the threshold) and the time from the
 onset (the wheel reaching 5 % of the ramp's slope) to the first flag, in the newest frame's time
 (the filter lag included). Prints a Markdown table.

@@ -16,6 +16,8 @@ MOTIVE_REAL = SHARED / "data" / "motive_real"
 #: suite's worker processes (pytest-xdist) they all go to one worker, one at a time, as in a serial run;
 #: the other files are spread over the workers file by file (:func:`pytest_xdist_make_scheduler`).
 ROS_TIMED = ("test/integration/", "test/nodes/")
+#: ... but for these: end-to-end command runs in process, without a ROS graph (CPU-bound, spread as the unit tests).
+NOT_ROS_TIMED = ("test/integration/cli/",)
 
 
 def pytest_collection_modifyitems(config, items):
@@ -26,13 +28,13 @@ def pytest_collection_modifyitems(config, items):
 
 @pytest.hookimpl(optionalhook=True)      # a hook of pytest-xdist: no error where it is not loaded
 def pytest_xdist_make_scheduler(config, log):
-    """Whole files to the workers, and every :data:`ROS_TIMED` test to one of them."""
+    """Whole files to the workers, and every :data:`ROS_TIMED` test (not :data:`NOT_ROS_TIMED`) to one of them."""
     from xdist.scheduler import LoadScopeScheduling
 
     class Scheduling(LoadScopeScheduling):
         def _split_scope(self, nodeid: str) -> str:
             path = nodeid.split("::", 1)[0]
-            return "ros_timed" if path.startswith(ROS_TIMED) else path
+            return "ros_timed" if path.startswith(ROS_TIMED) and not path.startswith(NOT_ROS_TIMED) else path
 
     return Scheduling(config, log)
 

@@ -25,7 +25,7 @@ LAUNCH = REPO / "launch"
 def _metadata_check():
     import importlib.util
 
-    path = REPO / "test" / "unit" / "io" / "test_rosbag2_metadata.py"
+    path = REPO / "test" / "unit" / "core" / "io" / "test_rosbag2_metadata.py"
     spec = importlib.util.spec_from_file_location("rosbag2_metadata_check", path)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)

@@ -1,7 +1,7 @@
 """Rider_state with ``estimator: kalman`` or ``split`` -> torque_estimator -> monitor.
 
 The ride: a level-calibrated lab whose floor turns into a 5 deg ramp at X = 12 m, ridden at constant
-speed (test/unit/euc/test_low_lag_monitor.py does the same with the core classes). The frames are fed
+speed (test/unit/core/online/test_low_lag_monitor.py does the same with the core classes). The frames are fed
 one at a time through the graph (each drained before the next, as in test_rider_state.py) and the
 monitor's rules evaluated after every frame, so the flag's time is the newest frame's capture time.
 The monitor's threshold comes from a level calibration ride through the core chain
@@ -39,7 +39,7 @@ RMSE_WINDOW_S = 0.5
 ALPHA = 1e-8          # as the core test (heavier-than-Gaussian tail of the level rides' sliding RMSE)
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "rider_state_helpers")
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
 
 
 def _calibrate(ride, estimator="kalman") -> float:

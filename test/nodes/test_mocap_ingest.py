@@ -36,11 +36,8 @@ from euc_ros.testing import load_module, spin_executor_until  # noqa: E402
 pytestmark = pytest.mark.ros
 
 MS = 1_000_000
-IO_TESTS = Path(__file__).resolve().parents[1] / "unit" / "io"
-
-
-def stamp_ns(stamp) -> int:
-    return stamp.sec * 10**9 + stamp.nanosec
+IO_TESTS = Path(__file__).resolve().parents[1] / "unit" / "core" / "io"
+stamp_ns = load_module(Path(__file__).with_name("helpers.py"), "node_helpers").stamp_ns
 
 
 def diag_values(arr: DiagnosticArray, name: str) -> dict:

@@ -1,6 +1,6 @@
 """monitor node in-process: the health statuses from live streams (frames, states, torques).
 
-The rules themselves are unit-tested in test/unit/core/test_monitoring.py; here the node must feed
+The rules themselves are unit-tested in test/unit/core/online/test_monitoring.py; here the node must feed
 them what arrived over DDS and publish the five statuses on /diagnostics.
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ from euc_ros.testing import load_module  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "rider_state_helpers")
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
 
 
 def monitor(ctx, **params):

@@ -15,8 +15,7 @@ from euc_ros.testing import load_module  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_diag_helpers")
-T = load_module(Path(__file__).with_name("test_torque_estimator.py"), "test_torque_estimator_diag_helpers")
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
 
 
 def _status(pipe, name, level=None):
@@ -34,7 +33,7 @@ def _without(series, body):
 def test_missing_bodies_are_named_by_rider_state_and_torque_estimator(pipes, ros_context, ride):
     series, _, path = ride
     rs = H.rider_node(ros_context, path, diagnostics_period=0.2)
-    te = T.torque_node(ros_context, path, diagnostics_period=0.2)
+    te = H.torque_node(ros_context, path, diagnostics_period=0.2)
     pipe = pipes([rs, te])
     pipe.feed(H.frame_msgs(_without(series, "CHL"), frames=range(300)))
     pipe.spin_until(lambda: any("no pose for CHL (100 %" in st.message for st in _status(pipe, "rider_state: states",
@@ -63,7 +62,7 @@ def test_missing_bodies_are_named_by_rider_state_and_torque_estimator(pipes, ros
 def test_h_online_says_not_yet_until_its_window_holds_enough(pipes, ros_context, ride):
     series, _, path = ride
     rs = H.rider_node(ros_context, path)
-    te = T.torque_node(ros_context, path, h_window_s=2.0, h_update_every=1)
+    te = H.torque_node(ros_context, path, h_window_s=2.0, h_update_every=1)
     pipe = pipes([rs, te])
     pipe.feed(H.frame_msgs(series))
     statuses = [m.h_online_status for m in pipe.torques]

@@ -25,8 +25,7 @@ from euc_ros.testing import load_module  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_param_helpers")
-T = load_module(Path(__file__).with_name("test_torque_estimator.py"), "test_torque_estimator_param_helpers")
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
 
 
 def test_a_live_threshold_is_used_at_the_next_report_and_others_are_refused_with_a_reason(ros_context):
@@ -53,7 +52,7 @@ def test_a_live_threshold_is_used_at_the_next_report_and_others_are_refused_with
 def test_setting_h_changes_the_torques_from_the_next_state(pipes, ros_context, ride):
     series, session, path = ride
     rs = H.rider_node(ros_context, path)
-    te = T.torque_node(ros_context, path, rmse_window_s=1.0, h_window_s=3.0)
+    te = H.torque_node(ros_context, path, rmse_window_s=1.0, h_window_s=3.0)
     pipe = pipes([rs, te])
     frames = H.frame_msgs(series)
     half = len(frames) // 2
@@ -67,7 +66,7 @@ def test_setting_h_changes_the_torques_from_the_next_state(pipes, ros_context, r
     assert {m.h for m in before} == {0.61} and {m.h for m in after} == {0.5}
     # M_d1 and M_d2 after the set are the core's with h = 0.5 on the same states (M_d1 depends on h
     # through the rider's moment; equal to round-off: same code, same doubles)
-    want, _ = T.core_torques(pipe.states, session, h=0.5, rmse_window_s=1.0, h_window_s=3.0)
+    want, _ = H.core_torques(pipe.states, session, h=0.5, rmse_window_s=1.0, h_window_s=3.0)
     got = {H.stamp_ns(m.header.stamp): m for m in after}
     common = sorted(set(got) & set(want))
     assert len(common) == len(after)

@@ -22,8 +22,7 @@ from euc_ros.testing import load_module  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_helpers")
-T = load_module(Path(__file__).with_name("test_torque_estimator.py"), "test_torque_estimator_helpers")
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +45,7 @@ def _statuses(pipe, name):
 def test_rate_mismatch_is_an_error_naming_both_rates_and_the_measured_rate_is_used(pipes, ros_context, ride240):
     series, session240, wrong_file = ride240
     rs = H.rider_node(ros_context, wrong_file, diagnostics_period=0.1)
-    te = T.torque_node(ros_context, wrong_file, diagnostics_period=0.1, rmse_window_s=1.0)
+    te = H.torque_node(ros_context, wrong_file, diagnostics_period=0.1, rmse_window_s=1.0)
     pipe = pipes([rs, te])
     pipe.feed(H.frame_msgs(series))
     assert rs.rate_gate.meter.rate_hz == pytest.approx(240.0, rel=1e-6)

@@ -19,7 +19,7 @@ from euc_ros.testing import load_module  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "test_rider_state_helpers_cog")
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
 CALIBRATION_S = 1.0
 FLIP = ("TR", slice(200, 203))
 

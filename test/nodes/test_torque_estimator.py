@@ -10,7 +10,6 @@ RMSE against a direct mean differs by its running sum's round-off (~1e-13 relati
 from __future__ import annotations
 
 from pathlib import Path
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -18,11 +17,8 @@ import pytest
 pytest.importorskip("rclpy")
 
 from euc_msgs.msg import RiderState  # noqa: E402
-from rclpy.parameter import Parameter  # noqa: E402
 
 from euc_ros.core.errors import ConfigError  # noqa: E402
-from euc_ros.core.model.terms import EucParams  # noqa: E402
-from euc_ros.core.online.estimators import TorqueEstimator  # noqa: E402
 from euc_ros.core.session import save_session  # noqa: E402
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode  # noqa: E402
 from euc_ros.testing import load_module  # noqa: E402
@@ -30,29 +26,8 @@ from euc_ros.testing import load_module  # noqa: E402
 pytestmark = pytest.mark.ros
 
 
-H = load_module(Path(__file__).with_name("test_rider_state.py"), "rider_state_helpers")
-stamp_ns = H.stamp_ns
-
-
-def torque_node(ctx, session_file, **params):
-    overrides = [Parameter("session_file", value=str(session_file))]
-    overrides += [Parameter(k, value=v) for k, v in params.items()]
-    return TorqueEstimatorNode(context=ctx, parameter_overrides=overrides)
-
-
-def core_torques(state_msgs, session, h=0.61, **kw):
-    """The core TorqueEstimator on RiderState messages (times relative to the first one), by stamp."""
-    te = TorqueEstimator(EucParams.from_session(session, h), 1 / session.rate_hz, **kw)
-    t0 = stamp_ns(state_msgs[0].header.stamp)
-    out = {}
-    for m in state_msgs:
-        st = SimpleNamespace(t=(stamp_ns(m.header.stamp) - t0) * 1e-9, frame=-1, valid=True,
-                             **{k: getattr(m, k) for k in ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot",
-                                                           "phi", "phi_dot", "phi_ddot", "psi", "theta")})
-        o = te.update(st)
-        if o is not None:
-            out[stamp_ns(m.header.stamp)] = o
-    return out, te
+H = load_module(Path(__file__).with_name("helpers.py"), "node_helpers")
+stamp_ns, torque_node, core_torques = H.stamp_ns, H.torque_node, H.core_torques
 
 
 def assert_all_finite(torques):

@@ -9,7 +9,7 @@ end of that header (:data:`HEAD`). Primitives are aligned to their own size; a s
 The codecs built on these: :mod:`.cdr_flat` (flat messages: RiderState, TorqueEstimate), :mod:`.cdr_frame`
 (MocapFrame both ways, PoseStamped, TFMessage) and the vectorized PoseStamped and MocapFrame codecs of
 :mod:`.bags`. All of them are checked byte for byte against rosbags' serializer
-(``test/unit/io/test_cdr_rosbags.py``).
+(``test/unit/core/io/test_cdr_rosbags.py``).
 """
 from __future__ import annotations
 

@@ -17,7 +17,7 @@ rmw_fastrtps writes it; alignment counted from the end of the 4-byte encapsulati
 The field list is a message definition's ``(name, type)`` pairs, with nested float64-only structs
 (``geometry_msgs/Point``) already expanded into their fields (the node layer reads both from the
 generated class, :func:`euc_ros.ros.convert.flat_fields`). Tested byte for byte against rclpy's
-serializer (``test/unit/io/test_cdr_flat.py``) and rosbags' (``test/unit/io/test_cdr_rosbags.py``).
+serializer (``test/unit/core/io/test_cdr_flat.py``) and rosbags' (``test/unit/core/io/test_cdr_rosbags.py``).
 """
 from __future__ import annotations
 

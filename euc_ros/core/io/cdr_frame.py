@@ -20,7 +20,7 @@ of the 4-byte encapsulation header ``00 01 00 00``)::
 :func:`decode` reads little-endian CDR of exactly this layout and raises :class:`CdrError` on
 anything else (big endian, truncated, inconsistent counts), so a caller can fall back to the
 generic deserializer. Both directions are tested against rclpy's serializer
-(``test/unit/io/test_cdr_frame.py``) and rosbags' (``test/unit/io/test_cdr_rosbags.py``); the primitives
+(``test/unit/core/io/test_cdr_frame.py``) and rosbags' (``test/unit/core/io/test_cdr_rosbags.py``); the primitives
 (encapsulation, alignment, strings, header) are those of :mod:`.cdr`.
 """
 from __future__ import annotations

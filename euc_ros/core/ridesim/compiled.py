@@ -14,7 +14,7 @@ time. This module computes the same right-hand side compiled (``method="compiled
   coefficients), error norm, step-size control, initial step and 7th-order dense output, so both
   paths keep the same local error bound ``atol + rtol |y|`` per step.
 
-``test/unit/ridesim/test_compiled.py`` checks that both paths give the same states within the
+``test/unit/core/ridesim/test_compiled.py`` checks that both paths give the same states within the
 integrator's tolerance for every effect, floor, external force and rider motion.
 
 Functions are compiled on first use and cached on disk (numba ``cache=True``, next to this file).

@@ -13,7 +13,7 @@ changing a derivation::
 
     python -m euc_ros.core.ridesim.eom_codegen
 
-``test/unit/ridesim/test_eom_generated.py`` checks that the file is exactly what this module prints
+``test/unit/core/ridesim/test_eom_generated.py`` checks that the file is exactly what this module prints
 and that its functions agree with the lambdified derivation.
 """
 from __future__ import annotations

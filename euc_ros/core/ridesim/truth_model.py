@@ -525,7 +525,7 @@ def _derive_pedal() -> _Compiled:
     only the rider: the u equation reads ``m (a_G - g_vec) . e_ax = k u + c u_dot`` with
     ``e_ax = (sin gamma, cos gamma)``, the rider's load on the pedals along the axis (quasi-static:
     ``k u = m g cos gamma`` at rest). At u = u_dot = 0 the (x, gamma, phi) block of M and b is the
-    rigid model's (checked in ``test/unit/ridesim/test_rider_motion.py``, with the energy balance).
+    rigid model's (checked in ``test/unit/core/ridesim/test_rider_motion.py``, with the energy balance).
     """
     import sympy as sp
 

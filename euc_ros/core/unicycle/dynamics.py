@@ -20,7 +20,7 @@ phi_dot``, ``omega3 = psi_dot cos(theta)`` (angular velocity of the wheel resolv
 
 The right-hand sides are written by hand (eq (6) and eq (36) with the corrections listed in the
 paper's errata: the ``sigma_dot`` line and the ``y_G`` line). They are *not* trusted as
-transcribed: ``test/unit/unicycle/test_derivation.py`` checks them against two independent
+transcribed: ``test/unit/core/unicycle/test_derivation.py`` checks them against two independent
 symbolic derivations (:mod:`euc_ros.core.unicycle.derivation`: Kane's method and Lagrange's
 equations with multipliers) and against the power balance ``dE/dt = u sigma``.
 

@@ -1,7 +1,7 @@
 """Fast fuzz corpus for the NatNet depacketizer: no crash, every rejection a located NatNetError.
 
 Inputs come from hypothesis (derandomized: the same few hundred inputs on every run): mutations of
-valid packets (the bench fuzzer's seeds and the golden packets of ``test/unit/io/data/natnet``),
+valid packets (the bench fuzzer's seeds and the golden packets of ``test/unit/core/io/data/natnet``),
 targeted overwrites of every count/size field position, and raw random bytes. ``euc-ros bench``
 runs the long job (hundreds of thousands of inputs) with the same mutators, and it is there that slow
 inputs are found: it gives every input a time limit and counts the ones that exceed it as hangs (a
@@ -22,7 +22,7 @@ from euc_ros.bench.fuzz import VERSIONS, check_natnet, fuzz, mutate_natnet, natn
 from euc_ros.core.errors import InputError
 from euc_ros.core.io.natnet import FrameOfData, ModelDef, NatNetError, parse_packet
 
-GOLDEN = Path(__file__).resolve().parents[1] / "io" / "data" / "natnet"
+GOLDEN = Path(__file__).resolve().parents[1] / "core" / "io" / "data" / "natnet"
 FAST = settings(max_examples=300, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow])
 

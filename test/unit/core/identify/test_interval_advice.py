@@ -5,6 +5,9 @@ and into a needed speed change by the split of the sensitivity into speed change
 (:mod:`euc_ros.core.identify.excitation`); both are checked here against rides of the simulator at
 other speed scales, and the data-amount advice against rides recorded as advised.
 """
+# covers: euc_ros/core/identify/excitation.py
+# covers: euc_ros/core/identify/interval.py
+# covers: euc_ros/core/identify/pipeline.py
 from __future__ import annotations
 
 import glob

@@ -5,6 +5,11 @@ candidate leaves the effect ``none`` (without discovery and without a noise floo
 residual); a discovery given its own basis searches that basis only, and a custom discovery object is the one
 the analysis calls.
 """
+# covers: euc_ros/core/residual/analysis.py
+# covers: euc_ros/core/residual/discovery.py
+# covers: euc_ros/core/residual/records.py
+# covers: euc_ros/core/residual/result.py
+# covers: euc_ros/core/residual/selector.py
 from __future__ import annotations
 
 import numpy as np
