@@ -207,6 +207,10 @@ def format_uncertainty(ident: HIdentification) -> str:
         how = (blocks + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else "")
                + (f", filter distortion +-{1e3 * floor:.3f} mm" if floor is not None else ""))
         lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
+        if u.get("h_corrected_not_headline") and u.get("h_corrected_m") is not None:
+            lines.append(f"  not used: h extrapolated to no filter distortion = {u['h_corrected_m']:.3f} m; the "
+                         "noise is coloured (soft-tissue sliding), so the probe filter's change of h is not the "
+                         "distortion's alone")
     ex = u.get("excitation")
     if ex and unc["identifiable"] and ex.get("accel_rms_mps2") is not None:
         need = ex.get("accel_rms_needed_mps2")
