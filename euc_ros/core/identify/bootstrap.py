@@ -56,8 +56,11 @@ def block_counts(coefs: Sequence[np.ndarray], length: int) -> list[int]:
 
 
 def _blocks_of(coefs: Sequence[np.ndarray], length: int, counts: Sequence[int] | None = None) -> list[np.ndarray]:
-    """The blocks of ``length`` consecutive samples of each recording (k blocks of ~length, the rest
-    spread), or ``counts[i]`` blocks of recording ``i`` when given."""
+    """The blocks of ``length`` consecutive samples of each recording, or ``counts[i]`` blocks of recording ``i``.
+
+    Without ``counts``, k blocks of ~length per recording, the rest spread; ``counts[i]`` blocks of recording ``i`` when
+    ``counts`` is given.
+    """
     counts = block_counts(coefs, length) if counts is None else counts
     out = []
     for c, k in zip(coefs, counts, strict=True):
@@ -71,7 +74,6 @@ def _blocks_of(coefs: Sequence[np.ndarray], length: int, counts: Sequence[int] |
 
 def block_sse(coefs: Sequence[np.ndarray], length: int, grid: np.ndarray) -> np.ndarray:
     """SSE(h) of every block of ``length`` consecutive samples of each recording: (n_blocks, g)."""
-
     rows = [sse_grid(c, grid) for c in _blocks_of(coefs, length)]
     return np.array(rows).reshape(-1, grid.size)
 
@@ -98,7 +100,6 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
     whenever its SSE curve has a single minimum on the scale of a coarse step (5 mm), so the
     replicates are those of the whole fine grid, at the cost of the span the replicates cover.
     """
-
     length = block_length(coefs, h, window)
     lo = max(h_bounds[0], h - LOCAL_HALF_WIDTH_M)
     hi = min(h_bounds[1], h + LOCAL_HALF_WIDTH_M)

@@ -86,7 +86,6 @@ def budget(series_list, states, session, params, h: float, *, reconstruction: Re
     dict
         ``{"sensitivity": {key: {"dh_dp": [m per unit], "unit", "tolerance", "dh_m"}}, "h_range_m": [lo, hi]}``
     """
-
     tolerances = tolerances or dict(DEFAULT_TOLERANCES)
 
     def h_of(st, p):

@@ -477,8 +477,9 @@ def _std_of(lo: float, hi: float) -> float | None:
 
 def probe_coefficients(series_list, session, params: EucParams, choice, *,
                        reconstruction: ReconstructionSettings = FIXED_DEFAULT) -> list[np.ndarray]:
-    """The recordings' 3-DoF residual coefficients with the probe filter ``choice.probe``
-    (:func:`~euc_ros.core.identify.fit.coefficients_for`), each recording's states dropped once reduced.
+    """The recordings' 3-DoF residual coefficients with the probe filter ``choice.probe``.
+
+    Made by :func:`~euc_ros.core.identify.fit.coefficients_for`, each recording's states dropped once reduced.
 
     Parameters
     ----------
@@ -588,7 +589,7 @@ def distortion_corrected(series_list, session, params: EucParams, pair: FilterPa
                          sliding: tuple[float, float] = (0.0, 0.0), h_bounds: tuple[float, float] = H_BOUNDS,
                          reconstruction: ReconstructionSettings = FIXED_DEFAULT, n_boot: int = 1000, seed: int = 0,
                          probe_eiv: tuple[float, float] | None = None) -> dict:
-    """h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
+    """The h corrected for the pose noise and for the filter's distortion, with its own 95 % interval.
 
     Parameters
     ----------

@@ -83,8 +83,10 @@ MIN_SPEED_CHANGE_SHARE = 0.5
 
 
 def sensitivities(coef: np.ndarray, h: float) -> np.ndarray:
-    """Per-sample ``s = de/dh`` of the residual ``e = c N / D`` at ``h`` [N m per m] (coefficients of
-    :func:`~euc_ros.core.identify.fit.residual_coefficients`)."""
+    """Per-sample ``s = de/dh`` of the residual ``e = c N / D`` at ``h`` [N m per m].
+
+    ``coef``: the coefficients of :func:`~euc_ros.core.identify.fit.residual_coefficients`.
+    """
     c, a0, a1, a2, d0, d1 = coef
     n = a0 + h * (a1 + h * a2)
     d = d0 + d1 * h
@@ -102,9 +104,11 @@ def predicted_sharpness(sensitivity: float, rmse_nm: float, step_m: float = SHAR
 
 
 def quasi_static_gain(coefs: Sequence[np.ndarray], h: float) -> float:
-    """``R m_eq B / (h D)`` [N m per m, per m/s^2]: the sensitivity a steady acceleration of 1 m/s^2 gives
-    (module docstring), as the mean of ``|c d0 / (h D)|`` over the samples (``c = R m_eq``, ``d0 = B`` at
-    level EUC pitch); NaN without samples."""
+    """``R m_eq B / (h D)`` [N m per m, per m/s^2]: the sensitivity a steady acceleration of 1 m/s^2 gives.
+
+    See the module docstring. Taken as the mean of ``|c d0 / (h D)|`` over the samples (``c = R m_eq``, ``d0 = B`` at
+    level EUC pitch); NaN without samples.
+    """
     num = cnt = 0.0
     for coef in coefs:
         if coef.shape[1] == 0:
@@ -118,9 +122,11 @@ def quasi_static_gain(coefs: Sequence[np.ndarray], h: float) -> float:
 
 
 def quadratic_error_bound(coefs: Sequence[np.ndarray], h: float, step_m: float = SHARPNESS_STEP_M) -> float:
-    """Bound on the relative error of the quadratic model's two-sided rise ``(step S / RMSE0)^2`` of the
-    mean square residual: ``3 kappa^2 + U + 4 kappa sqrt(U) + |2 mean(r e2)| / S^2`` (module docstring;
-    ``kappa^2`` and ``U`` weighted by ``s^2`` over the samples); NaN without samples."""
+    """Bound on the relative error of the quadratic model's rise ``(step S / RMSE0)^2`` of the mean square residual.
+
+    The rise is the two-sided one; the bound is ``3 kappa^2 + U + 4 kappa sqrt(U) + |2 mean(r e2)| / S^2`` (module
+    docstring; ``kappa^2`` and ``U`` weighted by ``s^2`` over the samples); NaN without samples.
+    """
     sk = ss = su = sr = 0.0
     for coef in coefs:
         if coef.shape[1] == 0:
@@ -367,8 +373,10 @@ def more_data_for_blocks(counts: Sequence[int], n_per_recording: Sequence[int], 
 
 
 def more_data_for_seconds(usable_s: Sequence[float], needed_s: float) -> tuple[float, int]:
-    """``(usable seconds more, more runs like these)`` for a total of ``needed_s`` usable seconds
-    (runs of the median recording's usable seconds); ``(0, 0)`` when there are enough."""
+    """``(usable seconds more, more runs like these)`` for a total of ``needed_s`` usable seconds.
+
+    A run like these has the median recording's usable seconds; ``(0, 0)`` when there are enough.
+    """
     have = float(sum(usable_s))
     short = float(needed_s) - have
     if short <= 0:

@@ -1,5 +1,6 @@
-"""h of the 3-DoF model extended with effects the residual analysis selected, on the same grid and with
-the same refinement as the paper's models (:mod:`.fit`).
+"""The h of the 3-DoF model extended with effects the residual analysis selected.
+
+Fitted on the same grid and with the same refinement as the paper's models (:mod:`.fit`).
 
 The residual of a sample is ``M_d1 - M_d2`` of :class:`~euc_ros.core.model.extended.Model` with
 the effects' parameters fixed (:func:`extended_inputs` gives the samples); :func:`fit_from_sse` turns a

@@ -109,8 +109,10 @@ def residual_coefficients(args: Sequence[np.ndarray], params: EucParams, model: 
 
 
 def sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
-    """Sum of squared residuals for every h (one compiled pass over the samples:
-    :func:`~euc_ros.core.identify.fit_compiled.sse_curve`)."""
+    """Sum of squared residuals for every h.
+
+    One compiled pass over the samples: :func:`~euc_ros.core.identify.fit_compiled.sse_curve`.
+    """
     from euc_ros.core.identify.fit_compiled import sse_curve  # numba: on first use only
 
     h = np.ascontiguousarray(h, dtype=float).reshape(-1)
@@ -135,10 +137,12 @@ def _valid_args(st, extra_Q) -> tuple[tuple[np.ndarray, ...], Any]:
 
 
 def _valid_coefficients(st, params: EucParams, model: str, extra_Q) -> np.ndarray:
-    """:func:`residual_coefficients` of the valid samples of ``st`` (6, n_valid), in one compiled pass over
-    the recording (:func:`~euc_ros.core.identify.fit_compiled.consistency_coefficients`), so the valid
-    samples' seven state arrays are never copied (56 bytes a sample beside the coefficients' 48). The same
-    terms sorted by powers of h: equal to round-off (``test_fit_compiled``). Scalar parameters only."""
+    """:func:`residual_coefficients` of the valid samples of ``st`` (6, n_valid), in one compiled pass.
+
+    The compiled pass over the recording is :func:`~euc_ros.core.identify.fit_compiled.consistency_coefficients`, so the
+    valid samples' seven state arrays are never copied (56 bytes a sample beside the coefficients' 48). The same terms
+    sorted by powers of h: equal to round-off (``test_fit_compiled``). Scalar parameters only.
+    """
     from euc_ros.core.identify.fit_compiled import consistency_coefficients  # numba: on first use only
 
     mask = np.ascontiguousarray(st.valid, dtype=bool)
@@ -154,6 +158,24 @@ def _valid_coefficients(st, params: EucParams, model: str, extra_Q) -> np.ndarra
 
 
 def coefficients_for(states_list, params: EucParams, model: str, extra_Q) -> list[np.ndarray]:
+    """Per recording, :func:`residual_coefficients` of its valid samples.
+
+    Parameters
+    ----------
+    states_list : sequence of RiderStates
+        The recordings' states.
+    params : EucParams
+        Model parameters (``h`` ignored).
+    model : {"3dof", "2dof"}
+    extra_Q : array_like (n, 3) or None, or a list or tuple of them
+        Extra generalized force independent of h [N, N m, N m]: one for every recording, or one per recording.
+
+    Returns
+    -------
+    list of ndarray (6, n_valid)
+        Each recording's rows ``c, a0, a1, a2, d0, d1``; with scalar parameters and no callable force in one
+        compiled pass over the recording (:func:`_valid_coefficients`).
+    """
     extras = extra_Q if isinstance(extra_Q, (list, tuple)) else [extra_Q] * len(states_list)
     scalar = all(np.ndim(v) == 0 for v in dataclasses.astuple(model_params(params, model)))
     out = []
@@ -392,8 +414,10 @@ def fit_h(states_list, params: EucParams, h_grid=DEFAULT_H_GRID, *, models: Sequ
 
 def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = "3dof",
                sses: Sequence[np.ndarray] | None = None) -> ModelFit:
-    """The pooled fit of :func:`fit_h` from the recordings' residual coefficients (and their SSE
-    curves over ``h_grid``, computed here when not given): what ``fit_h(...).pooled[model]`` is."""
+    """The pooled fit of :func:`fit_h` from the recordings' residual coefficients: what ``fit_h(...).pooled[model]`` is.
+
+    Also from their SSE curves over ``h_grid`` (``sses``), computed here when not given.
+    """
     h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
     if sses is None:
         sses = [sse_grid(c, h_grid) for c in coefs]
@@ -403,10 +427,13 @@ def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = 
 
 
 def pooled_h_of_states(states, params: EucParams) -> float:
-    """``fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m``, each recording's states dropped as soon
-    as they are reduced to their residual coefficients (48 bytes a valid sample, where the states are ~170 a
-    frame), so the fit runs without them: a list ``states`` is emptied; any other iterable (e.g. a generator
-    making each recording's states when asked) is read one recording at a time, none held beside the next."""
+    """``fit_h(states, params, models=("3dof",)).pooled["3dof"].h_m`` without holding the recordings' states.
+
+    Each recording's states are dropped as soon as they are reduced to their residual coefficients (48 bytes a valid
+    sample, where the states are ~170 a frame), so the fit runs without them: a list ``states`` is emptied; any other
+    iterable (e.g. a generator making each recording's states when asked) is read one recording at a time, none held
+    beside the next.
+    """
     coefs = []
     if isinstance(states, list):
         while states:

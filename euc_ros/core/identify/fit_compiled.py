@@ -1,9 +1,10 @@
-"""Compiled loops of the h fit (numba): the residual's per-sample coefficients in one pass over a
-recording, and the grid search's sum of squares (:func:`~euc_ros.core.identify.fit.sse_grid`) without the
-(grid x chunk) temporaries. The coefficients are the model's terms sorted by powers of h (the model
-functions extract them from three evaluations: equal to round-off); the sums accumulate sample by sample
-(numpy's chunked sums add in another order: equal to round-off). Compiled on first use and cached on disk
-(numba ``cache=True``, next to this file).
+"""Compiled loops of the h fit (numba).
+
+The residual's per-sample coefficients in one pass over a recording, and the grid search's sum of squares
+(:func:`~euc_ros.core.identify.fit.sse_grid`) without the (grid x chunk) temporaries. The coefficients are the model's
+terms sorted by powers of h (the model functions extract them from three evaluations: equal to round-off); the sums
+accumulate sample by sample (numpy's chunked sums add in another order: equal to round-off). Compiled on first use and
+cached on disk (numba ``cache=True``, next to this file).
 """
 from __future__ import annotations
 
@@ -15,8 +16,10 @@ import numpy as np
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def sse_curve(coef, h):
-    """``sum_i ((c a2 h + c a1) h + c a0)^2 / (d1 h + d0)^2`` for every ``h``; ``coef`` (6, n) the rows
-    ``c, a0, a1, a2, d0, d1`` of :func:`~euc_ros.core.identify.fit.residual_coefficients`."""
+    """``sum_i ((c a2 h + c a1) h + c a0)^2 / (d1 h + d0)^2`` for every ``h``.
+
+    ``coef`` (6, n): the rows ``c, a0, a1, a2, d0, d1`` of :func:`~euc_ros.core.identify.fit.residual_coefficients`.
+    """
     n = coef.shape[1]
     sse = np.zeros(h.shape[0])
     for i in range(n):
@@ -32,8 +35,9 @@ def sse_curve(coef, h):
 
 @numba.njit(cache=True, nogil=True, error_model="numpy")
 def consistency_coefficients(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot, valid, p, extra):
-    """Rows ``c, a0, a1, a2, d0, d1`` of :func:`~euc_ros.core.identify.fit.residual_coefficients` for the
-    samples where ``valid``, in one pass over the recording.
+    """Rows ``c, a0, a1, a2, d0, d1`` of :func:`~euc_ros.core.identify.fit.residual_coefficients` where ``valid``.
+
+    Computed in one pass over the recording.
 
     ``p``: ``(m, J, m0, J0, mw, Jw, R, h0, l0, g)``; ``extra``: (n, 3) extra generalized force, or (0, 3).
     The model's terms (:mod:`euc_ros.core.model.terms`, eqs (6)-(8)) sorted by powers of h: with

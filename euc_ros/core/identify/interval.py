@@ -155,6 +155,15 @@ class Interval:
                        reason="; ".join(reasons), extra=extra, random_width_m=float(random_width_m))
 
     def to_json(self) -> dict:
+        """Plain-JSON form: ``h_ci95_m``, ``identifiable``, ``identifiability_reason`` and ``uncertainty``.
+
+        Returns
+        -------
+        dict
+            ``uncertainty`` holds the bootstrap interval, the block length, the number of blocks, the
+            errors-in-variables bias, the sharpness and the keys of ``extra``; non-finite numbers are None
+            (:func:`json_float`).
+        """
         f = json_float
         return {"h_ci95_m": [f(v) for v in self.ci95_m], "identifiable": bool(self.identifiable),
                 "identifiability_reason": self.reason or None,
@@ -164,8 +173,10 @@ class Interval:
 
 
 def extend_by_prior(lo: float, hi: float, prior_range_m) -> tuple[float, float]:
-    """``(lo, hi)`` moved out by a prior's range of the change of h (``[p_lo <= 0 <= p_hi]``): the truth
-    may lie at ``h - p_hi`` to ``h - p_lo``; never narrowed."""
+    """``(lo, hi)`` moved out by a prior's range of the change of h (``[p_lo <= 0 <= p_hi]``); never narrowed.
+
+    The truth may lie at ``h - p_hi`` to ``h - p_lo``.
+    """
     p_lo, p_hi = (float(v) if v is not None and np.isfinite(v) else 0.0 for v in prior_range_m)
     return lo - max(p_hi, 0.0), hi + max(-p_lo, 0.0)
 
@@ -176,8 +187,10 @@ def json_float(v) -> float | None:
 
 
 def percentiles95(replicates: np.ndarray, n_blocks: int) -> tuple[float, float]:
-    """The 2.5 and 97.5 % percentiles of bootstrap replicates (unbounded ones, +-inf or NaN, make
-    them infinite); infinite with fewer than 2 blocks."""
+    """The 2.5 and 97.5 % percentiles of bootstrap replicates; infinite with fewer than 2 blocks.
+
+    Unbounded replicates (+-inf or NaN) make them infinite.
+    """
     if n_blocks < 2:
         return -np.inf, np.inf
     with np.errstate(invalid="ignore"):      # unbounded replicates (+-inf) make the percentile infinite
@@ -186,8 +199,10 @@ def percentiles95(replicates: np.ndarray, n_blocks: int) -> tuple[float, float]:
 
 
 def student_factor(n_blocks: int) -> float:
-    """Widening of a bootstrap interval over ``n_blocks`` blocks: few blocks make the percentiles
-    undercover, so they move out as Student's t quantile does against the normal one (1 below 2 blocks)."""
+    """Widening of a bootstrap interval over ``n_blocks`` blocks (1 below 2 blocks).
+
+    Few blocks make the percentiles undercover, so they move out as Student's t quantile does against the normal one.
+    """
     from scipy.stats import t as student
 
     return float(student.ppf(0.975, max(n_blocks - 1, 1)) / 1.959964) if n_blocks >= 2 else 1.0
@@ -195,7 +210,6 @@ def student_factor(n_blocks: int) -> float:
 
 def turning_rms(states) -> float:
     """RMS centripetal acceleration ``x_dot psi_dot`` over the valid samples [m/s^2]."""
-
     vals = []
     for st in states:
         psi = np.asarray(st.psi, dtype=float)
@@ -310,8 +324,11 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
 
 def _interval_reason(lo: float, hi: float, random_width: float, usable, nb: int, block_s: float, duration: float,
                      sharpness: float) -> tuple[str | None, float, int]:
-    """Why an interval ``[lo, hi]`` is no identification (None when it is bounded and at most
-    :data:`MAX_CI_WIDTH_M` wide), with the seconds to add to one take and the runs to add that its width needs."""
+    """Why an interval ``[lo, hi]`` is no identification, with the recording its width needs.
+
+    The reason is None when the interval is bounded and at most :data:`MAX_CI_WIDTH_M` wide; with it, the seconds to add
+    to one take and the runs to add that its width needs.
+    """
     if not (np.isfinite(lo) and np.isfinite(hi)):
         return ("the data do not bound h: bootstrap optima reach the edge of the search range "
                 f"({nb} block{'' if nb == 1 else 's'} of {block_s:.1f} s in {duration:.1f} s of usable "
@@ -371,8 +388,10 @@ def _excitation_text(exc: Excitation, needs: Needs) -> str:
 
 
 def _width_text(width: float, random_width: float, usable) -> tuple[str, float, int]:
-    """The too-wide reason with the recording it needs: the random part of the width shrinks as one over
-    the square root of the usable time, the bias terms do not."""
+    """The too-wide reason with the recording it needs.
+
+    The random part of the width shrinks as one over the square root of the usable time, the bias terms do not.
+    """
     fixed = width - random_width
     head = f"the 95 % interval is {100 * width:.0f} cm wide (at most {100 * MAX_CI_WIDTH_M:.0f} cm)"
     total = float(sum(usable))

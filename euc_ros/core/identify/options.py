@@ -1,5 +1,6 @@
-"""What the interval of h includes, and what a caller measured already: the two option objects of
-:func:`~euc_ros.core.identify.cog_height.identify_h`.
+"""What the interval of h includes, and what a caller measured already.
+
+The two option objects of :func:`~euc_ros.core.identify.cog_height.identify_h`.
 
 Examples
 --------

@@ -53,6 +53,20 @@ class SimexShare:
         return self.noise
 
     def lookup(self, series_list, key: tuple) -> float | None:
+        """The kept h of the first replicate, if it was made from these recordings with these settings.
+
+        Parameters
+        ----------
+        series_list : sequence
+            The recordings (the same objects the replicate was made from).
+        key : tuple
+            What the replicate's h depends on besides the recordings (:func:`_share_key`).
+
+        Returns
+        -------
+        float or None
+            The kept h [m]; None when none is kept or it was made from other recordings or with another key.
+        """
         if self.h_m is None or self.key != key or self.series is None or len(self.series) != len(series_list) \
                 or any(a is not b for a, b in zip(self.series, series_list)):
             return None
@@ -60,9 +74,10 @@ class SimexShare:
 
 
 def _share_key(series_list, window_s, polyorder, rec: ReconstructionSettings, seed, params) -> tuple:
-    """What a replicate's h depends on besides the recordings (the window in samples: ``window_s`` of
-    1.2 s and of 145 / 120 s are one filter)."""
+    """What a replicate's h depends on besides the recordings.
 
+    The window counts in samples: ``window_s`` of 1.2 s and of 145 / 120 s are one filter.
+    """
     windows = tuple(window_samples(1.0 / s.rate_hz, window_s=window_s, polyorder=polyorder) for s in series_list)
     return windows, int(polyorder), rec.phi_definition, rec.cog_method, rec.max_gap, int(seed), params
 
@@ -76,16 +91,17 @@ def _replicate_states(series_list, noise, draws, sign, session, rec: Reconstruct
 
 def first_replicate(series_list, session, params, *, reconstruction: ReconstructionSettings = FIXED_DEFAULT,
                     seed: int = SIMEX_SEED, share: SimexShare | None = None, use=None):
-    """The states of :func:`eiv_bias`'s first replicate (the recordings with their estimated white pose
-    noise added once more: pair 1, ``+z``), or None when the noise cannot be estimated. With ``share``
-    its h is kept for :func:`eiv_bias`.
+    """The states of :func:`eiv_bias`'s first replicate, or None when the noise cannot be estimated.
+
+    The replicate is the recordings with their estimated white pose noise added once more (pair 1, ``+z``). With
+    ``share`` its h is kept for :func:`eiv_bias`.
 
     ``use(states)``: what the caller does with the states (e.g. the residual's noise floor); then
     ``use``'s result is returned instead of the states, and the h is fitted after it with the states
     dropped (reduced to their residual coefficients first: :func:`~euc_ros.core.identify.fit.pooled_h_of_states`),
     so the states and the fit's working set are never held together. ``use`` is not called (None is
-    returned) when the noise cannot be estimated."""
-
+    returned) when the noise cannot be estimated.
+    """
     share = share if share is not None else SimexShare()
     noise = share.noise_of(series_list)
     if all(not np.isfinite(sp).any() for sp, _ in noise):

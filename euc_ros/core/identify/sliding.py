@@ -1,5 +1,6 @@
-"""Soft-tissue sliding measured on a recording (:mod:`euc_ros.core.states.link_sliding`), and the bias it
-gives h (SIMEX).
+"""Soft-tissue sliding measured on a recording, and the bias it gives h (SIMEX).
+
+The sliding is measured by :mod:`euc_ros.core.states.link_sliding`.
 
 White pose noise is measured from high-order differences (:func:`~.uncertainty.estimate_pose_noise`)
 and its bias of h by re-noising (:func:`~.uncertainty.eiv_bias`). Sliding of the markers against the

@@ -79,9 +79,11 @@ class SlidingPrior:
 
 
 def rms_from_sliding(sliding: dict | None, session, min_rms_m: float) -> float:
-    """The prior's RMS from the measured sliding: ``sum_i f_i rms_i`` over the rider's bodies (mass
-    fractions ``f_i``; every body's sliding in phase, the most a common part can be) [m]; 0 when no body
-    slides by ``min_rms_m`` or more (white noise and round-off) or nothing was measured."""
+    """The prior's RMS from the measured sliding: ``sum_i f_i rms_i`` over the rider's bodies [m].
+
+    ``f_i``: the mass fractions; every body's sliding is taken in phase, the most a common part can be. 0 when no body
+    slides by ``min_rms_m`` or more (white noise and round-off) or nothing was measured.
+    """
     if not sliding or float(sliding.get("rms_max_m") or 0.0) < min_rms_m:
         return 0.0
     names, fractions, _ = session.segment_arrays()

@@ -98,8 +98,9 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             noise_floor_of: Callable[[Model, np.ndarray], float] | None = None,
             analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, plausible: dict | None = None,
             progress: Callable[[str], None] | None = None) -> ResidualResult:
-    """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects (by default, greedy forward
-    selection then group-sparse discovery).
+    """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects.
+
+    By default, greedy forward selection then group-sparse discovery.
 
     Parameters
     ----------
@@ -464,7 +465,28 @@ class MeasuredWheelRadius(Candidate):
         self.delta = float(delta)
 
     def modify(self, ctx, theta):
+        """Override the rolling radius with the measured error: R -> R + delta.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on (changed in place: ``overrides["R"]``).
+        theta : numpy.ndarray
+            The fitted parameters (none: ``delta`` is measured); unused.
+        """
         ctx.overrides["R"] = ctx.params.R + self.delta
 
     def report(self, theta):
+        """The measured radius error as reported in the JSON.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The fitted parameters (none); unused.
+
+        Returns
+        -------
+        dict of str to float
+            ``{"delta_r_m": delta}`` [m].
+        """
         return {"delta_r_m": self.delta}

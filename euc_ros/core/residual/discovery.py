@@ -134,8 +134,9 @@ class DiscoveryRecord:
 
 def order_groups(problem: DiscoveryProblem, r0: np.ndarray, BT: np.ndarray, hc: np.ndarray, blocks: np.ndarray,
                  slices: list[slice]) -> list[list[int]]:
-    """The search on the turned columns as rows ``BT`` (h projected out here, then normalised by the search:
-    both in place).
+    """The search on the turned columns as rows ``BT``.
+
+    Here h is projected out of ``BT``, then the search normalises it: both in place.
 
     Parameters
     ----------
@@ -287,8 +288,9 @@ class GroupChoice:
 
 
 def fold_errors(problem: DiscoveryProblem, lin: Linearisation) -> tuple[dict[int, list[np.ndarray]], list]:
-    """Per number of groups k, the held-out residual of each fold with the k groups the search chose on the
-    fold's training rows (h and the groups' coefficients fitted there, the coefficients shrunk).
+    """Per number of groups k, each fold's held-out residual with the k groups the search chose on its training rows.
+
+    On those rows h and the groups' coefficients are fitted, the coefficients shrunk.
 
     Parameters
     ----------
@@ -344,10 +346,11 @@ def fold_errors(problem: DiscoveryProblem, lin: Linearisation) -> tuple[dict[int
 
 
 def select(problem: DiscoveryProblem, h_lin: float | None) -> GroupChoice:
-    """The groups chosen linearised at ``h_lin`` (None: at the current model's fit, in each fold its own h;
-    else at ``h_lin``, h refitted within each fold's training data, also without groups): their number by the
-    held-out error of :func:`fold_errors` (the search's parsimony rule), the groups themselves by the search
-    on all rows.
+    """The groups chosen linearised at ``h_lin``.
+
+    ``h_lin`` None: at the current model's fit, in each fold its own h; else at ``h_lin``, h refitted within each fold's
+    training data, also without groups. Their number is chosen by the held-out error of :func:`fold_errors` (the
+    search's parsimony rule), the groups themselves by the search on all rows.
 
     Parameters
     ----------
@@ -440,9 +443,10 @@ def refit(problem: DiscoveryProblem, choice: GroupChoice, h_lin: float) -> Refit
 
 def structure_heldout(problem: DiscoveryProblem, model: Model, chosen: list[Group], h_lin: float
                       ) -> HeldOut | None:
-    """Held-out residual of the chosen groups as the selection judged them: in each fold h and the groups'
-    coefficients fitted on the training rows (linearised at ``h_lin``, the coefficients shrunk,
-    :func:`~euc_ros.core.residual.shrinkage.fit_with_free`).
+    """Held-out residual of the chosen groups as the selection judged them.
+
+    In each fold h and the groups' coefficients fitted on the training rows (linearised at ``h_lin``, the coefficients
+    shrunk, :func:`~euc_ros.core.residual.shrinkage.fit_with_free`).
 
     A plain refit of many flexible columns in each fold (Gauss-Newton from the fit on all data) is as
     ill-determined as the selection's would be without the prior: a lab field's spline piece a fold hardly
@@ -502,8 +506,9 @@ def structure_heldout(problem: DiscoveryProblem, model: Model, chosen: list[Grou
 
 
 def preferred(a: Refit | None, b: Refit | None) -> Refit | None:
-    """The better of two discovered models by held-out error; a tie (the better not significantly better,
-    paired block test at :data:`~.significance.AMBIGUITY_ALPHA`) goes to the one with fewer columns.
+    """The better of two discovered models by held-out error; a tie goes to the one with fewer columns.
+
+    A tie: the better not significantly better (paired block test at :data:`~.significance.AMBIGUITY_ALPHA`).
 
     Parameters
     ----------
@@ -525,9 +530,10 @@ def preferred(a: Refit | None, b: Refit | None) -> Refit | None:
 def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recording], folds, h0: float,
                    current_ho: HeldOut, h_geometric: float = float("nan"), *,
                    families: Sequence[Family] = FAMILIES, search: GroupSearch | None = None) -> DiscoveryRecord:
-    """The discovery step (:mod:`euc_ros.core.residual.discovery`): groups of family columns chosen by the
-    search within each fold's training data, their number by held-out error (the fewest within one standard
-    error of the best), then the chosen groups fitted jointly with h.
+    """The discovery step (:mod:`euc_ros.core.residual.discovery`).
+
+    Groups of family columns chosen by the search within each fold's training data, their number by held-out error (the
+    fewest within one standard error of the best), then the chosen groups fitted jointly with h.
 
     The residual is linear in the groups' coefficients but not in h (the rider's inertia m h^2): the selection
     works on the residual linearised in h. When the effect to discover biased the current model's h far from

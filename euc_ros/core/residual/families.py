@@ -113,6 +113,7 @@ class Family:
 
     @property
     def key(self) -> str:
+        """``"<family>: <function>"``: the family's name with its force's form (in the report and parameter names)."""
         return f"{self.family}: {self.function}"
 
     @classmethod
@@ -218,8 +219,10 @@ def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np
 
 
 def uniform_knots(lo: float, hi: float, spacing: float | None) -> np.ndarray:
-    """Interior knots every ``spacing`` (about: the range divided into equal pieces no longer than it) on
-    [lo, hi]; none for ``spacing`` None or an empty range."""
+    """Interior knots every ``spacing`` on [lo, hi]; none for ``spacing`` None or an empty range.
+
+    About every ``spacing``: the range divided into equal pieces no longer than it.
+    """
     if spacing is None or not hi > lo:
         return np.zeros(0)
     pieces = max(int(np.ceil((hi - lo) / spacing)), 1)
@@ -227,8 +230,10 @@ def uniform_knots(lo: float, hi: float, spacing: float | None) -> np.ndarray:
 
 
 def low_pass(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
-    """Causal first-order low-pass ``1 / (tau s + 1)`` of ``u`` sampled every ``dt`` (exact for a signal held
-    over each step), started in its steady state at the first sample."""
+    """Causal first-order low-pass ``1 / (tau s + 1)`` of ``u`` sampled every ``dt``.
+
+    Exact for a signal held over each step; started in its steady state at the first sample.
+    """
     a = float(np.exp(-dt / tau))
     b, den = [1.0 - a], [1.0, -a]
     y, _ = signal.lfilter(b, den, u, zi=signal.lfilter_zi(b, den) * u[0])
@@ -262,8 +267,11 @@ def savgol_kernel(window: int, polyorder: int) -> np.ndarray:
 
 
 class _Scaled:
-    """The columns ``B * factor[:, None]`` made a block of columns at a time (``C[:, lo:hi]``), or whole
-    (``np.asarray``): a lab coordinate's spline basis times its modifier, without a second full-rate copy."""
+    """The columns ``B * factor[:, None]``, made a block of columns at a time or whole.
+
+    A block by ``C[:, lo:hi]``, whole by ``np.asarray``: a lab coordinate's spline basis times its modifier, without a
+    second full-rate copy.
+    """
 
     def __init__(self, B: np.ndarray, factor: np.ndarray) -> None:
         self.B, self.factor = B, factor
@@ -279,9 +287,11 @@ class _Scaled:
 
 
 def _as_seen(C, sig: dict) -> np.ndarray:
-    """Columns made on every sample, smoothed by the states' Savitzky-Golay filter and taken at the analysed
-    samples: an extra force moves the residual through the filtered accelerations, so a force faster than the
-    filter's passband (a tyre's harmonics at speed, a short bump passed quickly) reaches it smoothed alike."""
+    """Columns made on every sample, smoothed by the states' Savitzky-Golay filter and taken at the analysed samples.
+
+    An extra force moves the residual through the filtered accelerations, so a force faster than the filter's passband
+    (a tyre's harmonics at speed, a short bump passed quickly) reaches it smoothed alike.
+    """
     if "smooth" not in sig:
         return np.asarray(C)
     k = sig["smooth"]
@@ -411,8 +421,10 @@ class Families:
         return bspline_basis(x, lo, hi, degree, knots[level])
 
     def _columns(self, fam: Family, level: int, sig: dict) -> np.ndarray:
-        """The family's columns (n, m) at ``level`` on one recording's signals (a lab coordinate's spline basis
-        is made once per signals and level, for every modifier)."""
+        """The family's columns (n, m) at ``level`` on one recording's signals.
+
+        A lab coordinate's spline basis is made once per signals and level, for every modifier.
+        """
         v = sig["v"]
         if fam.kind == "custom":
             return np.asarray(fam.basis(np.asarray(ARGUMENTS[fam.option[0]][0](sig), float), level), float)
@@ -466,8 +478,10 @@ class Families:
         return out
 
     def columns(self, ctx, keys=None) -> dict[tuple[int, int], np.ndarray]:
-        """(family index, level) -> its columns (n, m) on ``ctx``: every one, or those of ``keys`` (cached per
-        context arrays; a context asked for some keys keeps only those until it is asked for more)."""
+        """(family index, level) -> its columns (n, m) on ``ctx``: every one, or those of ``keys``.
+
+        Cached per context arrays; a context asked for some keys keeps only those until it is asked for more.
+        """
         arrays = _arrays(ctx)
         key = _arrays_key(ctx)
         every = [(f, lv) for f, fam in enumerate(self.families) for lv in range(n_levels(fam))]
@@ -505,8 +519,10 @@ class Families:
         return out if keys is None else {k: out[k] for k in want}
 
     def retain(self, keys) -> None:
-        """Keep only the cached columns of ``keys`` ((family index, level) pairs): what a fitted model of these
-        families still asks for; any other is made again when asked for."""
+        """Keep only the cached columns of ``keys`` ((family index, level) pairs).
+
+        ``keys``: what a fitted model of these families still asks for; any other is made again when asked for.
+        """
         keep = set(keys)
         for ctx_key, (arrays, cols) in list(self._cache.items()):
             self._cache[ctx_key] = (arrays, {k: v for k, v in cols.items() if k in keep})
@@ -572,8 +588,11 @@ PHASE_SWEEPS = 2
 
 
 def phase_rotations(deltas: np.ndarray, harmonics: int) -> np.ndarray:
-    """Per offset ``d`` (m,), the (2 K, 2 K) block taking ``sin(k theta), cos(k theta)`` (k = 1..K, in that
-    order) to ``sin(k (theta + d)), cos(k (theta + d))``: (m, 2 K, 2 K)."""
+    """Per offset ``d`` (m,), the (2 K, 2 K) block turning the wheel's Fourier columns by ``d``: (m, 2 K, 2 K).
+
+    The block takes ``sin(k theta), cos(k theta)`` (k = 1..K, in that order) to
+    ``sin(k (theta + d)), cos(k (theta + d))``.
+    """
     d = np.atleast_1d(np.asarray(deltas, float))
     K = int(harmonics)
     k = np.arange(K)
@@ -588,8 +607,9 @@ def phase_rotations(deltas: np.ndarray, harmonics: int) -> np.ndarray:
 
 
 def wheel_phase_mix(deltas: np.ndarray, harmonics: int) -> np.ndarray:
-    """Matrix (2 K n_runs, 2 K) turning the per-recording Fourier columns of the ``aligned`` wheel family into
-    one function of the wheel angle with a phase offset per recording: ``f(theta + delta_r)``.
+    """Matrix (2 K n_runs, 2 K) turning the ``aligned`` wheel family's per-recording Fourier columns into one function.
+
+    One function of the wheel angle with a phase offset per recording: ``f(theta + delta_r)``.
 
     The raw columns of recording r are ``sin(k theta), cos(k theta)`` (k = 1..K, in that order) and zero on
     the others, so the group's columns are the raw ones times the stacked blocks of :func:`phase_rotations`.
@@ -598,8 +618,10 @@ def wheel_phase_mix(deltas: np.ndarray, harmonics: int) -> np.ndarray:
 
 
 def align_wheel_phases(B: np.ndarray, r: np.ndarray, harmonics: int, n_runs: int) -> np.ndarray:
-    """Phase offsets (n_runs,) of the ``aligned`` wheel family that let one function of the wheel angle explain
-    ``r`` best (least squares on ``B`` (n, 2 K n_runs), the family's raw columns as they act on ``r``).
+    """Phase offsets of the ``aligned`` wheel family that let one function of the wheel angle explain ``r`` best.
+
+    One offset per recording (n_runs,); least squares on ``B`` (n, 2 K n_runs), the family's raw columns as they act on
+    ``r``.
 
     A tyre's angle when a recording starts is not measured, so a function shared by the recordings is out of
     phase between them, and one free function per recording fits half-runs and predicts nothing. The first

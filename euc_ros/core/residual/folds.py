@@ -1,6 +1,8 @@
-"""Where the held-out evaluation cuts the recordings: folds of segments within runs with guard bands
-against the filter's correlation (:func:`folds_of`), and the blocks of the paired test, their length from
-the residual's measured autocorrelation (:func:`residual_block_length`, :func:`with_blocks`).
+"""Where the held-out evaluation cuts the recordings.
+
+Folds of segments within runs with guard bands against the filter's correlation (:func:`folds_of`), and the blocks of
+the paired test, their length from the residual's measured autocorrelation (:func:`residual_block_length`,
+:func:`with_blocks`).
 """
 from __future__ import annotations
 

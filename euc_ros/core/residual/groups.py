@@ -1,7 +1,9 @@
-"""The discovery's groups and what is fitted of them: a :class:`Group` (a family at a level, acting at a
-point), the residual's sensitivity to the groups' columns (:class:`RowSensitivities`, :func:`force_map`) and the
-discovered effect fitted like a named candidate (:class:`DiscoveredEffect`); the search space of one
-discovery (:class:`DiscoveryProblem`) and the groups' columns as its search sees them (:class:`Layout`).
+"""The discovery's groups and what is fitted of them.
+
+A :class:`Group` (a family at a level, acting at a point), the residual's sensitivity to the groups' columns
+(:class:`RowSensitivities`, :func:`force_map`) and the discovered effect fitted like a named candidate
+(:class:`DiscoveredEffect`); the search space of one discovery (:class:`DiscoveryProblem`) and the groups' columns as
+its search sees them (:class:`Layout`).
 """
 from __future__ import annotations
 
@@ -34,8 +36,10 @@ def _where(point: int) -> str:
 
 @dataclass(frozen=True)
 class Group:
-    """One discovered group: family ``family`` (index into ``Families.families``) at ``level``, at ``point``;
-    ``keep``: the columns fitted (:func:`~euc_ros.core.residual.families.independent_columns`; None: all)."""
+    """One discovered group: family ``family`` (index into ``Families.families``) at ``level``, at ``point``.
+
+    ``keep``: the columns fitted (:func:`~euc_ros.core.residual.families.independent_columns`; None: all).
+    """
 
     family: int
     level: int
@@ -44,13 +48,17 @@ class Group:
     phases: tuple[float, ...] | None = None
 
     def mix(self) -> np.ndarray | None:
-        """For the aligned wheel family with its phase offsets: the matrix from the family's raw columns to the
-        group's (:func:`~euc_ros.core.residual.families.wheel_phase_mix`); else None."""
+        """For the aligned wheel family with its phase offsets, the matrix from its raw columns to the group's.
+
+        That matrix is :func:`~euc_ros.core.residual.families.wheel_phase_mix`; for any other group None.
+        """
         return None if self.phases is None else wheel_phase_mix(np.asarray(self.phases, float), self.level + 1)
 
     def columns(self, basis: Families) -> np.ndarray:
-        """Indices of the fitted columns among the group's columns (the family's at this level, or their
-        phase-aligned combinations)."""
+        """Indices of the fitted columns among the group's columns.
+
+        The group's columns: the family's at this level, or their phase-aligned combinations.
+        """
         if self.keep is not None:
             return np.array(self.keep, int)
         M = self.mix()
@@ -110,13 +118,45 @@ class DiscoveredEffect(Candidate):
         return pu if per == "1" else f"{pu}/({per})"
 
     def slices(self) -> list[slice]:
+        """Each group's slice of the parameter vector (``theta[sl]``: the coefficients of its columns).
+
+        Returns
+        -------
+        list of slice
+            One per group, in order, as wide as the group's fitted columns (``widths``).
+        """
         edges = np.concatenate([[0], np.cumsum(self.widths)]).astype(int)
         return [slice(a, b) for a, b in zip(edges[:-1], edges[1:])]
 
     def starts(self):
+        """Initial guess of the coefficients: the ``start`` given, else zeros.
+
+        Returns
+        -------
+        list of numpy.ndarray
+            The one start (a copy).
+        """
         return [self._start.copy()]
 
     def force(self, ctx, theta):
+        """Extra generalized force (n, 3) of the groups' functions with the coefficients ``theta``.
+
+        Each group's function (its fitted columns on ``ctx`` times its coefficients) acts at its point: along x
+        at the contact, along x or z at the rider CoG (through
+        :func:`~euc_ros.core.model.effects.jacobian_G`), or as a torque on the rider's pitch.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The samples and parameters the model is evaluated on.
+        theta : numpy.ndarray
+            The coefficients, the groups' columns one after the other.
+
+        Returns
+        -------
+        numpy.ndarray (n, 3)
+            The force along x, gamma and phi.
+        """
         cols = self.basis.columns(ctx, self._keys)
         n = ctx.t.shape[0]
         dQ = np.zeros((n, 3))
@@ -134,6 +174,18 @@ class DiscoveredEffect(Candidate):
         return dQ
 
     def report(self, theta):
+        """The coefficients as reported in the JSON.
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The coefficients, the groups' columns one after the other.
+
+        Returns
+        -------
+        dict of str to float
+            ``discovered_<group>_<column>`` (both counted from 1) to its coefficient.
+        """
         out = {}
         for k, sl in enumerate(self.slices()):
             for j, c in enumerate(np.asarray(theta[sl], float)):
@@ -237,8 +289,11 @@ class RowSensitivities:
         self.n = int(sum(g.shape[0] for _, g, _ in self._parts))
 
     def block(self, j: int) -> np.ndarray:
-        """Group ``j``'s sensitivities on the rows (rows, its width); its columns at the rows taken anew each
-        time (not kept: a copy of every column at the rows would stand beside the selection's own)."""
+        """Group ``j``'s sensitivities on the rows (rows, its width).
+
+        Its columns at the rows are taken anew each time, not kept: a copy of every column at the rows would stand
+        beside the selection's own.
+        """
         g = self.groups[j]
         key = (g.family, g.level)
         out = [gains[:, g.point, None] * c[key].take(rows, axis=0) for c, gains, rows in self._parts]
@@ -246,9 +301,11 @@ class RowSensitivities:
 
 
 def force_map(model: Model, recs: Sequence[Recording], x: np.ndarray) -> list[np.ndarray]:
-    """Per recording, the change of the residual per unit extra generalized force along x, gamma and phi
-    (n, 3): the residual is linear in an extra force (``-R m11 (w . dQ) / D``), so three evaluations give
-    the sensitivity of any force."""
+    """Per recording, the change of the residual per unit extra generalized force along x, gamma and phi (n, 3).
+
+    The residual is linear in an extra force (``-R m11 (w . dQ) / D``), so three evaluations give the sensitivity of any
+    force.
+    """
     out = []
     for r in recs:
         n = r.ctx.t.shape[0]
@@ -358,8 +415,9 @@ def _without_h(r0: np.ndarray, B: np.ndarray, hc: np.ndarray) -> tuple[np.ndarra
 
 
 class Layout:
-    """The candidate groups' columns as the selection sees them (an aligned wheel group turned into one
-    function with a phase offset per recording).
+    """The candidate groups' columns as the selection sees them.
+
+    An aligned wheel group is turned into one function with a phase offset per recording.
 
     Parameters
     ----------
@@ -394,10 +452,11 @@ class Layout:
 
 
 def layout(problem: DiscoveryProblem, r0: np.ndarray, S: RowSensitivities, hc: np.ndarray) -> Layout:
-    """The groups' columns (``S``) as the selection sees them: an aligned wheel group's raw per-recording
-    columns turned into one function with a phase offset per recording, the offsets fitted to ``r0`` (h
-    projected out) at the group's point with every harmonic (the offsets are the recordings' tyre angles,
-    the same at every level).
+    """The groups' columns (``S``) as the selection sees them.
+
+    An aligned wheel group's raw per-recording columns turned into one function with a phase offset per recording, the
+    offsets fitted to ``r0`` (h projected out) at the group's point with every harmonic (the offsets are the recordings'
+    tyre angles, the same at every level).
 
     Parameters
     ----------

@@ -81,7 +81,7 @@ class FinalInterval:
 
     @property
     def h_ci95_m(self) -> tuple[float, float]:
-        """h's interval: its own, and each tied h with the same half-width, widened by the extras [m]."""
+        """The interval of h: its own, and each tied h with the same half-width, widened by the extras [m]."""
         half = self.quantile * self.h_se_m if math.isfinite(self.h_se_m) else float("inf")
         if not math.isfinite(self.h_m) or min(self.h_m - H_BOUNDS[0], H_BOUNDS[1] - self.h_m) < EDGE_M:
             half = float("inf")         # a fit at the edge of the search range: the data do not bound h

@@ -1,5 +1,7 @@
-"""The ``effect`` string of the residual JSON: library effect names joined by ``+``, and the outcome markers
-that are not effects."""
+"""The ``effect`` string of the residual JSON.
+
+Library effect names joined by ``+``, and the outcome markers that are not effects.
+"""
 from __future__ import annotations
 
 #: Parts of ``effect`` that name no library effect: ``none`` (the residual at its noise floor), ``discovered``

@@ -44,7 +44,6 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
     first SIMEX replicate, :func:`euc_ros.core.identify.simex.first_replicate`); without them the
     recordings are re-noised here (:func:`~euc_ros.core.mocap.noise.renoised`, ``seed``) and reconstructed.
     """
-
     if noisy is None:
         rng = np.random.default_rng(seed)
         noisy = []
@@ -69,8 +68,10 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
 def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
                      seed: int | None = None, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, share=None
                      ) -> Callable[[Model, np.ndarray], float]:
-    """``noise_floor_of`` for :func:`analyze`: the recordings' own pose noise propagated through the
-    reconstruction, the derivative filter and the given model (:func:`euc_ros.core.residual.noise.noise_floor`).
+    """``noise_floor_of`` for :func:`analyze` from the recordings' own pose noise.
+
+    The noise is propagated through the reconstruction, the derivative filter and the given model
+    (:func:`euc_ros.core.residual.noise.noise_floor`).
 
     The re-noised recordings are the first replicate of the h interval's SIMEX
     (:func:`euc_ros.core.identify.simex.first_replicate`, ``seed`` default its seed); with ``share`` (a

@@ -1,7 +1,7 @@
-"""The records that pass between the steps of the residual analysis (:func:`~.analysis.analyze`): the
-prepared data (:class:`Setup`), where the selection stands (:class:`Stage`), a candidate tried
-(:class:`Trial`), the selection's and the discovery's outcomes, and the :class:`Journal` of what the steps
-report.
+"""The records that pass between the steps of the residual analysis (:func:`~.analysis.analyze`).
+
+The prepared data (:class:`Setup`), where the selection stands (:class:`Stage`), a candidate tried (:class:`Trial`), the
+selection's and the discovery's outcomes, and the :class:`Journal` of what the steps report.
 """
 from __future__ import annotations
 

@@ -1,5 +1,6 @@
-"""What the residual analysis returns: per candidate (:class:`CandidateResult`) and as a whole
-(:class:`ResidualResult`, with its JSON form).
+"""What the residual analysis returns.
+
+Per candidate (:class:`CandidateResult`) and as a whole (:class:`ResidualResult`, with its JSON form).
 """
 from __future__ import annotations
 

@@ -25,8 +25,9 @@ MAX_GROUPS = 3
 def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max_groups: int,
                n_eff: float | None = None, n_fixed: int = 0, beam_width: int | None = None,
                kinds: Sequence | None = None, extra_df: Sequence[float] | None = None) -> list[list[int]]:
-    """Group best-subset search by beam (group orthogonal matching pursuit when ``beam_width`` is 1): the sets
-    of 1..max_groups groups that best explain ``r0`` (by the criterion below).
+    """Group best-subset search by beam: the sets of 1..max_groups groups that best explain ``r0``.
+
+    Group orthogonal matching pursuit when ``beam_width`` is 1; best by the criterion below.
 
     Parameters
     ----------
@@ -172,12 +173,14 @@ PIVOT_TIE = 1e-9
 
 
 def independent_columns(A: np.ndarray, tol: float = MIN_NEW_DIRECTION) -> np.ndarray:
-    """Indices (sorted) of a well-conditioned subset of the columns of ``A``: column-pivoted Gram-Schmidt of the
-    unit-norm columns (pivoted Cholesky of their Gram matrix; ties within :data:`PIVOT_TIE` go to the first
-    column), kept while ``|R_kk|`` (the part of a column outside the span of those before it) is at least
-    ``tol`` times the first. A chosen group's columns that add no direction on these recordings (a spline
-    piece the data hardly visit, a filter collinear with its neighbours) are left out of the fit, so no
-    coefficient is fitted along a direction the selection did not see."""
+    """Indices (sorted) of a well-conditioned subset of the columns of ``A``.
+
+    Column-pivoted Gram-Schmidt of the unit-norm columns (pivoted Cholesky of their Gram matrix; ties within
+    :data:`PIVOT_TIE` go to the first column), kept while ``|R_kk|`` (the part of a column outside the span of those
+    before it) is at least ``tol`` times the first. A chosen group's columns that add no direction on these recordings
+    (a spline piece the data hardly visit, a filter collinear with its neighbours) are left out of the fit, so no
+    coefficient is fitted along a direction the selection did not see.
+    """
     A = np.asarray(A, float)
     nrm = np.sqrt(np.einsum("ij,ij->j", A, A))
     ok = np.flatnonzero(nrm > 0)

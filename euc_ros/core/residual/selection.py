@@ -1,7 +1,8 @@
-"""What the selection compares and how: the base model plus candidate effects (:class:`Model`, its
-parameters ``[h, theta...]``), its joint fit with h (:func:`fit_model`), its held-out residual over
-folds (:func:`held_out`), whether a candidate can show in the residual at all (:func:`detectability`)
-and whether a fitted model is physically admissible (:func:`admissibility`).
+"""What the selection compares and how.
+
+The base model plus candidate effects (:class:`Model`, its parameters ``[h, theta...]``), its joint fit with h
+(:func:`fit_model`), its held-out residual over folds (:func:`held_out`), whether a candidate can show in the residual
+at all (:func:`detectability`) and whether a fitted model is physically admissible (:func:`admissibility`).
 
 The residual of a model is ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - dQ)) / D``
 (:mod:`euc_ros.core.model.torque`), so an extra force with ``w . dQ = 0`` cannot change it.
@@ -156,8 +157,10 @@ def _equivalent_force(model: Model, rec: Recording, x: np.ndarray) -> np.ndarray
 
 def model_jacobian(model: Model, recs: Sequence[Recording], x: np.ndarray, res0=None
                    ) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-    """Per recording: residual at ``x``, its usable mask and d(residual)/dx by forward differences
-    (steps of 1e-4 of each parameter's typical scale, inward at a bound)."""
+    """Per recording: residual at ``x``, its usable mask and d(residual)/dx by forward differences.
+
+    Steps of 1e-4 of each parameter's typical scale, inward at a bound.
+    """
     res0 = res0 or [model.residual(r, x) for r in recs]
     lo, hi = model.bounds()
     steps = 1e-4 * model.scales()
@@ -216,9 +219,11 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
 
 
 def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None:
-    """Why a fitted model cannot be selected (None when it can): a parameter on its physical bound
-    explains nothing, an h outside :data:`H_PLAUSIBLE` or further than :data:`H_MAX_GEOMETRIC_DEV_M`
-    from the segments' geometric h is not this rider."""
+    """Why a fitted model cannot be selected (None when it can).
+
+    A parameter on its physical bound explains nothing, an h outside :data:`H_PLAUSIBLE` or further than
+    :data:`H_MAX_GEOMETRIC_DEV_M` from the segments' geometric h is not this rider.
+    """
     lo, hi = model.bounds()
     span = hi - lo
     k = 1
@@ -381,6 +386,18 @@ def common_samples(a: HeldOut, b: HeldOut) -> tuple[HeldOut, HeldOut] | None:
 
 
 def block_offsets(recs: Sequence[Recording]) -> list[int]:
+    """Per recording, the offset that numbers its blocks after those of the recordings before it.
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+
+    Returns
+    -------
+    list of int
+        Added to a recording's ``block`` indices, they make the blocks unique across the recordings (a recording
+        without samples adds none).
+    """
     out, off = [], 0
     for r in recs:
         out.append(off)

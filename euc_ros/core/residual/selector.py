@@ -150,8 +150,10 @@ class ForwardSelector(Selector):
 
 
 def try_candidate(candidate: Candidate, stage: Stage, setup: Setup) -> Trial:
-    """``candidate`` added to the model of ``stage``: fitted (the current parameters fixed as the start),
-    held out, tested against the current model, and checked for admissibility."""
+    """``candidate`` added to the model of ``stage``: fitted, held out, tested and checked for admissibility.
+
+    Fitted with the current parameters fixed as the start; tested against the current model.
+    """
     model = Model(stage.model.effects + [candidate])
     full = fit_model(model, setup.recs, setup.h0, fixed=stage.x)
     ho = held_out(model, setup.recs, setup.h0, setup.folds, start=full.x)

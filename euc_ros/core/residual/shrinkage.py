@@ -1,5 +1,6 @@
-"""Shrunken least squares for the discovery's fold fits: a Gaussian prior on the family coefficients whose
-scale the data choose (empirical Bayes).
+"""Shrunken least squares for the discovery's fold fits.
+
+A Gaussian prior on the family coefficients whose scale the data choose (empirical Bayes).
 
 A flexible family fitted on part of the recordings is poorly determined where that part never went: a lab
 field's spline pieces a held-out run visits first, a drift polynomial past its training half. Plain least
@@ -26,8 +27,9 @@ EVIDENCE_ITERATIONS, EVIDENCE_TOL = 100, 1e-6
 
 def evidence_ridge(B: np.ndarray, r: np.ndarray, n_eff: float | None = None,
                    norms: np.ndarray | None = None) -> tuple[np.ndarray, float]:
-    """Posterior-mean coefficients ``c`` of ``r ~ B c`` under ``c_j ~ N(0, tau^2 / |B_j|^2)`` (the prior on the
-    unit-norm columns) with ``tau`` from the tempered evidence (module docstring).
+    """Posterior-mean coefficients ``c`` of ``r ~ B c`` under ``c_j ~ N(0, tau^2 / |B_j|^2)``.
+
+    That is the prior on the unit-norm columns, with ``tau`` from the tempered evidence (module docstring).
 
     Parameters
     ----------
@@ -83,10 +85,12 @@ def evidence_ridge(B: np.ndarray, r: np.ndarray, n_eff: float | None = None,
 
 def fit_with_free(free: np.ndarray, B: np.ndarray, r: np.ndarray, n_eff: float | None = None,
                   norms: np.ndarray | None = None) -> np.ndarray:
-    """Coefficients ``[a, c]`` of ``r ~ free a + B c``: ``free`` (n,) without a prior (projected out), ``c`` by
-    :func:`evidence_ridge` with the prior on the scale ``norms`` (default the columns' norms before the
-    projection: a column nearly along ``free`` keeps a short remainder, whose coefficient the prior holds small
-    instead of letting it grow as the remainder shrinks)."""
+    """Coefficients ``[a, c]`` of ``r ~ free a + B c``: ``free`` (n,) without a prior, ``c`` by :func:`evidence_ridge`.
+
+    ``free`` is projected out; ``c`` has the prior on the scale ``norms`` (default the columns' norms before the
+    projection: a column nearly along ``free`` keeps a short remainder, whose coefficient the prior holds small instead
+    of letting it grow as the remainder shrinks).
+    """
     norms = np.linalg.norm(np.asarray(B, float), axis=0) if norms is None else np.asarray(norms, float)
     f = np.asarray(free, float)
     ff = float(f @ f)

@@ -1,6 +1,7 @@
-"""Is a held-out improvement real? A one-sided paired test over blocks of the held-out residual
-(:func:`paired_block_test`), and the max-T correction over the candidates of one selection step
-(:func:`max_t_adjusted`, sign flips of whole blocks).
+"""Whether a held-out improvement is real.
+
+A one-sided paired test over blocks of the held-out residual (:func:`paired_block_test`), and the max-T correction over
+the candidates of one selection step (:func:`max_t_adjusted`, sign flips of whole blocks).
 """
 from __future__ import annotations
 
@@ -37,8 +38,10 @@ def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
 
 
 def _block_log_ratios(base: HeldOut, cands: Sequence[HeldOut]) -> np.ndarray:
-    """Per candidate and block of ``base``: log of the base's over the candidate's held-out mean square
-    (NaN where the candidate has no sample of that block or a mean square is 0)."""
+    """Per candidate and block of ``base``: log of the base's over the candidate's held-out mean square.
+
+    NaN where the candidate has no sample of that block or a mean square is 0.
+    """
     ub, inv = np.unique(base.block, return_inverse=True)
     mb = np.bincount(inv, base.residual ** 2, ub.size) / np.maximum(np.bincount(inv, None, ub.size), 1)
     D = np.full((len(cands), ub.size), np.nan)

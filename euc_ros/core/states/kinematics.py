@@ -264,6 +264,50 @@ def _geometry(series, session, *, max_gap: int, cog_method: str, skeleton) -> di
     return geo
 
 
+def _across_gaps(frame: np.ndarray, valid: np.ndarray, geo: dict, phi_raw: np.ndarray, psi: np.ndarray,
+                 dt: float, window: int, polyorder: int):
+    """The states the Savitzky-Golay stretches leave out beside the recording's gaps, from fits through them.
+
+    A gap longer than the bridged ``max_gap`` frames ends a stretch, and the half-windows beside it are
+    trimmed; at those recorded samples the local least-squares polynomials through the samples that are there
+    (:func:`~euc_ros.core.filters.masked_savgol.masked_savgol`) give the states, where their second
+    derivatives' variance stays within :data:`~euc_ros.core.filters.masked_savgol.MAX_INFLATION` of the full
+    window's. The recording's own first and last half-windows are left as they are (a fit there is
+    one-sided), and a recording without gaps is not touched.
+
+    Returns
+    -------
+    tuple or None
+        ``(rows, fields)``: the sample rows and their ``x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi,
+        phi_dot, phi_ddot``; None when nothing is gained.
+    """
+    from euc_ros.core.filters.masked_savgol import masked_savgol
+
+    n = frame.size
+    if n < window:
+        return None
+    k = frame - frame[0]
+    half = window // 2
+    cols = np.column_stack([geo["C_raw"], geo["gamma_raw"], phi_raw])
+    recorded = np.all(np.isfinite(cols), axis=1) & np.isfinite(psi)
+    inner = (k >= k[0] + half) & (k <= k[-1] - half)
+    want = recorded & inner & ~valid
+    if not want.any():
+        return None
+    grid = np.full((int(k[-1]) + 1, cols.shape[1]), np.nan)
+    grid[k[recorded]] = cols[recorded]
+    fit = masked_savgol(grid, window, polyorder, dt)
+    rows = np.flatnonzero(want & fit.usable[k])
+    if rows.size == 0:
+        return None
+    at = k[rows]
+    c, s_ = np.cos(psi[rows]), np.sin(psi[rows])
+    x_dot = c * fit.y_dot[at, 0] + s_ * fit.y_dot[at, 1]
+    x_ddot = c * fit.y_ddot[at, 0] + s_ * fit.y_ddot[at, 1]
+    return rows, (x_dot, x_ddot, fit.y[at, 3], fit.y_dot[at, 3], fit.y_ddot[at, 3], fit.y[at, 4], fit.y_dot[at, 4],
+                  fit.y_ddot[at, 4])
+
+
 def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float, polyorder: int, max_gap: int,
                      cog_method: str, consume: bool, lean: bool = False) -> RiderStates:
     """The states of one Savitzky-Golay filter from the geometry of :func:`_geometry`.
@@ -285,6 +329,7 @@ def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float,
     if lean:            # what the residual does not read, let go before the filtering (empty in the states)
         for key in ("G", "theta", "has_euc", "has_rider", "phi_eq3" if phi_definition == "hinge" else "phi_hinge"):
             geo[key] = np.empty((0, 3) if key == "G" else 0, dtype=geo[key].dtype)
+    geo["C_raw"] = geo["C"]
     d_C = savgol_derivatives(dt, geo.pop("C"), **sg)
     psi = geo["psi"].copy()
     fin = np.isfinite(psi)
@@ -313,6 +358,7 @@ def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float,
         x = np.concatenate(([0.0], np.cumsum(0.5 * (xd0[1:] + xd0[:-1]) * np.diff(t)))) if t.size else t.copy()
         del xd0
         x[~np.isfinite(x_dot)] = np.nan
+    geo["gamma_raw"] = geo["gamma"]
     d_gamma = savgol_derivatives(dt, geo.pop("gamma"), **sg)
     phi_raw = geo["phi_hinge"] if phi_definition == "hinge" else geo["phi_eq3"]
     d_phi = savgol_derivatives(dt, phi_raw, **sg)
@@ -325,6 +371,13 @@ def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float,
     for f in fields_[1:]:
         finite &= np.isfinite(f)
     valid = trim_edges(finite, d_gamma.window // 2, frame, max_gap) & ~filled
+    across = _across_gaps(frame, valid, geo, phi_raw, geo["psi"], dt, d_gamma.window, polyorder)
+    del geo["C_raw"], geo["gamma_raw"]
+    if across is not None:          # the samples the gaps' stretch ends cost: least-squares fits through the gaps
+        rows, f = across
+        for field_, fitted in zip(fields_, f):
+            field_[rows] = fitted
+        valid[rows] = True
     return RiderStates(
         name=series.name, t=t, frame=frame, x=x, x_dot=x_dot, x_ddot=x_ddot,
         gamma=d_gamma.y, gamma_dot=d_gamma.y_dot, gamma_ddot=d_gamma.y_ddot,
