@@ -143,7 +143,7 @@ def tasks_from_args(args) -> list[cmp.Task]:
 
 
 def _figure(rows: list[dict], path: Path) -> Path:
-    from euc_ros.cli.plots import pyplot, save_figure
+    from euc_ros.cli.figures import pyplot, save_figure
 
     plt = pyplot()
     ok = [r for r in rows if r["status"] == "ok"]

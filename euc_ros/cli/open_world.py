@@ -55,7 +55,7 @@ def figure(rows: list[dict], summ: dict, path) -> Path:
     The per-family percentages; the measured against the design ratio; the h error in units of the interval's
     half width against the artefact level.
     """
-    from euc_ros.cli.plots import pyplot, save_figure
+    from euc_ros.cli.figures import pyplot, save_figure
 
     plt = pyplot()
     fams = list(summ["families"])

@@ -27,8 +27,9 @@ import math
 import sys
 from pathlib import Path
 
+from euc_ros.cli.figures.unicycle_maps import plot_run
 from euc_ros.cli.outputs import Output, check_outputs
-from euc_ros.cli.unicycle import add_model_args, params_from_args, plot_run
+from euc_ros.cli.unicycle import add_model_args, params_from_args
 from euc_ros.core.errors import ConfigError
 from euc_ros.lockstep import DEFAULT_TIMEOUT_S, SteerFailed, run_steer
 

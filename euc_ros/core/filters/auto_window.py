@@ -16,7 +16,7 @@ the filter's response from its own coefficients.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -346,6 +346,156 @@ def _candidate_windows(dt: float, orders: Sequence[int], max_window_s: float) ->
     return out
 
 
+class _Spectra(NamedTuple):
+    """The signals' displacement spectra on one grid, with their noise floors (:func:`_spectra_and_floors`)."""
+
+    names: list            # signal names, in the order given
+    f: np.ndarray          # the common frequency grid [Hz]
+    S: dict                # per signal: displacement spectrum on ``f``
+    floors: dict           # per signal: white noise floor N_s
+    sigma: dict            # per signal: white-noise standard deviation used
+    n_avg: dict            # per signal: number of Welch segments averaged
+
+
+def _spectra_and_floors(dt: float, signals: Mapping[str, object], noise_std: dict, segment_s: float) -> _Spectra:
+    """Every signal's spectrum on one frequency grid and its white noise floor (:func:`choose_window`, Notes)."""
+    specs, floors, sig_used, n_avg = {}, {}, {}, {}
+    spectra = {}
+    for name, y in signals.items():
+        spectra[name] = displacement_spectrum(y, dt, segment_s)
+    # one frequency grid for every signal: a signal whose stretches are all shorter than a segment has a
+    # coarser one (a short recording with gaps), so its spectrum is interpolated onto the finest
+    grid = max((sp[0] for sp in spectra.values()), key=lambda f: f.size)
+    for name, (f, S, n) in spectra.items():
+        if f.size != grid.size:
+            S = np.interp(grid, f[1:], S[1:])
+            S[0] = np.nan                               # 0 Hz, as displacement_spectrum gives it
+            spectra[name] = (grid, S, n)
+    for name in signals:
+        f, S, n_avg[name] = spectra.pop(name)
+        top = (f >= NOISE_BAND[0] * f[-1]) & (f <= NOISE_BAND[1] * f[-1])
+        if name in noise_std and noise_std[name] is not None:
+            sigma = float(noise_std[name])
+            N = 2.0 * sigma**2 * dt
+        else:
+            N = float(np.nanmedian(S[top]))
+            sigma = float(np.sqrt(N / (2.0 * dt)))
+        specs[name] = (f, S)
+        floors[name] = N
+        sig_used[name] = sigma
+    names = list(signals)
+    return _Spectra(names=names, f=specs[names[0]][0], S={n: specs[n][1] for n in names}, floors=floors,
+                    sigma=sig_used, n_avg=n_avg)
+
+
+def _motion_spectra(sp: _Spectra, segment_s: float, coloured: bool):
+    """Each signal's motion spectrum, its band's end and (``coloured``) its noise spectrum.
+
+    ``coloured`` False: above the white floor; True: above the noise measured above the motion's band, which
+    may be coloured. Returns ``(S_sig, cutoff, S_noise)`` (``S_noise`` empty when not ``coloured``).
+    """
+    f = sp.f
+    S_sig, cutoff, S_noise = {}, {}, {}
+    for n in sp.names:
+        S = np.where(np.isfinite(sp.S[n]), sp.S[n], np.inf)
+        above = S > sp.floors[n] * (1.0 + FLOOR_SIGMAS / np.sqrt(sp.n_avg[n]))
+        # the motion's band: from 0 Hz up to the first bin (past the lowest ones) under the threshold
+        below = np.flatnonzero(~above & (f > 2.0 / segment_s))
+        cutoff[n] = float(f[below[0]]) if below.size else float(f[-1])
+        level = sp.floors[n]
+        if coloured:
+            # no further than where the noise's rising acceleration spectrum takes over; the noise as
+            # measured above that, and below it as flat as just above it
+            cutoff[n] = min(cutoff[n], _noise_rise_start(f, sp.S[n], sp.n_avg[n], 2.0 / segment_s))
+            near = (f >= cutoff[n]) & (f <= cutoff[n] + NOISE_LEVEL_HZ)
+            level = max(sp.floors[n], float(np.nanmedian(sp.S[n][near])))
+            S_noise[n] = np.where(f >= cutoff[n], sp.S[n], level)
+            S_noise[n][0] = 0.0
+        S_sig[n] = np.where((f < cutoff[n]) & (f > 0), np.maximum(sp.S[n] - level, 0.0), 0.0)
+    return S_sig, cutoff, S_noise
+
+
+def _evaluate(sp: _Spectra, dt: float, orders: Sequence[int], max_window_s: float, segment_s: float,
+              noise_power: int, coloured: bool):
+    """The candidates scored with the white noise floor or with the noise as measured above the motion's band.
+
+    ``coloured`` False: the white floor; True: the noise measured above the motion's band, which may be
+    coloured. Returns ``(cands, best, S_sig, A, P, cutoff, worst)``.
+    """
+    names, f = sp.names, sp.f
+    df = f[1] - f[0]
+    w2 = (2 * np.pi * f) ** 2
+    S_sig, cutoff, S_noise = _motion_spectra(sp, segment_s, coloured)
+    A = {n: w2**2 * S_sig[n] for n in names}
+    P = {n: float(np.sum(A[n]) * df) for n in names}
+    if any(v <= 0 for v in P.values()):
+        empty = [n for n, v in P.items() if v <= 0]
+        raise InputError(f"no motion above the noise floor in {', '.join(empty)}", key="signals")
+    cands = []
+    for W, p in _candidate_windows(dt, orders, max_window_s):
+        H2 = savgol_response(W, p, 2, dt, f)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e2 = np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0)
+        k2 = savgol_kernel(W, p, 2, dt)
+        h2 = np.abs(H2) ** 2 if coloured else None
+        score, B, V = 0.0, {}, {}
+        for n in names:
+            B[n] = float(np.sum(e2 * A[n]) * df)
+            V[n] = sp.sigma[n] ** 2 * float(k2 @ k2)
+            score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
+            if coloured:
+                # the coloured excess over the white noise: SIMEX does not remove its bias, so it counts whole
+                excess = max(float(np.sum(h2 * S_noise[n]) * df) - V[n], 0.0)
+                V[n] += excess
+                score += excess / P[n]
+        cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
+    best = min(cands, key=lambda c: (c["score"], c["window"]))
+    worst = max(np.sqrt(best["B2"][n] / P[n]) for n in names)
+    return cands, best, S_sig, A, P, cutoff, worst
+
+
+def _diagnostics(sp: _Spectra, dt: float, best: dict, S_sig: dict, A: dict, P: dict, cutoff: dict):
+    """What the chosen filter leaves, per signal: ``(distortion, noise, acceleration_rms, band_hz)``."""
+    f = sp.f
+    W, p = best["window"], best["polyorder"]
+    distortion, noise, acc_rms, band = {}, {}, {}, {}
+    for n in sp.names:
+        rel = []
+        for d in (0, 1, 2):
+            H = savgol_response(W, p, d, dt, f)
+            ideal = (2j * np.pi * f) ** d
+            with np.errstate(divide="ignore", invalid="ignore"):
+                e = np.where(f > 0, np.abs(H / ideal - 1.0) ** 2, 0.0)
+            weight = (2 * np.pi * f) ** (2 * d) * S_sig[n]
+            rel.append(float(np.sqrt(np.sum(e * weight) / np.sum(weight))) if np.sum(weight) > 0 else 0.0)
+        distortion[n] = tuple(rel)
+        noise[n] = float(np.sqrt(best["V"][n] / P[n]))
+        acc_rms[n] = float(np.sqrt(P[n]))
+        cum = np.cumsum(A[n]) / np.sum(A[n])
+        band[n] = (float(f[np.searchsorted(cum, 0.90)]), float(f[np.searchsorted(cum, 0.99)]), cutoff[n])
+    return distortion, noise, acc_rms, band
+
+
+def _probe(cands: list, best: dict, P: dict, names: list, dt: float) -> tuple[tuple, float]:
+    """Companion filter: the same order, the window whose summed distortion is nearest twice the choice's.
+
+    Returns ``((window_s, polyorder), ratio)``.
+    """
+    W, p = best["window"], best["polyorder"]
+
+    def rms_distortion(c):
+        return sum(c["B2"][n] / P[n] for n in names) ** 0.5
+
+    target = 2.0 * rms_distortion(best)
+    same = [c for c in cands if c["polyorder"] == p and c["window"] > W]
+    probe, ratio = (W * dt, p), float("nan")
+    if same:
+        c = min(same, key=lambda c: abs(rms_distortion(c) - target))
+        probe = (c["window"] * dt, p)
+        ratio = rms_distortion(c) / target * 2.0 if target > 0 else float("nan")
+    return probe, ratio
+
+
 def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[str, float] | None = None, *,
                   orders: Sequence[int] = DEFAULT_ORDERS, max_window_s: float = MAX_WINDOW_S,
                   segment_s: float = SEGMENT_S, noise_power: int = 1, coloured: bool = False) -> WindowChoice:
@@ -425,121 +575,21 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
         raise InputError(f"sample spacing must be > 0 s, got {dt!r}", key="dt")
     if not signals:
         raise InputError("no signals given", key="signals")
-    noise_std = dict(noise_std or {})
-    specs, floors, sig_used, n_avg = {}, {}, {}, {}
-    spectra = {}
-    for name, y in signals.items():
-        spectra[name] = displacement_spectrum(y, dt, segment_s)
-    # one frequency grid for every signal: a signal whose stretches are all shorter than a segment has a
-    # coarser one (a short recording with gaps), so its spectrum is interpolated onto the finest
-    grid = max((sp[0] for sp in spectra.values()), key=lambda f: f.size)
-    for name, (f, S, n) in spectra.items():
-        if f.size != grid.size:
-            S = np.interp(grid, f[1:], S[1:])
-            S[0] = np.nan                               # 0 Hz, as displacement_spectrum gives it
-            spectra[name] = (grid, S, n)
-    for name in signals:
-        f, S, n_avg[name] = spectra.pop(name)
-        top = (f >= NOISE_BAND[0] * f[-1]) & (f <= NOISE_BAND[1] * f[-1])
-        if name in noise_std and noise_std[name] is not None:
-            sigma = float(noise_std[name])
-            N = 2.0 * sigma**2 * dt
-        else:
-            N = float(np.nanmedian(S[top]))
-            sigma = float(np.sqrt(N / (2.0 * dt)))
-        specs[name] = (f, S)
-        floors[name] = N
-        sig_used[name] = sigma
-    names = list(signals)
-    f = specs[names[0]][0]
-    df = f[1] - f[0]
-    w2 = (2 * np.pi * f) ** 2
-    def evaluate(coloured: bool):
-        """The candidates scored with the white noise floor or with the noise as measured above the motion's band.
-
-        ``coloured`` False: the white floor; True: the noise measured above the motion's band, which may be
-        coloured.
-        """
-        S_sig, cutoff, S_noise = {}, {}, {}
-        for n in names:
-            S = np.where(np.isfinite(specs[n][1]), specs[n][1], np.inf)
-            above = S > floors[n] * (1.0 + FLOOR_SIGMAS / np.sqrt(n_avg[n]))
-            # the motion's band: from 0 Hz up to the first bin (past the lowest ones) under the threshold
-            below = np.flatnonzero(~above & (f > 2.0 / segment_s))
-            cutoff[n] = float(f[below[0]]) if below.size else float(f[-1])
-            level = floors[n]
-            if coloured:
-                # no further than where the noise's rising acceleration spectrum takes over; the noise as
-                # measured above that, and below it as flat as just above it
-                cutoff[n] = min(cutoff[n], _noise_rise_start(f, specs[n][1], n_avg[n], 2.0 / segment_s))
-                near = (f >= cutoff[n]) & (f <= cutoff[n] + NOISE_LEVEL_HZ)
-                level = max(floors[n], float(np.nanmedian(specs[n][1][near])))
-                S_noise[n] = np.where(f >= cutoff[n], specs[n][1], level)
-                S_noise[n][0] = 0.0
-            S_sig[n] = np.where((f < cutoff[n]) & (f > 0), np.maximum(specs[n][1] - level, 0.0), 0.0)
-        A = {n: w2**2 * S_sig[n] for n in names}
-        P = {n: float(np.sum(A[n]) * df) for n in names}
-        if any(v <= 0 for v in P.values()):
-            empty = [n for n, v in P.items() if v <= 0]
-            raise InputError(f"no motion above the noise floor in {', '.join(empty)}", key="signals")
-        cands = []
-        for W, p in _candidate_windows(dt, orders, max_window_s):
-            H2 = savgol_response(W, p, 2, dt, f)
-            with np.errstate(divide="ignore", invalid="ignore"):
-                e2 = np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0)
-            k2 = savgol_kernel(W, p, 2, dt)
-            h2 = np.abs(H2) ** 2 if coloured else None
-            score, B, V = 0.0, {}, {}
-            for n in names:
-                B[n] = float(np.sum(e2 * A[n]) * df)
-                V[n] = sig_used[n] ** 2 * float(k2 @ k2)
-                score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
-                if coloured:
-                    # the coloured excess over the white noise: SIMEX does not remove its bias, so it counts whole
-                    excess = max(float(np.sum(h2 * S_noise[n]) * df) - V[n], 0.0)
-                    V[n] += excess
-                    score += excess / P[n]
-            cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
-        best = min(cands, key=lambda c: (c["score"], c["window"]))
-        worst = max(np.sqrt(best["B2"][n] / P[n]) for n in names)
-        return cands, best, S_sig, A, P, cutoff, worst
-
-    cands, best, S_sig, A, P, cutoff, worst = (None,) * 6 + (np.inf,) if coloured else evaluate(False)
+    sp = _spectra_and_floors(dt, signals, dict(noise_std or {}), segment_s)
+    cands, best, S_sig, A, P, cutoff, worst = (None,) * 6 + (np.inf,) if coloured else \
+        _evaluate(sp, dt, orders, max_window_s, segment_s, noise_power, False)
     noise_model = "white"
     if worst > MAX_WHITE_DISTORTION:
         # a white floor read at the top of the band is far below coloured noise: the "motion" it leaves
         # is mostly noise, which the choice then follows with a filter that distorts what it keeps
-        cands, best, S_sig, A, P, cutoff, worst = evaluate(True)
+        cands, best, S_sig, A, P, cutoff, worst = _evaluate(sp, dt, orders, max_window_s, segment_s, noise_power,
+                                                            True)
         noise_model = "coloured"
     W, p = best["window"], best["polyorder"]
-    distortion, noise, acc_rms, band = {}, {}, {}, {}
-    for n in names:
-        rel = []
-        for d in (0, 1, 2):
-            H = savgol_response(W, p, d, dt, f)
-            ideal = (2j * np.pi * f) ** d
-            with np.errstate(divide="ignore", invalid="ignore"):
-                e = np.where(f > 0, np.abs(H / ideal - 1.0) ** 2, 0.0)
-            weight = (2 * np.pi * f) ** (2 * d) * S_sig[n]
-            rel.append(float(np.sqrt(np.sum(e * weight) / np.sum(weight))) if np.sum(weight) > 0 else 0.0)
-        distortion[n] = tuple(rel)
-        noise[n] = float(np.sqrt(best["V"][n] / P[n]))
-        acc_rms[n] = float(np.sqrt(P[n]))
-        cum = np.cumsum(A[n]) / np.sum(A[n])
-        band[n] = (float(f[np.searchsorted(cum, 0.90)]), float(f[np.searchsorted(cum, 0.99)]), cutoff[n])
-    # companion filter: the same order, the window whose summed distortion is nearest twice the choice's
-    def rms_distortion(c):
-        return sum(c["B2"][n] / P[n] for n in names) ** 0.5
-
-    target = 2.0 * rms_distortion(best)
-    same = [c for c in cands if c["polyorder"] == p and c["window"] > W]
-    probe, ratio = (W * dt, p), float("nan")
-    if same:
-        c = min(same, key=lambda c: abs(rms_distortion(c) - target))
-        probe = (c["window"] * dt, p)
-        ratio = rms_distortion(c) / target * 2.0 if target > 0 else float("nan")
+    distortion, noise, acc_rms, band = _diagnostics(sp, dt, best, S_sig, A, P, cutoff)
+    probe, ratio = _probe(cands, best, P, sp.names, dt)
     return WindowChoice(window_s=W * dt, window=W, polyorder=p, distortion=distortion, noise=noise,
-                        noise_model=noise_model, noise_std=sig_used, acceleration_rms=acc_rms, band_hz=band,
+                        noise_model=noise_model, noise_std=sp.sigma, acceleration_rms=acc_rms, band_hz=band,
                         probe=probe, probe_ratio=ratio,
                         candidates=[{"window": c["window"], "polyorder": c["polyorder"], "score": c["score"]}
                                     for c in cands])

@@ -35,6 +35,7 @@ from euc_ros.core.identify.fit import (
 )
 from euc_ros.core.identify.interval import (
     MIN_BLOCKS,
+    Systematics,
     extend_by_prior,
     interval,
     json_float,
@@ -327,12 +328,70 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     """
     rec = _fixed_filter(reconstruction, filter_choice)
     measured = measured or Measured()
-    h_bounds = options.h_bounds
-    tolerances = dict(DEFAULT_TOLERANCES) if options.tolerances is None else options.tolerances
     series = [st.meta.get("series") for st in states]
-    out = {}
-    bias = err = float("nan")
     have_series = np.isfinite(fit.h_m) and all(s is not None for s in series)
+    (bias, err), probe, h_probe, probe_eiv = _noise_terms(series, session, params, fit, rec, filter_choice,
+                                                          measured, have_series)
+    slide, spread = _sliding_terms(states, series, session, params, fit, rec, filter_choice, options, measured,
+                                   have_series)
+    prior_range = tuple(spread["sliding_prior_range_m"]) if spread else (0.0, 0.0)
+    total, total_err = bias, err
+    sliding_seen = slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0
+    if sliding_seen:
+        total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
+        total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
+    floor = None
+    if probe is not None:
+        floor = filter_floor(series, session, params, fit.h_m, filter_choice, reconstruction=rec, h_probe=h_probe)
+    coefs = coefficients_for(states, params, "3dof", None)
+    terms = Systematics(total, total_err, floor["filter_floor_m"] if floor else 0.0, prior_range)
+    iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, systematics=terms, h_bounds=options.h_bounds,
+                  turning_ms2=turning_rms(states), states=states)
+    corrected = None
+    release_free_memory()             # the replicates' and the probe's temporaries, before the bootstraps
+    if probe is not None:
+        slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
+        pair = FilterPair(filter_choice, coefs, probe, fit.h_m, h_probe, states[0].window, states[0].dt)
+        corrected = distortion_corrected(series, session, params, pair, eiv=(bias, err), sliding=(slide_m, slide_err),
+                                         h_bounds=options.h_bounds, reconstruction=rec, probe_eiv=probe_eiv)
+        del pair
+    del coefs, probe                  # per-sample coefficients: not kept through the budget
+    out, head = _headline(iv, fit, corrected, prior_range, filter_choice)
+    kept = out.pop("_kept")
+    if slide is not None:
+        out["uncertainty"]["eiv_bias_m"] = json_float(bias)
+        out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
+    if floor is not None:
+        out["uncertainty"].update({k: json_float(v) for k, v in floor.items()})
+    if spread is not None:
+        out["uncertainty"].update({k: ([json_float(x) for x in v] if isinstance(v, list) else json_float(v))
+                                   for k, v in spread.items()})
+    if corrected is not None:
+        out["uncertainty"].update({k: json_float(v) for k, v in corrected.items()})
+        out["uncertainty"].update(kept)
+    out["h_std_m"] = _std_of(*head.bootstrap_ci95_m)
+    if options.with_budget and have_series:
+        release_free_memory()         # the bootstraps' temporaries, before the budget's reconstructions
+        tolerances = dict(DEFAULT_TOLERANCES) if options.tolerances is None else options.tolerances
+        b = budget(series, states, session, params, fit.h_m, reconstruction=rec, tolerances=tolerances)
+        if head is not iv:            # the sensitivities are the fit's; the range is centred on the headline h
+            shift = head.h_m - fit.h_m
+            b["h_range_m"] = [None if v is None else float(v + shift) for v in b["h_range_m"]]
+        out["h_range_m"] = b["h_range_m"]
+        out["uncertainty_budget"] = b
+    return out
+
+
+def _noise_terms(series, session, params: EucParams, fit: ModelFit, rec: ReconstructionSettings, filter_choice,
+                 measured: Measured, have_series: bool):
+    """SIMEX's bias of h at the chosen filter (and at the probe), and the probe's coefficients and h.
+
+    Returns
+    -------
+    tuple
+        ``((bias, error), probe coefficients or None, h at the probe or None, (probe bias, error) or None)``.
+    """
+    bias = err = float("nan")
     probe = h_probe = probe_eiv = None
     with_probe = filter_choice is not None and have_series
     biases = []
@@ -350,6 +409,18 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         h_probe = pooled_fit(probe, DEFAULT_H_GRID).h_m
     if len(biases) > 1:
         probe_eiv = (biases[1][0] - h_probe, biases[1][1])
+    return (bias, err), probe, h_probe, probe_eiv
+
+
+def _sliding_terms(states, series, session, params: EucParams, fit: ModelFit, rec: ReconstructionSettings,
+                   filter_choice, options: IntervalOptions, measured: Measured, have_series: bool):
+    """The sliding the links show (its SIMEX bias) and the spread of h under the shared sliding's prior.
+
+    Returns
+    -------
+    tuple
+        ``(sliding bias dict or None, prior spread dict or None)``.
+    """
     # soft-tissue sliding the chain's links show (docs/cog_artefacts.md): its SIMEX bias joins the
     # white-noise bias in the interval (0 when no sliding above MIN_SLIDING_M is seen)
     slide = links = None
@@ -370,28 +441,18 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
     if prior.rms_m is None:
         prior = dataclasses.replace(prior, rms_m=rms_from_sliding(links, session, MIN_SLIDING_M))
     spread = prior_spread(states, params, fit.h_m, prior) if np.isfinite(fit.h_m) else None
-    prior_range = tuple(spread["sliding_prior_range_m"]) if spread else (0.0, 0.0)
-    total, total_err = bias, err
-    sliding_seen = slide is not None and np.isfinite(slide["sliding_bias_m"]) and slide["sliding_bias_m"] != 0.0
-    if sliding_seen:
-        total = (bias if np.isfinite(bias) else 0.0) + slide["sliding_bias_m"]
-        total_err = float(np.hypot(err if np.isfinite(err) else 0.0, slide["sliding_bias_err_m"]))
-    floor = None
-    if probe is not None:
-        floor = filter_floor(series, session, params, fit.h_m, filter_choice, reconstruction=rec, h_probe=h_probe)
-    coefs = coefficients_for(states, params, "3dof", None)
-    iv = interval(coefs, fit, window=states[0].window, dt=states[0].dt, eiv_bias_m=total, eiv_bias_err_m=total_err,
-                  h_bounds=h_bounds, turning_ms2=turning_rms(states),
-                  filter_floor_m=floor["filter_floor_m"] if floor else 0.0, prior_range_m=prior_range, states=states)
-    corrected = None
-    release_free_memory()             # the replicates' and the probe's temporaries, before the bootstraps
-    if probe is not None:
-        slide_m, slide_err = (slide["sliding_bias_m"], slide["sliding_bias_err_m"]) if sliding_seen else (0.0, 0.0)
-        pair = FilterPair(filter_choice, coefs, probe, fit.h_m, h_probe, states[0].window, states[0].dt)
-        corrected = distortion_corrected(series, session, params, pair, eiv=(bias, err), sliding=(slide_m, slide_err),
-                                         h_bounds=h_bounds, reconstruction=rec, probe_eiv=probe_eiv)
-        del pair
-    del coefs, probe                  # per-sample coefficients: not kept through the budget
+    return slide, spread
+
+
+def _headline(iv, fit: ModelFit, corrected: dict | None, prior_range, filter_choice):
+    """The JSON keys of the headline h (the corrected h's, or the fit's with the corrected h kept beside it).
+
+    Returns
+    -------
+    tuple
+        ``(out, head)``: the keys (``_kept``: what goes into ``uncertainty`` after the corrected terms) and the
+        headline's :class:`~euc_ros.core.identify.interval.Interval`.
+    """
     head = iv
     kept = {}
     if corrected is not None:
@@ -404,7 +465,7 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
         elif np.isfinite(hc):         # a diagnostic: the probe's change is not the distortion's alone
             kept = {"h_corrected_m": json_float(hc), "h_corrected_ci95_m": [json_float(v) for v in ci],
                     "h_corrected_not_headline": NOT_HEADLINE}
-    out.update(head.to_json())
+    out = dict(head.to_json())
     if head is not iv:
         lo, hi = iv.bootstrap_ci95_m
         out["h_m"] = json_float(head.h_m)
@@ -415,27 +476,8 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
             "h_at_chosen_filter_std_m": _std_of(lo, hi),
             "h_at_chosen_filter_std_formal_m": json_float(fit.h_std_m)}
         out["uncertainty"]["method"] = "paired block bootstrap (chosen and probe filter)"
-    if slide is not None:
-        out["uncertainty"]["eiv_bias_m"] = json_float(bias)
-        out["uncertainty"].update({k: json_float(v) for k, v in slide.items()})
-    if floor is not None:
-        out["uncertainty"].update({k: json_float(v) for k, v in floor.items()})
-    if spread is not None:
-        out["uncertainty"].update({k: ([json_float(x) for x in v] if isinstance(v, list) else json_float(v))
-                                   for k, v in spread.items()})
-    if corrected is not None:
-        out["uncertainty"].update({k: json_float(v) for k, v in corrected.items()})
-        out["uncertainty"].update(kept)
-    out["h_std_m"] = _std_of(*head.bootstrap_ci95_m)
-    if options.with_budget and np.isfinite(fit.h_m) and all(s is not None for s in series):
-        release_free_memory()         # the bootstraps' temporaries, before the budget's reconstructions
-        b = budget(series, states, session, params, fit.h_m, reconstruction=rec, tolerances=tolerances)
-        if head is not iv:            # the sensitivities are the fit's; the range is centred on the headline h
-            shift = head.h_m - fit.h_m
-            b["h_range_m"] = [None if v is None else float(v + shift) for v in b["h_range_m"]]
-        out["h_range_m"] = b["h_range_m"]
-        out["uncertainty_budget"] = b
-    return out
+    out["_kept"] = kept
+    return out, head
 
 
 #: Why a distortion-corrected h is not the headline when the noise is coloured (:func:`coloured_noise`).

@@ -93,7 +93,7 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
 
     def residual(k: int, h: float) -> np.ndarray:
         arrays, extras = inputs[k]
-        m1, m2 = model.torques(**arrays, h=h, extras=extras)
+        m1, m2 = model.torques(arrays, h=h, extras=extras)
         return np.asarray(m1 - m2, float)
 
     mid = float(np.median(h_grid))
@@ -131,7 +131,7 @@ def extended_interval(states, params, effects: dict, h: float, block_s: float, *
     jr, jj, blocks = [], [], []
     for k, (arrays, extras) in enumerate(inputs):
         def res(hh, arrays=arrays, extras=extras):
-            m1, m2 = model.torques(**arrays, h=hh, extras=extras)
+            m1, m2 = model.torques(arrays, h=hh, extras=extras)
             return np.asarray(m1 - m2, float)
 
         r0, rp, rm = res(h), res(h + step), res(h - step)

@@ -223,22 +223,12 @@ def turning_rms(states) -> float:
     return float(np.sqrt(np.mean(v ** 2))) if v.size else 0.0
 
 
-def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bias_m: float = float("nan"),
-             h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0, turning_ms2: float = 0.0,
-             eiv_bias_err_m: float = 0.0, filter_floor_m: float = 0.0,
-             prior_range_m: tuple[float, float] = (0.0, 0.0), states=None) -> Interval:
-    """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
+@dataclass(frozen=True)
+class Systematics:
+    """The systematic terms the interval holds beside the bootstrap's random part.
 
     Parameters
     ----------
-    coefs : sequence of ndarray (6, n_i)
-        Per recording, the residual coefficients of its valid samples in time order.
-    fit : ModelFit
-        The pooled fit (``h_m``, ``sharpness``).
-    window : int
-        Savitzky-Golay window [samples] (the shortest block).
-    dt : float
-        Sample period [s].
     eiv_bias_m : float
         SIMEX bias (NaN: not included).
     eiv_bias_err_m : float
@@ -251,6 +241,35 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         Change of h a stated prior allows, ``lo <= 0 <= hi`` (the common soft-tissue sliding,
         :func:`~euc_ros.core.identify.sliding_prior.prior_spread`): the truth may lie at ``h - hi`` to
         ``h - lo``, so the ends move out by ``hi`` (below) and ``-lo`` (above).
+    """
+
+    eiv_bias_m: float = float("nan")
+    eiv_bias_err_m: float = 0.0
+    filter_floor_m: float = 0.0
+    prior_range_m: tuple[float, float] = (0.0, 0.0)
+
+
+#: No systematic term.
+NO_SYSTEMATICS = Systematics()
+
+
+def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float,
+             systematics: Systematics = NO_SYSTEMATICS, h_bounds=(0.1, 1.2), n_boot: int = 1000, seed: int = 0,
+             turning_ms2: float = 0.0, states=None) -> Interval:
+    """The 95 % interval of ``fit.h_m`` and its identifiability (see the module docstring).
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples in time order.
+    fit : ModelFit
+        The pooled fit (``h_m``, ``sharpness``).
+    window : int
+        Savitzky-Golay window [samples] (the shortest block).
+    dt : float
+        Sample period [s].
+    systematics : Systematics
+        The SIMEX bias with its error, the filter's floor and the prior's range.
     states : sequence of RiderStates, optional
         The recordings' states, in the order of ``coefs``: the reasons then give the ride's speed
         changes, accelerations and rider pitch range against what h needs
@@ -262,6 +281,8 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float, eiv_bi
         Its ``extra["excitation"]`` (the JSON's ``uncertainty.excitation``) holds what the ride had and
         what it needs, whether or not h is identifiable (:func:`excitation_json`).
     """
+    eiv_bias_m, eiv_bias_err_m = systematics.eiv_bias_m, systematics.eiv_bias_err_m
+    filter_floor_m, prior_range_m = systematics.filter_floor_m, systematics.prior_range_m
     h = float(fit.h_m)
     n_rec = [int(c.shape[1]) for c in coefs]
     n = sum(n_rec)

@@ -26,12 +26,17 @@ from typing import Mapping
 import numpy as np
 
 from euc_ros.core.errors import ConfigError
-from euc_ros.core.model.effects import Candidate, FloorGeometry, ModelContext, make_candidates, theta_from_report
+from euc_ros.core.model.candidate import Candidate, ModelContext
+from euc_ros.core.model.effects import FloorGeometry, make_candidates, theta_from_report
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torque_difference, torques
 
 #: Effects that need the recording's geometry (future samples) and are offline only.
 OFFLINE_ONLY = {"mocap_time_offset"}
+
+#: The states :meth:`Model.torques` takes, in the order of :class:`~euc_ros.core.model.effects.ModelContext`.
+SAMPLE_NAMES = ("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot", "phi_ddot", "psi",
+                "psi_dot", "theta")
 
 #: h bounds of the joint fits [m].
 H_BOUNDS = (0.05, 1.6)
@@ -134,14 +139,15 @@ class Model:
         """``3dof`` or ``3dof+<effect>+...`` (the name of the model in ``identify`` and live)."""
         return "+".join(["3dof"] + [c.name for c in self.effects])
 
-    def torques(self, *, t, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot, psi=0.0,
-                psi_dot=0.0, theta=0.0, h=None, extras=None) -> tuple[np.ndarray, np.ndarray]:
+    def torques(self, samples: Mapping[str, object], *, h: float | None = None,
+                extras: Mapping | None = None) -> tuple[np.ndarray, np.ndarray]:
         """M_d1, M_d2 [N m] of the model with its fixed values (:meth:`from_report`) for samples.
 
         Parameters
         ----------
-        t, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot, psi, psi_dot, theta
-            The samples' states (arrays of equal length or scalars) [SI].
+        samples : mapping of str to array_like
+            The samples' states by name, :data:`SAMPLE_NAMES` (arrays of equal length or scalars) [SI];
+            ``psi``, ``psi_dot`` and ``theta`` default to 0.
         h : float, optional
             h to use instead of the fixed one [m].
         extras : dict, optional
@@ -151,11 +157,16 @@ class Model:
         -------
         tuple of ndarray
             M_d1 and M_d2 [N m].
+
+        Raises
+        ------
+        ConfigError
+            A model without fixed values.
         """
         if self.params_ is None or self.x_ is None:
             raise ConfigError("the model has no fixed values: build it with Model.from_report", key="effects")
-        arrays = [np.atleast_1d(np.asarray(v, float)) for v in
-                  (t, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot, psi, psi_dot, theta)]
+        defaults = {"psi": 0.0, "psi_dot": 0.0, "theta": 0.0}
+        arrays = [np.atleast_1d(np.asarray(samples[k] if k in samples else defaults[k], float)) for k in SAMPLE_NAMES]
         n = max(a.shape[0] for a in arrays)
         arrays = [np.broadcast_to(a, (n,)) for a in arrays]
         params = self.params_ if h is None else self.params_.with_h(h)

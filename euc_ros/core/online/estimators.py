@@ -631,11 +631,11 @@ class TorqueEstimator:
         d1 = d2 = np.nan
         if ok and self.model is not None:
             gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot = args
-            m1, m2 = self.model.torques(
+            m1, m2 = self.model.torques(dict(
                 t=(t - self._t0) if np.isfinite(t) else 0.0, x_dot=float(getattr(state, "x_dot", np.nan)),
                 x_ddot=x_ddot, gamma=gamma, gamma_dot=gamma_dot, gamma_ddot=gamma_ddot, phi=phi, phi_dot=phi_dot,
                 phi_ddot=phi_ddot, psi=float(getattr(state, "psi", 0.0)), psi_dot=psi_dot,
-                theta=float(getattr(state, "theta", 0.0)))
+                theta=float(getattr(state, "theta", 0.0))))
             d1, d2 = float(np.squeeze(m1)), float(np.squeeze(m2))
         elif ok and self._scalar_params:
             d1, d2 = torques_one(*args, self.params, extra_Q=extra)

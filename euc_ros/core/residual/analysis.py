@@ -35,7 +35,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from euc_ros.core.model.effects import Candidate, FloorGeometry, MocapTimeOffset, make_candidates, with_plausible
+from euc_ros.core.model.candidate import Candidate
+from euc_ros.core.model.effects import FloorGeometry, MocapTimeOffset, make_candidates, with_plausible
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.discovery import Discovery, GroupSparseDiscovery
 from euc_ros.core.residual.folds import (

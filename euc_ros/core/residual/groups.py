@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 from scipy import stats
 
-from euc_ros.core.model.effects import Candidate, ParamInfo, jacobian_G
+from euc_ros.core.model.candidate import Candidate, ParamInfo, jacobian_G
 from euc_ros.core.model.extended import Model
 from euc_ros.core.residual.families import (
     POINT_UNITS,

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from euc_ros.core.model.effects import Candidate
+from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.folds import Fold

@@ -84,6 +84,61 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
     # U = (C - Q Q'C) V / sv, and U'r = V'C'r / sv (r is already orthogonal to Q); groups of one width are
     # scored together (batched eigh). Q'C and C'r are carried along the beam: a step adds U'C and takes
     # (U'C)'z off C'r.
+    CT, edges, normed, classes = _group_layout(groups, n)
+    kind_ids = {k: i for i, k in enumerate(dict.fromkeys(kinds))}
+    kind_of = np.array([kind_ids[k] for k in kinds], int)
+    extra_a = np.asarray(extra, float)
+
+    # beam of (score, chosen, Q, r, used keys, Q'C, C'r)
+    beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset(), np.zeros((0, CT.shape[0])), CT @ r0)]
+    out = []
+    for step in range(max_groups):
+        grown = {}
+        for _, chosen, Q, r, used, QtC, Ctr in beam:
+            base_df = Q.shape[1] + sum(extra[i] for i in chosen)
+            best_j, best_score = _best_per_kind(classes, keys, kind_of, extra_a, used, QtC, Ctr, float(r @ r),
+                                                (base_df, n, n_eff, n_fixed))
+            for kd, j in best_j.items():
+                key = frozenset(kinds[i] for i in chosen + [j])
+                if key not in grown or best_score[kd] < grown[key][0]:
+                    grown[key] = (best_score[kd], chosen + [j], Q, r, used, QtC, Ctr)
+        if not grown:
+            break
+        best = sorted(grown.values(), key=lambda e: e[0])[:beam_width]
+        if step == max_groups - 1:                  # the last step's directions are not needed
+            out.append(list(best[0][1]))
+            break
+        beam = []
+        new = [_directions(normed[e[1][-1]].T, e[5][:, edges[e[1][-1]]:edges[e[1][-1] + 1]], e[2], e[3])
+               for e in best]
+        # every set's new directions against every column in one pass over the columns
+        CtU = CT @ np.concatenate([U for U, _ in new], axis=1)
+        at = np.concatenate([[0], np.cumsum([U.shape[1] for U, _ in new])]).astype(int)
+        for (sc, ch, Q, r, used, QtC, Ctr), (U, z), a, b in zip(best, new, at[:-1], at[1:]):
+            beam.append((sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]},
+                         np.concatenate([QtC, CtU[:, a:b].T], axis=0), Ctr - CtU[:, a:b] @ z))
+        out.append(list(beam[0][1]))
+    return out
+
+
+def _directions(C: np.ndarray, A: np.ndarray, Q: np.ndarray, r: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A group's new orthonormal directions ``U`` beyond ``Q`` (its columns ``C``, ``A = Q'C``) and ``U'r``."""
+    ev, V = np.linalg.eigh(C.T @ C - A.T @ A)
+    sv = np.sqrt(np.maximum(ev, 0.0))
+    keep = sv >= MIN_NEW_DIRECTION
+    U = ((C - Q @ A) @ V[:, keep]) / sv[keep]
+    return U, U.T @ r
+
+
+def _group_layout(groups, n: int):
+    """The groups' columns as unit-norm rows ``CT`` (P, n), each group's row edges and rows, and the groups by width.
+
+    Returns
+    -------
+    tuple
+        ``(CT, edges, normed, classes)``: ``classes`` holds, per width ``m``, the groups' indices, their rows
+        (J, m) and their Gram blocks (J, m, m).
+    """
     # the columns as rows (P, n): a group's columns are contiguous rows
     if isinstance(groups, tuple):             # (transposed matrix, widths): the groups stacked, the matrix ours
         CT, raw_sizes = np.asarray(groups[0], float), np.asarray(groups[1], int)
@@ -99,71 +154,41 @@ def group_path(r0: np.ndarray, groups: Sequence[np.ndarray], keys: Sequence, max
                       zip(np.concatenate([[0], np.cumsum(raw_sizes)[:-1]]).astype(int), raw_sizes)], int)
     edges = np.concatenate([[0], np.cumsum(sizes)]).astype(int)
     normed = [CT[edges[j]:edges[j + 1]] for j in range(sizes.size)]          # (m, n) each
-    kind_ids = {k: i for i, k in enumerate(dict.fromkeys(kinds))}
-    kind_of = np.array([kind_ids[k] for k in kinds], int)
-    extra_a = np.asarray(extra, float)
     classes = []
     for m in sorted(set(sizes.tolist()) - {0}):
         js = np.flatnonzero(sizes == m)
         cols = np.concatenate([np.arange(edges[j], edges[j + 1]) for j in js]).reshape(js.size, m)
         classes.append((js, cols, np.stack([normed[j] @ normed[j].T for j in js])))
+    return CT, edges, normed, classes
 
-    def directions(j, Q, QtC, r):
-        C = normed[j].T
-        A = QtC[:, edges[j]:edges[j + 1]]
-        ev, V = np.linalg.eigh(C.T @ C - A.T @ A)
+
+def _best_per_kind(classes, keys, kind_of: np.ndarray, extra_a: np.ndarray, used, QtC: np.ndarray,
+                   Ctr: np.ndarray, rss: float, counts: tuple) -> tuple[dict, dict]:
+    """Per family (kind), the group that grows a beam set best and its criterion (:func:`group_path`).
+
+    ``counts`` is ``(the set's degrees of freedom, n, n_eff, n_fixed)``.
+    """
+    base_df, n, n_eff, n_fixed = counts
+    best_j, best_score = {}, {}
+    for js, cols, grams in classes:
+        ok = np.array([keys[j] not in used for j in js], bool)
+        if not ok.any():
+            continue
+        js, cols, grams = js[ok], cols[ok], grams[ok]
+        A = QtC[:, cols].transpose(1, 0, 2)                          # (J, q, m)
+        ev, V = np.linalg.eigh(grams - np.einsum("jqm,jqk->jmk", A, A))
         sv = np.sqrt(np.maximum(ev, 0.0))
         keep = sv >= MIN_NEW_DIRECTION
-        U = ((C - Q @ A) @ V[:, keep]) / sv[keep]
-        return U, U.T @ r
-
-    # beam of (score, chosen, Q, r, used keys, Q'C, C'r)
-    beam = [(0.0, [], np.zeros((n, 0)), r0.copy(), frozenset(), np.zeros((0, CT.shape[0])), CT @ r0)]
-    out = []
-    for step in range(max_groups):
-        grown = {}
-        for _, chosen, Q, r, used, QtC, Ctr in beam:
-            rss = float(r @ r)
-            base_df = Q.shape[1] + sum(extra[i] for i in chosen)
-            best_j, best_score = {}, {}
-            for js, cols, grams in classes:
-                ok = np.array([keys[j] not in used for j in js], bool)
-                if not ok.any():
-                    continue
-                js, cols, grams = js[ok], cols[ok], grams[ok]
-                A = QtC[:, cols].transpose(1, 0, 2)                          # (J, q, m)
-                ev, V = np.linalg.eigh(grams - np.einsum("jqm,jqk->jmk", A, A))
-                sv = np.sqrt(np.maximum(ev, 0.0))
-                keep = sv >= MIN_NEW_DIRECTION
-                proj = np.einsum("jmk,jm->jk", V, Ctr[cols]) / np.where(keep, sv, 1.0)
-                zz = np.sum(np.where(keep, proj * proj, 0.0), axis=1)
-                df = base_df + keep.sum(axis=1) + extra_a[js]
-                valid = keep.any(axis=1) & (n - df - n_fixed > 0)
-                score = n_eff * np.log(np.maximum(rss - zz, 1e-300) / n) + df * np.log(n_eff)
-                for i in np.flatnonzero(valid):
-                    kd = int(kind_of[js[i]])
-                    if kd not in best_score or score[i] < best_score[kd]:
-                        best_score[kd], best_j[kd] = float(score[i]), int(js[i])
-            for kd, j in best_j.items():
-                key = frozenset(kinds[i] for i in chosen + [j])
-                if key not in grown or best_score[kd] < grown[key][0]:
-                    grown[key] = (best_score[kd], chosen + [j], Q, r, used, QtC, Ctr)
-        if not grown:
-            break
-        best = sorted(grown.values(), key=lambda e: e[0])[:beam_width]
-        if step == max_groups - 1:                  # the last step's directions are not needed
-            out.append(list(best[0][1]))
-            break
-        beam = []
-        new = [directions(e[1][-1], e[2], e[5], e[3]) for e in best]
-        # every set's new directions against every column in one pass over the columns
-        CtU = CT @ np.concatenate([U for U, _ in new], axis=1)
-        at = np.concatenate([[0], np.cumsum([U.shape[1] for U, _ in new])]).astype(int)
-        for (sc, ch, Q, r, used, QtC, Ctr), (U, z), a, b in zip(best, new, at[:-1], at[1:]):
-            beam.append((sc, ch, np.concatenate([Q, U], axis=1), r - U @ z, used | {keys[ch[-1]]},
-                         np.concatenate([QtC, CtU[:, a:b].T], axis=0), Ctr - CtU[:, a:b] @ z))
-        out.append(list(beam[0][1]))
-    return out
+        proj = np.einsum("jmk,jm->jk", V, Ctr[cols]) / np.where(keep, sv, 1.0)
+        zz = np.sum(np.where(keep, proj * proj, 0.0), axis=1)
+        df = base_df + keep.sum(axis=1) + extra_a[js]
+        valid = keep.any(axis=1) & (n - df - n_fixed > 0)
+        score = n_eff * np.log(np.maximum(rss - zz, 1e-300) / n) + df * np.log(n_eff)
+        for i in np.flatnonzero(valid):
+            kd = int(kind_of[js[i]])
+            if kd not in best_score or score[i] < best_score[kd]:
+                best_score[kd], best_j[kd] = float(score[i]), int(js[i])
+    return best_j, best_score
 
 
 #: Relative difference of two columns' remaining norms below which :func:`independent_columns` takes them as

@@ -16,7 +16,7 @@ from typing import Sequence
 import numpy as np
 from scipy import optimize, stats
 
-from euc_ros.core.model.effects import Candidate
+from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams, bias_terms, consistency_weights, gravity_forces, mass_matrix
 from euc_ros.core.residual.folds import folds_of

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from euc_ros.core.model.effects import Candidate
+from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.residual.records import Journal, LastStep, Screening, Selection, Setup, Stage, Trial
 from euc_ros.core.residual.result import CandidateResult
 from euc_ros.core.residual.selection import (

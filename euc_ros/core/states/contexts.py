@@ -15,7 +15,7 @@ from typing import Callable, Sequence
 import numpy as np
 
 from euc_ros.core.filters.derivatives import savgol_coefficients, savgol_derivatives
-from euc_ros.core.model.effects import ModelContext
+from euc_ros.core.model.candidate import ModelContext
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.states.floor import FloorFit, slope_along_path
 from euc_ros.core.states.geometry import to_moving_frame

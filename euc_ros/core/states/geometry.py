@@ -187,28 +187,51 @@ def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str 
             and quat.shape == (len(bodies), 4):
         return _one_frame_geometry(position, quat, tracked, session, bodies)
     tracked = None if tracked is None else np.asarray(tracked, dtype=bool)
+    has_euc, E, C, A, psi, theta, gamma = _euc_geometry(position, quat, tracked, session, bodies)
+    G, has_rider = _segments_cog(position, quat, tracked, session, bodies)
+    n_faults = np.zeros(shape, dtype=int)
+    if cog_method == "skeleton":
+        G, has_rider, n_faults, extra = _skeleton_geometry_cog(position, quat, tracked, session, bodies, skeleton,
+                                                               fault_threshold_m)
+    else:
+        extra = {}
 
-    def usable(i: int) -> np.ndarray:
-        ok = np.isfinite(position[i]).all(-1) & np.isfinite(quat[i]).all(-1)
-        return ok if tracked is None else ok & tracked[i]
+    r_CG = to_moving_frame(G - C, psi, theta)
+    r_AG = to_moving_frame(G - A, psi, theta)
+    return {
+        "E": E, "C": C, "A": A, "G": G, "r_CG": r_CG, "r_AG": r_AG,
+        "psi": psi, "theta": theta, "gamma": gamma,
+        "phi_eq3": np.arctan2(r_CG[..., 0], r_CG[..., 2]),
+        "phi_hinge": np.arctan2(r_AG[..., 0], r_AG[..., 2]),
+        "has_euc": has_euc, "has_rider": has_rider, "n_faults": n_faults, **extra,
+    }
 
-    nan3 = np.full(shape + (3,), np.nan)
 
+def _euc_geometry(position: np.ndarray, quat: np.ndarray, tracked, session, bodies: list) -> tuple:
+    """:func:`frame_geometry`'s EUC part: ``(has_euc, E, C, A, psi, theta, gamma)`` (NaN where E is not usable)."""
+    shape = position.shape[1:-1]
     euc = session.euc
     if euc.body in bodies:
         i = bodies.index(euc.body)
-        has_euc = usable(i)
+        has_euc = np.isfinite(position[i]).all(-1) & np.isfinite(quat[i]).all(-1)
+        if tracked is not None:
+            has_euc = has_euc & tracked[i]
         E = np.where(has_euc[..., None], position[i], np.nan)
         qE = np.where(has_euc[..., None], quat[i], np.nan)
     else:
         has_euc = np.zeros(shape, dtype=bool)
-        E, qE = nan3.copy(), np.full(shape + (4,), np.nan)
+        E, qE = np.full(shape + (3,), np.nan), np.full(shape + (4,), np.nan)
     R_E = rotation_matrices(qE)
     ang = yaw_tilt_pitch_from_quat(qE)
     psi, theta, gamma = ang[..., 0], ang[..., 1], ang[..., 2]
     C = E + R_E @ np.asarray(euc.pivot_to_wheel_center, dtype=float)
     A = C - euc.l0 * R_E[..., :, 2]
+    return has_euc, E, C, A, psi, theta, gamma
 
+
+def _segments_cog(position: np.ndarray, quat: np.ndarray, tracked, session, bodies: list) -> tuple:
+    """:func:`frame_geometry`'s ``segments`` G: ``(G, has_rider)`` (G NaN where a weighted segment is not usable)."""
+    shape = position.shape[1:-1]
     names, fractions, offsets = session.segment_arrays()
     # every weighted segment at once: (k, ..., 3) CoMs, weighted and summed over k
     weighted = [(name, frac, off) for name, frac, off in zip(names, fractions, offsets) if frac > 0.0]
@@ -228,31 +251,23 @@ def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str 
         G = np.where(ok_k[..., None], w * com, 0.0).sum(axis=0)
         has_rider &= ok_k.all(axis=0)
     G = np.where(has_rider[..., None], G / fractions[fractions > 0].sum(), np.nan)
-    n_faults = np.zeros(shape, dtype=int)
-    if cog_method == "skeleton":
-        if skeleton is None:
-            skeleton = SkeletonModel.from_poses([position.reshape(len(bodies), -1, 3)],
-                                                [quat.reshape(len(bodies), -1, 4)],
-                                                [None if tracked is None else tracked.reshape(len(bodies), -1)],
-                                                bodies, session)
-        sk = skeleton_cog(position, quat, tracked, session, bodies, skeleton, threshold_m=fault_threshold_m)
-        G, has_rider, n_faults = sk["G"], sk["has_rider"], sk["n_faults"]
-        per_body = sk["faults"].reshape(len(skeleton.bodies), -1).sum(axis=1)
-        linked = {b for link in skeleton.links for b in link}
-        extra = {"cog_fault_bodies": {nm: int(c) for nm, c in zip(skeleton.bodies, per_body) if c},
-                 "cog_unlinked_bodies": [nm for nm in skeleton.bodies if nm not in linked]}
-    else:
-        extra = {}
+    return G, has_rider
 
-    r_CG = to_moving_frame(G - C, psi, theta)
-    r_AG = to_moving_frame(G - A, psi, theta)
-    return {
-        "E": E, "C": C, "A": A, "G": G, "r_CG": r_CG, "r_AG": r_AG,
-        "psi": psi, "theta": theta, "gamma": gamma,
-        "phi_eq3": np.arctan2(r_CG[..., 0], r_CG[..., 2]),
-        "phi_hinge": np.arctan2(r_AG[..., 0], r_AG[..., 2]),
-        "has_euc": has_euc, "has_rider": has_rider, "n_faults": n_faults, **extra,
-    }
+
+def _skeleton_geometry_cog(position: np.ndarray, quat: np.ndarray, tracked, session, bodies: list,
+                           skeleton: SkeletonModel | None, fault_threshold_m) -> tuple:
+    """:func:`frame_geometry`'s ``skeleton`` G: ``(G, has_rider, n_faults, extra)`` (``extra``: the fault counts)."""
+    if skeleton is None:
+        skeleton = SkeletonModel.from_poses([position.reshape(len(bodies), -1, 3)],
+                                            [quat.reshape(len(bodies), -1, 4)],
+                                            [None if tracked is None else tracked.reshape(len(bodies), -1)],
+                                            bodies, session)
+    sk = skeleton_cog(position, quat, tracked, session, bodies, skeleton, threshold_m=fault_threshold_m)
+    per_body = sk["faults"].reshape(len(skeleton.bodies), -1).sum(axis=1)
+    linked = {b for link in skeleton.links for b in link}
+    extra = {"cog_fault_bodies": {nm: int(c) for nm, c in zip(skeleton.bodies, per_body) if c},
+             "cog_unlinked_bodies": [nm for nm in skeleton.bodies if nm not in linked]}
+    return sk["G"], sk["has_rider"], sk["n_faults"], extra
 
 
 def _one_frame_geometry(position: np.ndarray, quat: np.ndarray, tracked, session, bodies: list) -> dict:

@@ -44,20 +44,7 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
         ``bodies`` (rider bodies), ``rms_m`` (per body), ``rms_max_m``, ``spectrum`` (frequencies [Hz],
         power normalised to sum 1) for :func:`sliding_bias`.
     """
-    if skeleton is not None:
-        names, euc_body = list(skeleton.bodies), skeleton.euc_body
-        links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
-    else:
-        # the chain's links as SkeletonModel.estimate defines them (vector: the median of R_a^T (p_b - p_a)
-        # over every recording's usable frames; threshold: median + fault_sigmas robust standard deviations of
-        # the distance to it, at least fault_floor_m), made here link by link from the same deviations the
-        # sliding is measured on, without the chain's relative rotations (the sliding does not use them)
-        names_, _, _ = session.segment_arrays()
-        names, euc_body = list(names_), session.euc.body
-        known = set(names) | {euc_body}
-        links = [(a, b, None, None) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
-        if not links:
-            raise ConfigError("no chain link between the session's bodies", key="cog_method")
+    names, euc_body, links = _chain_links(session, skeleton)
     config = SkeletonFitConfig()
     chain = names + [euc_body]
     m = len(names)
@@ -71,26 +58,10 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
         devs = [link_deviation(s, a, b, np.zeros(3) if vector is None else vector, usable=ok)
                 for s, ok in zip(series_list, usable)]
         if vector is None:
-            seen_both = [d[both] for d, both in devs]       # each recording's frames where both are usable
-            v = seen_both[0] if len(seen_both) == 1 else np.concatenate(seen_both)
-            if v.shape[0] == 0:
+            fit = _fit_link(devs, config)
+            if fit is None:
                 continue                                # links never seen together are left out
-            vector = median(np.ascontiguousarray(v.T), axis=1)       # per component, over contiguous memory
-            del v
-            for d, _ in devs:
-                d -= vector                                 # in place: no second copy of the deviations
-            # the distances to the vector over the frames where both bodies are usable, kept per recording
-            # (numpy's norm over the three components, written out: the same sums in the same order)
-            dist = []
-            for sb in seen_both:
-                sb -= vector
-                dist.append(np.sqrt((sb[:, 0] * sb[:, 0] + sb[:, 1] * sb[:, 1]) + sb[:, 2] * sb[:, 2]))
-            del seen_both
-            e = np.concatenate(dist)
-            med = float(median(e))
-            mad = float(median(np.abs(e - med)))
-            threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
-            del e
+            threshold, dist = fit
         else:
             dist = [None] * len(devs)
         seen += 1
@@ -106,30 +77,14 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
                 good[both] = near <= threshold
             if good.sum() < 16:
                 continue
-            dg = d[good]
-            centre = dg.mean(0)
-            dg -= centre
-            total = float(np.mean(np.sum(dg ** 2, 1)))
-            del dg
-            trip = good[3:] & good[2:-1] & good[1:-2] & good[:-3]
-            # components as rows: the medians select over contiguous memory (the same order statistics)
-            d3 = np.diff(d.T, n=3, axis=1)[:, trip]
-            white = float(np.sum((1.4826 * median(np.abs(d3 - median(d3, 1, keepdims=True)), 1)) ** 2)
-                          / 20.0) if d3.shape[1] >= 10 else 0.0
-            del d3
+            centre, total, white = _deviation_variances(d, good)
             row = np.zeros(m)
             for i in (ia, ib):
                 if i < m:
                     row[i] = 1.0
             rows.append(row)
             vals.append(max(total - white, 0.0))
-            # the components as contiguous rows: each one's transform over contiguous memory (the same numbers),
-            # their powers summed in the order numpy's sum over the short axis takes
-            x = np.where(good, np.ascontiguousarray((d - centre).T), 0.0)
-            a = np.abs(np.fft.rfft(x, axis=1)) ** 2
-            del x
-            p = (a[0] + a[1]) + a[2]
-            del a
+            p = _deviation_power(d, good, centre)
             f = freqs.get(id(s))
             if f is None:
                 f = freqs[id(s)] = np.fft.rfftfreq(n, 1.0 / s.rate_hz)
@@ -152,6 +107,83 @@ def estimate_sliding(series_list, session, skeleton=None, usable: list | None = 
     rms = np.sqrt(q)
     return {"bodies": list(names), "rms_m": [float(v) for v in rms], "rms_max_m": float(rms.max()),
             "spectrum": spectrum}
+
+
+def _chain_links(session, skeleton) -> tuple[list, str, list]:
+    """The rider's bodies, E's body and the chain's links ``(a, b, vector, threshold)`` for :func:`estimate_sliding`.
+
+    From ``skeleton`` when given; else the chain's links as SkeletonModel.estimate defines them, with the vector
+    and threshold None (made by :func:`_fit_link`).
+    """
+    if skeleton is not None:
+        names, euc_body = list(skeleton.bodies), skeleton.euc_body
+        links = [(a, b, v, t) for (a, b), v, t in zip(skeleton.links, skeleton.vectors, skeleton.threshold_m)]
+    else:
+        # the chain's links as SkeletonModel.estimate defines them (vector: the median of R_a^T (p_b - p_a)
+        # over every recording's usable frames; threshold: median + fault_sigmas robust standard deviations of
+        # the distance to it, at least fault_floor_m), made here link by link from the same deviations the
+        # sliding is measured on, without the chain's relative rotations (the sliding does not use them)
+        names_, _, _ = session.segment_arrays()
+        names, euc_body = list(names_), session.euc.body
+        known = set(names) | {euc_body}
+        links = [(a, b, None, None) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
+        if not links:
+            raise ConfigError("no chain link between the session's bodies", key="cog_method")
+    return names, euc_body, links
+
+
+def _fit_link(devs: list, config: SkeletonFitConfig):
+    """A link's vector and fault threshold from its deviations (taken off them in place).
+
+    ``devs``: per recording, ``(deviation from a zero vector, both bodies usable)``. Returns
+    ``(threshold, dist)`` (``dist``: per recording, the distances to the vector over the frames where both
+    bodies are usable), or None when the link is never seen with both.
+    """
+    seen_both = [d[both] for d, both in devs]       # each recording's frames where both are usable
+    v = seen_both[0] if len(seen_both) == 1 else np.concatenate(seen_both)
+    if v.shape[0] == 0:
+        return None
+    vector = median(np.ascontiguousarray(v.T), axis=1)       # per component, over contiguous memory
+    del v
+    for d, _ in devs:
+        d -= vector                                 # in place: no second copy of the deviations
+    # the distances to the vector over the frames where both bodies are usable, kept per recording
+    # (numpy's norm over the three components, written out: the same sums in the same order)
+    dist = []
+    for sb in seen_both:
+        sb -= vector
+        dist.append(np.sqrt((sb[:, 0] * sb[:, 0] + sb[:, 1] * sb[:, 1]) + sb[:, 2] * sb[:, 2]))
+    del seen_both
+    e = np.concatenate(dist)
+    med = float(median(e))
+    mad = float(median(np.abs(e - med)))
+    threshold = max(config.fault_floor_m, med + config.fault_sigmas * 1.4826 * mad)
+    return threshold, dist
+
+
+def _deviation_variances(d: np.ndarray, good: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """A link deviation's mean over the ``good`` frames, its total variance there and that variance's white part."""
+    dg = d[good]
+    centre = dg.mean(0)
+    dg -= centre
+    total = float(np.mean(np.sum(dg ** 2, 1)))
+    del dg
+    trip = good[3:] & good[2:-1] & good[1:-2] & good[:-3]
+    # components as rows: the medians select over contiguous memory (the same order statistics)
+    d3 = np.diff(d.T, n=3, axis=1)[:, trip]
+    white = float(np.sum((1.4826 * median(np.abs(d3 - median(d3, 1, keepdims=True)), 1)) ** 2)
+                  / 20.0) if d3.shape[1] >= 10 else 0.0
+    return centre, total, white
+
+
+def _deviation_power(d: np.ndarray, good: np.ndarray, centre: np.ndarray) -> np.ndarray:
+    """The centred deviation's power spectrum (zero off the ``good`` frames), summed over its three components."""
+    # the components as contiguous rows: each one's transform over contiguous memory (the same numbers),
+    # their powers summed in the order numpy's sum over the short axis takes
+    x = np.where(good, np.ascontiguousarray((d - centre).T), 0.0)
+    a = np.abs(np.fft.rfft(x, axis=1)) ** 2
+    del x
+    return (a[0] + a[1]) + a[2]
 
 
 def sliding_or_none(series_list, session, usable: list | None = None) -> dict | None:

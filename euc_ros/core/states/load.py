@@ -90,20 +90,7 @@ def load_states(session, paths: Sequence, settings: ReconstructionSettings | Non
         return other is not None
 
     if auto:
-        # every recording is read before the filter is chosen from all of them
-        from euc_ros.core.states.filter_choice import choose_filter
-
-        bar = [(path, load_recording(path, session.world_up)) for path in bar]
-        bar = [(path, series) for path, series in bar if not twice(path, series)]
-        try:
-            choice = choose_filter([s for _, s in bar], session, phi_definition=phi_definition)
-        except InputError:
-            # a recording's own fault (a missing body, nothing tracked) is named by its reconstruction
-            for path, series in bar:
-                check_recording(series, session, path)
-                reconstruct_states(series, session, phi_definition=phi_definition, cog_method=cog_method,
-                                   skeleton=skeleton)
-            raise
+        bar, choice = _read_and_choose_filter(session, bar, twice, settings, skeleton)
         window_s, polyorder = choice.window_s, choice.polyorder
     for item in bar:
         path, series = item if auto else (item, load_recording(item, session.world_up))
@@ -117,33 +104,67 @@ def load_states(session, paths: Sequence, settings: ReconstructionSettings | Non
             # is left out and said; with nothing usable in any, the run is refused
             unusable.append((path, unusable_why(st, series)))
             continue
-        st.name = st.name or Path(path).stem
-        if choice is not None:
-            st.meta["filter"] = choice
-        if keep_series:
-            # kept for the interval and the noise floor, which use the poses only: the marker errors
-            # (an eighth of the recording's bytes at 14 bodies) are dropped for the rest of the run
-            series.mean_marker_error = np.broadcast_to(np.float64(np.nan), series.tracked.shape)
-            st.meta["series"] = series
-        used = samples_used(st)
-        st.meta["samples"] = used
-        if used["samples_used_fraction"] < LOW_USE_FRACTION:
-            warnings.append(f"only {used['samples_used']} of {used['frames']} frames "
-                            f"({100 * used['samples_used_fraction']:.0f} %) give usable states (bodies lost for "
-                            f"more than max_gap frames, or stretches shorter than the filter window)")
-        st.meta.setdefault("warnings", []).extend(warnings)
+        _annotate_state(st, path, series, warnings, choice, keep_series)
         states.append(st)
     if not states:
         raise InputError(unusable[0][1], path=unusable[0][0])
     states[0].meta["skipped"] = [(Path(path).stem, why) for path, why in twins + unusable]
+    _make_names_unique(states)
+    release_free_memory()           # the readers' and the reconstruction's temporaries
+    return states
+
+
+def _read_and_choose_filter(session, paths, twice: Callable, settings: ReconstructionSettings, skeleton):
+    """Read every recording (the takes given twice left out), then choose the filter from all of them.
+
+    Returns ``(pairs, choice)``: the ``(path, series)`` kept and the
+    :class:`~euc_ros.core.states.filter_choice.FilterChoice`.
+    """
+    from euc_ros.core.states.filter_choice import choose_filter
+    from euc_ros.core.states.kinematics import reconstruct_states
+
+    phi_definition, cog_method = settings.phi_definition, settings.cog_method
+    pairs = [(path, load_recording(path, session.world_up)) for path in paths]
+    pairs = [(path, series) for path, series in pairs if not twice(path, series)]
+    try:
+        choice = choose_filter([s for _, s in pairs], session, phi_definition=phi_definition)
+    except InputError:
+        # a recording's own fault (a missing body, nothing tracked) is named by its reconstruction
+        for path, series in pairs:
+            check_recording(series, session, path)
+            reconstruct_states(series, session, phi_definition=phi_definition, cog_method=cog_method,
+                               skeleton=skeleton)
+        raise
+    return pairs, choice
+
+
+def _annotate_state(st, path, series, warnings: list, choice, keep_series: bool) -> None:
+    """Name a usable recording's states; keep in its ``meta`` the filter, the poses, the samples used, the warnings."""
+    st.name = st.name or Path(path).stem
+    if choice is not None:
+        st.meta["filter"] = choice
+    if keep_series:
+        # kept for the interval and the noise floor, which use the poses only: the marker errors
+        # (an eighth of the recording's bytes at 14 bodies) are dropped for the rest of the run
+        series.mean_marker_error = np.broadcast_to(np.float64(np.nan), series.tracked.shape)
+        st.meta["series"] = series
+    used = samples_used(st)
+    st.meta["samples"] = used
+    if used["samples_used_fraction"] < LOW_USE_FRACTION:
+        warnings.append(f"only {used['samples_used']} of {used['frames']} frames "
+                        f"({100 * used['samples_used_fraction']:.0f} %) give usable states (bodies lost for "
+                        f"more than max_gap frames, or stretches shorter than the filter window)")
+    st.meta.setdefault("warnings", []).extend(warnings)
+
+
+def _make_names_unique(states: list) -> None:
+    """Number repeated names (``name#2``, ...) for the report."""
     seen: dict[str, int] = {}
-    for st in states:  # unique names for the report
+    for st in states:
         k = seen.get(st.name, 0)
         seen[st.name] = k + 1
         if k:
             st.name = f"{st.name}#{k + 1}"
-    release_free_memory()           # the readers' and the reconstruction's temporaries
-    return states
 
 
 def unusable_why(st, series) -> str:

@@ -267,6 +267,20 @@ def derive_lagrange(with_mass: bool = True) -> DerivedModel:
     f_wdot = sm.lambdify(base + list(qd) + list(qdd), list(wdot_s), "numpy", cse=True)
 
     state_names = STATE_NAMES if with_mass else WHEEL_STATE_NAMES
+    rhs = _lagrange_rhs(names, state_names, with_mass, (f_qd, f_M, f_rhs, f_A, f_Ad, f_wdot))
+    return DerivedModel("lagrange", state_names,
+                        {"mass_matrix": M, "forcing": rhs_q, "constraints": Acon, "qdot": qd_expr}, rhs)
+
+
+def _lagrange_rhs(names: list, state_names: tuple, with_mass: bool, fns: tuple) -> Callable:
+    """The numeric right-hand side of :func:`derive_lagrange` from its lambdified functions.
+
+    ``fns``: ``(f_qd, f_M, f_rhs, f_A, f_Ad, f_wdot)``, the coordinate rates from the pseudo velocities, the
+    mass matrix, the forcing, the constraint matrix, its time derivative times ``q_dot``, and the pseudo
+    accelerations; each takes the coordinates ``names``, the parameters (and the rates, accelerations).
+    """
+    f_qd, f_M, f_rhs, f_A, f_Ad, f_wdot = fns
+    nq = len(names)
     idx = {n: i for i, n in enumerate(state_names)}
 
     def rhs(X, U, p: UnicycleParams):
@@ -298,5 +312,4 @@ def derive_lagrange(with_mass: bool = True) -> DerivedModel:
         out[-4:] = [qd_of["psi"], qd_of["phi"], qd_of["x_G"], qd_of["y_G"]]
         return out
 
-    return DerivedModel("lagrange", state_names,
-                        {"mass_matrix": M, "forcing": rhs_q, "constraints": Acon, "qdot": qd_expr}, rhs)
+    return rhs

@@ -12,9 +12,8 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from euc_ros.cli import plots
-from euc_ros.cli.main import main
-from euc_ros.cli.residual_figures import (
+from euc_ros.cli import figures
+from euc_ros.cli.figures import (
     STATUS_COLOURS,
     candidate_rows,
     draw_candidates,
@@ -22,6 +21,7 @@ from euc_ros.cli.residual_figures import (
     draw_residual_time,
     h_status,
 )
+from euc_ros.cli.main import main
 
 pypdf = pytest.importorskip("pypdf", reason="pypdf (requirements.txt) checks that the PDFs open")
 
@@ -43,7 +43,7 @@ def rolling(tmp_path_factory):
 def strict(monkeypatch):
     monkeypatch.setenv("EUC_ROS_STRICT_FIGURES", "1")    # any layout problem fails the command
     yield
-    plots.configure()
+    figures.configure()
 
 
 def _check_outputs(folder, stems, formats):
@@ -90,13 +90,13 @@ def test_identify_rmse_curves_show_the_interval(rolling, tmp_path, strict):
 
 
 def test_the_checks_catch_what_they_claim(strict):
-    plt = plots.pyplot()
+    plt = figures.pyplot()
     fig, (a, b) = plt.subplots(1, 2, figsize=(4, 3))
     x = np.linspace(0, 1, 50)
     a.plot(x, x, label="a very long legend label that sits right on the data")
     a.legend(loc="center")                        # over the line
     fig.text(0.95, 0.5, "a label running off the canvas edge")
-    problems = plots.figure_problems(fig)          # b is empty
+    problems = figures.figure_problems(fig)          # b is empty
     assert any("legend" in p for p in problems)
     assert any("empty" in p for p in problems)
     assert any("cut by the canvas edge" in p for p in problems)
@@ -166,7 +166,7 @@ def _fig_texts(fig) -> list[str]:
 
 def _spans(ax) -> np.ndarray:
     """The spans [x0, x1] of the gap shading of ``ax`` ((0, 2) without)."""
-    colls = [c for c in ax.collections if c.get_gid() == plots.GAP_GID]
+    colls = [c for c in ax.collections if c.get_gid() == figures.GAP_GID]
     if not colls:
         return np.zeros((0, 2))
     paths = [p.vertices for c in colls for p in c.get_paths()]
@@ -252,13 +252,13 @@ def test_save_figure_writes_truetype_fonts_and_svg_text(tmp_path, strict):
     SVG keeps its text as ``<text>`` elements."""
     import matplotlib
 
-    plots.configure(("pdf", "svg"), strict=True)
-    plt = plots.pyplot()
+    figures.configure(("pdf", "svg"), strict=True)
+    plt = figures.pyplot()
     with matplotlib.rc_context({"pdf.fonttype": 3, "svg.fonttype": "path"}):
         fig, ax = plt.subplots(figsize=(4, 3))
         ax.plot([0, 1], [0, 1])
         ax.set_xlabel(r"$\vartheta$ [deg]")
-        plots.save_figure(fig, tmp_path / "f.png", title="a title kept as text")
+        figures.save_figure(fig, tmp_path / "f.png", title="a title kept as text")
     _assert_truetype_pdf(tmp_path / "f.pdf")
     texts = _svg_texts(tmp_path / "f.svg")
     assert "a title kept as text" in texts
@@ -272,11 +272,11 @@ def gappy_identify(gappy, tmp_path_factory):
     session, csvs = gappy
     out = tmp_path_factory.mktemp("gappy_id")
     try:
-        plots.configure(strict=True)
+        figures.configure(strict=True)
         assert main(["identify", str(session), *map(str, csvs), "--json", str(out / "h.json"), "--plots",
                      str(out / "fig"), "--plot-format", "pdf,svg", "--no-progress"]) == 0
     finally:
-        plots.configure()
+        figures.configure()
     return out / "fig", json.loads((out / "h.json").read_text())
 
 
@@ -303,10 +303,10 @@ def test_identify_titles_give_an_unidentifiable_h_as_a_best_fit(gappy, gappy_ide
 
 
 def test_h_text_states_the_status():
-    assert plots.h_text(0.6667, True) == "h = 0.667 m"
-    assert plots.h_text(0.6667, False) == "h not identifiable (best fit 0.667 m, not for use)"
-    assert plots.h_text(0.6667, None) == "h = 0.667 m (identifiability not assessed)"
-    assert plots.h_text(float("nan"), True) == "h not determined"
+    assert figures.h_text(0.6667, True) == "h = 0.667 m"
+    assert figures.h_text(0.6667, False) == "h not identifiable (best fit 0.667 m, not for use)"
+    assert figures.h_text(0.6667, None) == "h = 0.667 m (identifiability not assessed)"
+    assert figures.h_text(float("nan"), True) == "h not determined"
 
 
 def test_gap_spans_cover_invalid_samples_and_missing_frames():
@@ -316,10 +316,10 @@ def test_gap_spans_cover_invalid_samples_and_missing_frames():
     valid[:2] = False                             # the filter's start
     valid[5:8] = False                            # an occlusion
     valid[-1] = False                             # the filter's end
-    spans = plots.gap_spans(t, valid)
+    spans = figures.gap_spans(t, valid)
     np.testing.assert_allclose(spans, [[0.0, 0.2], [0.4, 0.8], [1.1, 1.4], [1.8, 1.9]], atol=1e-12)
-    assert plots.gap_spans(t, np.ones(t.size, bool)).shape == (1, 2)      # only the missing frames
-    assert plots.gap_spans(t, np.zeros(t.size, bool)).tolist() == [[0.0, t[-1]]]
+    assert figures.gap_spans(t, np.ones(t.size, bool)).shape == (1, 2)      # only the missing frames
+    assert figures.gap_spans(t, np.zeros(t.size, bool)).tolist() == [[0.0, t[-1]]]
 
 
 def test_ride_states_shade_the_occlusion_gaps(gappy, strict):
@@ -330,7 +330,7 @@ def test_ride_states_shade_the_occlusion_gaps(gappy, strict):
     session, csvs = gappy
     st = load_states(load_session(session), csvs, ReconstructionSettings(window_s=0.2, polyorder=3))[0]
     nan = np.full(st.t.size, np.nan)
-    fig = plots.draw_ride_states([st], [(np.where(st.valid, 1.0, nan), np.where(st.valid, 1.1, nan))])
+    fig = figures.draw_ride_states([st], [(np.where(st.valid, 1.0, nan), np.where(st.valid, 1.1, nan))])
     t = st.t - st.t[0]
     interior = ~st.valid & (t > t[st.valid][0]) & (t < t[st.valid][-1])
     assert interior.any()                         # the ride has gaps between usable stretches
@@ -340,9 +340,9 @@ def test_ride_states_shade_the_occlusion_gaps(gappy, strict):
         assert _inside(t[~st.valid], spans, strict=False).all()      # every unusable sample is shaded
         assert not _inside(t[st.valid], spans, strict=True).any()    # no usable one is
     handles, labels = fig.axes[-1].get_legend_handles_labels()
-    assert plots.GAP_LABEL in labels
-    assert not plots.figure_problems(fig)
-    plots.pyplot().close(fig)
+    assert figures.GAP_LABEL in labels
+    assert not figures.figure_problems(fig)
+    figures.pyplot().close(fig)
 
 
 # ---- residual: candidates, h range, gaps, the h with its status ---------------------------------------------------
@@ -379,8 +379,8 @@ def test_candidates_figure_shows_the_refusals(strict):
         assert cells[i, 1].get_text().get_text() == status
         np.testing.assert_allclose(cells[i, 0].get_facecolor()[:3], _rgb(STATUS_COLOURS[status]))
     assert STATUS_COLOURS["refused"] != STATUS_COLOURS["selected"]
-    assert not plots.figure_problems(fig)
-    plots.pyplot().close(fig)
+    assert not figures.figure_problems(fig)
+    figures.pyplot().close(fig)
 
 
 def _rgb(colour):
@@ -414,8 +414,8 @@ def test_h_range_draws_the_intervals_as_bars(strict):
     title = ax.get_title()
     assert "base 3-DoF model: h not identifiable (best fit 0.653 m, not for use)" in title
     assert "final model: h = 0.600 m" in title
-    assert not plots.figure_problems(fig)
-    plots.pyplot().close(fig)
+    assert not figures.figure_problems(fig)
+    figures.pyplot().close(fig)
 
 
 def test_h_range_draws_an_open_end_as_an_arrow(strict):
@@ -431,8 +431,8 @@ def test_h_range_draws_an_open_end_as_an_arrow(strict):
     assert sorted((a.xy[0], a.xy[1]) for a in arrows) == [(0.0, final), (1.0, base)]
     assert not any(re.search(r"None|inf|nan", t) for t in _fig_texts(fig))
     assert "final model: h not identifiable (best fit 0.600 m, not for use)" in ax.get_title()
-    assert not plots.figure_problems(fig)
-    plots.pyplot().close(fig)
+    assert not figures.figure_problems(fig)
+    figures.pyplot().close(fig)
 
 
 def test_h_status_follows_the_document():
@@ -449,7 +449,7 @@ def test_residual_time_shades_gaps_and_states_the_h(rolling_run, strict):
                                    (True, f"h = {result.h_base:.3f} m")):
         fig = draw_residual_time(result, recs, states, {**data, "identifiable": identifiable})
         labels = fig.axes[0].get_legend_handles_labels()[1]
-        assert f"3-DoF, {expected}" in labels and plots.GAP_LABEL in labels
+        assert f"3-DoF, {expected}" in labels and figures.GAP_LABEL in labels
         for ax, rec, st in zip(fig.axes, recs, states):
             t = st.t - st.t[0]
             _, m0 = Model().residual(rec, np.array([result.h_base]))
@@ -459,17 +459,17 @@ def test_residual_time_shades_gaps_and_states_the_h(rolling_run, strict):
             assert not used[0] and spans.size     # the filter's start is not usable: shaded from t = 0
             assert _inside(t[~used], spans, strict=False).all()
             assert not _inside(t[used], spans, strict=True).any()
-        assert not plots.figure_problems(fig)
-        plots.pyplot().close(fig)
+        assert not figures.figure_problems(fig)
+        figures.pyplot().close(fig)
 
 
 def test_residual_write_plots_marks_refusals_and_status(rolling_run, tmp_path, strict):
     """The figures of a real analysis: the candidates figure marks each refused candidate of the JSON, and the
     time series give the h with the document's status."""
     result, data, states, params, _ = rolling_run
-    from euc_ros.cli.residual import write_plots
+    from euc_ros.cli.figures import write_plots
 
-    plots.configure(("svg",), strict=True)
+    figures.configure(("svg",), strict=True)
     write_plots(result, states, params, tmp_path, data=data)
     refused = {c["effect"] for c in data["candidates"] if c.get("refused")} | {r["effect"] for r in data["refused"]}
     statuses = {r.effect: r.status for r in candidate_rows(data)}
@@ -478,4 +478,4 @@ def test_residual_write_plots_marks_refusals_and_status(rolling_run, tmp_path, s
     if refused:
         assert "refused" in texts
     base_ok, _ = h_status(data)
-    assert any(plots.h_text(data["h_m"], base_ok) in t for t in _svg_texts(tmp_path / "residual_time.svg"))
+    assert any(figures.h_text(data["h_m"], base_ok) in t for t in _svg_texts(tmp_path / "residual_time.svg"))

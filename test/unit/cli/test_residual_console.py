@@ -2,7 +2,7 @@
 the h to use (the final model's) with its verdict at the end, never the base model's."""
 from __future__ import annotations
 
-from euc_ros.cli.residual import base_status_text, console_warnings, headline_text
+from euc_ros.cli.residual_report import base_status_text, console_warnings, headline_text
 
 REFUSAL = "rolling_resistance not named: c_rr = 0.09 outside its plausible range [0, 0.05]"
 

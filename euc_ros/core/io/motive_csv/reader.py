@@ -47,6 +47,59 @@ def _open(path: str | Path):
         raise InputError(f"cannot read: {exc.strerror}", path=p) from None
 
 
+def _select_bodies(hdr, bodies: list[str] | None, spath: str) -> list:
+    """The header's rigid bodies named in ``bodies``, in that order (all, in file order, when None)."""
+    if bodies is None:
+        return hdr.bodies
+    by_name = {b.name: b for b in hdr.bodies}
+    missing = [b for b in bodies if b not in by_name]
+    if missing:
+        raise InputError(f"rigid body {missing[0]!r} not in the file (has: "
+                         f"{', '.join(by_name) or 'no rigid bodies'})", path=spath)
+    return [by_name[b] for b in bodies]
+
+
+def _frame_rate(info: dict, frame: np.ndarray, time_col: np.ndarray, spath: str, warnings: list) -> tuple[float, str]:
+    """The export's frame rate and where it came from.
+
+    The header's export rate, else its capture rate, else the Frame and Time columns (said in ``warnings``).
+    """
+    rate = info["rate_hz"]
+    rate_source = "Export Frame Rate"
+    if rate is None:
+        rate, rate_source = info["capture_rate_hz"], "Capture Frame Rate"
+        if rate is None:
+            ok = np.isfinite(time_col)
+            if ok.sum() >= 2 and np.ptp(time_col[ok]) > 0:
+                rate = float(np.ptp(frame[ok]) / np.ptp(time_col[ok]))
+                rate_source = "Frame and Time columns"
+            else:
+                raise InputError("no 'Export Frame Rate' (nor 'Capture Frame Rate') in the header, and the Time "
+                                 "column cannot give the rate", path=spath, line=1, key="Export Frame Rate")
+        warnings.append(f"no 'Export Frame Rate' in the header: rate {rate:g} Hz taken from the {rate_source}")
+    return rate, rate_source
+
+
+def _content_warnings(hdr, block, out, check_reach: bool, warnings: list) -> None:
+    """Append to ``warnings`` what the rows read say about the file.
+
+    Quaternions not unit, positions beyond a plausible reach in metres, a row count other than the header's,
+    columns not read.
+    """
+    norm_error = out.norm_error
+    if norm_error > QUAT_NORM_TOLERANCE:
+        warnings.append(f"quaternions are not unit (largest |norm - 1| = {norm_error:.3g}): normalised")
+    if check_reach and out.reach > PLAUSIBLE_REACH_M:
+        warnings.append(f"positions reach {out.reach:.4g} (assumed m): without a 'Length Units' key the file may be "
+                        "in centimetres or millimetres")
+    total, _ = hdr.get("Total Exported Frames")
+    if total and total.isdigit() and int(total) != block.n_rows:
+        warnings.append(f"header says Total Exported Frames {total} but the file has {block.n_rows} data rows")
+    unread = {k: v for k, v in hdr.skipped.items() if k.lower() not in MARKER_TYPES}
+    if unread:   # markers beside rigid bodies are the usual export; anything else is worth a word
+        warnings.append(f"not read (euc_ros reads rigid bodies): {skipped_text(unread)}")
+
+
 def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] | None = None) -> MocapSeries:
     """Read a Motive CSV export into a :class:`MocapSeries` (Z-up world, metres, unit quaternions).
 
@@ -97,14 +150,7 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
             units, scale = LENGTH_UNITS_M[info["length_units"].lower()]
             rot_type = info["rotation_type"]
 
-            selected = hdr.bodies
-            if bodies is not None:
-                by_name = {b.name: b for b in hdr.bodies}
-                missing = [b for b in bodies if b not in by_name]
-                if missing:
-                    raise InputError(f"rigid body {missing[0]!r} not in the file (has: "
-                                     f"{', '.join(by_name) or 'no rigid bodies'})", path=spath)
-                selected = [by_name[b] for b in bodies]
+            selected = _select_bodies(hdr, bodies, spath)
 
             # The data rows, chunk by chunk, into arrays sized once (docs/motive_csv.md, "Memory").
             check_reach = bool(info["header"]) and hdr.get("Length Units")[0] in (None, "")
@@ -121,36 +167,14 @@ def read_motive_csv(path: str | Path, *, world_up: str = "y", bodies: list[str] 
     n_dup = block.n_rows - frame.size
     n_dropped = int(np.sum(np.diff(frame) - 1)) if frame.size > 1 else 0
 
-    rate = info["rate_hz"]
-    rate_source = "Export Frame Rate"
-    if rate is None:
-        rate, rate_source = info["capture_rate_hz"], "Capture Frame Rate"
-        if rate is None:
-            ok = np.isfinite(time_col)
-            if ok.sum() >= 2 and np.ptp(time_col[ok]) > 0:
-                rate = float(np.ptp(frame[ok]) / np.ptp(time_col[ok]))
-                rate_source = "Frame and Time columns"
-            else:
-                raise InputError("no 'Export Frame Rate' (nor 'Capture Frame Rate') in the header, and the Time "
-                                 "column cannot give the rate", path=spath, line=1, key="Export Frame Rate")
-        warnings.append(f"no 'Export Frame Rate' in the header: rate {rate:g} Hz taken from the {rate_source}")
+    rate, rate_source = _frame_rate(info, frame, time_col, spath, warnings)
     t = frame / rate
     time_dev = float(np.nanmax(np.abs(time_col - t))) if frame.size and np.isfinite(time_col).any() else None
     del time_col
     out.time = None
 
     norm_error = out.norm_error
-    if norm_error > QUAT_NORM_TOLERANCE:
-        warnings.append(f"quaternions are not unit (largest |norm - 1| = {norm_error:.3g}): normalised")
-    if check_reach and out.reach > PLAUSIBLE_REACH_M:
-        warnings.append(f"positions reach {out.reach:.4g} (assumed m): without a 'Length Units' key the file may be "
-                        "in centimetres or millimetres")
-    total, _ = hdr.get("Total Exported Frames")
-    if total and total.isdigit() and int(total) != block.n_rows:
-        warnings.append(f"header says Total Exported Frames {total} but the file has {block.n_rows} data rows")
-    unread = {k: v for k, v in hdr.skipped.items() if k.lower() not in MARKER_TYPES}
-    if unread:   # markers beside rigid bodies are the usual export; anything else is worth a word
-        warnings.append(f"not read (euc_ros reads rigid bodies): {skipped_text(unread)}")
+    _content_warnings(hdr, block, out, check_reach, warnings)
     meta = {
         **{k: v for k, v in info.items() if k != "header"},
         "skipped": {k: list(v) for k, v in hdr.skipped.items()},

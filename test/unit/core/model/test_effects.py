@@ -6,10 +6,12 @@ M_d1 = M_d2 (to integration tolerance), while the paper's model alone does not.
 Tolerances: parameter conversions (amplitude from two components, angles back and forth) are a
 few elementary operations: rel 1e-9 / atol 1e-12 are >= 1000 ulps.
 """
+# covers: euc_ros/core/model/candidate.py
 import numpy as np
 import pytest
 
-from euc_ros.core.model.effects import LIBRARY, ModelContext, make_candidates, theta_from_report
+from euc_ros.core.model.candidate import ModelContext
+from euc_ros.core.model.effects import LIBRARY, make_candidates, theta_from_report
 from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.selection import detectability

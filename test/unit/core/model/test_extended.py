@@ -35,7 +35,7 @@ def test_zero_effect_equals_the_paper_model():
     s = {k: rng.normal(0, 0.1, 50) for k in ("x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi",
                                               "phi_dot", "phi_ddot", "psi", "psi_dot", "theta")}
     m = Model.from_report(p, {"ground_slope": {"alpha_deg": 0.0}, "viscous_friction": {"c_v": 0.0}})
-    m1, m2 = m.torques(t=np.arange(50) / 120, **s)
+    m1, m2 = m.torques({"t": np.arange(50) / 120, **s})
     r1, r2 = torques(s["gamma"], s["phi"], s["gamma_dot"], s["phi_dot"], s["x_ddot"], s["gamma_ddot"],
                      s["phi_ddot"], p)
     np.testing.assert_allclose(m1, r1, atol=1e-12)
@@ -67,5 +67,5 @@ def test_a_reported_fit_is_the_same_model_with_the_same_values():
 
 def test_a_model_without_values_has_no_torques():
     with pytest.raises(ConfigError, match="from_report"):
-        Model().torques(t=0.0, x_dot=0.0, x_ddot=0.0, gamma=0.0, gamma_dot=0.0, gamma_ddot=0.0, phi=0.0, phi_dot=0.0,
-                        phi_ddot=0.0)
+        Model().torques(dict.fromkeys(("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi", "phi_dot",
+                                       "phi_ddot"), 0.0))

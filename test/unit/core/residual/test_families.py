@@ -261,8 +261,8 @@ def test_a_draught_over_one_stretch_of_the_lab_is_found_in_the_lab_field():
 def test_discovered_rows_carry_the_function_with_its_band_and_draw(tmp_path):
     """describe(): one row per group with the function on a grid over its argument's range and a 95 % band
     that holds the values (a drift: one curve per recording); the CLI's figure passes the layout checks."""
-    from euc_ros.cli import plots
-    from euc_ros.cli.residual import discovered_figure
+    from euc_ros.cli import figures
+    from euc_ros.cli.figures import discovered_figure
     from euc_ros.core.residual.groups import DiscoveredEffect, Group
 
     rng = np.random.default_rng(5)
@@ -281,11 +281,11 @@ def test_discovered_rows_carry_the_function_with_its_band_and_draw(tmp_path):
         ok = np.isfinite(v)
         assert np.all(lo[ok] <= v[ok]) and np.all(v[ok] <= hi[ok]) and np.any(hi[ok] > lo[ok])
     assert len(rows[1]["curves"]) == 3 and np.array(rows[1]["values"], float).shape == (3, len(rows[1]["grid"]))
-    plots.configure(strict=True)
+    figures.configure(strict=True)
     try:
         assert discovered_figure(rows, tmp_path / "discovered_functions.png").is_file()
     finally:
-        plots.configure()
+        figures.configure()
 
 
 def test_independent_columns_ignores_round_off_in_the_pivots():

@@ -91,10 +91,10 @@ def test_the_level_lab_slope_carries_into_the_extended_model():
         r = []
         for st in states:
             v = st.valid
-            m1, m2 = model.torques(t=st.t[v], x_dot=st.x_dot[v], x_ddot=st.x_ddot[v], gamma=st.gamma[v],
-                                   gamma_dot=st.gamma_dot[v], gamma_ddot=st.gamma_ddot[v], phi=st.phi[v],
-                                   phi_dot=st.phi_dot[v], phi_ddot=st.phi_ddot[v], psi=np.unwrap(st.psi)[v],
-                                   theta=st.theta[v])
+            m1, m2 = model.torques(dict(t=st.t[v], x_dot=st.x_dot[v], x_ddot=st.x_ddot[v], gamma=st.gamma[v],
+                                        gamma_dot=st.gamma_dot[v], gamma_ddot=st.gamma_ddot[v], phi=st.phi[v],
+                                        phi_dot=st.phi_dot[v], phi_ddot=st.phi_ddot[v], psi=np.unwrap(st.psi)[v],
+                                        theta=st.theta[v]))
             r.append(m1 - m2)
         rms[name] = float(np.sqrt(np.mean(np.concatenate(r) ** 2)))
     assert rms["geo"] < 0.3 * rms["level"], rms

@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 from scipy import optimize
 
-from euc_ros.core.model.effects import ModelContext, make_candidates
+from euc_ros.core.model.candidate import ModelContext
+from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.folds import folds_of, residual_block_length, with_blocks

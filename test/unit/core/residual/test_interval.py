@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from euc_ros.cli.residual import final_interval_text
+from euc_ros.cli.residual_report import final_interval_text
 from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.residual.analysis import analyze
 from euc_ros.core.residual.interval import base_widening, filter_refit

@@ -16,12 +16,12 @@ from pathlib import Path
 
 import pytest
 
-from euc_ros.cli.residual import verdict_lines
+from euc_ros.cli.residual_report import verdict_lines
 from euc_ros.core.errors import ConfigError
+from euc_ros.core.model.candidate import PLAUSIBLE_SOURCES
 from euc_ros.core.model.effects import (
     AIR_DENSITY,
     LIBRARY,
-    PLAUSIBLE_SOURCES,
     AeroDrag,
     TimeVaryingH,
     make_candidates,

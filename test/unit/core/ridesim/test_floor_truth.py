@@ -14,7 +14,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from euc_ros.core.model.effects import FloorGeometry, ModelContext
+from euc_ros.core.model.candidate import ModelContext
+from euc_ros.core.model.effects import FloorGeometry
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques
 from euc_ros.core.ridesim.floors import FloorProfile
