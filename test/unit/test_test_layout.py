@@ -17,15 +17,7 @@ COVERS = re.compile(r"^# covers: (euc_ros/core/\S+\.py)\s*$", re.MULTILINE)
 #: Core modules that still need tests: no test file imports them or calls them directly (each is exercised only
 #: through other modules or a command). Remove a module from here when its test is written.
 UNCOVERED = {
-    "euc_ros/core/identify/extended.py",          # through `euc-ros identify --effect` (test/integration/cli)
-    "euc_ros/core/io/open_files.py",              # through `euc-ros recover` (test/integration/cli)
-    "euc_ros/core/memory.py",                     # called by the analyses after large steps
-    "euc_ros/core/mocap/presence.py",             # through the rider_state node (test/nodes)
-    "euc_ros/core/model/session_template.py",     # through `euc-ros session init` (test/unit/cli)
-    "euc_ros/core/residual/names.py",             # through the demo command and the open-world judging
-    "euc_ros/core/ridesim/controllers.py",        # inside every simulated ride
     "euc_ros/core/worldsim/control.py",           # inside every generated ride
-    "euc_ros/core/worldsim/open_world_seeds.py",  # the open-world study's seed sets
 }
 
 
