@@ -66,11 +66,17 @@ def format_uncertainty(ident: HIdentification) -> str:
     b = unc.get("uncertainty_budget")
     if b and unc["identifiable"]:
         rows = sorted(b["sensitivity"].items(), key=lambda kv: -(kv[1]["dh_m"] or 0.0))
-        lines.append("h depends on nominal values no residual can check (dh for the stated tolerance; --tolerance):")
-        lines += [f"  {k:<28} {v['dh_dp']:+9.4f} {v['unit']:<14} x {v['tolerance']:g} -> {1e3 * v['dh_m']:5.1f} mm"
+        lines.append("h depends on nominal values no residual can check (dh for the stated tolerance, its standard "
+                     "uncertainty; --tolerance):")
+        lines += [f"  {k:<29} {v['dh_dp']:+9.4f} {v['unit'].split(' (')[0]:<26} x {v['tolerance']:g} -> "
+                  f"{1e3 * v['dh_m']:5.1f} mm (u {1e3 * (v.get('u_m') or 0.0):4.1f} mm)"
                   for k, v in rows[:6] if v["dh_dp"] is not None]
         lo2, hi2 = b["h_range_m"]
         lines.append(f"  h range for these tolerances: [{lo2:.3f}, {hi2:.3f}] m")
+        if b.get("u_session_m") is not None:
+            data = "unbounded" if b.get("u_data_m") is None else f"{1e3 * b['u_data_m']:.1f} mm"
+            lines.append(f"  the interval holds them: u = {1e3 * b['u_session_m']:.1f} mm from the session, "
+                         f"{data} from the data; the largest share: {b['dominant']}")
     return "\n".join(lines)
 
 

@@ -22,7 +22,7 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.bootstrap import block_bootstrap, block_counts
-from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, budget
+from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, budget, with_session
 from euc_ros.core.identify.extended import extended_fits, extended_interval
 from euc_ros.core.identify.fit import (
     DEFAULT_H_GRID,
@@ -49,6 +49,7 @@ from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
 from euc_ros.core.memory import release_free_memory
 from euc_ros.core.model.terms import EucParams
+from euc_ros.core.states.admissible import admissible_h
 from euc_ros.core.states.kinematics import RiderStates
 from euc_ros.core.states.link_sliding import MIN_SLIDING_M, estimate_sliding
 from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
@@ -378,8 +379,33 @@ def uncertainty_of_h(states: Sequence[RiderStates], session, params: EucParams, 
             shift = head.h_m - fit.h_m
             b["h_range_m"] = [None if v is None else float(v + shift) for v in b["h_range_m"]]
         out["h_range_m"] = b["h_range_m"]
+        with_session(out, b, head.h_m, options.h_bounds)      # the session's Type B terms inside the interval
         out["uncertainty_budget"] = b
+    if have_series:
+        _within_admissible(out, admissible_h(series, session), head.h_m)
     return out
+
+
+def _within_admissible(out: dict, adm, h: float) -> None:
+    """The interval cut at the range of h the rider's recorded body allows, in place (``uncertainty.h_admissible_m``).
+
+    An h outside that range is not the rider's: it is not identifiable, and the interval holds only the admissible
+    part (both ends None when nothing admissible is in it).
+    """
+    if adm is None:
+        return
+    out["uncertainty"]["h_admissible_m"] = adm.to_json()
+    lo, hi = out["h_ci95_m"]
+    lo = None if lo is None else max(lo, adm.low_m)
+    hi = None if hi is None else min(hi, adm.high_m)
+    if lo is not None and hi is not None and lo > hi:
+        lo = hi = None
+    out["h_ci95_m"] = [lo, hi]
+    if np.isfinite(h) and not adm.low_m <= h <= adm.high_m:
+        reason = (f"h = {h:.3f} m lies outside [{adm.low_m:.3f}, {adm.high_m:.3f}] m, the range the rider's "
+                  "recorded joints and the session's mass fractions allow")
+        out["identifiable"] = False
+        out["identifiability_reason"] = "; ".join(r for r in (out.get("identifiability_reason"), reason) if r)
 
 
 def _noise_terms(series, session, params: EucParams, fit: ModelFit, rec: ReconstructionSettings, filter_choice,
