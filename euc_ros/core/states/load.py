@@ -67,6 +67,9 @@ def load_states(session, paths: Sequence, settings: ReconstructionSettings | Non
     window_s, polyorder = settings.window_s, settings.polyorder
     phi_definition, cog_method = settings.phi_definition, settings.cog_method
 
+    if not paths:
+        raise InputError("no recording given: pass at least one Motive CSV export, bag folder or .mcap file",
+                         key="recordings")
     for path in paths:
         recording_kind(path)  # fail early, before any long read
     skeleton = None

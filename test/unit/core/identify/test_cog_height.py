@@ -99,3 +99,19 @@ def test_the_command_writes_what_the_library_returns(ride, tmp_path):
     for key in ("h_m", "rmse_nm", "h_ci95_m", "identifiable", "identifiability_reason", "uncertainty", "h_std_m",
                 "h_range_m", "uncertainty_budget"):
         assert written[key] == lib[key], key
+
+
+def test_no_recording_is_a_clear_error_not_a_crash():
+    import tempfile
+    from pathlib import Path
+
+    from euc_ros.core.errors import InputError
+    from euc_ros.core.identify.pipeline import identify_recordings
+    from euc_ros.core.session import default_session, save_session
+
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "session.yaml"
+        save_session(default_session(), path)
+        with pytest.raises(InputError) as e:
+            identify_recordings(path, [])
+    assert "no recording given" in str(e.value) and "recordings" in str(e.value)
