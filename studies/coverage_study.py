@@ -10,11 +10,11 @@ import sys
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-# run as a script, studies/ heads sys.path and its coverage.py would shadow the coverage package numba imports
+# run as a script, studies/ heads sys.path: the repository root goes first instead
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != HERE]
 sys.path.insert(0, str(HERE.parent))
 
-from studies.coverage import CASES, study  # noqa: E402
+from studies.coverage_cases import CASES, study  # noqa: E402
 
 
 def main() -> int:

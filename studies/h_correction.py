@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
-# the script's own folder holds studies/coverage.py, which would shadow the package numba imports
+# run as a script, studies/ heads sys.path: the repository root goes first instead
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != REPO / "studies"]
 sys.path.insert(0, str(REPO))
 

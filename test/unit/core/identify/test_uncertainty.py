@@ -31,7 +31,7 @@ from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 
 # the experiment harnesses live in studies/ at the repository root, outside the package
 sys.path.insert(0, str(Path(__file__).resolve().parents[4]))
-from studies.coverage import run_case  # noqa: E402
+from studies.coverage_cases import run_case  # noqa: E402
 
 
 def _identify(ride):
