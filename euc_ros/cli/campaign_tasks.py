@@ -23,11 +23,10 @@ import csv
 import os
 import tempfile
 import time
-import traceback
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from euc_ros.core.errors import ConfigError
+from euc_ros.core.errors import ConfigError, describe_error
 
 #: Recording files a session folder may hold.
 RECORDING_SUFFIXES = (".csv", ".mcap")
@@ -158,7 +157,7 @@ def run_task(task: Task) -> dict:
         row["status"] = "ok"
     except Exception as exc:       # a task's failure is its row, never the campaign's end
         row["status"] = "failed"
-        row["error"] = f"{type(exc).__name__}: {exc}" if str(exc) else traceback.format_exc(limit=1).strip()
+        row["error"] = describe_error(exc)
     row["seconds"] = round(time.perf_counter() - start, 3)
     return row
 

@@ -58,3 +58,25 @@ class ConfigError(InputError):
 
 class ModelDomainError(EucError):
     """A state left the domain where a model is valid (e.g. tilt near 90 deg)."""
+
+
+def describe_error(exc: BaseException) -> str:
+    """One line for a failed task's row: ``"Type: message"``, or the traceback's last line when there is no message.
+
+    Parameters
+    ----------
+    exc : BaseException
+        The exception the task raised (being handled).
+
+    Returns
+    -------
+    str
+
+    Examples
+    --------
+    >>> describe_error(InputError("no recording given", key="recordings"))
+    "InputError: key 'recordings': no recording given"
+    """
+    import traceback
+
+    return f"{type(exc).__name__}: {exc}" if str(exc) else traceback.format_exc(limit=1).strip()

@@ -42,12 +42,11 @@ import json
 import math
 import tempfile
 import time
-import traceback
 from pathlib import Path
 
 import numpy as np
 
-from euc_ros.core.errors import ConfigError
+from euc_ros.core.errors import ConfigError, describe_error
 from euc_ros.core.openworld.judge import judge, judge_interval
 from euc_ros.core.worldsim import forces as F
 from euc_ros.core.worldsim.open_world_seeds import FAMILIES, SEED_SETS
@@ -307,7 +306,7 @@ def run_task(task) -> dict:
         row["status"] = "ok"
     except Exception as exc:       # a ride's failure is its row, never the study's end
         row["status"] = "failed"
-        row["error"] = f"{type(exc).__name__}: {exc}" if str(exc) else traceback.format_exc(limit=1).strip()
+        row["error"] = describe_error(exc)
     row["seconds"] = round(time.perf_counter() - start, 3)
     return row
 
