@@ -39,7 +39,6 @@ from euc_ros.core.openworld import study as S  # noqa: E402
 from euc_ros.core.residual.selection import geometric_h  # noqa: E402
 from euc_ros.core.ridesim.artefacts import perturb_session  # noqa: E402
 from euc_ros.core.session import load_session, save_session  # noqa: E402
-from euc_ros.core.worldsim.simulate import simulate_ride  # noqa: E402
 
 #: Sliding level of a ride [mm] (uniform) and the session's CoM offset error [m] (uniform length, random direction).
 SLIDING_MM = (2.0, 4.0)
@@ -69,12 +68,10 @@ def ride_row(seed: int, out: Path) -> dict:
     t0 = time.perf_counter()
     rng = np.random.default_rng([seed, STREAM])
     sliding_mm = float(rng.uniform(*SLIDING_MM))
-    ride0 = simulate_ride(seed, S.RATE_HZ, duration=S.DURATION_S, rtol=S.RTOL)
-    rides = [ride0] + S._runs(seed, "none", ride0.spec, S.RUNS, S.RATE_HZ, S.RTOL)
-    paths = S._write_runs(rides, out / f"seed{seed}", seed, sliding_mm)
+    paths = S.lawless_ride(seed, out / f"seed{seed}", sliding_mm)
     perturbed = out / f"seed{seed}" / "session_perturbed.yaml"
     save_session(perturb_session(load_session(paths["session"]), rng, offset_error_m=SESSION_ERROR_M), perturbed)
-    row = {"seed": seed, "sliding_mm": sliding_mm, "h_true_m": float(ride0.spec.plant.h)}
+    row = {"seed": seed, "sliding_mm": sliding_mm, "h_true_m": paths["h_true_m"]}
     for label, session in (("true_session", paths["session"]), ("perturbed_session", perturbed)):
         try:
             row[label] = identified(session, paths["csvs"])

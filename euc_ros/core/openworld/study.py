@@ -183,6 +183,36 @@ def _write_runs(rides: list, out: Path, seed: int, artefact_mm: float) -> dict:
             "csv": paths[0]["csv"], "truth": paths[0]["truth"]}
 
 
+def lawless_ride(seed: int, out, sliding_mm: float, *, duration: float = DURATION_S, rate_hz: float = RATE_HZ,
+                 rtol: float = RTOL, runs: int = RUNS) -> dict:
+    """A ride of the generator without a law, written as a lab records it: the runs, pose noise and sliding.
+
+    Parameters
+    ----------
+    seed : int
+        The ride's seed (:func:`~euc_ros.core.worldsim.simulate.simulate_ride`; the further runs as a study
+        ride's).
+    out : str or Path
+        Folder (``run_01/`` ... with the CSV exports; the session beside the first).
+    sliding_mm : float
+        RMS 3-D pivot sliding of every rider body [mm] (:func:`write_recording`).
+    duration, rate_hz, rtol, runs
+        Each run's length [s], the rate [Hz], the integrator's tolerance and the number of runs.
+
+    Returns
+    -------
+    dict
+        ``session``, ``csvs``, ``truths`` (paths), ``h_true_m`` and ``ride`` (the first run).
+    """
+    from euc_ros.core.worldsim.simulate import simulate_ride
+
+    ride0 = simulate_ride(int(seed), rate_hz, duration=duration, rtol=rtol)
+    rides = [ride0] + _runs(seed, "none", ride0.spec, runs, rate_hz, rtol)
+    paths = _write_runs(rides, Path(out), seed, sliding_mm)
+    return {"session": paths["session"], "csvs": paths["csvs"], "truths": paths["truths"],
+            "h_true_m": float(ride0.spec.plant.h), "ride": ride0}
+
+
 def _seen_rms(rides: list, rate_hz: float) -> float:
     return F.rms(np.concatenate([seen_effect(r.truth["effect"], rate_hz) for r in rides]))
 

@@ -18,7 +18,6 @@ from euc_ros.core.identify.pipeline import identify_recordings
 from euc_ros.core.openworld import study as S
 from euc_ros.core.ridesim.artefacts import perturb_session
 from euc_ros.core.session import load_session, save_session
-from euc_ros.core.worldsim.simulate import simulate_ride
 
 pytestmark = pytest.mark.slow
 
@@ -30,13 +29,11 @@ SEED = int(np.random.default_rng(20261129).integers(0, 100))
 def run(tmp_path_factory):
     rng = np.random.default_rng([SEED, 777])
     sliding_mm = float(rng.uniform(2.0, 4.0))
-    ride0 = simulate_ride(SEED, S.RATE_HZ, duration=S.DURATION_S, rtol=S.RTOL)
-    rides = [ride0] + S._runs(SEED, "none", ride0.spec, S.RUNS, S.RATE_HZ, S.RTOL)
     out = tmp_path_factory.mktemp("coloured")
-    paths = S._write_runs(rides, out, SEED, sliding_mm)
+    paths = S.lawless_ride(SEED, out, sliding_mm)
     session = out / "session_perturbed.yaml"
     save_session(perturb_session(load_session(paths["session"]), rng, offset_error_m=(0.01, 0.02)), session)
-    return identify_recordings(session, paths["csvs"]), float(ride0.spec.plant.h)
+    return identify_recordings(session, paths["csvs"]), paths["h_true_m"]
 
 
 def test_the_headline_under_sliding_is_the_fit_with_the_extrapolation_beside_it(run):
