@@ -34,9 +34,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != REPO / "studies"]
 sys.path.insert(0, str(REPO))
 
+from euc_ros.core.identify.held import geometric_h  # noqa: E402
 from euc_ros.core.identify.pipeline import identify_recordings  # noqa: E402
 from euc_ros.core.openworld import study as S  # noqa: E402
-from euc_ros.core.residual.selection import geometric_h  # noqa: E402
 from euc_ros.core.ridesim.artefacts import perturb_session  # noqa: E402
 from euc_ros.core.session import load_session, save_session  # noqa: E402
 

@@ -35,9 +35,12 @@ def format_uncertainty(ident: HIdentification) -> str:
     sharp = "-" if u.get("sharpness") is None else f"{u['sharpness']:.2f}"
     blocks = f"{u.get('method', 'block bootstrap')} over {u['n_blocks']} blocks of {u['block_s']:.1f} s"
     if not unc["identifiable"]:
+        fit = ident.held.h_from_data_m if ident.held is not None else h
         lines = ["h is NOT identifiable from these recordings:",
                  *(f"  - {r}" for r in (unc["identifiability_reason"] or "").split("; ")),
-                 f"  (best fit {h:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
+                 f"  (best fit {fit:.3f} m, 95 % interval {ci} m; curve sharpness {sharp}: do not use it as h)"]
+        if ident.held is not None:
+            lines.append(ident.held.console_line())
     elif ident.corrected:
         diag = unc["diagnostics"]
         removed = [f"noise bias {1e3 * bias:+.1f} mm" if bias is not None else "",

@@ -14,6 +14,12 @@ def format_summary(data: dict) -> str:
     lines = [f"h (3-DoF, no effect) = {data['h_m']:.3f} m; held-out RMSE of M_d1 - M_d2: "
              f"{data['rmse_before_nm']:.3f} N m ({data['held_out']['kind']}, {data['held_out']['folds']} folds)"]
     lines.append(base_status_text(data))
+    held = data.get("h_held")
+    if held:
+        lo, hi = held["ci95_m"]
+        lines.append(f"h held at the segments' geometric h in every fit: use h = {held['h_m']:.3f} m (standard "
+                     f"uncertainty {1e3 * held['std_m']:.1f} mm from the session tolerances, 95 % interval "
+                     f"[{lo:.3f}, {hi:.3f}] m), because {held['reason']}")
     if data["effect"] == "none":
         lines.append("effect: none (the residual is at its noise floor; no candidate beats chance)")
     else:
@@ -84,11 +90,12 @@ def headline_text(data: dict, json_path: str | None = None, session: str | None 
     name = data["effect"] if data.get("h_after_ci95_m") is not None else "3-DoF, no effect"
     h = data.get("h_after_m", data["h_m"])
     ci = data.get("h_after_ci95_m") or data.get("h_ci95_m")
-    if not data.get("h_after_identifiable", data.get("identifiable")):
+    held = " (held at the segments' geometric h: the data do not bound it)" if data.get("h_held") else ""
+    if not held and not data.get("h_after_identifiable", data.get("identifiable")):
         why = data.get("h_after_identifiability_reason", data.get("identifiability_reason"))
         return (f"h of the final model ({name}) is NOT identifiable from these recordings: {why} (best fit "
                 f"{h:.3f} m: do not use it as h)")
-    text = f"h to use: {h:.3f} m, 95 % interval {_ci(ci)} m (final model: {name})"
+    text = f"h to use: {h:.3f} m{held}, 95 % interval {_ci(ci)} m (final model: {name})"
     if json_path and session:
         text += (f"\nlive with this model: euc-ros launch pipeline.launch.xml session:={session} model:={json_path} "
                  "...")

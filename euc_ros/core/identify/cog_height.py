@@ -33,6 +33,7 @@ from euc_ros.core.identify.fit import (
     fit_h,
     pooled_fit,
 )
+from euc_ros.core.identify.held import HeldH, held_h
 from euc_ros.core.identify.interval import (
     MIN_BLOCKS,
     Systematics,
@@ -94,6 +95,9 @@ class HIdentification:
     interval_at_filter : tuple of float
         Its 95 % interval [m]: the block bootstrap's, widened to contain the noise-corrected h and by the
         filter's distortion floor (:attr:`interval` itself when not :attr:`corrected`).
+    held : HeldH or None
+        Set when the data do not bound the 3-DoF h (:mod:`.held`): :attr:`h` and :attr:`interval` are then the
+        segments' geometric h and its Type B interval (the JSON's ``h_held`` says so and why).
     """
 
     h: float
@@ -106,6 +110,7 @@ class HIdentification:
     corrected: bool = False
     h_at_filter: float = float("nan")
     interval_at_filter: tuple[float, float] = (float("nan"), float("nan"))
+    held: HeldH | None = None
 
     def to_dict(self) -> dict:
         """The JSON document: the fits headed by :attr:`model`, then the uncertainty (when computed).
@@ -120,6 +125,9 @@ class HIdentification:
             if not self.corrected:        # the formal std of the fit that h_m is (else under diagnostics)
                 data["h_std_formal_m"] = data.get("h_std_m")
             data.update(self.uncertainty)
+        if self.held is not None:   # h_m is the held h; h_ci95_m and h_std_m are its own
+            data.update(h_m=json_float(self.h), h_ci95_m=[json_float(v) for v in self.interval],
+                        h_std_m=json_float(self.held.std_m), h_held=self.held.to_json())
         return data
 
     def to_json(self) -> str:
@@ -211,8 +219,14 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
     h_fit, ci_fit = h, ci
     if corrected:                            # the headline is the corrected h; the fit is a diagnostic
         h, ci_fit = float(unc["h_m"]), _pair(unc["diagnostics"]["h_at_chosen_filter_ci95_m"])
+    # where the data do not bound the 3-DoF h, the headline is the segments' geometric h (.held)
+    need = (unc.get("uncertainty") or {}).get("excitation", {}).get("speed_change_accel_rms_needed_mps2")
+    held = held_h(states, params, h, ci, tolerances=uncertainty.tolerances, sharpness=float(pooled3.sharpness),
+                  accel_needed_mps2=need) if head == "3dof" else None
+    if held is not None:
+        h, ci = held.h_m, held.ci95_m
     return HIdentification(h, ci, bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
-                           unc, corrected, h_fit, ci_fit)
+                           unc, corrected, h_fit, ci_fit, held)
 
 
 def _fixed_filter(reconstruction: ReconstructionSettings, choice) -> ReconstructionSettings:

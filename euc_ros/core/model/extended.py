@@ -41,6 +41,11 @@ SAMPLE_NAMES = ("t", "x_dot", "x_ddot", "gamma", "gamma_dot", "gamma_ddot", "phi
 #: h bounds of the joint fits [m].
 H_BOUNDS = (0.05, 1.6)
 
+#: Key of a prepared recording's ``ctx.extras`` holding h held fixed [m]: :meth:`Model.residual` then uses it
+#: instead of ``x[0]``, so every fit of the recording leaves h where it is held (the residual does not depend on
+#: ``x[0]``, whose fitted value stays at its start).
+HELD_H = "h_held"
+
 
 def parse_effect_assignments(effects: list[str], assignments: list[str]) -> dict[str, dict[str, float]]:
     """``["ground_slope"]``, ``["ground_slope.alpha_deg=2.9"]`` -> ``{"ground_slope": {"alpha_deg": 2.9}}``.
@@ -204,9 +209,11 @@ class Model:
         """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``.
 
         ``rec`` is a prepared recording (:class:`~euc_ros.core.states.contexts.Recording`); ``extra_dQ``: a
-        further generalized force, for the discovery's sensitivities.
+        further generalized force, for the discovery's sensitivities. A recording whose ``ctx.extras`` holds
+        :data:`HELD_H` is evaluated at that h, whatever ``x[0]``.
         """
         h, thetas = self.split(x)
+        h = float(rec.ctx.extras.get(HELD_H, h))
         ctx = rec.ctx.copy()
         ctx.overrides["h"] = h
         ctx.params = ctx.params.with_h(h)

@@ -30,13 +30,16 @@ The residual of a model is ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - dQ))
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Callable, Sequence
 
 import numpy as np
 
+from euc_ros.core.identify.held import geometric_h
 from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.model.effects import FloorGeometry, MocapTimeOffset, make_candidates, with_plausible
+from euc_ros.core.model.extended import HELD_H
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.discovery import Discovery, GroupSparseDiscovery
 from euc_ros.core.residual.folds import (
@@ -68,12 +71,11 @@ from euc_ros.core.residual.selection import (
     detectability,
     fit_base_h,
     fit_model,
-    geometric_h,
     held_out,
 )
 from euc_ros.core.residual.selector import ForwardSelector, Selector
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
-from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, forget_shift_caches, prepare
+from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, Recording, forget_shift_caches, prepare
 from euc_ros.core.states.floor import RADIUS_TOL_M, floor_from_states, rolling_radius_from_floor
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates
 
@@ -98,7 +100,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
             n_folds: int | None = None, use_geometry: bool = True,
             noise_floor_of: Callable[[Model, np.ndarray], float] | None = None,
             analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, plausible: dict | None = None,
-            progress: Callable[[str], None] | None = None) -> ResidualResult:
+            progress: Callable[[str], None] | None = None, h_held: float | None = None) -> ResidualResult:
     """Trace the residual M_d1 - M_d2 of ``states`` to the candidate effects.
 
     By default, greedy forward selection then group-sparse discovery.
@@ -137,6 +139,10 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         range is refused as a name (reported in ``refused``): the discovered terms, or ``unexplained``.
     progress : callable, optional
         Called with a line of text at each step.
+    h_held : float, optional
+        h held fixed [m] in every fit (:data:`~euc_ros.core.model.extended.HELD_H`), for recordings whose data
+        do not bound h (:func:`~euc_ros.core.identify.held.held_h`); the selection and the discovery then
+        start from :func:`free_h_reference`. None: h is fitted jointly.
 
     Returns
     -------
@@ -147,11 +153,13 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     finder = GroupSparseDiscovery() if discovery is True else discovery or None
     candidates = with_plausible(list(candidates) if candidates is not None else make_candidates(), plausible or {})
     setup = prepare_setup(states, params, n_folds=n_folds, use_geometry=use_geometry,
-                          analysis_rate_hz=analysis_rate_hz, say=say)
+                          analysis_rate_hz=analysis_rate_hz, say=say, h_held=h_held)
     screening = screen_candidates(candidates, setup, say)
     journal = Journal()
     base = base_stage(setup)
     stage = floor_geometry_step(setup, base, journal, say)
+    reference = free_h_reference(setup, base, say) if h_held is not None and stage is base else None
+    stage = reference or stage
     remaining = [c for c in screening.detectable if c.name not in {e.name for e in stage.model.effects}]
     selection = rules.select(setup, stage, remaining, screening, journal, say)
     for c in candidates:
@@ -168,18 +176,30 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     if finder is not None:
         say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, finder, rules, journal, say)
+    if reference is not None:   # nothing beat freeing h: the final model is the base model with h held
+        found = dataclasses.replace(found, stage=base if found.stage is reference else found.stage,
+                                    named=base if found.named is reference else found.named)
     return conclude(setup, base, found, geometry, noise_floor_of, rules, journal)
 
 
 # ------------------------------------------------------------------------------------------------- the steps
 def prepare_setup(states: Sequence[RiderStates], params: EucParams, *, n_folds: int | None, use_geometry: bool,
-                  analysis_rate_hz: float | None, say: Callable[[str], None]) -> Setup:
-    """Step 1: the floor, the prepared recordings, the base model's fit, the blocks and the folds."""
+                  analysis_rate_hz: float | None, say: Callable[[str], None], h_held: float | None = None) -> Setup:
+    """Step 1: the floor, the prepared recordings, the base model's fit, the blocks and the folds.
+
+    With ``h_held`` every recording carries it (:data:`~euc_ros.core.model.extended.HELD_H`) and it is the start
+    of every fit; the discovery is then not linearised at the geometric h (h does not move).
+    """
     # geometry first: the contact path measures the floor (plane, smooth deviation, scatter)
     floor = floor_from_states(states, params.R) if use_geometry else None
     recs = prepare(states, params, floor=floor, analysis_rate_hz=analysis_rate_hz)
     h_geo = geometric_h(states, params)
-    h0 = fit_base_h(recs)
+    if h_held is not None:
+        for rec in recs:
+            rec.ctx.extras[HELD_H] = float(h_held)
+        h_geo = float("nan")
+        say(f"h held at {h_held:.3f} m in every fit (the data do not bound it)")
+    h0 = fit_base_h(recs) if h_held is None else float(h_held)
     base_fit = fit_model(Model(), recs, h0)
     # blocks of the paired test and guard bands of the folds from the residual's measured autocorrelation
     st0 = states[0]
@@ -192,6 +212,29 @@ def prepare_setup(states: Sequence[RiderStates], params: EucParams, *, n_folds: 
     say(f"held-out: {len(folds)} folds ({n_segments} segments per run), blocks of {block_s:.2f} s")
     say(f"base model: h = {base_fit.h:.3f} m, RMSE {base_fit.rmse:.3f} N m (training)")
     return Setup(params, floor, recs, folds, n_segments, block_s, h_geo, h0, base_fit)
+
+
+def free_h_reference(setup: Setup, base: Stage, say: Callable[[str], None]) -> Stage:
+    """The stage the selection starts from when h is held: the held base model, judged against h freed.
+
+    With h held (the data do not bound it), the pose noise's errors in variables still pull the fits' h (a flat
+    curve's optimum goes where the bias takes it), and a candidate that can stand in for h (a rider mass or
+    inertia error, a slow h(t), a wheel radius) would cut the held model's residual by that pull alone. A named
+    effect or a discovered term is evidence only when it explains more than freeing h does, so the start's
+    held-out residual is the base model's with h fitted freely on the same samples and folds; its model and
+    parameters stay the held ones (every fit from it holds h).
+    """
+    free = []
+    for rec in setup.recs:
+        ctx = rec.ctx.copy()
+        ctx.extras = {k: v for k, v in ctx.extras.items() if k != HELD_H}
+        free.append(Recording(rec.name, ctx, rec.block, rec.index))
+    h_free = fit_base_h(free)
+    fit = fit_model(Model(), free, h_free)
+    ho = held_out(Model(), free, h_free, setup.folds, start=fit.x)
+    say(f"reference with h free (h = {fit.h:.3f} m): held-out RMSE {base.heldout.rmse:.3f} -> {ho.rmse:.3f} N m; "
+        "an effect must explain more than that")
+    return Stage(base.model, ho, base.x)
 
 
 def screen_candidates(candidates: Sequence[Candidate], setup: Setup, say: Callable[[str], None]) -> Screening:

@@ -2,10 +2,11 @@
 
 :func:`trace_residual` is what ``euc-ros residual``, :func:`euc_ros.residual` and the campaigns run:
 read the recordings (:func:`~euc_ros.core.states.load.load_states`), measure what the rigid links show
-(the rider-to-EUC time offset, the soft-tissue sliding) and the noise floor, trace M_d1 - M_d2 to the
-candidate effects (:func:`~euc_ros.core.residual.analysis.analyze`), give the base model's h its interval
-(identify's), widen and refit the final model's, and assemble the analysis JSON of the recording format
-(with its ``inputs``, so the result is never applied to other data).
+(the rider-to-EUC time offset, the soft-tissue sliding) and the noise floor, give the base model's h its
+interval (identify's), trace M_d1 - M_d2 to the candidate effects
+(:func:`~euc_ros.core.residual.analysis.analyze`; with h held at the segments' geometric h where the data do
+not bound it, :mod:`~euc_ros.core.identify.held`), widen and refit the final model's interval, and assemble
+the analysis JSON of the recording format (with its ``inputs``, so the result is never applied to other data).
 
 Examples
 --------
@@ -23,6 +24,7 @@ from typing import Callable, Iterable, Sequence
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.cog_height import identify_h
+from euc_ros.core.identify.held import HeldH
 from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
 from euc_ros.core.identify.options import IntervalOptions, Measured
 from euc_ros.core.identify.pipeline import AnalysisRun, sliding_prior
@@ -31,7 +33,7 @@ from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S, analyze
-from euc_ros.core.residual.interval import base_widening, filter_refit
+from euc_ros.core.residual.interval import FinalInterval, base_widening, filter_refit
 from euc_ros.core.residual.noise import make_noise_floor
 from euc_ros.core.residual.result import ResidualResult
 from euc_ros.core.residual.selector import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, ForwardSelector
@@ -105,7 +107,8 @@ def final_identifiability(data: dict) -> dict:
 
     The final model's h is identifiable when its 95 % interval is bounded on both ends and no wider than
     identify's :data:`~euc_ros.core.identify.interval.MAX_CI_WIDTH_M`; without a final interval (nothing
-    selected or discovered) the final model is the base model and its verdict is the base model's.
+    selected or discovered) the final model is the base model and its verdict is the base model's. A held h
+    (``h_held``) is not identified by the data, whatever its interval.
 
     Parameters
     ----------
@@ -118,6 +121,9 @@ def final_identifiability(data: dict) -> dict:
         The JSON keys ``h_after_identifiable`` and ``h_after_identifiability_reason``.
     """
     ci = data.get("h_after_ci95_m")
+    if data.get("h_held"):
+        return {"h_after_identifiable": False,
+                "h_after_identifiability_reason": f"h is held: {data['h_held']['reason']}"}
     if ci is None:
         return {"h_after_identifiable": bool(data.get("identifiable")),
                 "h_after_identifiability_reason": data.get("identifiability_reason")}
@@ -130,6 +136,33 @@ def final_identifiability(data: dict) -> dict:
     else:
         reason = None
     return {"h_after_identifiable": reason is None, "h_after_identifiability_reason": reason}
+
+
+def held_keys(held: HeldH, final: FinalInterval | None) -> dict:
+    """The JSON keys of a residual whose fits held h (:class:`~euc_ros.core.identify.held.HeldH`).
+
+    ``h_m`` and ``h_after_m`` are the held h (no fit moved it); ``h_ci95_m`` and ``h_after_ci95_m`` are its Type B
+    interval; ``effect_parameters_ci95`` are the final model's with h held; ``h_held`` says that h is held and
+    why.
+
+    Parameters
+    ----------
+    held : HeldH
+    final : FinalInterval or None
+        The final model's intervals (with h held, its own h has no statistical interval).
+
+    Returns
+    -------
+    dict
+    """
+    ci = [float(v) for v in held.ci95_m]
+    out = {"h_ci95_m": ci, "h_held": held.to_json()}
+    if final is not None:
+        out.update(final.to_json())
+        out["h_after_ci95_m"] = ci
+        out["h_after_uncertainty"].update(method="held at the segments' geometric h (Type B)",
+                                          h_se_m=float(held.std_m), widened_by=[])
+    return out
 
 
 def trace_residual(session_path, recordings: Sequence, settings: ReconstructionSettings | None = None, *,
@@ -187,23 +220,26 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     # usable poses are let go before the analysis
     links = sliding_or_none(series, session, usable) if usable is not None else None
     del usable
-    # the noise floor's re-noised reconstruction is the interval's first SIMEX replicate (made once)
+    # the recordings' pose-noise estimate is made once for the interval's SIMEX and the noise floor
     simex = SimexShare()
     noise_of = make_noise_floor(series, states, session, params, share=simex) \
         if all(s is not None for s in series) else None
+    # how well the data determine the base model's h (identify's); unbounded: h held in every fit (.held)
+    iv = IntervalOptions(sliding_prior=sliding_prior(sliding_prior_mm), with_budget=bool(tolerances),
+                         tolerances=tolerances or None)
+    ident = identify_h(states, session, params, reconstruction=settings, models=("3dof",), uncertainty=iv,
+                       measured=Measured(simex_share=simex, link_sliding=links))
+    base, held = ident.uncertainty, ident.held
     result = analyze(states, params, candidates=cands,
                      selector=ForwardSelector(options.alpha, options.min_gain, options.max_effects),
                      discovery=options.discover, use_geometry=options.use_geometry, noise_floor_of=noise_of,
-                     progress=say)
+                     progress=say, h_held=None if held is None else held.h_m)
     data = result.to_json()
-    # how well the data determine the base model's h (identify's interval and identifiability)
-    iv = IntervalOptions(sliding_prior=sliding_prior(sliding_prior_mm), with_budget=bool(tolerances),
-                         tolerances=tolerances or None)
-    base = identify_h(states, session, params, reconstruction=settings, models=("3dof",), uncertainty=iv,
-                      measured=Measured(simex_share=simex, link_sliding=links)).uncertainty
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
-    if result.final_interval is not None:
+    if held is not None:
+        data.update(held_keys(held, result.final_interval))
+    elif result.final_interval is not None:
         final = result.final_interval.widened(*base_widening(base))
         if settings.cog_method == "segments" and all(s is not None for s in series):
             chosen, probe, ratio = data_filters(series, session, settings.phi_definition, sliding=links)

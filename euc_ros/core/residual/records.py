@@ -37,7 +37,7 @@ class Setup:
     block_s : float
         Block length of the paired test [s].
     h_geo : float
-        The segments' geometric h [m] (:func:`~euc_ros.core.residual.selection.geometric_h`).
+        The segments' geometric h [m] (:func:`~euc_ros.core.identify.held.geometric_h`).
     h0 : float
         The base model's h on a grid, the start of every fit [m].
     base_fit : Fit

@@ -18,10 +18,9 @@ from scipy import optimize, stats
 
 from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.model.extended import Model
-from euc_ros.core.model.terms import EucParams, bias_terms, consistency_weights, gravity_forces, mass_matrix
+from euc_ros.core.model.terms import bias_terms, consistency_weights, gravity_forces, mass_matrix
 from euc_ros.core.residual.folds import folds_of
-from euc_ros.core.states.contexts import Recording, hinge_path
-from euc_ros.core.states.kinematics import RiderStates
+from euc_ros.core.states.contexts import Recording
 
 #: Relative tolerance of the least-squares fits: a cost change of 1e-6 moves a parameter by ~1e-3 of its
 #: standard error, far below what the selection can resolve (scipy's default 1e-8 took ~40 evaluations).
@@ -328,16 +327,6 @@ def refusal(records: list[dict]) -> str | None:
     return "; ".join(f"refused {r['effect']}: {r['parameter']}={r['value']:.4g} outside plausible "
                      f"[{r['plausible'][0]:g}, {r['plausible'][1]:g}]" + (f" {r['unit']}" if r["unit"] != "-" else "")
                      for r in records)
-
-
-def geometric_h(states: Sequence[RiderStates], params: EucParams) -> float:
-    """Median distance of the rider CoG G from the ankle hinge A = C - l0 z_E over the valid samples [m]."""
-    vals = []
-    for st in states:
-        d = np.linalg.norm(st.G - hinge_path(st, params.l0), axis=1)
-        vals.append(d[np.asarray(st.valid, bool) & np.isfinite(d)])
-    v = np.concatenate(vals) if vals else np.zeros(0)
-    return float(np.median(v)) if v.size else float("nan")
 
 
 def implausibility(candidate: Candidate, theta) -> float:

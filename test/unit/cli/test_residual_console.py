@@ -46,3 +46,18 @@ def test_without_a_final_model_the_base_models_verdict_is_the_headline():
 def test_the_base_models_verdict_stands_beside_its_h():
     assert "base model: h NOT identifiable" in base_status_text(_data())
     assert "[0.28, 0.32]" in base_status_text(_data(identifiable=True, h_ci95_m=[0.28, 0.32]))
+
+
+def test_a_held_h_is_the_one_to_use_and_says_so_once_with_its_number():
+    from euc_ros.cli.residual_report import format_summary
+
+    held = {"held": True, "h_m": 0.712, "std_m": 0.0065, "ci95_m": [0.699, 0.725],
+            "reason": "the data do not bound h: its 95 % interval from the data is [unbounded, 0.300] m"}
+    data = _data(h_m=0.712, h_after_m=0.712, h_ci95_m=[0.699, 0.725], h_after_ci95_m=[0.699, 0.725],
+                 effect="none", effect_parameters={}, h_after_identifiable=False, h_held=held,
+                 h_after_identifiability_reason="h is held: " + held["reason"], rmse_before_nm=0.3,
+                 rmse_after_nm=0.3, held_out={"kind": "segments", "folds": 6}, candidates=[], h_range_m=[0.712, 0.712])
+    text = headline_text(data)
+    assert text.startswith("h to use: 0.712 m (held at the segments' geometric h") and "NOT identifiable" not in text
+    lines = [line for line in format_summary(data).splitlines() if "held at the segments' geometric h" in line]
+    assert len(lines) == 1 and "use h = 0.712 m" in lines[0] and "do not bound h" in lines[0]

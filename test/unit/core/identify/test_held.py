@@ -1,0 +1,115 @@
+"""h held at the segments' geometric h: the criterion, the geometric h's bound and its Type B uncertainty.
+
+The bound the uncertainty rests on (a common shift of the CoM offsets by ``d`` along the bodies' z axes and a
+change ``e`` of l0 move the geometric h by at most ``|d| + |e|``) is checked on random geometry by moving G and
+the hinge directly; the rectangular combination by sampling the two tolerances (the tolerance of a sampled
+standard deviation is from its own standard error).
+"""
+from __future__ import annotations
+
+import dataclasses
+import math
+import random
+from types import SimpleNamespace
+
+import numpy as np
+
+from euc_ros.core.identify.held import (
+    data_bound_h,
+    geometric_h,
+    geometric_h_uncertainty,
+    held_h,
+)
+from euc_ros.core.identify.interval import MAX_RIDE_ACCEL_RMS_MPS2, MIN_SHARPNESS
+from euc_ros.core.model.terms import EucParams
+from euc_ros.core.session import default_session
+
+
+def _states(rng, n=500):
+    """A rider-like geometry: C near the floor, G 0.6-0.9 m above, small EUC angles."""
+    C = np.column_stack([rng.normal(0, 1, n), rng.normal(0, 1, n), np.full(n, 0.2)])
+    G = C + np.column_stack([rng.normal(0, 0.05, n), rng.normal(0, 0.05, n), rng.uniform(0.6, 0.9, n)])
+    return SimpleNamespace(C=C, G=G, gamma=rng.normal(0, 0.05, n), psi=rng.uniform(-np.pi, np.pi, n),
+                           theta=rng.normal(0, 0.03, n), valid=np.ones(n, bool))
+
+
+def _params(l0=0.05):
+    return dataclasses.replace(EucParams.from_session(default_session()), l0=l0)
+
+
+def test_geometric_h_is_the_median_distance_of_g_from_the_hinge():
+    rng = np.random.default_rng(random.randrange(1, 1 << 30))
+    st = _states(rng)
+    p = _params()
+    # the hinge written out independently: A = C - l0 z_E, z_E = Rz(psi) Rx(theta) Ry(gamma) e_z
+    g, th, ps = st.gamma, st.theta, st.psi
+    zb = np.column_stack([np.sin(g), -np.sin(th) * np.cos(g), np.cos(th) * np.cos(g)])
+    zw = np.column_stack([np.cos(ps) * zb[:, 0] - np.sin(ps) * zb[:, 1], np.sin(ps) * zb[:, 0] + np.cos(ps) * zb[:, 1],
+                          zb[:, 2]])
+    expected = float(np.median(np.linalg.norm(st.G - (st.C - p.l0 * zw), axis=1)))
+    assert math.isclose(geometric_h([st], p), expected, rel_tol=1e-12)
+
+
+def test_a_shift_of_the_coms_and_of_l0_moves_the_geometric_h_by_at_most_their_sum():
+    seed = random.randrange(1, 1 << 30)
+    rng = np.random.default_rng(seed)
+    st = _states(rng)
+    p = _params()
+    h0 = geometric_h([st], p)
+    for _ in range(20):
+        d, e = rng.uniform(-0.02, 0.02), rng.uniform(-0.01, 0.01)
+        # G moves by d times a convex combination of unit vectors (the bodies' z axes): length <= |d|
+        w = rng.dirichlet(np.ones(5))
+        axes = rng.normal(size=(5, 3))
+        axes /= np.linalg.norm(axes, axis=1)[:, None]
+        moved = SimpleNamespace(**{**vars(st), "G": st.G + d * (w @ axes)})
+        p2 = dataclasses.replace(p, l0=p.l0 + e)
+        dh = geometric_h([moved], p2) - h0
+        assert abs(dh) <= abs(d) + abs(e) + 1e-12, (seed, dh, d, e)
+    # upright bodies (z axes along G - A) reach the bound: sensitivity 1 to a common shift
+    up = SimpleNamespace(**{**vars(st), "G": st.G + 0.01 * np.array([0.0, 0.0, 1.0])})
+    assert 0.009 < geometric_h([up], p) - h0 <= 0.01 + 1e-12
+
+
+def test_uncertainty_is_the_rectangular_combination_of_the_two_tolerances():
+    rng = np.random.default_rng(random.randrange(1, 1 << 30))
+    a, b = 0.01, 0.004
+    u = geometric_h_uncertainty({"rider.segments.com_offset": a, "euc.l0": b}, l0=0.05)
+    n = 200_000
+    s = float(np.std(rng.uniform(-a, a, n) + rng.uniform(-b, b, n)))
+    # standard error of a sampled standard deviation: sigma sqrt((kurtosis - 1) / (4 n)), kurtosis < 3 here
+    se = u * math.sqrt(2.0 / (4 * n))
+    assert abs(s - u) < 5 * se, (s, u, se)
+
+
+def test_a_percent_tolerance_of_l0_is_of_the_session_l0():
+    u = geometric_h_uncertainty({"rider.segments.com_offset": 0.0, "euc.l0": "10%"}, l0=0.08)
+    assert math.isclose(u, 0.008 / math.sqrt(3.0), rel_tol=1e-12)
+
+
+def test_the_data_do_not_bound_h_when_the_curve_is_flat_for_want_of_excitation_a_ride_gives():
+    assert data_bound_h(MIN_SHARPNESS, 0.5)
+    assert data_bound_h(float("nan"), 0.5)                        # sharpness unknown: not judged
+    assert not data_bound_h(0.5 * MIN_SHARPNESS, 0.5 * MAX_RIDE_ACCEL_RMS_MPS2)
+    assert not data_bound_h(0.5 * MIN_SHARPNESS, MAX_RIDE_ACCEL_RMS_MPS2)
+    # flat because of a residual no ride's excitation would explain (an effect the model lacks), or unknown
+    assert data_bound_h(0.5 * MIN_SHARPNESS, 1.01 * MAX_RIDE_ACCEL_RMS_MPS2)
+    assert data_bound_h(0.5 * MIN_SHARPNESS, None)
+    assert data_bound_h(0.5 * MIN_SHARPNESS, float("nan"))
+
+
+def test_held_h_holds_only_what_the_data_do_not_bound():
+    rng = np.random.default_rng(random.randrange(1, 1 << 30))
+    st = _states(rng)
+    p = _params()
+    assert held_h([st], p, 0.6, (0.55, 0.65), sharpness=1.2, accel_needed_mps2=0.3) is None
+    assert held_h([st], p, 0.3, (0.1, None), sharpness=0.3, accel_needed_mps2=11.0) is None     # an effect's residual
+    assert held_h([st], p, 0.07, None, sharpness=0.3, accel_needed_mps2=0.9) is None           # no interval computed
+    held = held_h([st], p, 0.07, (0.05, None), sharpness=0.3, accel_needed_mps2=0.9)
+    assert held is not None and held.h_m == geometric_h([st], p)
+    assert "too little" not in held.reason and "lacks speed changes" in held.reason and "unbounded" in held.reason
+    lo, hi = held.ci95_m
+    assert math.isclose(hi - lo, 2 * 1.959964 * held.std_m, rel_tol=1e-12) and lo < held.h_m < hi
+    doc = held.to_json()
+    assert doc["held"] is True and doc["h_from_data_m"] == 0.07 and doc["h_from_data_ci95_m"] == [0.05, None]
+    assert "do not bound h" in doc["reason"] and f"{held.h_m:.3f}" in held.console_line()
