@@ -66,7 +66,7 @@ STATURE_M = {"male": 1.741, "female": 1.735}
 class TableSegment:
     """One row of the segment table.
 
-    Attributes
+    Parameters
     ----------
     mass_pct : float
         Segment mass, % of body mass.
@@ -137,7 +137,15 @@ BODIES = {
 
 @dataclass(frozen=True)
 class BodySegment:
-    """Mass fraction of the rider and CoM offset from the pivot in the body frame [m]."""
+    """Mass fraction of the rider and CoM offset from the pivot in the body frame [m].
+
+    Parameters
+    ----------
+    mass_fraction : float
+        Fraction of the rider's mass in this segment.
+    com_offset : tuple of float
+        The segment's CoM offset from its pivot, body frame (x, y, z) [m].
+    """
 
     mass_fraction: float
     com_offset: tuple[float, float, float]
@@ -158,13 +166,39 @@ def _check(mass: float, height: float, sex: str) -> str:
 
 
 def segment_lengths(height: float, sex: str) -> dict[str, float]:
-    """The table's mean segment lengths scaled to ``height`` [m], by table segment name."""
+    """The table's mean segment lengths scaled to ``height`` [m], by table segment name.
+
+    Parameters
+    ----------
+    height : float
+        Rider's standing height [m].
+    sex : str
+        ``"male"`` or ``"female"`` (the table's columns).
+
+    Returns
+    -------
+    dict of str to float
+        Segment length [m] by table segment name.
+    """
     k = height / STATURE_M[sex]
     return {name: row.length_mm * 1e-3 * k for name, row in TABLE[sex].items()}
 
 
 def ankle_height(L: dict[str, float], height: float) -> float:
-    """Ankle height that puts the vertex at ``height`` on the stacked segments [m]."""
+    """Ankle height that puts the vertex at ``height`` on the stacked segments [m].
+
+    Parameters
+    ----------
+    L : dict of str to float
+        Segment lengths [m] by table segment name (:func:`segment_lengths`).
+    height : float
+        Rider's standing height [m].
+
+    Returns
+    -------
+    float
+        Ankle height above the floor [m].
+    """
     return height - (L["shank"] + L["thigh"] + L["trunk"] + L["head"])
 
 
@@ -230,7 +264,7 @@ def rider_segments(mass: float, height: float, sex: str, *, helmet_m: float = 0.
 class StandingRider:
     """Whole-body values of the standing rider (arms hanging).
 
-    Attributes
+    Parameters
     ----------
     inertia_pitch : float
         Pitch moment of inertia about the CoG [kg m^2].
@@ -246,7 +280,27 @@ class StandingRider:
 
 
 def standing_rider(mass: float, height: float, sex: str) -> StandingRider:
-    """Pitch inertia and CoG height of the rider standing upright, arms hanging (see the module notes)."""
+    """Pitch inertia and CoG height of the rider standing upright, arms hanging (see the module notes).
+
+    Parameters
+    ----------
+    mass : float
+        Rider's mass [kg].
+    height : float
+        Rider's standing height [m].
+    sex : str
+        ``"male"`` or ``"female"`` (or ``"m"``, ``"f"``; any case).
+
+    Returns
+    -------
+    StandingRider
+        Pitch inertia about the CoG and CoG heights.
+
+    Raises
+    ------
+    ConfigError
+        When the mass, height or sex is outside what the table covers.
+    """
     sex = _check(mass, height, sex)
     t, L, k = TABLE[sex], segment_lengths(height, sex), height / STATURE_M[sex]
     ankle = ankle_height(L, height)

@@ -53,7 +53,21 @@ class InputError(EucError, ValueError):
 
 
 class ConfigError(InputError):
-    """Invalid configuration: session file, params file or command-line options."""
+    """Invalid configuration: session file, params file or command-line options.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong and, where possible, how to fix it.
+    path : str or Path, optional
+        File the error is in.
+    line : int, optional
+        1-based line number.
+    column : int or str, optional
+        1-based column number or column name.
+    key : str, optional
+        Dotted key for structured files.
+    """
 
 
 class ModelDomainError(EucError):

@@ -31,6 +31,12 @@ def _malloc_trim():
 
 
 def release_free_memory() -> bool:
-    """Return the allocator's free pages to the operating system (glibc); True when something was released."""
+    """Release of the allocator's free pages to the operating system (glibc); True when something was released.
+
+    Returns
+    -------
+    bool
+        True when ``malloc_trim`` released memory; False when it did not or is unavailable.
+    """
     trim = _malloc_trim()
     return bool(trim(0)) if trim is not None else False

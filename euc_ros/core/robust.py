@@ -51,6 +51,20 @@ def median(a, axis: int | None = None, keepdims: bool = False):
     """:func:`numpy.median` of ``a`` (float64), over everything (``axis`` None) or along ``axis``.
 
     Equal to numpy's bit for bit (module docstring).
+
+    Parameters
+    ----------
+    a : array_like
+        Values, converted to float64.
+    axis : int, optional
+        Axis to take the median along; None for all values.
+    keepdims : bool
+        Keep the reduced axis (or all axes when ``axis`` is None) with length one.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The median: a float when ``axis`` is None and not ``keepdims``, else an array.
     """
     a = np.asarray(a, dtype=float)
     if axis is None:

@@ -26,7 +26,18 @@ YAW_TILT_PITCH_SEQ = "ZXY"
 
 
 def quat_from_yaw_tilt_pitch(psi, theta, pitch) -> np.ndarray:
-    """Return body-to-world quaternions (..., 4) for yaw psi, tilt theta, pitch [rad]."""
+    """Body-to-world quaternions (..., 4) for yaw psi, tilt theta, pitch [rad].
+
+    Parameters
+    ----------
+    psi, theta, pitch : array_like
+        Yaw, tilt and pitch [rad] (broadcast together).
+
+    Returns
+    -------
+    numpy.ndarray
+        Body-to-world quaternions (..., 4), (x, y, z, w).
+    """
     angles = np.stack(np.broadcast_arrays(np.asarray(psi, float), np.asarray(theta, float),
                                           np.asarray(pitch, float)), axis=-1)
     flat = angles.reshape(-1, 3)
@@ -35,13 +46,23 @@ def quat_from_yaw_tilt_pitch(psi, theta, pitch) -> np.ndarray:
 
 
 def yaw_tilt_pitch_from_quat(q) -> np.ndarray:
-    """Return ``[psi, theta, pitch]`` (..., 3) [rad] from quaternions (..., 4) (x, y, z, w).
+    """``[psi, theta, pitch]`` (..., 3) [rad] from quaternions (..., 4) (x, y, z, w).
 
     NaN quaternions give NaN angles (untracked samples stay gaps). With ``R = Rz(psi) Rx(theta)
     Ry(pitch)`` (intrinsic Z-X-Y, :data:`YAW_TILT_PITCH_SEQ`) the last row of R is
     ``(-cos(theta) sin(pitch), sin(theta), cos(theta) cos(pitch))`` and ``R[0, 1] = -sin(psi) cos(theta)``,
     ``R[1, 1] = cos(psi) cos(theta)``: closed forms in numpy (equal to scipy's ``as_euler("ZXY")`` to
     round-off away from theta = +-90 deg, tested), ~10x cheaper than scipy on one frame.
+
+    Parameters
+    ----------
+    q : array_like
+        Quaternions (..., 4), (x, y, z, w), body to world; need not be normalised.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[psi, theta, pitch]`` (..., 3) [rad].
     """
     R = rotation_matrices(q)
     theta = np.arcsin(np.clip(R[..., 2, 1], -1.0, 1.0))
@@ -51,9 +72,19 @@ def yaw_tilt_pitch_from_quat(q) -> np.ndarray:
 
 
 def rotation_matrices(q) -> np.ndarray:
-    """Return rotation matrices (..., 3, 3) for quaternions (..., 4) (x, y, z, w; normalised here).
+    """Rotation matrices (..., 3, 3) for quaternions (..., 4) (x, y, z, w; normalised here).
 
     NaN where q is not finite or zero.
+
+    Parameters
+    ----------
+    q : array_like
+        Quaternions (..., 4), (x, y, z, w).
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation matrices (..., 3, 3), body to world.
     """
     q = np.asarray(q, dtype=float)
     n2 = np.einsum("...i,...i->...", q, q)
@@ -70,36 +101,104 @@ def rotation_matrices(q) -> np.ndarray:
 
 
 def rotate(q, v) -> np.ndarray:
-    """Rotate body-frame vectors v (..., 3) to the world by quaternions q (..., 4) (broadcasting)."""
+    """Rotate body-frame vectors v (..., 3) to the world by quaternions q (..., 4) (broadcasting).
+
+    Parameters
+    ----------
+    q : array_like
+        Body-to-world quaternions (..., 4), (x, y, z, w).
+    v : array_like
+        Body-frame vectors (..., 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        World-frame vectors (..., 3).
+    """
     return np.einsum("...ij,...j->...i", rotation_matrices(q), np.asarray(v, dtype=float))
 
 
 def y_up_to_z_up_position(p) -> np.ndarray:
-    """Motive Y-up position (X, Y, Z) -> REP-103 Z-up (X, -Z, Y)."""
+    """Motive Y-up position (X, Y, Z) -> REP-103 Z-up (X, -Z, Y).
+
+    Parameters
+    ----------
+    p : array_like
+        Positions (..., 3) in Motive's Y-up axes [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        Positions (..., 3) in REP-103 Z-up axes [m].
+    """
     p = np.asarray(p, dtype=float)
     return np.stack([p[..., 0], -p[..., 2], p[..., 1]], axis=-1)
 
 
 def z_up_to_y_up_position(p) -> np.ndarray:
-    """REP-103 Z-up position (x, y, z) -> Motive Y-up (x, z, -y); inverse of :func:`y_up_to_z_up_position`."""
+    """REP-103 Z-up position (x, y, z) -> Motive Y-up (x, z, -y); inverse of :func:`y_up_to_z_up_position`.
+
+    Parameters
+    ----------
+    p : array_like
+        Positions (..., 3) in REP-103 Z-up axes [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        Positions (..., 3) in Motive's Y-up axes [m].
+    """
     p = np.asarray(p, dtype=float)
     return np.stack([p[..., 0], p[..., 2], -p[..., 1]], axis=-1)
 
 
 def y_up_to_z_up_quat(q) -> np.ndarray:
-    """Motive Y-up quaternion (qx, qy, qz, qw) -> REP-103 Z-up (qx, -qz, qy, qw)."""
+    """Motive Y-up quaternion (qx, qy, qz, qw) -> REP-103 Z-up (qx, -qz, qy, qw).
+
+    Parameters
+    ----------
+    q : array_like
+        Quaternions (..., 4), (x, y, z, w), in Motive's Y-up axes.
+
+    Returns
+    -------
+    numpy.ndarray
+        Quaternions (..., 4) in REP-103 Z-up axes.
+    """
     q = np.asarray(q, dtype=float)
     return np.stack([q[..., 0], -q[..., 2], q[..., 1], q[..., 3]], axis=-1)
 
 
 def z_up_to_y_up_quat(q) -> np.ndarray:
-    """REP-103 Z-up quaternion -> Motive Y-up; inverse of :func:`y_up_to_z_up_quat`."""
+    """REP-103 Z-up quaternion -> Motive Y-up; inverse of :func:`y_up_to_z_up_quat`.
+
+    Parameters
+    ----------
+    q : array_like
+        Quaternions (..., 4), (x, y, z, w), in REP-103 Z-up axes.
+
+    Returns
+    -------
+    numpy.ndarray
+        Quaternions (..., 4) in Motive's Y-up axes.
+    """
     q = np.asarray(q, dtype=float)
     return np.stack([q[..., 0], q[..., 2], -q[..., 1], q[..., 3]], axis=-1)
 
 
 def canonical_quat(q) -> np.ndarray:
-    """Return quaternions with w >= 0 (the sign of a quaternion is arbitrary)."""
+    """Quaternions with w >= 0 (the sign of a quaternion is arbitrary).
+
+    Parameters
+    ----------
+    q : array_like
+        Quaternions (..., 4), (x, y, z, w).
+
+    Returns
+    -------
+    numpy.ndarray
+        The same rotations (..., 4) with w >= 0.
+    """
     q = np.asarray(q, dtype=float)
     return np.where(q[..., 3:4] < 0, -q, q)
 
@@ -108,6 +207,16 @@ def quat_multiply(a, b) -> np.ndarray:
     """Hamilton product ``a b`` of quaternions (..., 4) in (x, y, z, w) order (broadcasting).
 
     The rotation ``b`` followed by ``a`` in the fixed frame, i.e. ``R(a b) = R(a) R(b)``.
+
+    Parameters
+    ----------
+    a, b : array_like
+        Quaternions (..., 4), (x, y, z, w) (broadcast together).
+
+    Returns
+    -------
+    numpy.ndarray
+        The products ``a b`` (..., 4).
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
@@ -119,13 +228,35 @@ def quat_multiply(a, b) -> np.ndarray:
 
 
 def quat_conjugate(q) -> np.ndarray:
-    """Inverse of unit quaternions (..., 4) (x, y, z, w)."""
+    """Inverse of unit quaternions (..., 4) (x, y, z, w).
+
+    Parameters
+    ----------
+    q : array_like
+        Unit quaternions (..., 4), (x, y, z, w).
+
+    Returns
+    -------
+    numpy.ndarray
+        Conjugates (..., 4): the inverse rotations.
+    """
     q = np.asarray(q, dtype=float)
     return np.concatenate([-q[..., :3], q[..., 3:]], axis=-1)
 
 
 def quat_from_rotvec(v) -> np.ndarray:
-    """Unit quaternions (..., 4) of rotation vectors (..., 3) [rad] (axis times angle)."""
+    """Unit quaternions (..., 4) of rotation vectors (..., 3) [rad] (axis times angle).
+
+    Parameters
+    ----------
+    v : array_like
+        Rotation vectors (..., 3) [rad].
+
+    Returns
+    -------
+    numpy.ndarray
+        Unit quaternions (..., 4), (x, y, z, w).
+    """
     v = np.asarray(v, dtype=float)
     angle = np.linalg.norm(v, axis=-1, keepdims=True)
     half = 0.5 * angle
@@ -135,7 +266,18 @@ def quat_from_rotvec(v) -> np.ndarray:
 
 
 def rotvec_from_quat(q) -> np.ndarray:
-    """Rotation vectors (..., 3) [rad] of quaternions (..., 4), the angle in [0, pi] (sign of q ignored)."""
+    """Rotation vectors (..., 3) [rad] of quaternions (..., 4), the angle in [0, pi] (sign of q ignored).
+
+    Parameters
+    ----------
+    q : array_like
+        Quaternions (..., 4), (x, y, z, w); normalised here.
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation vectors (..., 3) [rad].
+    """
     q = canonical_quat(np.asarray(q, dtype=float) / np.linalg.norm(q, axis=-1, keepdims=True))
     s = np.linalg.norm(q[..., :3], axis=-1, keepdims=True)
     angle = 2.0 * np.arctan2(s, q[..., 3:])
@@ -149,6 +291,18 @@ def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     ``v' = v + 2 w (u x v) + 2 u x (u x v)`` with ``u = (x, y, z)``; NaN quaternions give NaN. The
     cross products are written out (``np.cross`` costs more than the arithmetic on one frame), so this
     is cheaper than :func:`rotate` on a single frame; the two agree to rounding.
+
+    Parameters
+    ----------
+    q : numpy.ndarray
+        Body-to-world quaternions (..., 4), (x, y, z, w).
+    v : numpy.ndarray
+        Body-frame vectors (..., 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        World-frame vectors (..., 3).
     """
     q = q / np.sqrt(np.einsum("...i,...i->...", q, q))[..., None]
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]

@@ -33,7 +33,15 @@ MASS_FRACTION_TOL = 1e-3
 
 @dataclass(frozen=True)
 class Segment:
-    """One rider segment: mass fraction of the rider mass and CoM offset from the pivot [m, body frame]."""
+    """One rider segment: mass fraction of the rider mass and CoM offset from the pivot [m, body frame].
+
+    Parameters
+    ----------
+    mass_fraction : float
+        Fraction of the rider's mass, in [0, 1].
+    com_offset : tuple of float
+        CoM offset from the segment body's pivot, body frame (x, y, z) [m].
+    """
 
     mass_fraction: float
     com_offset: tuple[float, float, float]
@@ -41,7 +49,17 @@ class Segment:
 
 @dataclass(frozen=True)
 class Rider:
-    """Rider: total mass [kg], pitch inertia about the CoG [kg m^2] and segments by body name."""
+    """Rider: total mass [kg], pitch inertia about the CoG [kg m^2] and segments by body name.
+
+    Parameters
+    ----------
+    mass : float
+        Total rider mass [kg].
+    inertia_pitch : float
+        Pitch moment of inertia about the rider's CoG [kg m^2].
+    segments : Mapping of str to Segment
+        Segments by rigid-body name.
+    """
 
     mass: float
     inertia_pitch: float
@@ -50,7 +68,29 @@ class Rider:
 
 @dataclass(frozen=True)
 class Euc:
-    """EUC vehicle parameters (EUC paper, Table 3), SI units."""
+    """EUC vehicle parameters (EUC paper, Table 3), SI units.
+
+    Parameters
+    ----------
+    body : str
+        Name of the EUC's rigid body in the recordings.
+    wheel_radius : float
+        Wheel radius R [m].
+    wheel_mass : float
+        Wheel mass mw [kg].
+    body_mass : float
+        Mass of the EUC body without the wheel m0 [kg].
+    wheel_inertia : float
+        Wheel moment of inertia about its axle Jw [kg m^2].
+    body_inertia : float
+        Pitch moment of inertia of the EUC body about its CoM J0 [kg m^2].
+    h0 : float
+        Distance from the wheel centre C up the EUC's axis to the body's CoG G0 [m] (signed).
+    l0 : float
+        Distance from the ankle hinge A down the EUC's axis to the wheel centre C [m] (signed).
+    pivot_to_wheel_center : tuple of float
+        Wheel centre from the EUC body's pivot, body frame (x, y, z) [m].
+    """
 
     body: str = "E"
     wheel_radius: float = 0.2
@@ -65,7 +105,21 @@ class Euc:
 
 @dataclass(frozen=True)
 class Session:
-    """A parsed session file."""
+    """A parsed session file.
+
+    Parameters
+    ----------
+    world_up : str
+        The recordings' up axis, ``"y"`` (Motive) or ``"z"`` (REP-103).
+    rate_hz : float
+        Nominal capture rate [Hz].
+    rider : Rider
+        The rider's mass, inertia and segments.
+    euc : Euc
+        The vehicle parameters.
+    source : str, optional
+        File the session was read from (not compared).
+    """
 
     world_up: str
     rate_hz: float
@@ -74,14 +128,30 @@ class Session:
     source: str | None = field(default=None, compare=False)
 
     def segment_arrays(self) -> tuple[list[str], np.ndarray, np.ndarray]:
-        """Return (names, mass fractions (n,), CoM offsets (n, 3)) in file order."""
+        """The triple (names, mass fractions (n,), CoM offsets (n, 3)) in file order.
+
+        Returns
+        -------
+        names : list of str
+            Segment body names.
+        fractions : numpy.ndarray
+            Mass fractions (n,).
+        offsets : numpy.ndarray
+            CoM offsets (n, 3) from each pivot, body frame [m].
+        """
         names = list(self.rider.segments)
         fractions = np.array([self.rider.segments[n].mass_fraction for n in names], dtype=float)
         offsets = np.array([self.rider.segments[n].com_offset for n in names], dtype=float)
         return names, fractions, offsets
 
     def to_dict(self) -> dict[str, Any]:
-        """Return the plain-YAML form of the session (round-trips through :func:`parse_session`)."""
+        """The plain-YAML form of the session (round-trips through :func:`parse_session`).
+
+        Returns
+        -------
+        dict of str to Any
+            Plain lists, floats and strings, without ``source``.
+        """
         d = asdict(self)
         d.pop("source")
         d["rider"]["segments"] = {
@@ -107,7 +177,7 @@ _POSITIVE = {"rate_hz", "mass", "inertia_pitch", "wheel_radius", "wheel_mass", "
 class Plausible:
     """Plausible range of a session quantity in SI, and the unit slips a value outside it may come from.
 
-    Attributes
+    Parameters
     ----------
     lo, hi : float
         Range of the value (of the vector's length for ``com_offset`` and ``pivot_to_wheel_center``).
@@ -174,6 +244,11 @@ def check_plausible(leaf: str, value: Any, *, key: str | None = None, source: st
         Dotted key for the message (default ``leaf``).
     source : str or Path, optional
         The session file.
+
+    Raises
+    ------
+    ConfigError
+        Naming the key whose value is outside its plausible range.
 
     Examples
     --------
@@ -243,6 +318,18 @@ def _value(d: Mapping, k: str, typ: type, prefix: str, src: str | None) -> Any:
 def parse_session(data: Any, source: str | Path | None = None) -> Session:
     """Validate a session mapping (already loaded from YAML) and return a :class:`Session`.
 
+    Parameters
+    ----------
+    data : Any
+        The mapping loaded from the session YAML.
+    source : str or Path, optional
+        File the data came from, named in errors.
+
+    Returns
+    -------
+    Session
+        The validated session.
+
     Raises
     ------
     ConfigError
@@ -289,6 +376,22 @@ def load_session(path: str | Path) -> Session:
 
     A Motive CSV export or a bag given as the session is refused with a message that says the order
     of the arguments without naming a command: the command line's error prefix names the one run.
+
+    Parameters
+    ----------
+    path : str or Path
+        The session YAML file.
+
+    Returns
+    -------
+    Session
+        The validated session.
+
+    Raises
+    ------
+    ConfigError
+        When the file is a recording rather than a session, cannot be read, is not valid YAML or fails
+        :func:`parse_session`'s checks.
     """
     p = Path(path)
     if p.is_dir() or p.suffix.lower() in (".csv", ".mcap", ".db3"):
@@ -300,7 +403,15 @@ def load_session(path: str | Path) -> Session:
 
 
 def save_session(session: Session, path: str | Path) -> None:
-    """Write a session file that :func:`load_session` reads back unchanged."""
+    """Write a session file that :func:`load_session` reads back unchanged.
+
+    Parameters
+    ----------
+    session : Session
+        The session to write.
+    path : str or Path
+        File to write (overwritten).
+    """
     Path(path).write_text(yaml.safe_dump(session.to_dict(), sort_keys=False), encoding="utf-8")
 
 
@@ -318,6 +429,11 @@ def default_rider() -> Rider:
     The same table and mapping onto the rider bodies as ``euc-ros session init --mass 65 --height 1.75
     --sex male``: mass fractions, CoM offsets from each pivot (body frame, x forward, y left, z up when
     standing) and the standing rider's pitch inertia about its CoG.
+
+    Returns
+    -------
+    Rider
+        The default 65 kg, 1.75 m male rider.
     """
     segments = rider_segments(DEFAULT_RIDER_MASS, DEFAULT_RIDER_HEIGHT, DEFAULT_RIDER_SEX)
     standing = standing_rider(DEFAULT_RIDER_MASS, DEFAULT_RIDER_HEIGHT, DEFAULT_RIDER_SEX)
@@ -326,5 +442,16 @@ def default_rider() -> Rider:
 
 
 def default_session(world_up: str = "y") -> Session:
-    """Return the nominal session: the EUC paper's EUC (Table 3) and :func:`default_rider`."""
+    """The nominal session: the EUC paper's EUC (Table 3) and :func:`default_rider`.
+
+    Parameters
+    ----------
+    world_up : str
+        The recordings' up axis, ``"y"`` or ``"z"``.
+
+    Returns
+    -------
+    Session
+        The nominal session at 120 Hz.
+    """
     return Session(world_up=world_up, rate_hz=120.0, rider=default_rider(), euc=Euc())

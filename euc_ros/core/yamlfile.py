@@ -61,6 +61,18 @@ def _check_unique(loader: yaml.SafeLoader, node: yaml.Node, prefix: str, seen_no
 def parse_yaml(text: str, path: str | Path | None = None) -> Any:
     """Parse one YAML document, refusing duplicate keys.
 
+    Parameters
+    ----------
+    text : str
+        The YAML text.
+    path : str or Path, optional
+        File the text came from, named in errors.
+
+    Returns
+    -------
+    Any
+        The document's plain Python value (None for an empty document).
+
     Raises
     ------
     ConfigError
@@ -87,7 +99,19 @@ def parse_yaml(text: str, path: str | Path | None = None) -> Any:
 
 
 def load_yaml(path: str | Path, what: str = "file") -> Any:
-    """Return the parsed YAML of ``path``.
+    """The parsed YAML of ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The YAML file.
+    what : str
+        What the file is, named in the error when it cannot be read.
+
+    Returns
+    -------
+    Any
+        The document's plain Python value (None for an empty document).
 
     Raises
     ------

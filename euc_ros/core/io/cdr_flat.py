@@ -66,6 +66,25 @@ class FlatEncoder:
 
         The header holds ``stamp_ns`` [ns], clamped at 0, and ``frame_id``; floats are written as float64, NaN
         kept; booleans as 0/1.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Header stamp [ns].
+        frame_id : str
+            Header frame id.
+        values : sequence
+            One value per field.
+
+        Returns
+        -------
+        bytes
+            The message, encapsulation header included.
+
+        Raises
+        ------
+        ValueError
+            When the number of values is not the number of fields.
         """
         if len(values) != self.n_fields:
             raise ValueError(f"expected {self.n_fields} values ({', '.join(self.names)}), got {len(values)}")

@@ -114,6 +114,11 @@ class FrameEncoder:
             x, y, z, w.
         tracked : array_like (n,) of bool
         mean_marker_error : array_like (n,)
+
+        Returns
+        -------
+        bytes
+            The message, encapsulation header included.
         """
         bodies = list(bodies)
         t = self._template(frame_id, bodies)
@@ -134,7 +139,29 @@ class FrameEncoder:
 
 @dataclass
 class DecodedFrame:
-    """A MocapFrame's fields as arrays."""
+    """A MocapFrame's fields as arrays.
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Header stamp [ns].
+    frame_id : str
+        Header frame id.
+    stamp_source : int
+        One of the message's ``STAMP_*`` constants.
+    frame_number : int
+        Frame number (-1: unknown).
+    bodies : list of str
+        Body names.
+    position : numpy.ndarray
+        Pivot positions (n, 3) [m].
+    quat : numpy.ndarray
+        Quaternions (n, 4), (x, y, z, w).
+    tracked : numpy.ndarray
+        Tracked flags (n,).
+    mean_marker_error : numpy.ndarray
+        Mean marker errors (n,) [m].
+    """
 
     stamp_ns: int
     frame_id: str
@@ -186,7 +213,18 @@ _NAMES_CACHE: dict[bytes, list[str]] = {}
 
 
 def decode(raw: bytes) -> DecodedFrame:
-    """Read the CDR bytes of a MocapFrame (see the module docstring); raises :class:`CdrError`."""
+    """Read the CDR bytes of a MocapFrame (see the module docstring); raises :class:`CdrError`.
+
+    Parameters
+    ----------
+    raw : bytes
+        The serialized message, encapsulation header included.
+
+    Returns
+    -------
+    DecodedFrame
+        Its fields.
+    """
     raw = bytes(raw)
     if raw[:2] != ENCAPSULATION_LE[:2]:
         raise CdrError(f"not little-endian CDR (encapsulation {raw[:4].hex()})")
@@ -221,7 +259,24 @@ def decode(raw: bytes) -> DecodedFrame:
 
 
 def pose_stamped(stamp_ns: int, frame_id: str, position, quat) -> bytes:
-    """CDR bytes of one ``geometry_msgs/PoseStamped`` (position (3,), quaternion (4,) x, y, z, w)."""
+    """CDR bytes of one ``geometry_msgs/PoseStamped`` (position (3,), quaternion (4,) x, y, z, w).
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Header stamp [ns].
+    frame_id : str
+        Header frame id.
+    position : array_like
+        Position (3,) [m].
+    quat : array_like
+        Quaternion (4,), (x, y, z, w).
+
+    Returns
+    -------
+    bytes
+        The message, encapsulation header included.
+    """
     body = header_bytes(stamp_ns, frame_id)
     body += b"\x00" * ((-len(body)) % 8)
     body += np.concatenate([np.asarray(position, dtype="<f8").reshape(3),
@@ -230,7 +285,26 @@ def pose_stamped(stamp_ns: int, frame_id: str, position, quat) -> bytes:
 
 
 def tf_message(stamp_ns: int, parent: str, children, position, quat) -> bytes:
-    """CDR bytes of one ``tf2_msgs/TFMessage``: ``parent`` -> each child at positions (k, 3), quaternions (k, 4)."""
+    """CDR bytes of one ``tf2_msgs/TFMessage``: ``parent`` -> each child at positions (k, 3), quaternions (k, 4).
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Stamp of every transform [ns].
+    parent : str
+        Parent frame id.
+    children : sequence of str
+        Child frame ids (k).
+    position : array_like
+        Translations (k, 3) [m].
+    quat : array_like
+        Rotations (k, 4), (x, y, z, w).
+
+    Returns
+    -------
+    bytes
+        The message, encapsulation header included.
+    """
     children = list(children)
     position = np.asarray(position, dtype="<f8").reshape(len(children), 3)
     quat = np.asarray(quat, dtype="<f8").reshape(len(children), 4)

@@ -120,6 +120,20 @@ def parse_rows(data: bytes, n_rows: int, width: int) -> np.ndarray | None:
 
     NaN for a blank cell; equal bit for bit to a correctly rounded reader's; None for anything outside the
     fast path (module docstring).
+
+    Parameters
+    ----------
+    data : bytes
+        The rows' text.
+    n_rows : int
+        Number of rows.
+    width : int
+        Cells per row.
+
+    Returns
+    -------
+    numpy.ndarray or None
+        The values (n_rows, width), or None.
     """
     buf = np.frombuffer(data, dtype=np.uint8)
     out = np.empty((n_rows, width))

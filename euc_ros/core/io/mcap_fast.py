@@ -40,7 +40,19 @@ class _Unsupported(Exception):
 
 @dataclass(frozen=True)
 class Channel:
-    """An MCAP channel with its schema name (the ROS message type for ros2msg schemas)."""
+    """An MCAP channel with its schema name (the ROS message type for ros2msg schemas).
+
+    Parameters
+    ----------
+    id : int
+        Channel id.
+    topic : str
+        Topic name.
+    schema_name : str
+        Schema name ("" when the channel has no schema).
+    message_encoding : str
+        Message encoding, e.g. ``cdr``.
+    """
 
     id: int
     topic: str
@@ -59,7 +71,15 @@ class _ChunkIndex:
 
 @dataclass
 class Summary:
-    """Channels and chunk indexes of an MCAP file (from its summary section)."""
+    """Channels and chunk indexes of an MCAP file (from its summary section).
+
+    Parameters
+    ----------
+    channels : dict of int to Channel
+        Channels by id.
+    chunks : list
+        Chunk indexes, by start offset.
+    """
 
     channels: dict
     chunks: list
@@ -69,7 +89,7 @@ class Summary:
 class Messages:
     """Messages of a set of channels, in the order rosbags yields them (log time, then file order).
 
-    Attributes
+    Parameters
     ----------
     buf : ndarray of uint8
         The file's bytes (read-only memory map).
@@ -93,7 +113,23 @@ class Messages:
         return int(self.offset.shape[0])
 
     def rows(self, idx=None) -> np.ndarray:
-        """Data of messages ``idx`` (default all), which must share one length, as an (m, L) uint8 copy."""
+        """Data of messages ``idx`` (default all), which must share one length, as an (m, L) uint8 copy.
+
+        Parameters
+        ----------
+        idx : array_like of int, optional
+            Message indices; default all.
+
+        Returns
+        -------
+        numpy.ndarray
+            The data (m, L), uint8.
+
+        Raises
+        ------
+        ValueError
+            When the messages differ in length.
+        """
         off = self.offset if idx is None else self.offset[idx]
         lens = self.length if idx is None else self.length[idx]
         if off.size == 0:
@@ -106,7 +142,18 @@ class Messages:
         return sliding_window_view(self.buf, length)[off]
 
     def raw(self, i: int) -> bytes:
-        """Data of message ``i``."""
+        """Data of message ``i``.
+
+        Parameters
+        ----------
+        i : int
+            Message index.
+
+        Returns
+        -------
+        bytes
+            Its serialized data.
+        """
         o = int(self.offset[i])
         return self.buf[o:o + int(self.length[i])].tobytes()
 
@@ -261,7 +308,18 @@ class McapFile:
         return {} if self.summary is None else dict(self.summary.channels)
 
     def messages(self, channel_ids) -> Messages | None:
-        """Messages of ``channel_ids`` merged in rosbags' order, or None when unsupported here."""
+        """Messages of ``channel_ids`` merged in rosbags' order, or None when unsupported here.
+
+        Parameters
+        ----------
+        channel_ids : iterable of int
+            The channels.
+
+        Returns
+        -------
+        Messages or None
+            The messages, or None.
+        """
         if self.summary is None:
             return None
         try:

@@ -22,7 +22,7 @@ REPO_MSG_DIR = Path(__file__).resolve().parents[3] / "msg_defs" / "msg"
 
 
 def msg_dirs() -> list[Path]:
-    """Return the directories searched for ``euc_msgs`` ``.msg`` files, in priority order.
+    """The directories searched for ``euc_msgs`` ``.msg`` files, in priority order.
 
     Returns
     -------
@@ -33,7 +33,7 @@ def msg_dirs() -> list[Path]:
 
 
 def euc_msgs_definitions() -> dict[str, str]:
-    """Return the ``.msg`` text of every euc_msgs message, keyed by full type name.
+    """The ``.msg`` text of every euc_msgs message, keyed by full type name.
 
     Returns
     -------
@@ -64,6 +64,16 @@ def package_definitions(package: str) -> dict[str, str]:
     """The ``.msg`` texts of an installed interface package; empty when none holds it.
 
     Searched in this prefix, then AMENT_PREFIX_PATH, then the repository's extra_interfaces/.
+
+    Parameters
+    ----------
+    package : str
+        Interface package name, e.g. ``euc_msgs``.
+
+    Returns
+    -------
+    dict of str to str
+        ``.msg`` text by type name (``package/msg/Name``).
     """
     prefixes = [Path(sys.prefix)] + [Path(p) for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
     dirs = [pre / "share" / package / "msg" for pre in prefixes] + [REPO_EXTRA_DIR / package / "msg"]
@@ -75,7 +85,7 @@ def package_definitions(package: str) -> dict[str, str]:
 
 
 def make_typestore():
-    """Return a rosbags typestore for ROS 2 Jazzy with the euc_msgs types registered.
+    """A rosbags typestore for ROS 2 Jazzy with the euc_msgs types registered.
 
     Returns
     -------

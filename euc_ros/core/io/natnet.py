@@ -81,7 +81,7 @@ MAX_COUNT = 100_000
 class NatNetError(InputError):
     """A NatNet packet that cannot be decoded.
 
-    Attributes
+    Parameters
     ----------
     offset : int or None
         Byte offset in the packet (header included) where decoding failed.
@@ -89,6 +89,8 @@ class NatNetError(InputError):
         Field being decoded, e.g. ``'rigid_bodies[2].quat'``.
     message_id : int or None
         Message id from the packet header, when it could be read.
+    message : str
+        What is wrong.
     """
 
     def __init__(self, message: str, *, offset: int | None = None, field: str | None = None,
@@ -114,7 +116,7 @@ class NatNetError(InputError):
 class ServerInfo:
     """SERVERINFO (reply to CONNECT): who the server is and how it streams.
 
-    Attributes
+    Parameters
     ----------
     app_name : str
         Server application, e.g. ``'Motive'``.
@@ -151,7 +153,7 @@ class ServerInfo:
 class ModelDef:
     """MODELDEF (data descriptions): names of what the server streams.
 
-    Attributes
+    Parameters
     ----------
     rigid_bodies : dict of int to str
         Rigid-body streaming id -> name.
@@ -184,7 +186,7 @@ class ModelDef:
 class RigidBodyData:
     """One rigid body in a frame, exactly as streamed (Motive's world axes, usually Y-up).
 
-    Attributes
+    Parameters
     ----------
     id : int
         Streaming id (name via :attr:`ModelDef.rigid_bodies`).
@@ -210,7 +212,7 @@ class RigidBodyData:
 class FrameOfData:
     """FRAMEOFDATA: one motion-capture frame.
 
-    Attributes
+    Parameters
     ----------
     frame_number : int
         Motive frame number.
@@ -261,14 +263,28 @@ class FrameOfData:
 
 @dataclass(frozen=True)
 class MessageString:
-    """MESSAGESTRING: free text from the server."""
+    """MESSAGESTRING: free text from the server.
+
+    Parameters
+    ----------
+    text : str
+        The text.
+    """
 
     text: str
 
 
 @dataclass(frozen=True)
 class Response:
-    """RESPONSE to a REQUEST: a 4-byte integer result code, or text (e.g. ``'Bitstream,4.1'``)."""
+    """RESPONSE to a REQUEST: a 4-byte integer result code, or text (e.g. ``'Bitstream,4.1'``).
+
+    Parameters
+    ----------
+    code : int or None
+        The result code (None for a text response).
+    text : str or None
+        The text (None for a code).
+    """
 
     code: int | None
     text: str | None
@@ -281,7 +297,15 @@ class UnrecognizedRequest:
 
 @dataclass(frozen=True)
 class Request:
-    """A client-to-server packet (CONNECT, REQUEST, REQUEST_MODELDEF, ..., KEEPALIVE), kept raw."""
+    """A client-to-server packet (CONNECT, REQUEST, REQUEST_MODELDEF, ..., KEEPALIVE), kept raw.
+
+    Parameters
+    ----------
+    message_id : int
+        The NatNet message id.
+    payload : bytes
+        The payload.
+    """
 
     message_id: int
     payload: bytes
@@ -385,7 +409,23 @@ def _has_sizes(major: int, minor: int) -> bool:
 # ---------------------------------------------------------------------------------------------------------------------
 
 def message_id(data: bytes) -> int:
-    """Return the message id of a packet (first two bytes), or raise NatNetError if too short."""
+    """The message id of a packet (first two bytes); NatNetError if too short.
+
+    Parameters
+    ----------
+    data : bytes
+        The packet.
+
+    Returns
+    -------
+    int
+        The message id.
+
+    Raises
+    ------
+    NatNetError
+        When the packet has fewer than two bytes.
+    """
     if len(data) < 2:
         raise NatNetError(f"packet of {len(data)} bytes has no header", offset=0, field="header")
     return int.from_bytes(data[:2], "little")
@@ -442,7 +482,7 @@ def parse_packet(data: bytes, version=(4, 1)):
 
 
 def latency_s(frame: FrameOfData, server_info: ServerInfo) -> float:
-    """Return the system latency of a frame [s]: camera mid-exposure to transmission.
+    """The system latency of a frame [s]: camera mid-exposure to transmission.
 
     ``(transmit_timestamp - camera_mid_exposure) / high_res_clock_frequency`` (server clock ticks).
     This is Motive's "system latency"; the network transit to the client is not included (the server

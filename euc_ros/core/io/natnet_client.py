@@ -55,15 +55,38 @@ MAX_PACKETS_PER_POLL = 10_000
 
 
 def build_request(message_id: int, payload: bytes = b"") -> bytes:
-    """Return a client packet: ``uint16`` id, ``uint16`` payload size, payload."""
+    """A client packet: ``uint16`` id, ``uint16`` payload size, payload.
+
+    Parameters
+    ----------
+    message_id : int
+        The NatNet message id.
+    payload : bytes
+        The payload.
+
+    Returns
+    -------
+    bytes
+        The packet.
+    """
     return struct.pack("<HH", message_id, len(payload)) + payload
 
 
 def connect_payload(version=CLIENT_NATNET_VERSION) -> bytes:
-    """Return the CONNECT payload (271 bytes, as the SDK sample sends it).
+    """The CONNECT payload (271 bytes, as the SDK sample sends it).
 
     ``'Ping'`` in a 265-byte NUL-padded name field, the requested NatNet version as 4 bytes at offset 265,
     then two NUL bytes.
+
+    Parameters
+    ----------
+    version : sequence of int
+        Requested NatNet version (major, minor, build, revision).
+
+    Returns
+    -------
+    bytes
+        The payload.
     """
     name = b"Ping".ljust(265, b"\0")
     return name + bytes(int(v) & 0xFF for v in version) + b"\0\0"
@@ -116,6 +139,11 @@ class NatNetClient:
         ``keepalives_sent``, ``connects_sent``, ``modeldef_requests``, ``send_errors``.
     last_error : str or None
         Message of the last dropped packet or send error.
+
+    Raises
+    ------
+    ConfigError
+        When ``multicast_group`` is not a multicast address or ``keepalive_s`` is negative.
     """
 
     def __init__(self, server_ip: str, local_ip: str = "0.0.0.0", multicast: bool = True,

@@ -25,10 +25,22 @@ def _targets(path: Path) -> set[str]:
 
 
 def processes_with_open(path: str | Path, *, include_self: bool = False) -> list[tuple[int, str]]:
-    """Return ``(pid, process name)`` of every process with ``path`` (or a file in it) open.
+    """``(pid, process name)`` of every process with ``path`` (or a file in it) open.
 
     Processes whose descriptors this user cannot read are not seen (other users' processes without
     privileges). Returns an empty list where ``/proc`` does not exist.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file or directory.
+    include_self : bool
+        Include this process.
+
+    Returns
+    -------
+    list of tuple of (int, str)
+        ``(pid, process name)``.
     """
     if not PROC.is_dir():
         return []

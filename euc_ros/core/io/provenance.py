@@ -40,7 +40,21 @@ _CHUNK = 1 << 22
 
 
 class InputMismatch(ConfigError):
-    """A result applied to data it was not made from (another session or other recordings)."""
+    """A result applied to data it was not made from (another session or other recordings).
+
+    Parameters
+    ----------
+    message : str
+        What differs and how to proceed.
+    path : str or Path, optional
+        File the error is in.
+    line : int, optional
+        1-based line number.
+    column : int or str, optional
+        1-based column number or column name.
+    key : str, optional
+        Dotted key for structured files.
+    """
 
 
 def file_sha256(path: str | Path) -> str:

@@ -17,7 +17,23 @@ from euc_ros.core.mocap.series import MocapSeries
 
 
 def recording_kind(path: str | Path) -> str:
-    """Return ``"csv"`` or ``"bag"`` for ``path``; InputError naming the path otherwise."""
+    """``"csv"`` or ``"bag"`` for ``path``; InputError naming the path otherwise.
+
+    Parameters
+    ----------
+    path : str or Path
+        A Motive CSV, a bag directory or an ``.mcap`` file.
+
+    Returns
+    -------
+    str
+        ``"csv"`` or ``"bag"``.
+
+    Raises
+    ------
+    InputError
+        When the path does not exist or is no recording.
+    """
     p = Path(path)
     if not p.exists():
         raise InputError("no such file or directory", path=p)

@@ -37,6 +37,22 @@ def pose_block(series, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.nda
     """``(position, quat, tracked)`` of frames ``lo:hi`` of every body.
 
     Views of a :class:`~euc_ros.core.mocap.series.MocapSeries`, or a :class:`PerturbedSeries`' block.
+
+    Parameters
+    ----------
+    series : MocapSeries or PerturbedSeries
+        The recording.
+    lo, hi : int
+        Frame range ``lo:hi``.
+
+    Returns
+    -------
+    position : numpy.ndarray
+        Pivot positions (b, hi - lo, 3) [m].
+    quat : numpy.ndarray
+        Quaternions (b, hi - lo, 4), (x, y, z, w).
+    tracked : numpy.ndarray
+        Tracked flags (b, hi - lo).
     """
     block = getattr(series, "pose_block", None)
     if block is not None:
@@ -49,6 +65,11 @@ def release(series) -> None:
 
     What it keeps is its noise's recent blocks; a plain recording has nothing to drop. Reading it again gives
     the same poses.
+
+    Parameters
+    ----------
+    series : MocapSeries or PerturbedSeries
+        The recording.
     """
     drop = getattr(series, "release", None)
     if drop is not None:
@@ -56,7 +77,18 @@ def release(series) -> None:
 
 
 def materialize(series) -> MocapSeries:
-    """``series`` as a plain :class:`~euc_ros.core.mocap.series.MocapSeries` (a :class:`PerturbedSeries` made whole)."""
+    """``series`` as a plain :class:`~euc_ros.core.mocap.series.MocapSeries` (a :class:`PerturbedSeries` made whole).
+
+    Parameters
+    ----------
+    series : MocapSeries or PerturbedSeries
+        The recording.
+
+    Returns
+    -------
+    MocapSeries
+        ``series`` itself when plain, else its whole perturbed poses.
+    """
     make = getattr(series, "materialize", None)
     return make() if make is not None else series
 
@@ -89,7 +121,22 @@ class PerturbedSeries:
         return getattr(self._base, name)
 
     def pose_block(self, lo: int, hi: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(position, quat, tracked)`` of frames ``lo:hi``, perturbed (new arrays but ``tracked``)."""
+        """``(position, quat, tracked)`` of frames ``lo:hi``, perturbed (new arrays but ``tracked``).
+
+        Parameters
+        ----------
+        lo, hi : int
+            Frame range ``lo:hi``.
+
+        Returns
+        -------
+        position : numpy.ndarray
+            Pivot positions (b, hi - lo, 3) [m].
+        quat : numpy.ndarray
+            Quaternions (b, hi - lo, 4), (x, y, z, w).
+        tracked : numpy.ndarray
+            Tracked flags (b, hi - lo), a view of the base recording's.
+        """
         pos, quat = self._perturb(lo, hi)
         return pos, quat, self._base.tracked[:, lo:hi]
 
@@ -109,7 +156,13 @@ class PerturbedSeries:
         return self._perturb(0, self._base.n_frames)[1]
 
     def materialize(self) -> MocapSeries:
-        """The whole perturbed recording as a :class:`~euc_ros.core.mocap.series.MocapSeries`."""
+        """The whole perturbed recording as a :class:`~euc_ros.core.mocap.series.MocapSeries`.
+
+        Returns
+        -------
+        MocapSeries
+            The base recording with the perturbed positions and quaternions.
+        """
         pos, quat = self._perturb(0, self._base.n_frames)
         return replace(materialize(self._base), position=pos, quat=quat)
 
@@ -126,6 +179,19 @@ class BlockNoise:
     returned as float64. At most ``cache`` blocks are kept; when a block is drawn, the block before it
     keeps only its last :data:`READ_FRAMES` frames (a forward pass whose reads have margins steps back
     over a block's edge by less than a read) and earlier ones are dropped, so a pass holds about one block.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Generator of the one seed drawn.
+    n : int
+        Frames of the recording.
+    rows : int
+        Rows of each draw (bodies).
+    width : int
+        Components per row and frame.
+    cache : int
+        Blocks kept at most.
     """
 
     def __init__(self, rng: np.random.Generator, n: int, rows: int, width: int, *, cache: int = 3) -> None:
@@ -165,6 +231,18 @@ class BlockNoise:
 
         An array (rows, hi - lo, width), float64 (``dtype`` None: as drawn, float32, possibly a view of a kept
         block).
+
+        Parameters
+        ----------
+        lo, hi : int
+            Frame range ``lo:hi``.
+        dtype : type or None
+            Type of the result; None: float32 as drawn.
+
+        Returns
+        -------
+        numpy.ndarray
+            Standard normal draws (rows, hi - lo, width).
         """
         k0, k1 = block_span(lo, hi)
         first = k0 * BLOCK_FRAMES
@@ -180,13 +258,39 @@ class BlockNoise:
 
 
 def block_span(lo: int, hi: int, block: int | None = None) -> tuple[int, int]:
-    """Blocks ``k0 .. k1 - 1`` (of :data:`BLOCK_FRAMES` frames) covering frames ``lo:hi``."""
+    """Blocks ``k0 .. k1 - 1`` (of :data:`BLOCK_FRAMES` frames) covering frames ``lo:hi``.
+
+    Parameters
+    ----------
+    lo, hi : int
+        Frame range ``lo:hi``.
+    block : int, optional
+        Frames per block; default :data:`BLOCK_FRAMES`.
+
+    Returns
+    -------
+    k0, k1 : int
+        First block and one past the last.
+    """
     block = block or BLOCK_FRAMES
     return lo // block, -(-hi // block)
 
 
 def block_counts(n: int, block: int | None = None) -> np.ndarray:
-    """Frames in each block (of :data:`BLOCK_FRAMES` frames) of a recording of ``n`` frames."""
+    """Frames in each block (of :data:`BLOCK_FRAMES` frames) of a recording of ``n`` frames.
+
+    Parameters
+    ----------
+    n : int
+        Frames of the recording.
+    block : int, optional
+        Frames per block; default :data:`BLOCK_FRAMES`.
+
+    Returns
+    -------
+    numpy.ndarray
+        Frames per block (ceil(n / block),), the last possibly shorter.
+    """
     block = block or BLOCK_FRAMES
     starts = np.arange(0, n, block)
     return np.minimum(starts + block, n) - starts

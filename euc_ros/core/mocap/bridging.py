@@ -36,6 +36,11 @@ def slerp(q0: np.ndarray, q1: np.ndarray, a: np.ndarray) -> np.ndarray:
     a : ndarray (...)
         Fraction from ``q0`` (0) to ``q1`` (1).
 
+    Returns
+    -------
+    numpy.ndarray
+        Unit quaternions (..., 4).
+
     Examples
     --------
     >>> z90 = np.array([0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)])
@@ -135,14 +140,42 @@ class PoseBridge:
         self._last_ok: list | None = None   # per body: (frame, pos, quat) of the last released valid pose
 
     def reset(self) -> list:
-        """Release everything held (unbridged where the gap's end is not known) and start over."""
+        """Release everything held (unbridged where the gap's end is not known) and start over.
+
+        Returns
+        -------
+        list of tuple
+            The frames released, each ``(frame, t, position, quat, tracked, bridged)``.
+        """
         out = [self._release(row, final=True) for row in list(self._line)]
         self._line.clear()
         self._last_ok = None
         return out
 
     def push(self, frame: int, t: float, position, quat, tracked, bodies: Sequence[str]) -> list:
-        """Add one frame; return the frames released, each ``(frame, t, position, quat, tracked, bridged)``."""
+        """Add one frame; return the frames released, each ``(frame, t, position, quat, tracked, bridged)``.
+
+        Parameters
+        ----------
+        frame : int
+            Frame number (increasing; a number not above the last starts over).
+        t : float
+            Capture time [s].
+        position : array_like
+            Pivot positions (b, 3) [m].
+        quat : array_like
+            Quaternions (b, 4), (x, y, z, w).
+        tracked : array_like
+            Tracked flags (b,).
+        bodies : sequence of str
+            Body names of the rows; a new list starts over.
+
+        Returns
+        -------
+        list of tuple
+            The frames released, each ``(frame, t, position, quat, tracked, bridged)`` with ``bridged`` (b,)
+            marking the poses filled across a gap.
+        """
         bodies = list(bodies)
         out = []
         if self._bodies is not None and bodies != self._bodies:

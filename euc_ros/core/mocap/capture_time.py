@@ -64,6 +64,16 @@ def format_capture_start(ns: int) -> str:
 
     Rounded to the millisecond, 12-hour clock with an English marker, as Motive writes it in an
     English locale; :func:`capture_start_ns` reads it back to the millisecond.
+
+    Parameters
+    ----------
+    ns : int
+        Time since the epoch, UTC [ns].
+
+    Returns
+    -------
+    str
+        The time as Motive writes it.
     """
     ns = (int(ns) + 500_000) // 1_000_000 * 1_000_000
     seconds, rest = divmod(ns, 1_000_000_000)

@@ -74,12 +74,28 @@ def _read_as(series) -> tuple[str, bool]:
 
 
 def poses_with_up(series, up: str, body: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Return (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up.
+    """The pair (position (b, n, 3), quat (b, n, 4)) of ``series`` in Z-up as if the file's ``up`` axis were up.
 
     ``body``: that body's only, (n, 3) and (n, 4).
 
     ``series`` was read with ``series.meta["world_up"]`` (a Motive CSV) or is Z-up (a bag): with the
     other candidate the file's own axes are recovered and read again (docs/motive_csv.md).
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    up : str
+        ``"y"`` or ``"z"``: the file axis to take as up.
+    body : int, optional
+        Row of one body.
+
+    Returns
+    -------
+    position : numpy.ndarray
+        Positions (b, n, 3), or (n, 3) for one body [m].
+    quat : numpy.ndarray
+        Quaternions (b, n, 4), or (n, 4) for one body.
     """
     read_as, _ = _read_as(series)
     if body is not None:

@@ -55,7 +55,20 @@ class ViewDecimator:
         return self.known_rate_hz if self.known_rate_hz is not None else self._measured
 
     def due(self, frame_number: int, stamp_ns: int) -> bool:
-        """Whether this frame's poses are shown."""
+        """Whether this frame's poses are shown.
+
+        Parameters
+        ----------
+        frame_number : int
+            Frame number; negative when unknown.
+        stamp_ns : int
+            Frame stamp [ns].
+
+        Returns
+        -------
+        bool
+            Whether the frame is shown.
+        """
         if self.view_rate_hz <= 0:
             return True
         if frame_number < 0:

@@ -30,6 +30,18 @@ class TakeIndex:
         """The name of an earlier recording holding the same take as ``series``.
 
         None: a new take, now remembered as ``name``.
+
+        Parameters
+        ----------
+        series : MocapSeries
+            The recording.
+        name : str
+            Its name.
+
+        Returns
+        -------
+        str or None
+            The earlier recording's name, or None.
         """
         key, rows = _fingerprint(series)
         for k, r, other in self._seen:

@@ -20,7 +20,7 @@ QUAT_NORM_TOLERANCE = 1e-3
 class Frame:
     """One assembled capture frame (Z-up world).
 
-    Attributes
+    Parameters
     ----------
     stamp_ns : int
         Capture time [ns] (meaning per the source: header stamp, capture time or file time).
@@ -46,14 +46,42 @@ class Frame:
 
 
 def empty_frame(stamp_ns: int, frame_number: int, bodies: list[str]) -> Frame:
-    """A frame in which no body is tracked (NaN poses, never zeros)."""
+    """A frame in which no body is tracked (NaN poses, never zeros).
+
+    Parameters
+    ----------
+    stamp_ns : int
+        Capture time [ns].
+    frame_number : int
+        Frame number; -1 when unknown.
+    bodies : list of str
+        Body names.
+
+    Returns
+    -------
+    Frame
+        NaN poses, nothing tracked.
+    """
     b = len(bodies)
     return Frame(int(stamp_ns), int(frame_number), list(bodies), np.full((b, 3), np.nan), np.full((b, 4), np.nan),
                  np.zeros(b, bool), np.full(b, np.nan))
 
 
 def valid_pose(position, quat) -> bool:
-    """True if the position is finite and the quaternion finite with unit norm (within 1e-3)."""
+    """True if the position is finite and the quaternion finite with unit norm (within 1e-3).
+
+    Parameters
+    ----------
+    position : array_like
+        Position (3,) [m].
+    quat : array_like
+        Quaternion (4,), (x, y, z, w).
+
+    Returns
+    -------
+    bool
+        Whether the pose is usable.
+    """
     p = np.asarray(position, float)
     q = np.asarray(quat, float)
     return bool(np.all(np.isfinite(p)) and np.all(np.isfinite(q))

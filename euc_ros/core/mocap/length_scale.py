@@ -29,7 +29,18 @@ MAX_FRAMES = 2000
 
 
 def span_unit(span_m: float) -> str | None:
-    """The unit a span read as metres looks like (None when it is plausible in metres or in no unit)."""
+    """The unit a span read as metres looks like (None when it is plausible in metres or in no unit).
+
+    Parameters
+    ----------
+    span_m : float
+        Span read as metres [m].
+
+    Returns
+    -------
+    str or None
+        Name of the unit in which the span is plausible.
+    """
     if MIN_SPAN_M <= span_m <= MAX_SPAN_M or not np.isfinite(span_m):
         return None
     for factor, name in UNITS:
@@ -42,6 +53,18 @@ def median_span(series, bodies: list[str]) -> float:
     """Median over frames of the largest distance between two tracked pivots of ``bodies`` [m].
 
     NaN when no frame has two of them tracked.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    bodies : list of str
+        Bodies whose pivots are spanned (absent ones ignored).
+
+    Returns
+    -------
+    float
+        The median span [m].
     """
     rows = [series.bodies.index(b) for b in bodies if b in series.bodies]
     n = series.n_frames
@@ -60,6 +83,15 @@ def median_span(series, bodies: list[str]) -> float:
 
 def check_length_scale(series, session, path=None) -> list[str]:
     """Refuse a recording whose pivots span a size no rider on an EUC has, when a unit slip explains it.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    session : Session
+        Gives the rider's bodies (mass fraction > 0) and the EUC's.
+    path : str or Path, optional
+        File named in the error; default the recording's ``meta["path"]``.
 
     Returns
     -------

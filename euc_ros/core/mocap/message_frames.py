@@ -97,6 +97,11 @@ def frame_from_natnet(frame, names_by_id: dict, bodies: list[str], stamp_ns: int
         Frame stamp [ns].
     world_up : {"y", "z"}
         Up axis of Motive's streaming world; ``"y"`` maps (X, Y, Z) -> (X, -Z, Y) (docs/motive_csv.md).
+
+    Returns
+    -------
+    Frame
+        The frame, Z-up.
     """
     from euc_ros.core.rotations import y_up_to_z_up_position, y_up_to_z_up_quat
 

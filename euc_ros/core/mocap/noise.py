@@ -72,6 +72,18 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
     Third differences of a smooth motion sampled at 100+ Hz are tiny; those of white noise have
     variance 20 sigma^2. Rotation: the increments between consecutive orientations (a first
     difference of the noise) differenced twice more. Robust: the median absolute deviation.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+
+    Returns
+    -------
+    sigma_pos : numpy.ndarray
+        Position noise per axis (b,) [m]; NaN with too few consecutive tracked frames.
+    sigma_rot : numpy.ndarray
+        Rotation noise per axis (b,) [rad]; NaN likewise.
     """
     b = len(series.bodies)
     sp, sr = np.full(b, np.nan), np.full(b, np.nan)
@@ -93,7 +105,24 @@ def estimate_pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
 
 
 def add_pose_noise(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng):
-    """A copy of ``series`` with white noise of the given per-body sigmas added to every pose."""
+    """A copy of ``series`` with white noise of the given per-body sigmas added to every pose.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    sigma_pos : numpy.ndarray
+        Position noise per body (b,) [m].
+    sigma_rot : numpy.ndarray
+        Rotation noise per body and axis (b,) [rad].
+    rng : numpy.random.Generator
+        Source of the seed.
+
+    Returns
+    -------
+    MocapSeries
+        The noisy copy.
+    """
     return pose_noise_series(series, sigma_pos, sigma_rot, rng).materialize()
 
 
@@ -109,6 +138,26 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
 
     ``noise`` (from :func:`pose_noise_draws`) and ``sign`` give antithetic recordings: the same draws
     with ``sign=-1`` are the mirrored noise (``-z``: the opposite positions and the inverse rotations).
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    sigma_pos : numpy.ndarray
+        Position noise per body (b,) [m]; NaN: none.
+    sigma_rot : numpy.ndarray
+        Rotation noise per body and axis (b,) [rad]; NaN: none.
+    rng : numpy.random.Generator, optional
+        Source of the seed when ``noise`` is None.
+    noise : BlockNoise, optional
+        The draws to scale.
+    sign : float
+        Factor of the draws (-1: the antithetic recording).
+
+    Returns
+    -------
+    PerturbedSeries
+        The noisy recording, made on demand.
     """
     if noise is None:
         noise = pose_noise_draws(series, rng)
@@ -132,7 +181,20 @@ def pose_noise_series(series, sigma_pos: np.ndarray, sigma_rot: np.ndarray, rng=
 
 
 def pose_noise_draws(series, rng):
-    """The draws :func:`pose_noise_series` scales (one per body, frame and component, made by block)."""
+    """The draws :func:`pose_noise_series` scales (one per body, frame and component, made by block).
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    rng : numpy.random.Generator
+        Source of the seed.
+
+    Returns
+    -------
+    BlockNoise
+        Draws (b, n, 6).
+    """
     return BlockNoise(rng, series.position.shape[1], series.position.shape[0], 6)
 
 
@@ -141,7 +203,20 @@ _D4_VAR = 70.0
 
 
 def pose_noise(series) -> tuple[np.ndarray, np.ndarray]:
-    """Per body, the white pose noise ``(position sigma [m], quaternion-component sigma [-])``."""
+    """Per body, the white pose noise ``(position sigma [m], quaternion-component sigma [-])``.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+
+    Returns
+    -------
+    sigma_pos : numpy.ndarray
+        Position noise per body (b,) [m]; 0 with fewer than 20 valid frames.
+    sigma_quat : numpy.ndarray
+        Quaternion-component noise per body (b,) [-]; 0 likewise.
+    """
     out_p, out_q = [], []
     for b in range(series.position.shape[0]):
         ok = np.all(np.isfinite(series.position[b]), axis=1) & np.all(np.isfinite(series.quat[b]), axis=1)
@@ -183,7 +258,20 @@ def _mad_sigma(d4: np.ndarray, dof: int) -> float:
 
 
 def renoise(series, rng: np.random.Generator):
-    """The recording with a second, independent realisation of its own white pose noise added."""
+    """The recording with a second, independent realisation of its own white pose noise added.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    rng : numpy.random.Generator
+        Source of the seed.
+
+    Returns
+    -------
+    MocapSeries
+        The re-noised copy.
+    """
     return renoised(series, rng).materialize()
 
 
@@ -193,6 +281,18 @@ def renoised(series, rng: np.random.Generator):
     The same poses (the draws of one :class:`~euc_ros.core.mocap.blocks.BlockNoise` seeded by one draw of
     ``rng``), made block by block on demand (every body at once), so the re-noised recording never exists
     whole.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    rng : numpy.random.Generator
+        Source of the seed.
+
+    Returns
+    -------
+    PerturbedSeries
+        The re-noised recording, made on demand.
     """
     sp, sq = pose_noise(series)
     b, n = series.position.shape[0], series.position.shape[1]

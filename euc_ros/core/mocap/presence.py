@@ -36,7 +36,15 @@ class BodyPresence:
         self.last_missing: list[str] = []
 
     def update(self, bodies: Sequence[str], tracked: Iterable[bool]) -> None:
-        """Add one frame: the names of its bodies and whether each is tracked."""
+        """Add one frame: the names of its bodies and whether each is tracked.
+
+        Parameters
+        ----------
+        bodies : sequence of str
+            Body names of the frame.
+        tracked : iterable of bool
+            Whether each is tracked.
+        """
         present = {b for b, ok in zip(bodies, tracked) if ok}
         self.frames += 1
         for b in self.needed:
@@ -44,11 +52,23 @@ class BodyPresence:
                 self.missing[b] += 1
 
     def missing_bodies(self) -> list[str]:
-        """Needed bodies missing in at least one frame since the last report, most missing first."""
+        """Needed bodies missing in at least one frame since the last report, most missing first.
+
+        Returns
+        -------
+        list of str
+            The body names.
+        """
         return sorted((b for b, n in self.missing.items() if n), key=lambda b: -self.missing[b])
 
     def report(self) -> str:
-        """One line naming the missing bodies with their share of frames ('' when none); resets the counts."""
+        """One line naming the missing bodies with their share of frames ('' when none); resets the counts.
+
+        Returns
+        -------
+        str
+            The line, or ``""``.
+        """
         names = self.missing_bodies()
         self.last_missing = names
         text = ""

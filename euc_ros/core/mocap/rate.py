@@ -77,13 +77,41 @@ def measured_rate_hz(t, frame=None) -> float:
 
 
 def rate_mismatch(measured_hz: float, session_hz: float) -> bool:
-    """True when the two rates differ by more than :data:`RATE_TOLERANCE` of the session's."""
+    """True when the two rates differ by more than :data:`RATE_TOLERANCE` of the session's.
+
+    Parameters
+    ----------
+    measured_hz : float
+        Measured rate [Hz] (NaN: no mismatch).
+    session_hz : float
+        The session's rate [Hz].
+
+    Returns
+    -------
+    bool
+        Whether they disagree.
+    """
     return bool(math.isfinite(measured_hz) and session_hz > 0
                 and abs(measured_hz / session_hz - 1.0) > RATE_TOLERANCE)
 
 
 def mismatch_message(measured_hz: float, session_hz: float, source: str = "the session") -> str:
-    """One line naming both rates and what to do."""
+    """One line naming both rates and what to do.
+
+    Parameters
+    ----------
+    measured_hz : float
+        Measured rate [Hz].
+    session_hz : float
+        Stated rate [Hz].
+    source : str
+        What states it.
+
+    Returns
+    -------
+    str
+        The message.
+    """
     return (f"frames are {measured_hz:.4g} Hz apart but {source} says rate_hz = {session_hz:g} Hz "
             f"(more than {RATE_TOLERANCE:.0%} off): set rate_hz: {_suggest(measured_hz)} in the session file "
             f"(or check that this recording belongs to this session)")
@@ -100,6 +128,27 @@ def check_rate(series, session, path: str | Path | None = None) -> list[str]:
     Returns warnings (a header rate that disagrees with the frames: the frames are used); raises
     :class:`~euc_ros.core.errors.ConfigError` (key ``rate_hz``, naming both rates) when the session
     disagrees with the data by more than 1 %.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+    session : Session
+        Gives ``rate_hz``.
+    path : str or Path, optional
+        File named in errors; default the recording's path or name.
+
+    Returns
+    -------
+    list of str
+        Warnings.
+
+    Raises
+    ------
+    ConfigError
+        The session's rate disagrees with the frames (key ``rate_hz``).
+    InputError
+        The frame rate cannot be measured (times and frame numbers do not increase).
     """
     where = str(path) if path is not None else (series.meta.get("path") or series.name or None)
     measured = measured_rate_hz(series.t, series.frame)
@@ -143,6 +192,11 @@ class RateMeter:
     error : str or None
         The mismatch message (for a diagnostics ERROR) when the stream disagrees with the nominal rate.
 
+    Raises
+    ------
+    ConfigError
+        When the nominal rate is not positive (key ``rate_hz``).
+
     Examples
     --------
     >>> m = RateMeter(120.0, min_span_s=0.1, min_frames=5)
@@ -177,7 +231,20 @@ class RateMeter:
         self._stamps.clear()
 
     def add(self, frame_number: int, stamp_ns: int) -> bool:
-        """Add one frame (number ``-1`` when unknown); True once the rate is decided."""
+        """Add one frame (number ``-1`` when unknown); True once the rate is decided.
+
+        Parameters
+        ----------
+        frame_number : int
+            Frame number; -1 when unknown.
+        stamp_ns : int
+            Frame stamp [ns]; a stamp not after the last is ignored.
+
+        Returns
+        -------
+        bool
+            Whether the rate is decided.
+        """
         if self.decided:
             return True
         if self._stamps and int(stamp_ns) <= self._stamps[-1]:
@@ -191,7 +258,13 @@ class RateMeter:
         return True
 
     def decide(self) -> float:
-        """Decide the rate from the frames seen so far (the nominal one with fewer than three)."""
+        """Decide the rate from the frames seen so far (the nominal one with fewer than three).
+
+        Returns
+        -------
+        float
+            The rate used [Hz]: the measured one when it disagrees with the nominal one, else the nominal.
+        """
         if self.decided:
             return self.rate_hz
         if len(self._stamps) < 3:
@@ -248,7 +321,22 @@ class RateGate:
         return len(self._held)
 
     def push(self, frame_number: int, stamp_ns: int, item) -> list:
-        """Add one item with its frame number (``-1``: unknown) and stamp; return those to process now."""
+        """Add one item with its frame number (``-1``: unknown) and stamp; return those to process now.
+
+        Parameters
+        ----------
+        frame_number : int
+            Frame number; -1 when unknown.
+        stamp_ns : int
+            Frame stamp [ns].
+        item : Any
+            What is held until the rate is decided.
+
+        Returns
+        -------
+        list
+            The items to process now, in order.
+        """
         if self.meter.decided:
             return [item]
         self._held.append(item)
@@ -258,7 +346,13 @@ class RateGate:
         return out
 
     def flush(self) -> list:
-        """Decide the rate from what was seen (the stream paused or ended) and release the held items."""
+        """Decide the rate from what was seen (the stream paused or ended) and release the held items.
+
+        Returns
+        -------
+        list
+            The items held, in order.
+        """
         self.meter.decide()
         out, self._held = self._held, []
         return out

@@ -11,7 +11,25 @@ import numpy as np
 
 
 def replay_schedule(t: np.ndarray, rate_factor: float) -> np.ndarray:
-    """Wall-clock offsets [s] at which recorded frames at times ``t`` [s] are replayed (``rate_factor`` x real time)."""
+    """Wall-clock offsets [s] at which recorded frames at times ``t`` [s] are replayed (``rate_factor`` x real time).
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Frame times (n,) [s].
+    rate_factor : float
+        Speed of the replay, > 0.
+
+    Returns
+    -------
+    numpy.ndarray
+        Offsets (n,) [s] from the first frame.
+
+    Raises
+    ------
+    ValueError
+        When ``rate_factor`` is not positive.
+    """
     if not rate_factor > 0:
         raise ValueError("rate_factor must be > 0")
     t = np.asarray(t, dtype=float)
@@ -62,12 +80,25 @@ class ReplayClock:
         return self.start_s is not None
 
     def start(self, now_s: float, stamp_ns: int) -> None:
-        """Start the replay at wall-clock time ``now_s`` [s]; replay stamps start at ``stamp_ns``."""
+        """Start the replay at wall-clock time ``now_s`` [s]; replay stamps start at ``stamp_ns``.
+
+        Parameters
+        ----------
+        now_s : float
+            Wall-clock time [s].
+        stamp_ns : int
+            Stamp of the first frame [ns].
+        """
         self.start_s = float(now_s)
         self.start_stamp_ns = int(stamp_ns)
 
     def due(self, now_s: float) -> tuple[list[tuple[int, int]], str | None]:
         """The frames due by ``now_s`` and not handed out yet, and what happened after them.
+
+        Parameters
+        ----------
+        now_s : float
+            Wall-clock time [s].
 
         Returns
         -------

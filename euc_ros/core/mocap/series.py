@@ -17,7 +17,7 @@ from euc_ros.core.mocap.rate import measured_rate_hz
 class MocapSeries:
     """Rigid-body poses over time.
 
-    Attributes
+    Parameters
     ----------
     t : ndarray (n,)
         Capture time of each frame [s] (spec: frame / export rate, plus start offset where known).
@@ -82,7 +82,23 @@ class MocapSeries:
         return rate
 
     def index(self, body: str) -> int:
-        """Return the row of ``body``; InputError naming the body and the recording if absent."""
+        """The row of ``body``; InputError naming the body and the recording if absent.
+
+        Parameters
+        ----------
+        body : str
+            Body name.
+
+        Returns
+        -------
+        int
+            Its row.
+
+        Raises
+        ------
+        InputError
+            When the recording has no such body.
+        """
         try:
             return self.bodies.index(body)
         except ValueError:
@@ -90,7 +106,25 @@ class MocapSeries:
                              path=self.meta.get("path", self.name or None)) from None
 
     def select(self, bodies: list[str], *, missing_ok: bool = False) -> "MocapSeries":
-        """Return a series with only ``bodies`` in that order (absent ones all-NaN if ``missing_ok``)."""
+        """A series with only ``bodies`` in that order (absent ones all-NaN if ``missing_ok``).
+
+        Parameters
+        ----------
+        bodies : list of str
+            Body names, in the order wanted.
+        missing_ok : bool
+            Give absent bodies all-NaN rows instead of raising.
+
+        Returns
+        -------
+        MocapSeries
+            The selection (copies).
+
+        Raises
+        ------
+        InputError
+            When a body is absent and not ``missing_ok``.
+        """
         b, n = len(bodies), self.n_frames
         pos = np.full((b, n, 3), np.nan)
         quat = np.full((b, n, 4), np.nan)

@@ -27,7 +27,13 @@ class SilenceWatch:
         self.ever = False
 
     def start(self, now_s: float) -> None:
-        """Start watching at ``now_s`` [s]."""
+        """Start watching at ``now_s`` [s].
+
+        Parameters
+        ----------
+        now_s : float
+            Current time [s].
+        """
         self.started_s = float(now_s)
 
     def data(self, now_s: float) -> float | None:
@@ -35,6 +41,16 @@ class SilenceWatch:
 
         Returns how long the stream was silent when this is news (the first data, or the first after a warned
         silence) [s], else None.
+
+        Parameters
+        ----------
+        now_s : float
+            Current time [s].
+
+        Returns
+        -------
+        float or None
+            The silence [s], or None.
         """
         since = self.last_data_s if self.last_data_s is not None else self.started_s
         news = not self.ever or self.warned_s is not None
@@ -46,7 +62,18 @@ class SilenceWatch:
         return 0.0 if since is None else max(0.0, float(now_s) - since)
 
     def check(self, now_s: float) -> float | None:
-        """How long the stream has been silent when a warning is due at ``now_s`` [s], else None."""
+        """How long the stream has been silent when a warning is due at ``now_s`` [s], else None.
+
+        Parameters
+        ----------
+        now_s : float
+            Current time [s].
+
+        Returns
+        -------
+        float or None
+            The silence [s], or None.
+        """
         since = self.last_data_s if self.last_data_s is not None else self.started_s
         if since is None:
             return None

@@ -99,6 +99,11 @@ class PoseSynchronizer:
         arrival_ns : int, optional
             When the pose arrived (any monotonic clock, the one :meth:`flush` is called with) [ns];
             default ``stamp_ns``.
+
+        Returns
+        -------
+        list of Frame
+            The frames completed or expired, oldest first.
         """
         i = self._index.get(body)
         if i is None:
@@ -149,6 +154,16 @@ class PoseSynchronizer:
 
         ``now_ns`` is on the clock of the ``arrival_ns`` given to :meth:`push` (the stamps when none
         was given). Complete frames queued behind an expired one are emitted with it.
+
+        Parameters
+        ----------
+        now_ns : int
+            Current time [ns].
+
+        Returns
+        -------
+        list of Frame
+            The frames emitted, oldest first.
         """
         return self._drain(now_ns=int(now_ns))
 

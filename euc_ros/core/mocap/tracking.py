@@ -36,6 +36,20 @@ class TrackingStats:
         A body untracked for this many consecutive frames is reported as lost.
     restart_frames : int
         Backwards frame-number jump beyond which the source is taken as restarted [frames].
+    frames : int
+        Frames accepted (a counter; starts at 0).
+    dropped : int
+        Frames missing from the numbering or the stamps (counter).
+    duplicates : int
+        Repeated frame numbers rejected (counter).
+    out_of_order : int
+        Frame numbers below the last rejected (counter).
+    restarts : int
+        Restarts of the source (counter).
+    malformed : int
+        Malformed frames, counted by the caller (counter).
+    last_frame_number : int, optional
+        Last accepted frame number.
     """
 
     bodies: list[str]
@@ -62,6 +76,11 @@ class TrackingStats:
             Motive frame number, -1 when unknown.
         stamp_ns : int, optional
             Frame stamp [ns]; used for the drop count when the frame number is unknown.
+
+        Returns
+        -------
+        bool
+            Whether the frame is accepted.
         """
         frame_number = int(frame_number)
         if frame_number >= 0:
@@ -99,13 +118,25 @@ class TrackingStats:
         self.last_frame_number = None
 
     def period_ns(self) -> float:
-        """Median stamp spacing over the window [ns] (NaN with fewer than 5 frames)."""
+        """Median stamp spacing over the window [ns] (NaN with fewer than 5 frames).
+
+        Returns
+        -------
+        float
+            The spacing [ns].
+        """
         if len(self._stamps) < 5:
             return float("nan")
         return float(np.median(np.diff(np.asarray(self._stamps, dtype=np.int64))))
 
     def set_bodies(self, bodies: list[str]) -> None:
-        """Change the body list (e.g. after a new MODELDEF); per-body history restarts if it changed."""
+        """Change the body list (e.g. after a new MODELDEF); per-body history restarts if it changed.
+
+        Parameters
+        ----------
+        bodies : list of str
+            The new body names.
+        """
         bodies = list(bodies)
         if bodies != self.bodies:
             self.bodies = bodies
@@ -113,7 +144,15 @@ class TrackingStats:
             self._untracked_run = None
 
     def update(self, tracked: np.ndarray, stamp_ns: int) -> None:
-        """Add the tracked flags (b,) and stamp [ns] of an accepted frame."""
+        """Add the tracked flags (b,) and stamp [ns] of an accepted frame.
+
+        Parameters
+        ----------
+        tracked : numpy.ndarray
+            Tracked flags (b,).
+        stamp_ns : int
+            Frame stamp [ns].
+        """
         tracked = np.asarray(tracked, bool)
         if self._untracked_run is None or self._untracked_run.shape != tracked.shape:
             self._untracked_run = np.zeros(tracked.shape[0], int)
@@ -128,19 +167,37 @@ class TrackingStats:
         self.frames += 1
 
     def tracking_rate(self) -> np.ndarray:
-        """Fraction of recent frames in which each body was tracked (b,)."""
+        """Fraction of recent frames in which each body was tracked (b,).
+
+        Returns
+        -------
+        numpy.ndarray
+            Fractions (b,); zeros before the first frame.
+        """
         if not self._history:
             return np.zeros(len(self.bodies))
         return np.mean(np.array(self._history), axis=0)
 
     def lost(self) -> np.ndarray:
-        """Bodies currently lost (untracked for ``lost_after`` consecutive frames)."""
+        """Bodies currently lost (untracked for ``lost_after`` consecutive frames).
+
+        Returns
+        -------
+        numpy.ndarray
+            Lost flags (b,).
+        """
         if self._untracked_run is None:
             return np.zeros(len(self.bodies), bool)
         return self._untracked_run >= self.lost_after
 
     def frame_rate_hz(self) -> float:
-        """Measured frame rate over the window [Hz] (NaN with fewer than 2 frames)."""
+        """Measured frame rate over the window [Hz] (NaN with fewer than 2 frames).
+
+        Returns
+        -------
+        float
+            The rate [Hz].
+        """
         if len(self._stamps) < 2:
             return float("nan")
         span = (self._stamps[-1] - self._stamps[0]) * 1e-9

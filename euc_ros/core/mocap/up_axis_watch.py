@@ -45,6 +45,10 @@ class UpAxisWatch:
         upright-rider tests apply, which rarely conclude).
     label : str
         Where the frames come from, for messages (a file or a server address).
+    check_after_s : tuple of float
+        Data spans at which the check runs [s].
+    keep_rate_hz : float
+        Frames kept per second at most [Hz].
 
     Attributes
     ----------
@@ -67,7 +71,13 @@ class UpAxisWatch:
         self.reset(bodies)
 
     def reset(self, bodies: list[str]) -> None:
-        """Start again with ``bodies`` (the source named its bodies anew)."""
+        """Start again with ``bodies`` (the source named its bodies anew).
+
+        Parameters
+        ----------
+        bodies : list of str
+            Body names of the frames to come.
+        """
         self.bodies = list(bodies)
         self._t: list[int] = []
         self._pos: list[np.ndarray] = []
@@ -75,7 +85,19 @@ class UpAxisWatch:
         self._trk: list[np.ndarray] = []
 
     def push(self, stamp_ns: int, position: np.ndarray, quat: np.ndarray, tracked: np.ndarray) -> None:
-        """Keep this frame if the check still needs data and it is due by :data:`KEEP_RATE_HZ`."""
+        """Keep this frame if the check still needs data and it is due by :data:`KEEP_RATE_HZ`.
+
+        Parameters
+        ----------
+        stamp_ns : int
+            Frame stamp [ns].
+        position : numpy.ndarray
+            Pivot positions (b, 3) [m].
+        quat : numpy.ndarray
+            Quaternions (b, 4), (x, y, z, w).
+        tracked : numpy.ndarray
+            Tracked flags (b,).
+        """
         if self.done or len(tracked) != len(self.bodies):
             return
         if self._t and (stamp_ns < self._t[-1] or stamp_ns - self._t[-1] < self.keep_period_ns):
@@ -86,15 +108,33 @@ class UpAxisWatch:
         self._trk.append(np.array(tracked, bool))
 
     def span_s(self) -> float:
-        """Data time kept so far [s]."""
+        """Data time kept so far [s].
+
+        Returns
+        -------
+        float
+            The span [s].
+        """
         return (self._t[-1] - self._t[0]) * 1e-9 if len(self._t) > 1 else 0.0
 
     def due(self) -> bool:
-        """Whether enough data are in for the next check."""
+        """Whether enough data are in for the next check.
+
+        Returns
+        -------
+        bool
+            Whether a check is due.
+        """
         return not self.done and self.span_s() >= self.check_after_s[self._next_check]
 
     def series(self) -> MocapSeries:
-        """The frames kept, as a series read with ``world_up`` (what the offline check takes)."""
+        """The frames kept, as a series read with ``world_up`` (what the offline check takes).
+
+        Returns
+        -------
+        MocapSeries
+            The kept frames, times from the first [s].
+        """
         n = len(self._t)
         t = (np.asarray(self._t, np.int64) - (self._t[0] if n else 0)) * 1e-9
         meta = {"path": self.label}

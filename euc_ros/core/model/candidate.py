@@ -31,6 +31,23 @@ class ParamInfo:
     gives the reference of each, ``docs/effects.md`` the table), narrower than the fitting bounds: a fit
     outside it is not named as the effect (the residual analysis refuses the name). None: no range
     beyond the bounds.
+
+    Parameters
+    ----------
+    name : str
+        Reported name of the parameter.
+    unit : str
+        Its SI unit, as printed.
+    low, high : float
+        Fitting bounds (the physical range).
+    start : float
+        Starting value of the fit.
+    scale : float
+        Typical magnitude (least-squares scaling and tie-break prior), in the parameter's unit.
+    reported : bool
+        Whether the parameter appears in the reported values.
+    plausible : tuple of float, optional
+        Plausible range (low, high) for riders on lab floors; None: the bounds.
     """
 
     name: str
@@ -89,6 +106,31 @@ class ModelContext:
 
     Candidates may replace ``phi``/``phi_dot``/``phi_ddot`` (timing) and put parameter overrides
     (scalars or per-sample arrays) into ``overrides``; ``extra_Q`` collects generalized forces.
+
+    Parameters
+    ----------
+    t : numpy.ndarray
+        Sample times (n,) [s].
+    x_dot, x_ddot : numpy.ndarray
+        Wheel-centre speed [m/s] and acceleration [m/s^2] along travel (n,).
+    gamma, gamma_dot, gamma_ddot : numpy.ndarray
+        EUC body pitch [rad] and its rates [rad/s, rad/s^2] (n,).
+    phi, phi_dot, phi_ddot : numpy.ndarray
+        Rider pitch about the ankle hinge [rad] and its rates [rad/s, rad/s^2] (n,).
+    psi, psi_dot : numpy.ndarray
+        Yaw [rad] and yaw rate [rad/s] (n,).
+    theta : numpy.ndarray
+        EUC tilt (roll) [rad] (n,).
+    params : EucParams
+        Nominal model parameters.
+    extras : dict
+        Further per-recording signals by name (floor slope, wheel-centre acceleration, ...).
+    overrides : dict
+        Parameter overrides (scalars or arrays (n,)) set by candidates.
+    extra_Q : numpy.ndarray, optional
+        Accumulated extra generalized force (n, 3) [N, N m, N m].
+    mask : numpy.ndarray, optional
+        Usable samples (n,) a candidate set; None: all.
     """
 
     t: np.ndarray
@@ -110,20 +152,51 @@ class ModelContext:
     mask: np.ndarray | None = None
 
     def p(self) -> EucParams:
-        """Parameters with the overrides applied."""
+        """Parameters with the overrides applied.
+
+        Returns
+        -------
+        EucParams
+            ``params`` with ``overrides`` applied.
+        """
         return dataclasses.replace(self.params, **self.overrides) if self.overrides else self.params
 
     def add_force(self, dQ: np.ndarray) -> None:
-        """Accumulate a generalized force (n, 3)."""
+        """Accumulate a generalized force (n, 3).
+
+        Parameters
+        ----------
+        dQ : numpy.ndarray
+            Generalized force (n, 3) [N, N m, N m] added to ``extra_Q``.
+        """
         self.extra_Q = dQ if self.extra_Q is None else self.extra_Q + dQ
 
     def copy(self) -> "ModelContext":
-        """Shallow copy with fresh overrides/extra_Q (arrays shared, never modified in place)."""
+        """Shallow copy with fresh overrides/extra_Q (arrays shared, never modified in place).
+
+        Returns
+        -------
+        ModelContext
+            The copy, with ``overrides`` copied, ``extra_Q`` and ``mask`` None.
+        """
         return dataclasses.replace(self, overrides=dict(self.overrides), extra_Q=None, mask=None)
 
 
 def jacobian_G(ctx: ModelContext, p: EucParams) -> tuple[np.ndarray, np.ndarray]:
-    """Rows dG_x/dq and dG_z/dq (n, 3) of the rider CoG (Appendix A geometry)."""
+    """Rows dG_x/dq and dG_z/dq (n, 3) of the rider CoG (Appendix A geometry).
+
+    Parameters
+    ----------
+    ctx : ModelContext
+        The recording's signals (``gamma``, ``phi`` used).
+    p : EucParams
+        Model parameters (``h``, ``l0`` used).
+
+    Returns
+    -------
+    jx, jz : numpy.ndarray
+        dG_x/dq and dG_z/dq (n, 3) with q = (x, gamma, phi) [1, m/rad, m/rad].
+    """
     n = ctx.gamma.shape[0]
     h = np.broadcast_to(np.asarray(p.h, float), (n,))
     jx = np.stack([np.ones(n), -p.l0 * np.cos(ctx.gamma), h * np.cos(ctx.phi)], axis=1)
@@ -139,18 +212,56 @@ class Candidate:
     formula = ""
 
     def modify(self, ctx: ModelContext, theta: np.ndarray) -> None:
-        """Phase 1: change parameters or states (default: nothing)."""
+        """Phase 1: change parameters or states (default: nothing).
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The recording's signals, changed in place.
+        theta : numpy.ndarray
+            The effect's parameters (n_params,).
+        """
 
     def force(self, ctx: ModelContext, theta: np.ndarray) -> np.ndarray | None:
-        """Phase 2: extra generalized force (n, 3) evaluated with the final parameters (default: none)."""
+        """Phase 2: extra generalized force (n, 3) evaluated with the final parameters (default: none).
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            The recording's signals after every effect's :meth:`modify`.
+        theta : numpy.ndarray
+            The effect's parameters (n_params,).
+
+        Returns
+        -------
+        numpy.ndarray or None
+            The generalized force (n, 3) [N, N m, N m], or None for none.
+        """
         return None
 
     def starts(self) -> list[np.ndarray]:
-        """Initial guesses of the parameters (several for multi-modal fits)."""
+        """Initial guesses of the parameters (several for multi-modal fits).
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Starting parameter vectors (n_params,).
+        """
         return [np.array([q.start for q in self.params], float)]
 
     def report(self, theta: np.ndarray) -> dict[str, float]:
-        """Parameters as reported in the JSON (spec names and units)."""
+        """Parameters as reported in the JSON (spec names and units).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The effect's parameters (n_params,).
+
+        Returns
+        -------
+        dict of str to float
+            Reported parameter values by name, in their units.
+        """
         return {q.name: float(v) for q, v in zip(self.params, theta) if q.reported}
 
     @property
@@ -159,7 +270,18 @@ class Candidate:
         return tuple(q for q in self.params if q.reported)
 
     def plausible_range(self, param: str) -> tuple[float, float] | None:
-        """Plausible range of a reported parameter: the override of :func:`with_plausible`, else its ParamInfo's."""
+        """Plausible range of a reported parameter: the override of :func:`with_plausible`, else its ParamInfo's.
+
+        Parameters
+        ----------
+        param : str
+            A reported parameter name.
+
+        Returns
+        -------
+        tuple of float or None
+            (low, high) in the parameter's unit, or None when it has no plausible range.
+        """
         over = getattr(self, "plausible_overrides", {})
         if param in over:
             return over[param]
@@ -169,6 +291,16 @@ class Candidate:
         """The reported parameters of ``theta`` outside their plausible range (empty: plausible).
 
         Each record: ``effect``, ``parameter``, ``value``, ``unit``, ``plausible`` ([low, high]).
+
+        Parameters
+        ----------
+        theta : numpy.ndarray
+            The effect's parameters (n_params,).
+
+        Returns
+        -------
+        list of dict
+            One record per implausible parameter.
         """
         values = self.report(theta)
         out = []

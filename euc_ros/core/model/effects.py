@@ -441,6 +441,11 @@ class FloorGeometry(Candidate):
     No parameter is fitted: the signals come from the recording (``ctx.extras['floor_a']``,
     ``ctx.extras['c_zdd']``). A mocap frame tilted against gravity (ground plane set on a sloped floor)
     leaves the floor flat in the data: that stays :class:`GroundSlope`, a dynamic candidate.
+
+    Parameters
+    ----------
+    alpha_x_deg, alpha_y_deg : float
+        The floor's mean slopes along x and y [deg], for the report only (NaN: unknown).
     """
 
     name = "ground_slope"
@@ -549,6 +554,11 @@ def make_candidates(names=None, plausible: dict[str, tuple[float, float]] | None
     Returns
     -------
     list of Candidate
+
+    Raises
+    ------
+    ConfigError
+        For an unknown effect (key ``effect``).
     """
     names = list(LIBRARY) if names is None else list(names)
     unknown = [n for n in names if n not in LIBRARY]
@@ -625,7 +635,25 @@ def parse_plausible(items) -> dict[str, tuple[float, float]]:
 
 
 def theta_from_report(candidate: Candidate, values: dict[str, float]) -> np.ndarray:
-    """Inverse of :meth:`Candidate.report`: parameters from reported values (for configured models)."""
+    """Inverse of :meth:`Candidate.report`: parameters from reported values (for configured models).
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The effect.
+    values : dict of str to float
+        Its reported parameter values by name.
+
+    Returns
+    -------
+    numpy.ndarray
+        The effect's parameter vector (n_params,).
+
+    Raises
+    ------
+    ConfigError
+        When a parameter of the effect is missing from ``values``.
+    """
     if isinstance(candidate, FloorGeometry):
         return np.zeros(0)
     if isinstance(candidate, TimeVaryingH):

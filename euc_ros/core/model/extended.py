@@ -50,6 +50,18 @@ HELD_H = "h_held"
 def parse_effect_assignments(effects: list[str], assignments: list[str]) -> dict[str, dict[str, float]]:
     """``["ground_slope"]``, ``["ground_slope.alpha_deg=2.9"]`` -> ``{"ground_slope": {"alpha_deg": 2.9}}``.
 
+    Parameters
+    ----------
+    effects : list of str
+        Effect names (empty strings ignored).
+    assignments : list of str
+        ``<effect>.<parameter>=<number>`` items (empty strings ignored).
+
+    Returns
+    -------
+    dict of str to dict of str to float
+        Parameter values by effect, every listed effect present.
+
     Raises
     ------
     ConfigError
@@ -76,7 +88,18 @@ def parse_effect_assignments(effects: list[str], assignments: list[str]) -> dict
 
 
 def m11(p: EucParams):
-    """First diagonal entry of the mass matrix, eq (6): m + m0 + mw + Jw / R^2."""
+    """First diagonal entry of the mass matrix, eq (6): m + m0 + mw + Jw / R^2.
+
+    Parameters
+    ----------
+    p : EucParams
+        Model parameters (arrays broadcast).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        m11 [kg].
+    """
     return p.m + p.m0 + p.mw + p.Jw / np.asarray(p.R, float) ** 2
 
 
@@ -197,7 +220,20 @@ class Model:
         return 1 + sum(c.n_params for c in self.effects)
 
     def split(self, x: np.ndarray) -> tuple[float, list[np.ndarray]]:
-        """Return (h, [theta per effect])."""
+        """The pair (h, [theta per effect]) of ``x``.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The parameter vector ``[h, theta_1..., theta_2...]``.
+
+        Returns
+        -------
+        h : float
+            CoG height [m].
+        thetas : list of numpy.ndarray
+            Each effect's parameters, in effect order.
+        """
         out, k = [], 1
         for c in self.effects:
             out.append(np.asarray(x[k:k + c.n_params], float))
@@ -206,11 +242,27 @@ class Model:
 
     def residual(self, rec, x: np.ndarray, extra_dQ: np.ndarray | None = None
                  ) -> tuple[np.ndarray, np.ndarray]:
-        """Return (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``.
+        """The pair (M_d1 - M_d2 [N m], usable mask) of the model with parameters ``x`` on ``rec``.
 
         ``rec`` is a prepared recording (:class:`~euc_ros.core.states.contexts.Recording`); ``extra_dQ``: a
         further generalized force, for the discovery's sensitivities. A recording whose ``ctx.extras`` holds
         :data:`HELD_H` is evaluated at that h, whatever ``x[0]``.
+
+        Parameters
+        ----------
+        rec : Recording
+            The prepared recording.
+        x : numpy.ndarray
+            The parameter vector ``[h, theta_1..., theta_2...]``.
+        extra_dQ : numpy.ndarray, optional
+            Further generalized force (n, 3) [N, N m, N m].
+
+        Returns
+        -------
+        residual : numpy.ndarray
+            ``M_d1 - M_d2`` (n,) [N m] scaled to the nominal ``R m11``; 0 where not usable.
+        mask : numpy.ndarray
+            Usable samples (n,), bool.
         """
         h, thetas = self.split(x)
         h = float(rec.ctx.extras.get(HELD_H, h))
@@ -242,17 +294,42 @@ class Model:
         return np.where(mask, r, 0.0), mask
 
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Lower and upper bounds of ``x``."""
+        """Lower and upper bounds of ``x``.
+
+        Returns
+        -------
+        low, high : numpy.ndarray
+            Bounds of ``x``, h's first [m].
+        """
         lo = [H_BOUNDS[0]] + [q.low for c in self.effects for q in c.params]
         hi = [H_BOUNDS[1]] + [q.high for c in self.effects for q in c.params]
         return np.array(lo), np.array(hi)
 
     def scales(self) -> np.ndarray:
-        """Typical magnitudes of ``x`` (least-squares scaling)."""
+        """Typical magnitudes of ``x`` (least-squares scaling).
+
+        Returns
+        -------
+        numpy.ndarray
+            Scale of each entry of ``x`` (h's 0.1 m first).
+        """
         return np.array([0.1] + [q.scale for c in self.effects for q in c.params])
 
     def starts(self, h0: float, fixed: np.ndarray | None = None) -> list[np.ndarray]:
-        """Starting points: the last effect's starts appended to ``fixed`` (the previous fit) or defaults."""
+        """Starting points: the last effect's starts appended to ``fixed`` (the previous fit) or defaults.
+
+        Parameters
+        ----------
+        h0 : float
+            Starting CoG height [m] when ``fixed`` is None.
+        fixed : numpy.ndarray, optional
+            The previous fit's vector (h and the effects before the new ones).
+
+        Returns
+        -------
+        list of numpy.ndarray
+            Starting vectors of ``x``: every combination of the new effects' starts.
+        """
         head = np.array([h0]) if fixed is None else np.asarray(fixed, float)
         known = head.size - 1
         rest = []
@@ -269,7 +346,18 @@ class Model:
         return combos
 
     def report(self, x: np.ndarray) -> dict[str, float]:
-        """All effect parameters by their reported names."""
+        """All effect parameters by their reported names.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The parameter vector ``[h, theta_1..., theta_2...]``.
+
+        Returns
+        -------
+        dict of str to float
+            Reported values of every effect's parameters.
+        """
         _, thetas = self.split(x)
         out: dict[str, float] = {}
         for c, th in zip(self.effects, thetas):

@@ -24,7 +24,19 @@ from euc_ros.core.session import Euc
 
 @dataclass(frozen=True)
 class RiderMeasures:
-    """What is measured of the rider: body mass [kg], standing height [m], sex, helmet top above vertex [m]."""
+    """What is measured of the rider: body mass [kg], standing height [m], sex, helmet top above vertex [m].
+
+    Parameters
+    ----------
+    mass : float
+        Body mass [kg].
+    height : float
+        Standing height [m].
+    sex : str
+        ``"male"`` or ``"female"``.
+    helmet_m : float
+        Helmet top above the vertex [m].
+    """
 
     mass: float
     height: float
@@ -142,13 +154,35 @@ def render_session(rider: RiderMeasures, euc: dict | None = None, *, names: dict
 
 @dataclass(frozen=True)
 class NameMap:
-    """Rider body -> Motive name pairs parsed from ``BODY=NAME`` items."""
+    """Rider body -> Motive name pairs parsed from ``BODY=NAME`` items.
+
+    Parameters
+    ----------
+    names : dict of str to str
+        Motive rigid-body name by rider body name.
+    """
 
     names: dict[str, str] = field(default_factory=dict)
 
     @classmethod
     def parse(cls, items: list[str]) -> "NameMap":
-        """``["H=Helmet", "CHR=RShoulder"]`` -> NameMap; ConfigError naming a malformed item."""
+        """``["H=Helmet", "CHR=RShoulder"]`` -> NameMap; ConfigError naming a malformed item.
+
+        Parameters
+        ----------
+        items : list of str
+            ``BODY=NAME`` items.
+
+        Returns
+        -------
+        NameMap
+            The pairs, a later item for the same body winning.
+
+        Raises
+        ------
+        ConfigError
+            Naming the first malformed item (key ``--name``).
+        """
         names = {}
         for item in items:
             body, sep, name = item.partition("=")

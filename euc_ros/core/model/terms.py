@@ -42,7 +42,7 @@ class EucParams:
 
     Any field may be a numpy array; all functions of this module broadcast them against the states.
 
-    Attributes
+    Parameters
     ----------
     m : float
         Rider mass [kg].
@@ -78,17 +78,49 @@ class EucParams:
 
     @classmethod
     def from_session(cls, session, h: Any = 0.61, *, g: Any = GRAVITY) -> "EucParams":
-        """Build the nominal parameters of a :class:`~euc_ros.core.session.Session` with CoG height ``h`` [m]."""
+        """Build the nominal parameters of a :class:`~euc_ros.core.session.Session` with CoG height ``h`` [m].
+
+        Parameters
+        ----------
+        session : Session
+            The session (rider and EUC parameters).
+        h : float or array_like
+            CoG height above the ankle hinge [m].
+        g : float or array_like
+            Gravitational acceleration [m/s^2].
+
+        Returns
+        -------
+        EucParams
+            The nominal parameters.
+        """
         e, r = session.euc, session.rider
         return cls(m=r.mass, J=r.inertia_pitch, m0=e.body_mass, J0=e.body_inertia, mw=e.wheel_mass,
                    Jw=e.wheel_inertia, R=e.wheel_radius, h0=e.h0, l0=e.l0, g=g, h=h)
 
     def with_h(self, h: Any) -> "EucParams":
-        """Return a copy with CoG height ``h`` [m] (scalar or array)."""
+        """A copy with CoG height ``h`` [m] (scalar or array).
+
+        Parameters
+        ----------
+        h : float or array_like
+            CoG height above the ankle hinge [m].
+
+        Returns
+        -------
+        EucParams
+            The copy.
+        """
         return replace(self, h=h)
 
     def reduced(self) -> "EucParams":
-        """Return the parameters of the reduced 2-DoF model (Section 3.2): ``J0 = h0 = l0 = 0``."""
+        """The parameters of the reduced 2-DoF model (Section 3.2): ``J0 = h0 = l0 = 0``.
+
+        Returns
+        -------
+        EucParams
+            A copy with ``J0 = h0 = l0 = 0``.
+        """
         return replace(self, J0=0.0, h0=0.0, l0=0.0)
 
     @property
@@ -97,7 +129,13 @@ class EucParams:
         return self.m + self.m0 + self.mw + self.Jw / self.R**2
 
     def as_dict(self) -> dict[str, Any]:
-        """Return the fields as a plain dict (floats where scalar)."""
+        """The fields as a plain dict (floats where scalar).
+
+        Returns
+        -------
+        dict of str to Any
+            Field values by name: floats, or lists for array fields.
+        """
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -144,6 +182,11 @@ def bias_terms(q, qd, p: EucParams) -> np.ndarray:
     q, qd : array_like (..., 3)
         Coordinates ``[x, gamma, phi]`` and velocities ``[x_dot, gamma_dot, phi_dot]`` [m/s, rad/s].
     p : EucParams
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[h1, h2, h3]`` (..., 3) [N, N m, N m].
     """
     _, gamma, phi = _split(q)
     _, gd, pd = _split(qd)
@@ -157,6 +200,18 @@ def gravity_forces(q, p: EucParams) -> np.ndarray:
     """Gravity part of the generalized forces of eq (8) [N, N m, N m].
 
     ``Q_g = [0, (m0 h0 - m l0) g sin gamma, m g h sin phi]``.
+
+    Parameters
+    ----------
+    q : array_like (..., 3)
+        Coordinates ``[x, gamma, phi]`` [m, rad, rad].
+    p : EucParams
+        Model parameters.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``Q_g`` (..., 3) [N, N m, N m].
     """
     _, gamma, phi = _split(q)
     q1 = 0.0 * gamma + 0.0 * phi
@@ -169,6 +224,16 @@ def input_directions(p: EucParams) -> tuple[np.ndarray, np.ndarray]:
     """Generalized-force directions ``(b_d, b_h)`` of the driving and the rider torques (eq (8)).
 
     ``Q = Q_g + M_d b_d + M_h b_h`` with ``b_d = [1/R, -1, 0]`` and ``b_h = [0, 1, -1]``.
+
+    Parameters
+    ----------
+    p : EucParams
+        Model parameters (``R`` used; may be an array).
+
+    Returns
+    -------
+    b_d, b_h : numpy.ndarray
+        Directions (..., 3) of the driving torque [1/m, 1, 1] and of the rider torque.
     """
     R = np.asarray(p.R, dtype=float)
     b_d = np.stack(np.broadcast_arrays(1.0 / R, -1.0 + 0 * R, 0.0 * R), -1)
@@ -181,6 +246,16 @@ def consistency_weights(p: EucParams) -> np.ndarray:
 
     ``w . (M q_ddot + h - Q_g) = 0`` is the one equation of (5) free of both unknown torques: a
     trajectory that violates it cannot be produced by any M_d, M_h.
+
+    Parameters
+    ----------
+    p : EucParams
+        Model parameters (``R`` used; may be an array).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``[R, 1, 1]`` (..., 3) [m, 1, 1].
     """
     R = np.asarray(p.R, dtype=float)
     return np.stack(np.broadcast_arrays(R, 1.0 + 0 * R, 1.0 + 0 * R), -1)

@@ -94,6 +94,26 @@ def torques_one(gamma: float, phi: float, gamma_dot: float, phi_dot: float, x_dd
 
     The rows of eqs (6)-(8) written out: equal to :func:`torques` to rounding (``test_torque.py``),
     ~20x cheaper on one sample, where numpy's per-call cost is all there is.
+
+    Parameters
+    ----------
+    gamma, phi : float
+        EUC body pitch and rider pitch about the ankle hinge [rad].
+    gamma_dot, phi_dot : float
+        Pitch rates [rad/s].
+    x_ddot : float
+        Longitudinal acceleration of the wheel centre [m/s^2].
+    gamma_ddot, phi_ddot : float
+        Pitch accelerations [rad/s^2].
+    p : EucParams
+        Model parameters (scalars).
+    extra_Q : array_like (3,), optional
+        Additional generalized force [N, N m, N m] on the right-hand side of (5).
+
+    Returns
+    -------
+    M_d1, M_d2 : float
+        Driving torques [N m] from the first row and from all rows.
     """
     sin, cos = math.sin, math.cos
     R, m, h, l0, m0, h0, g = float(p.R), float(p.m), float(p.h), float(p.l0), float(p.m0), float(p.h0), float(p.g)
@@ -124,6 +144,26 @@ def torque_difference(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_dd
     ``M_d1 - M_d2 = R m11 (w . (M q_ddot + h - Q_g - Q_extra)) / D`` with ``w = [R, 1, 1]`` (module
     docstring), written out row by row on flat arrays: equal to ``torques(...)[0] - torques(...)[1]`` to
     rounding (``test_torque.py``), at a fraction of the cost.
+
+    Parameters
+    ----------
+    gamma, phi : array_like
+        EUC body pitch and rider pitch about the ankle hinge [rad].
+    gamma_dot, phi_dot : array_like
+        Pitch rates [rad/s].
+    x_ddot : array_like
+        Longitudinal acceleration of the wheel centre [m/s^2].
+    gamma_ddot, phi_ddot : array_like
+        Pitch accelerations [rad/s^2].
+    p : EucParams
+        Model parameters; fields may be arrays broadcasting against the states.
+    extra_Q : array_like (..., 3), optional
+        Additional generalized force [N, N m, N m] on the right-hand side of (5).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``M_d1 - M_d2`` [N m], broadcast shape of the states.
     """
     g, ph = np.asarray(gamma, dtype=float), np.asarray(phi, dtype=float)
     gd, pd = np.asarray(gamma_dot, dtype=float), np.asarray(phi_dot, dtype=float)
@@ -198,6 +238,26 @@ def rider_torque(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot, p
     """Rider's control torque M_h [N m] from the third row of (5), given the motion.
 
     ``M_h = -(m31 x_ddot + m32 gamma_ddot + m33 phi_ddot + h3 - Q_g3 - Q_extra3)``.
+
+    Parameters
+    ----------
+    gamma, phi : array_like
+        EUC body pitch and rider pitch about the ankle hinge [rad].
+    gamma_dot, phi_dot : array_like
+        Pitch rates [rad/s].
+    x_ddot : array_like
+        Longitudinal acceleration of the wheel centre [m/s^2].
+    gamma_ddot, phi_ddot : array_like
+        Pitch accelerations [rad/s^2].
+    p : EucParams
+        Model parameters; fields may be arrays broadcasting against the states.
+    extra_Q : array_like (..., 3), optional
+        Additional generalized force [N, N m, N m] on the right-hand side of (5).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``M_h`` [N m], broadcast shape of the states.
     """
     M, s, _, _ = _rows(gamma, phi, gamma_dot, phi_dot, gamma_ddot, phi_ddot, p, extra_Q)
     return -(M[..., 2, 0] * np.asarray(x_ddot, dtype=float) + s[..., 2])

@@ -43,6 +43,18 @@ def integrated_autocorrelation(r, *, squared: bool = False) -> float:
     With ``squared`` the sum is of ``rho(j)^2``: the correlation time of ``r^2`` for a Gaussian ``r``
     (``corr(r_i^2, r_j^2) = rho^2``), the one that sets the spread of a mean square.
 
+    Parameters
+    ----------
+    r : array_like
+        The series (n,).
+    squared : bool
+        Sum ``rho(j)^2`` instead of ``rho(j)``.
+
+    Returns
+    -------
+    float
+        The integrated autocorrelation time [samples], at least 1.
+
     Examples
     --------
     >>> rng = np.random.default_rng(0)
@@ -69,6 +81,11 @@ def rmse_threshold(residual_nm, window: int, alpha: float = 1e-6) -> float:
     -------
     float
         ``sigma sqrt(chi2.ppf(1 - alpha, n_eff) / n_eff)`` (module docstring).
+
+    Raises
+    ------
+    ConfigError
+        When ``alpha`` is not in (0, 1) or ``window`` is not positive.
     """
     from scipy.stats import chi2
 

@@ -45,6 +45,28 @@ class RiderStateSample:
     ``t`` is the capture time of ``frame`` (the output arrives ``filter_lag_s`` later). ``valid`` is
     True when every state and derivative is a measurement (rider present, nothing filled across a
     gap). ``x`` is the forward distance integrated from ``x_dot`` since the EUC filter last started.
+
+    Parameters
+    ----------
+    frame : int
+        Mocap frame number.
+    t : float
+        Capture time of the frame [s].
+    valid, has_rider : bool
+        Every state and derivative is a measurement; the rider's bodies were tracked.
+    x, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot : float
+        Forward distance [m], speed [m/s] and acceleration [m/s^2] of the wheel centre; EUC body pitch
+        [rad] and its rates [rad/s, rad/s^2].
+    phi, phi_dot, phi_ddot : float
+        Rider pitch of ``phi_definition`` [rad] and its rates [rad/s, rad/s^2].
+    phi_eq3, phi_hinge, psi, theta : float
+        Rider pitch from the wheel centre (eq (3)) and from the ankle hinge, EUC yaw and tilt [rad], unfiltered.
+    phi_definition : str
+        ``"hinge"`` or ``"eq3"``: which of the two ``phi`` holds.
+    C, G : numpy.ndarray
+        Wheel centre and rider CoG (3,), Z-up world [m].
+    filter_lag_s : float
+        Delay of the output behind ``t`` [s].
     """
 
     frame: int
@@ -112,6 +134,11 @@ class RiderStateEstimator:
         ``split`` only: where the EUC body's orientation noise leaves the position unmoved, in its
         body frame from its pivot [m] (:func:`~euc_ros.core.states.split_lag.split_pieces`): the pivot
         (default) or the markers' centroid when the pivot was placed elsewhere.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown or inconsistent ``phi_definition``, ``cog_method``, ``estimator`` or ``split_euc_center``.
     """
 
     def __init__(self, session, dt: float, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
@@ -201,6 +228,11 @@ class RiderStateEstimator:
         tracked : array_like (b,) of bool, optional
         bodies : sequence of str
             Names of the b rows.
+
+        Returns
+        -------
+        list of RiderStateSample
+            The states of earlier frames that left the filter's lag, oldest first.
         """
         out = []
         for f, t_f, pos, q, trk, bridged in self._bridge.push(frame, t, position, quat, tracked, bodies):
@@ -334,6 +366,11 @@ class FrameSequencer:
     restart_jump_s : float
         A jump back in time longer than this is a restart [s].
 
+    Raises
+    ------
+    ConfigError
+        When the rate is not positive (key ``rate_hz``).
+
     Examples
     --------
     >>> s = FrameSequencer(100.0)
@@ -356,7 +393,20 @@ class FrameSequencer:
         self._last = None
 
     def accept(self, frame_number: int, stamp_ns: int) -> tuple[str, int]:
-        """Classify one frame; returns ``(action, frame)`` with action start, ok, restart or drop."""
+        """Classify one frame; returns ``(action, frame)`` with action start, ok, restart or drop.
+
+        Parameters
+        ----------
+        frame_number : int
+            The frame's number, or a negative value for none.
+        stamp_ns : int
+            The frame's capture stamp [ns].
+
+        Returns
+        -------
+        tuple of (str, int)
+            The action, and the frame number to use (computed from the stamp for frames without one).
+        """
         frame_number, stamp_ns = int(frame_number), int(stamp_ns)
         if self._last is None:
             return self._start("start", frame_number, stamp_ns)
@@ -386,7 +436,7 @@ class FrameSequencer:
 class TorqueSample:
     """Driving torque estimate of one state (fields as the TorqueEstimate message).
 
-    Attributes
+    Parameters
     ----------
     frame : int
     t : float
@@ -409,6 +459,8 @@ class TorqueSample:
         ``"ok"``, or ``"not yet (...)"`` saying what is missing (time of valid states, excitation).
     model : str
         ``"3dof"``, or ``"3dof+extra"`` with an extra generalized force.
+    extra : dict
+        Further values by name (an extended model adds ``rmse_base_nm``, the base model's sliding RMSE [N m]).
     """
 
     frame: int
@@ -474,6 +526,11 @@ class TorqueEstimator:
         With ``model``: the h of the 3-DoF model the effects extend (the analysis' base model) [m]. The
         base model's residual is then tracked too, over the same window (``extra["rmse_base_nm"]`` of
         each sample), so that a model whose effects do not belong to the ride shows as fitting worse.
+
+    Raises
+    ------
+    ConfigError
+        When a period or window is not positive, or both an extended model and ``extra_Q`` are given.
     """
 
     def __init__(self, params: EucParams, dt: float, *, rmse_window_s: float = 5.0, h_window_s: float = 30.0,
@@ -548,6 +605,11 @@ class TorqueEstimator:
 
         The sliding RMSE starts again: residuals under two values of h do not mix.
 
+        Parameters
+        ----------
+        h : float
+            CoG height above the ankle hinge [m], positive.
+
         Raises
         ------
         ConfigError
@@ -608,6 +670,11 @@ class TorqueEstimator:
 
     def update(self, state) -> TorqueSample | None:
         """Process one state (any object with the RiderStateSample fields).
+
+        Parameters
+        ----------
+        state : RiderStateSample
+            The state (or any object with its fields).
 
         Returns
         -------
@@ -706,6 +773,11 @@ def extended_model_from_config(params: EucParams, effects: Sequence[str], assign
         ``["ground_slope.alpha_deg=2.9"]``.
     key : str
         Prefix of the configuration keys named in errors.
+
+    Returns
+    -------
+    Model or None
+        The model with its effect values fixed, or None when no effect is listed.
 
     Raises
     ------

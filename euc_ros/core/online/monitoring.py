@@ -45,7 +45,17 @@ RATE_ERROR_FRACTION = 0.5
 
 @dataclass(frozen=True)
 class Health:
-    """One status: level (OK/WARN/ERROR/STALE), one-line message, key/value pairs (SI; angles in deg)."""
+    """One status: level (OK/WARN/ERROR/STALE), one-line message, key/value pairs (SI; angles in deg).
+
+    Parameters
+    ----------
+    level : int
+        ``OK``, ``WARN``, ``ERROR`` or ``STALE``.
+    message : str
+        One-line summary.
+    values : dict
+        Key/value pairs (SI; angles in deg).
+    """
 
     level: int
     message: str
@@ -64,6 +74,20 @@ def stale_health(age_s: float | None, timeout_s: float, what: str) -> Health | N
     """STALE when nothing has arrived (``age_s`` None) or the last message is older than ``timeout_s``.
 
     Returns None while the stream is fresh.
+
+    Parameters
+    ----------
+    age_s : float or None
+        Time since the last message [s]; None when none arrived.
+    timeout_s : float
+        Age beyond which the stream is stale [s].
+    what : str
+        What the stream carries, for the message.
+
+    Returns
+    -------
+    Health or None
+        The STALE status, or None while fresh.
     """
     if age_s is None:
         return Health(STALE, f"no {what} yet", {"age_s": float("nan"), "timeout_s": float(timeout_s)})
@@ -99,7 +123,19 @@ class StreamWindow:
 
     def push(self, now_s: float, frame_number: int = -1, bodies: Sequence[str] = (),
              tracked: Sequence[bool] = ()) -> None:
-        """Record one frame that arrived at ``now_s`` [s]."""
+        """Record one frame that arrived at ``now_s`` [s].
+
+        Parameters
+        ----------
+        now_s : float
+            Arrival time [s].
+        frame_number : int
+            Frame number; negative for none (no dropout count).
+        bodies : sequence of str
+            Body names of the frame.
+        tracked : sequence of bool
+            Whether each body was tracked.
+        """
         missing = 0
         f = int(frame_number)
         if f >= 0 and self._last_frame is not None:
@@ -121,11 +157,27 @@ class StreamWindow:
             self._items.popleft()
 
     def age(self, now_s: float) -> float | None:
-        """Time since the last frame [s] (None before the first)."""
+        """Time since the last frame [s] (None before the first).
+
+        Parameters
+        ----------
+        now_s : float
+            Current time [s].
+
+        Returns
+        -------
+        float or None
+            The age [s].
+        """
         return None if self._last_arrival is None else float(now_s - self._last_arrival)
 
     def stats(self, now_s: float) -> dict:
         """Rate [Hz], dropouts and untracked shares over the window ending at ``now_s``.
+
+        Parameters
+        ----------
+        now_s : float
+            Current time [s]: the window's end.
 
         Returns
         -------
@@ -168,6 +220,11 @@ def mocap_health(stats: dict, expected_rate_hz: float, *, rate_tolerance: float 
         Share of missing frames before a warning (ERROR at 10x).
     max_untracked_fraction : float
         Share of the window's frames a body may be untracked in before a warning.
+
+    Returns
+    -------
+    Health
+        OK, WARN or ERROR with the problems found.
     """
     levels, problems = [OK], []
     rate = float(stats["rate_hz"])
@@ -204,6 +261,24 @@ def consistency_health(rmse_nm: float, threshold_nm: float, *, residual_nm: floa
     """Model consistency: the sliding-window RMSE of ``M_d1 - M_d2`` [N m] against ``threshold_nm``.
 
     WARN above the threshold, ERROR above twice it; WARN when the window holds no finite residual.
+
+    Parameters
+    ----------
+    rmse_nm : float
+        Sliding-window RMSE of ``M_d1 - M_d2`` [N m].
+    threshold_nm : float
+        RMSE above which the model is inconsistent [N m].
+    residual_nm : float
+        Latest ``M_d1 - M_d2`` [N m], reported.
+    h_online_m, h_online_std_m : float
+        Online h estimate and its standard deviation [m], reported.
+    model : str
+        Model label, reported.
+
+    Returns
+    -------
+    Health
+        OK, WARN or ERROR.
     """
     values = {"rmse_window_nm": float(rmse_nm), "threshold_nm": float(threshold_nm),
               "residual_nm": float(residual_nm), "h_online_m": float(h_online_m),
@@ -220,7 +295,21 @@ def consistency_health(rmse_nm: float, threshold_nm: float, *, residual_nm: floa
 
 @dataclass(frozen=True)
 class Limit:
-    """One quantity against its limit: ``label``, peak magnitude, limit (same unit), unit for the text."""
+    """One quantity against its limit: ``label``, peak magnitude, limit (same unit), unit for the text.
+
+    Parameters
+    ----------
+    label : str
+        Name of the quantity.
+    peak : float
+        Peak value since the last report (signed; compared by magnitude); NaN for none.
+    limit : float
+        Limit of its magnitude (same unit).
+    unit : str
+        Unit for the text.
+    latest : float
+        Latest value, reported.
+    """
 
     label: str
     peak: float
@@ -233,6 +322,20 @@ def limits_health(limits: Sequence[Limit], *, warn_fraction: float = 0.8, missin
     """Peak magnitudes against limits: WARN above ``warn_fraction`` x limit, ERROR above the limit.
 
     A quantity whose peak is NaN (no finite value since the last report) gives WARN with ``missing``.
+
+    Parameters
+    ----------
+    limits : sequence of Limit
+        The quantities.
+    warn_fraction : float
+        Fraction of a limit above which a peak warns.
+    missing : str
+        Message of a quantity without a finite peak.
+
+    Returns
+    -------
+    Health
+        OK, WARN or ERROR, with each quantity's peak, latest and limit in ``values``.
     """
     levels, problems, values = [OK], [], {}
     for q in limits:
@@ -273,7 +376,13 @@ class PeakAbs:
         self.nan_count = 0
 
     def push(self, value: float) -> None:
-        """Add one value."""
+        """Add one value.
+
+        Parameters
+        ----------
+        value : float
+            The value (NaN counted, not compared).
+        """
         v = float(value)
         self.count += 1
         self.latest = v
@@ -284,12 +393,33 @@ class PeakAbs:
             self.peak = v
 
     def take(self) -> tuple[float, float, int, int]:
-        """Return ``(peak, latest, count, nan_count)`` and start a new period (peak keeps its sign)."""
+        """``(peak, latest, count, nan_count)`` of the period, which starts anew (peak keeps its sign).
+
+        Returns
+        -------
+        peak : float
+            Value of largest magnitude (NaN when none was finite).
+        latest : float
+            Last value.
+        count, nan_count : int
+            Values added, and how many were not finite.
+        """
         out = (self.peak, self.latest, self.count, self.nan_count)
         self.reset()
         return out
 
 
 def degrees(x: float) -> float:
-    """Radians -> degrees for reports (NaN stays NaN)."""
+    """Radians -> degrees for reports (NaN stays NaN).
+
+    Parameters
+    ----------
+    x : float
+        Angle [rad].
+
+    Returns
+    -------
+    float
+        Angle [deg].
+    """
     return float(np.degrees(x))

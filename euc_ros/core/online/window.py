@@ -33,6 +33,11 @@ class SlidingRmse:
     window : int
         Number of most recent pushes considered (a NaN push still ages the window).
 
+    Raises
+    ------
+    ConfigError
+        When ``window`` is not a positive integer.
+
     Examples
     --------
     >>> r = SlidingRmse(2)
@@ -52,7 +57,18 @@ class SlidingRmse:
         self._pushes = 0
 
     def push(self, value: float) -> float:
-        """Add one value [N m] and return the current RMS [N m] (NaN while no finite value is held)."""
+        """Add one value [N m] and return the current RMS [N m] (NaN while no finite value is held).
+
+        Parameters
+        ----------
+        value : float
+            The value [N m]; a non-finite value is held as missing.
+
+        Returns
+        -------
+        float
+            The RMS over the finite values in the window [N m].
+        """
         j = self._i
         if self._ok[j]:
             self._sum -= self._buf[j] ** 2
@@ -88,7 +104,7 @@ class SlidingRmse:
 class HEstimate:
     """Current online estimate of the CoG height.
 
-    Attributes
+    Parameters
     ----------
     h_m : float
         Estimate [m]; NaN until enough samples and excitation.
@@ -151,6 +167,12 @@ class OnlineHEstimator:
         Size of the coarse grid over ``h_bounds``.
     update_every : int
         Re-estimate every this many samples (coefficients are stored at every sample).
+
+    Raises
+    ------
+    ConfigError
+        When ``window`` is below 3 samples, the h bounds are not ``0 < low < high``, or
+        ``correlation_samples`` is below 1.
     """
 
     def __init__(self, params: EucParams, window: int, *, model: str = "3dof", h_bounds=(0.1, 1.2),
@@ -198,6 +220,22 @@ class OnlineHEstimator:
         """Add one sample (SI units, radians) and return the current estimate.
 
         A sample with any non-finite state is not used (but ages the window).
+
+        Parameters
+        ----------
+        gamma, phi : float
+            EUC body pitch and rider pitch about the ankle hinge [rad].
+        gamma_dot, phi_dot : float
+            Pitch rates [rad/s].
+        x_ddot : float
+            Longitudinal acceleration of the wheel centre [m/s^2].
+        gamma_ddot, phi_ddot : float
+            Pitch accelerations [rad/s^2].
+
+        Returns
+        -------
+        HEstimate
+            The latest estimate (refreshed every ``update_every`` samples).
         """
         j = self._i
         # the sample's coefficients are computed with the others pending, in one vectorized call, when the
@@ -239,6 +277,11 @@ class OnlineHEstimator:
         est : HEstimate, optional
             The estimate to describe (default: the latest).
 
+        Returns
+        -------
+        str
+            ``"ok"`` or ``"not yet (...)"``.
+
         Examples
         --------
         >>> from euc_ros.core.model.terms import EucParams
@@ -256,7 +299,13 @@ class OnlineHEstimator:
                 f"{self.min_sensitivity:g} N m/m)")
 
     def refresh(self) -> HEstimate:
-        """Re-estimate now from the samples held (whatever ``update_every`` says) and return it."""
+        """Re-estimate now from the samples held (whatever ``update_every`` says) and return it.
+
+        Returns
+        -------
+        HEstimate
+            The new estimate.
+        """
         self._last = self._estimate()
         return self._last
 

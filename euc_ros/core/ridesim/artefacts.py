@@ -43,7 +43,7 @@ from euc_ros.core.session import Segment, Session
 class SoftTissueArtefacts:
     """What :func:`apply_artefacts` adds (defaults: moderate sliding, coloured noise, no faults).
 
-    Attributes
+    Parameters
     ----------
     slide_rms_m : float
         RMS of each rider body's 3-D pivot sliding [m] (``sqrt(mean |d|^2)``, per body and run).
@@ -71,6 +71,11 @@ class SoftTissueArtefacts:
         Bodies that slide and may swap or flip (default: every body except ``euc_body``).
     euc_body : str
         The EUC's rigid body: hard shell, gets only the coloured noise.
+
+    Raises
+    ------
+    ConfigError
+        Naming the field that is negative, not finite or out of its range.
     """
 
     slide_rms_m: float = 0.005
@@ -109,13 +114,29 @@ class SoftTissueArtefacts:
                 raise ConfigError(f"need 0 <= low <= high, got {(a, b)}", key=k)
 
     def to_dict(self) -> dict:
-        """Plain mapping (for truth files and reports)."""
+        """Plain mapping (for truth files and reports).
+
+        Returns
+        -------
+        dict
+            The fields by name.
+        """
         return asdict(self)
 
 
 @dataclass(frozen=True)
 class ArtefactEvent:
-    """One injected tracking fault: ``kind`` ("swap" or "flip") of ``body`` over frames [start, stop)."""
+    """One injected tracking fault: ``kind`` ("swap" or "flip") of ``body`` over frames [start, stop).
+
+    Parameters
+    ----------
+    kind : str
+        ``"swap"`` or ``"flip"``.
+    body : str
+        The rigid body.
+    start, stop : int
+        Frame range [start, stop).
+    """
 
     kind: str
     body: str
@@ -157,7 +178,7 @@ def _body_acceleration(pos: np.ndarray, rot: np.ndarray, dt: float) -> np.ndarra
 
 def apply_artefacts(clean: MocapSeries, artefacts: SoftTissueArtefacts,
                     rng: np.random.Generator) -> tuple[MocapSeries, list[ArtefactEvent]]:
-    """Return a copy of ``clean`` with soft-tissue sliding, coloured noise, swaps and flips.
+    """A copy of ``clean`` with soft-tissue sliding, coloured noise, swaps and flips.
 
     Parameters
     ----------
@@ -174,6 +195,11 @@ def apply_artefacts(clean: MocapSeries, artefacts: SoftTissueArtefacts,
         The recorded series (``meta["artefacts"]`` holds the settings and the events).
     events : list of ArtefactEvent
         The injected swaps and flips, in the order drawn.
+
+    Raises
+    ------
+    ConfigError
+        When ``bodies`` names a body the series lacks.
     """
     a = artefacts
     b, n = clean.position.shape[:2]
@@ -240,6 +266,25 @@ def perturb_session(session: Session, rng: np.random.Generator, *,
 
     Each offset moves in a uniformly random direction by a length drawn uniformly from
     ``offset_error_m`` [m]. Mass fractions and the EUC are unchanged.
+
+    Parameters
+    ----------
+    session : Session
+        The session.
+    rng : numpy.random.Generator
+        Source of the directions and lengths.
+    offset_error_m : tuple of float
+        Range (low, high) of the move [m].
+
+    Returns
+    -------
+    Session
+        The perturbed copy.
+
+    Raises
+    ------
+    ConfigError
+        When the range is not ``0 <= low <= high``.
     """
     lo, hi = offset_error_m
     if not 0 <= lo <= hi:

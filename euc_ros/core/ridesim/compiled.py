@@ -654,7 +654,21 @@ def dense(ts, ys, F, t):
 
 
 class CompiledSolution:
-    """Dense solution of one run (the part of ``solve_ivp``'s result the simulator uses)."""
+    """Dense solution of one run (the part of ``solve_ivp``'s result the simulator uses).
+
+    Parameters
+    ----------
+    ts : numpy.ndarray
+        Step boundaries (steps + 1,) [s].
+    ys : numpy.ndarray
+        States at the boundaries (steps + 1, n_states).
+    F : numpy.ndarray
+        Stage derivatives of each step, for the dense output (:func:`dense`).
+    nfev : int
+        Right-hand-side evaluations.
+    status : int
+        The integrator's status (``STATUS_OK``: reached the end).
+    """
 
     def __init__(self, ts, ys, F, nfev: int, status: int) -> None:
         self.ts, self.ys, self.F = ts, ys, F
@@ -673,7 +687,18 @@ class CompiledSolution:
         return self.ys.T
 
     def sol(self, t) -> np.ndarray:
-        """States (n_states, n_times) at times t, like ``solve_ivp(...).sol``."""
+        """States (n_states, n_times) at times t, like ``solve_ivp(...).sol``.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Times [s] within the solved span.
+
+        Returns
+        -------
+        numpy.ndarray
+            States (n_states, n_times).
+        """
         return dense(self.ts, self.ys, self.F, np.ascontiguousarray(np.atleast_1d(t), float)).T
 
 

@@ -32,7 +32,7 @@ import numpy as np
 class EucBalanceController:
     """``M_d = k_p gamma + k_d gamma_dot + k_v x_dot`` [N m].
 
-    Attributes
+    Parameters
     ----------
     k_p : float
         Pitch stiffness [N m/rad].
@@ -47,7 +47,22 @@ class EucBalanceController:
     k_v: float = 6.0
 
     def torque(self, gamma, gamma_dot, x_dot):
-        """Driving torque M_d [N m]."""
+        """Driving torque M_d [N m].
+
+        Parameters
+        ----------
+        gamma : float or array_like
+            EUC body pitch [rad].
+        gamma_dot : float or array_like
+            Its rate [rad/s].
+        x_dot : float or array_like
+            Speed [m/s].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            M_d [N m].
+        """
         return self.k_p * gamma + self.k_d * gamma_dot + self.k_v * x_dot
 
 
@@ -55,7 +70,7 @@ class EucBalanceController:
 class RiderLeanController:
     """Rider's ankle torque M_h [N m] leaning to follow a speed reference.
 
-    Attributes
+    Parameters
     ----------
     k_p : float
         Lean stiffness [N m/rad].
@@ -81,14 +96,69 @@ class RiderLeanController:
     @classmethod
     def for_rider(cls, m: float, h: float, g: float, R: float, m_eq: float, *, k_p: float = 800.0,
                   k_d: float = 150.0, k_speed: float = 0.12, k_int: float = 0.05) -> "RiderLeanController":
-        """Build the controller for a rider of mass m [kg] and CoG height h [m] on a wheel of radius R."""
+        """Build the controller for a rider of mass m [kg] and CoG height h [m] on a wheel of radius R.
+
+        Parameters
+        ----------
+        m : float
+            Rider mass [kg].
+        h : float
+            Rider CoG height above the hinge [m].
+        g : float
+            Gravitational acceleration [m/s^2].
+        R : float
+            Wheel radius [m].
+        m_eq : float
+            Equivalent translating mass of the vehicle and rider [kg].
+        k_p, k_d, k_speed, k_int : float
+            Gains (see the class parameters).
+
+        Returns
+        -------
+        RiderLeanController
+            The controller, feed-forward and gravity compensation from the rider.
+        """
         return cls(k_p=k_p, k_d=k_d, k_speed=k_speed, k_int=k_int, c_ff=(m * h + R * m_eq) / (m * g * h),
                    mgh=m * g * h)
 
     def desired_lean(self, v_ref, a_ref, x_dot, z, sway):
-        """phi_des [rad] for the speed reference, the speed, the integrated speed error z [m] and sway."""
+        """phi_des [rad] for the speed reference, the speed, the integrated speed error z [m] and sway.
+
+        Parameters
+        ----------
+        v_ref : float or array_like
+            Speed reference [m/s].
+        a_ref : float or array_like
+            Acceleration reference [m/s^2].
+        x_dot : float or array_like
+            Speed [m/s].
+        z : float or array_like
+            Integrated speed error [m].
+        sway : float or array_like
+            Sway added to the lean [rad].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            phi_des [rad].
+        """
         return np.arctan(self.c_ff * a_ref) + self.k_speed * (v_ref - x_dot) + self.k_int * z + sway
 
     def torque(self, phi, phi_dot, phi_des):
-        """M_h [N m]."""
+        """M_h [N m].
+
+        Parameters
+        ----------
+        phi : float or array_like
+            Rider pitch [rad].
+        phi_dot : float or array_like
+            Its rate [rad/s].
+        phi_des : float or array_like
+            Desired pitch [rad].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            M_h [N m].
+        """
         return self.mgh * np.sin(phi) + self.k_p * (phi - phi_des) + self.k_d * phi_dot

@@ -38,7 +38,19 @@ ROLLING_SIGN_SPEED = 0.05
 
 @dataclass(frozen=True)
 class ParamDef:
-    """One effect parameter: name (with unit suffix where not SI), default, unit, meaning."""
+    """One effect parameter: name (with unit suffix where not SI), default, unit, meaning.
+
+    Parameters
+    ----------
+    name : str
+        Parameter name.
+    default : float
+        Default value.
+    unit : str
+        Unit, as printed.
+    description : str
+        Meaning.
+    """
 
     name: str
     default: float
@@ -48,7 +60,19 @@ class ParamDef:
 
 @dataclass(frozen=True)
 class EffectDef:
-    """An effect of the catalogue: name, parameters, where it acts and a one-line formula."""
+    """An effect of the catalogue: name, parameters, where it acts and a one-line formula.
+
+    Parameters
+    ----------
+    name : str
+        Effect name.
+    params : tuple of ParamDef
+        Its parameters.
+    acts_on : str
+        ``"dynamics"``, ``"parameters"`` or ``"measurement"``.
+    formula : str
+        One-line formula.
+    """
 
     name: str
     params: tuple[ParamDef, ...]
@@ -89,7 +113,13 @@ PARAM_OWNER: dict[str, str] = {p.name: e.name for e in EFFECTS.values() for p in
 
 @dataclass(frozen=True)
 class EffectSet:
-    """The active effects and their parameters (name -> {param: value}), in the order given."""
+    """The active effects and their parameters (name -> {param: value}), in the order given.
+
+    Parameters
+    ----------
+    active : Mapping of str to Mapping of str to float
+        Parameter values by effect.
+    """
 
     active: Mapping[str, Mapping[str, float]] = field(default_factory=dict)
 
@@ -97,7 +127,20 @@ class EffectSet:
         return name in self.active
 
     def get(self, effect: str, param: str) -> float:
-        """Return a parameter of an active effect (0 for an inactive effect's parameter)."""
+        """A parameter of an active effect (0 for an inactive effect's parameter).
+
+        Parameters
+        ----------
+        effect : str
+            Effect name.
+        param : str
+            Parameter name.
+
+        Returns
+        -------
+        float
+            The value.
+        """
         if effect not in self.active:
             return 0.0
         return float(self.active[effect][param])
@@ -113,11 +156,23 @@ class EffectSet:
         return "+".join(self.active) if self.active else "none"
 
     def parameters(self) -> dict[str, float]:
-        """All active parameters in one flat mapping (names are unique)."""
+        """All active parameters in one flat mapping (names are unique).
+
+        Returns
+        -------
+        dict of str to float
+            Values by parameter name.
+        """
         return {k: float(v) for e in self.active.values() for k, v in e.items()}
 
     def to_list(self) -> list[dict]:
-        """JSON-friendly list ``[{"effect": name, "parameters": {...}}, ...]``."""
+        """JSON-friendly list ``[{"effect": name, "parameters": {...}}, ...]``.
+
+        Returns
+        -------
+        list of dict
+            One entry per active effect.
+        """
         return [{"effect": n, "parameters": {k: float(v) for k, v in p.items()}} for n, p in self.active.items()]
 
 
@@ -131,6 +186,11 @@ def make_effects(names: Iterable[str] = (), params: Mapping[str, float] | None =
     params : mapping, optional
         Parameter values by parameter name; each must belong to one of ``names``. Missing ones take
         the defaults of :data:`EFFECTS`.
+
+    Returns
+    -------
+    EffectSet
+        The effects with every parameter's value.
 
     Raises
     ------
@@ -179,6 +239,16 @@ def _check_ranges(active: Mapping[str, Mapping[str, float]]) -> None:
 
 def parse_param_assignments(items: Iterable[str]) -> dict[str, float]:
     """Parse ``["alpha_deg=3", "c_rr=0.02"]`` (the CLI's ``--param``) into a mapping.
+
+    Parameters
+    ----------
+    items : iterable of str
+        ``NAME=VALUE`` items.
+
+    Returns
+    -------
+    dict of str to float
+        Values by name.
 
     Raises
     ------

@@ -76,7 +76,13 @@ def _function_source(name: str, args, exprs, doc: str) -> str:
 
 
 def generated_source() -> str:
-    """The full text of :mod:`.eom_generated` as the current derivation prints it."""
+    """The full text of :mod:`.eom_generated` as the current derivation prints it.
+
+    Returns
+    -------
+    str
+        The module's source.
+    """
     derive = _derivations()
     parts = [_HEADER]
     names = []
@@ -93,7 +99,18 @@ def generated_source() -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Write :data:`TARGET` (``--check``: exit 1 when it differs from what the derivation prints)."""
+    """Write :data:`TARGET` (``--check``: exit 1 when it differs from what the derivation prints).
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (``--check``); default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        Exit code: 0, or 1 when ``--check`` finds a difference.
+    """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--check", action="store_true", help="compare instead of writing")
     args = parser.parse_args(argv)

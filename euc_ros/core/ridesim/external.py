@@ -41,7 +41,20 @@ KINDS = {"rope": ("k_n_per_m", "anchor_x_m", "hand_m"), "headwind": ("wind_m_per
 
 @dataclass(frozen=True)
 class ExternalForce:
-    """One force of :data:`KINDS` with its parameters."""
+    """One force of :data:`KINDS` with its parameters.
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`KINDS`.
+    params : dict
+        Its parameters by name (SI, units in the names).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind or a missing parameter.
+    """
 
     kind: str
     params: dict
@@ -63,7 +76,34 @@ class ExternalForce:
         return self.kind in ("rope", "lab_bump")
 
     def generalized(self, *, x, gamma, phi, x_dot, gamma_dot, phi_dot, h, X, psi, R, l0):
-        """(dQ_x, dQ_gamma, dQ_phi) at the given states (scalars or arrays)."""
+        """(dQ_x, dQ_gamma, dQ_phi) at the given states (scalars or arrays).
+
+        Parameters
+        ----------
+        x : float or array_like
+            Distance travelled [m].
+        gamma, phi : float or array_like
+            EUC body pitch and rider pitch [rad].
+        x_dot : float or array_like
+            Speed [m/s].
+        gamma_dot, phi_dot : float or array_like
+            Pitch rates [rad/s].
+        h : float or array_like
+            Rider CoG height above the hinge [m].
+        X : float or array_like
+            Lab x of the wheel centre [m].
+        psi : float or array_like
+            Heading [rad].
+        R : float
+            Wheel radius [m].
+        l0 : float
+            Distance from the ankle hinge to the wheel centre [m].
+
+        Returns
+        -------
+        tuple
+            ``(dQ_x [N], dQ_gamma [N m], dQ_phi [N m])``.
+        """
         p = self.params
         if self.kind == "torque_ripple":
             tau = p["amp_nm"] * np.sin(p["per_turn"] * x / R)

@@ -34,7 +34,20 @@ def _sigmoid(u):
 
 @dataclass(frozen=True)
 class FloorComponent:
-    """One component of a floor profile (see the module table)."""
+    """One component of a floor profile (see the module table).
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`KINDS`.
+    params : dict
+        Its parameters by name (SI, units in the names).
+
+    Raises
+    ------
+    ConfigError
+        For an unknown kind, a missing parameter or a width that is not positive.
+    """
 
     kind: str
     params: dict
@@ -49,7 +62,18 @@ class FloorComponent:
             raise ConfigError(f"must be > 0, got {self.params['width_m']}", key="floor.width_m")
 
     def evaluate(self, X):
-        """``(z, dz/dX, d2z/dX2)`` at lab X [m]."""
+        """``(z, dz/dX, d2z/dX2)`` at lab X [m].
+
+        Parameters
+        ----------
+        X : float or array_like
+            Lab x [m].
+
+        Returns
+        -------
+        tuple
+            ``(z [m], dz/dX, d2z/dX2 [1/m])``.
+        """
         X = np.asarray(X, float)
         p = self.params
         if self.kind == "ramp":
@@ -75,6 +99,13 @@ class FloorProfile:
 
     Straight runs with heading 0 start at ``X = -run_start_m`` and those with heading pi at
     ``+run_start_m``, so every run crosses the same floor (the recorded positions are not re-centred).
+
+    Parameters
+    ----------
+    components : tuple of FloorComponent
+        The components, summed.
+    run_start_m : float
+        Distance of the runs' start from X = 0 [m].
     """
 
     components: tuple[FloorComponent, ...] = field(default_factory=tuple)
@@ -82,11 +113,35 @@ class FloorProfile:
 
     @classmethod
     def of(cls, *items: tuple[str, dict], run_start_m: float = 5.0) -> "FloorProfile":
-        """``FloorProfile.of(("ramp", {"slope_deg": 2.5}), ("bump", {...}))``."""
+        """``FloorProfile.of(("ramp", {"slope_deg": 2.5}), ("bump", {...}))``.
+
+        Parameters
+        ----------
+        *items : tuple of (str, dict)
+            ``(kind, params)`` of each component.
+        run_start_m : float
+            Distance of the runs' start from X = 0 [m].
+
+        Returns
+        -------
+        FloorProfile
+            The floor.
+        """
         return cls(tuple(FloorComponent(k, dict(p)) for k, p in items), run_start_m)
 
     def evaluate(self, X):
-        """``(z, dz/dX, d2z/dX2)`` of the whole floor at lab X [m]."""
+        """``(z, dz/dX, d2z/dX2)`` of the whole floor at lab X [m].
+
+        Parameters
+        ----------
+        X : float or array_like
+            Lab x [m].
+
+        Returns
+        -------
+        tuple
+            ``(z [m], dz/dX, d2z/dX2 [1/m])``.
+        """
         X = np.asarray(X, float)
         z = dz = ddz = 0.0 * X
         for c in self.components:
@@ -98,6 +153,22 @@ class FloorProfile:
         """Slope angle along travel ``a`` [rad] (positive uphill) and ``da/ds`` [rad/m] for heading psi.
 
         ``tan a = z'(X) cos psi``; along the path ``dX/ds = cos a cos psi`` and ``dpsi/ds = kappa``.
+
+        Parameters
+        ----------
+        X : float or array_like
+            Lab x [m].
+        psi : float or array_like
+            Heading [rad].
+        kappa : float or array_like
+            Path curvature [1/m].
+
+        Returns
+        -------
+        a : float or numpy.ndarray
+            Slope along travel [rad].
+        a1 : float or numpy.ndarray
+            ``da/ds`` [rad/m].
         """
         _, dz, ddz = self.evaluate(X)
         c, s = np.cos(psi), np.sin(psi)

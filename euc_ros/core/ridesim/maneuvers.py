@@ -60,16 +60,49 @@ class HeadingPath:
     phase: float = 0.0
 
     def psi(self, s):
-        """Heading [rad] at arc length s [m]."""
+        """Heading [rad] at arc length s [m].
+
+        Parameters
+        ----------
+        s : float or array_like
+            Arc length [m].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            Heading [rad].
+        """
         return self.psi0 + self.amplitude * np.sin(2 * np.pi * np.asarray(s) / self.length + self.phase)
 
     def kappa(self, s):
-        """Curvature d psi / d s [1/m] at arc length s."""
+        """Curvature d psi / d s [1/m] at arc length s.
+
+        Parameters
+        ----------
+        s : float or array_like
+            Arc length [m].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            Curvature [1/m].
+        """
         k = 2 * np.pi / self.length
         return self.amplitude * k * np.cos(k * np.asarray(s) + self.phase)
 
     def dkappa(self, s):
-        """The curvature's rate d kappa / d s [1/m^2] at arc length s."""
+        """The curvature's rate d kappa / d s [1/m^2] at arc length s.
+
+        Parameters
+        ----------
+        s : float or array_like
+            Arc length [m].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            ``d kappa / d s`` [1/m^2].
+        """
         k = 2 * np.pi / self.length
         return -self.amplitude * k * k * np.sin(k * np.asarray(s) + self.phase)
 
@@ -78,6 +111,16 @@ def smooth_step(u):
     """C-infinity step from 0 (u <= 0) to 1 (u >= 1) and its derivative d/du.
 
     ``s(u) = f(u) / (f(u) + f(1 - u))`` with ``f(u) = exp(-1/u)`` for u > 0, else 0.
+
+    Parameters
+    ----------
+    u : float
+        Argument.
+
+    Returns
+    -------
+    s, ds : float
+        ``s(u)`` and ``ds/du``.
     """
     if np.ndim(u) == 0:  # scalar fast path (ODE right-hand side), same formula
         u = float(u)
@@ -103,6 +146,19 @@ class SpeedProfile:
     Straight runs: ``v0`` until ``t1``, a C-infinity :func:`smooth_step` to ``v1`` over ``ramp_s``, then
     ``v1`` (a person's speed change has no corners, and smooth inputs keep the sampled truth smooth).
     Figure-eight (``slow_in_turns > 0``): ``v0 - slow_in_turns (kappa / kappa_max)^2`` along the path.
+
+    Parameters
+    ----------
+    v0, v1 : float
+        Speeds before and after the change [m/s].
+    t1 : float
+        Start of the change [s].
+    ramp_s : float
+        Duration of the change [s].
+    slow_in_turns : float
+        Speed lost at the largest curvature [m/s] (figure-eight).
+    kappa_max : float
+        Largest curvature of the path [1/m].
     """
 
     v0: float
@@ -113,7 +169,24 @@ class SpeedProfile:
     kappa_max: float = 1.0
 
     def reference(self, t, kappa, dkappa_ds, x_dot):
-        """Return ``(v_ref, a_ref)`` [m/s, m/s^2] at time t for the curvature state along the path."""
+        """``(v_ref, a_ref)`` [m/s, m/s^2] at time t for the curvature state along the path.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        kappa : float
+            Curvature at the rider's arc length [1/m].
+        dkappa_ds : float
+            Its rate along the path [1/m^2].
+        x_dot : float
+            Speed [m/s].
+
+        Returns
+        -------
+        v_ref, a_ref : float
+            Speed [m/s] and acceleration [m/s^2] references.
+        """
         if self.v1 == self.v0:
             v, a = self.v0 + 0.0 * np.asarray(t, float), 0.0 * np.asarray(t, float)
         else:
@@ -129,7 +202,17 @@ class SpeedProfile:
 
 @dataclass(frozen=True)
 class Sinusoids:
-    """A sum of sinusoids ``sum_k a_k sin(2 pi f_k t + p_k)`` (rider sway, tilt wobble) [rad]."""
+    """A sum of sinusoids ``sum_k a_k sin(2 pi f_k t + p_k)`` (rider sway, tilt wobble) [rad].
+
+    Parameters
+    ----------
+    amplitudes : tuple of float
+        Amplitudes a_k [rad].
+    freqs_hz : tuple of float
+        Frequencies f_k [Hz].
+    phases : tuple of float
+        Phases p_k [rad].
+    """
 
     amplitudes: tuple[float, ...]
     freqs_hz: tuple[float, ...]
@@ -161,7 +244,25 @@ class Sinusoids:
 
 @dataclass(frozen=True)
 class RunPlan:
-    """Everything random about one run, drawn before simulation."""
+    """Everything random about one run, drawn before simulation.
+
+    Parameters
+    ----------
+    name : str
+        Run name.
+    maneuver : str
+        One of :data:`MANEUVERS`.
+    duration_s : float
+        Recording duration [s].
+    path : HeadingPath
+        Heading along the path.
+    speed : SpeedProfile
+        Speed reference.
+    sway : Sinusoids
+        Rider sway [rad].
+    tilt_wobble : Sinusoids
+        Tilt wobble [rad].
+    """
 
     name: str
     maneuver: str
@@ -176,6 +277,22 @@ class RunPlan:
 
         With ``R = Rz(psi) Rx(theta)`` a positive theta tips the top to the right (-y); in a left turn
         (kappa > 0) the rider leans left, so theta < 0.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time [s].
+        x_dot : float or array_like
+            Speed [m/s].
+        kappa : float or array_like
+            Path curvature [1/m].
+        g : float
+            Gravitational acceleration [m/s^2].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            Tilt [rad].
         """
         return -np.arctan(kappa * x_dot * x_dot / g) + self.tilt_wobble(t)
 
@@ -205,6 +322,16 @@ def plan_run(maneuver: str, index: int, rng: np.random.Generator, duration_s: fl
         2.4-2.8 m/s with ~18 deg of tilt in the turns).
     path_scale : float
         Multiplies the figure-eight's length (wider turns: less yaw per filter window at equal tilt).
+
+    Returns
+    -------
+    RunPlan
+        The plan.
+
+    Raises
+    ------
+    ConfigError
+        Unknown maneuver, or a scale or duration that is not positive.
     """
     if not path_scale > 0:
         raise ConfigError(f"must be > 0, got {path_scale}", key="path_scale")

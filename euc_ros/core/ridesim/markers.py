@@ -45,6 +45,33 @@ def random_layout(rng: np.random.Generator, n_markers: int = 4, spread_m: float 
     two inter-marker distances differ by at least ``min_distance_gap * spread_m`` and no two
     markers are closer than ``0.2 * spread_m`` (Motive needs distinct distances to identify the
     markers; the layout then has no symmetry).
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the points.
+    n_markers : int
+        Markers, 3 to 12.
+    spread_m : float
+        Largest inter-marker distance [m].
+    centroid : array_like
+        Centroid of the markers (3,), body frame [m].
+    aspect : array_like
+        Relative extents of the box (3,).
+    min_distance_gap : float
+        Smallest difference of two inter-marker distances, a fraction of ``spread_m``.
+    max_tries : int
+        Draws before giving up.
+
+    Returns
+    -------
+    numpy.ndarray
+        Marker positions (n_markers, 3) [m].
+
+    Raises
+    ------
+    ConfigError
+        For a marker count or spread out of range, or when no draw qualifies.
     """
     if not 3 <= n_markers <= 12:
         raise ConfigError(f"a rigid body needs 3-12 markers, got {n_markers}", key="n_markers")
@@ -68,6 +95,18 @@ def rotation_covariance(layout, sigma_m: float) -> np.ndarray:
     """Small-angle covariance (3, 3) [rad^2] of a fitted orientation, body frame.
 
     ``sigma^2 (sum_i |r_i|^2 I - r_i r_i^T)^-1`` with ``r_i`` the markers about their centroid.
+
+    Parameters
+    ----------
+    layout : array_like
+        Marker positions (k, 3), body frame [m].
+    sigma_m : float
+        Marker noise per axis [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        The covariance (3, 3) [rad^2].
     """
     r = np.asarray(layout, dtype=float)
     r = r - r.mean(axis=0)
@@ -76,17 +115,58 @@ def rotation_covariance(layout, sigma_m: float) -> np.ndarray:
 
 
 def rms_angle_deg(layout, sigma_m: float) -> float:
-    """RMS rotation angle [deg] of a fitted orientation (small angles): ``sqrt(trace(cov))``."""
+    """RMS rotation angle [deg] of a fitted orientation (small angles): ``sqrt(trace(cov))``.
+
+    Parameters
+    ----------
+    layout : array_like
+        Marker positions (k, 3), body frame [m].
+    sigma_m : float
+        Marker noise per axis [m].
+
+    Returns
+    -------
+    float
+        The RMS angle [deg].
+    """
     return math.degrees(math.sqrt(np.trace(rotation_covariance(layout, sigma_m))))
 
 
 def sigma_for_angle(layout, angle_deg: float) -> float:
-    """Marker noise [m] that gives the layout an RMS orientation error of ``angle_deg``."""
+    """Marker noise [m] that gives the layout an RMS orientation error of ``angle_deg``.
+
+    Parameters
+    ----------
+    layout : array_like
+        Marker positions (k, 3), body frame [m].
+    angle_deg : float
+        RMS orientation error [deg].
+
+    Returns
+    -------
+    float
+        Marker noise per axis [m].
+    """
     return angle_deg / rms_angle_deg(layout, 1.0)
 
 
 def marker_positions(position, quat, layout) -> np.ndarray:
-    """World markers ``(..., k, 3)`` of poses ``position (..., 3)``, ``quat (..., 4)`` (x, y, z, w)."""
+    """World markers ``(..., k, 3)`` of poses ``position (..., 3)``, ``quat (..., 4)`` (x, y, z, w).
+
+    Parameters
+    ----------
+    position : array_like
+        Pivot positions (..., 3) [m].
+    quat : array_like
+        Quaternions (..., 4), (x, y, z, w).
+    layout : array_like
+        Marker positions (k, 3), body frame [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        World marker positions (..., k, 3) [m].
+    """
     R = rotation_matrices(quat)
     m = np.asarray(layout, dtype=float)
     return np.asarray(position, dtype=float)[..., None, :] + np.einsum("...ij,kj->...ki", R, m)
@@ -100,6 +180,20 @@ def fit_poses(markers, layout) -> tuple[np.ndarray, np.ndarray]:
     flipping the smallest singular direction) and the pivot ``P``.
 
     Returns ``(P (..., 3), R (..., 3, 3))``; NaN for frames with a non-finite marker.
+
+    Parameters
+    ----------
+    markers : array_like
+        World marker positions (..., k, 3) [m].
+    layout : array_like
+        Marker positions (k, 3), body frame [m].
+
+    Returns
+    -------
+    P : numpy.ndarray
+        Pivots (..., 3) [m].
+    R : numpy.ndarray
+        Rotations (..., 3, 3).
     """
     w = np.asarray(markers, dtype=float)
     m = np.asarray(layout, dtype=float)
@@ -148,6 +242,11 @@ def synthesize(clean: MocapSeries, layouts: dict, sigma_m: float, rng: np.random
         The fitted poses at the pivots (canonical quaternions), ``tracked`` as in ``clean``, and
         ``mean_marker_error`` the mean distance of the markers from the fitted layout (as Motive
         reports it).
+
+    Raises
+    ------
+    ConfigError
+        When the marker noise is negative or not finite, or a body has no marker layout.
     """
     if not (math.isfinite(sigma_m) and sigma_m >= 0):
         raise ConfigError(f"marker noise must be a finite number >= 0, got {sigma_m}", key="sigma_m")

@@ -27,7 +27,28 @@ from euc_ros.core.rotations import canonical_quat, quat_multiply
 
 @dataclass(frozen=True)
 class MocapNoise:
-    """Noise and data-loss model of the synthesized mocap (defaults like the paper's system)."""
+    """Noise and data-loss model of the synthesized mocap (defaults like the paper's system).
+
+    Parameters
+    ----------
+    pos_sigma_m : float
+        Position noise per axis [m].
+    rot_rms_deg : float
+        RMS orientation noise [deg].
+    marker_error_m : float
+        Mean marker error reported [m].
+    gaps : int
+        Occlusion gaps per run (one random body each).
+    gap_min_s, gap_max_s : float
+        Range of a gap's duration [s].
+    drop_rate : float
+        Probability that a frame (not the first or last) is dropped, in [0, 0.5).
+
+    Raises
+    ------
+    ConfigError
+        Naming the field that is negative, not finite or out of its range.
+    """
 
     pos_sigma_m: float = 0.2e-3
     rot_rms_deg: float = 0.5
@@ -55,7 +76,13 @@ class MocapNoise:
         return cls(pos_sigma_m=0.0, rot_rms_deg=0.0, marker_error_m=0.0)
 
     def to_dict(self) -> dict:
-        """Plain mapping (for truth.json)."""
+        """Plain mapping (for truth.json).
+
+        Returns
+        -------
+        dict
+            The fields by name.
+        """
         return asdict(self)
 
 
@@ -64,6 +91,16 @@ def rotations_to_quats(rot: np.ndarray) -> np.ndarray:
 
     Shepperd's method, as ``scipy.spatial.transform.Rotation.from_matrix`` computes it (the largest of
     ``4 w^2, 4 x^2, 4 y^2, 4 z^2`` picks the formula), in numpy: about 10x cheaper on many matrices.
+
+    Parameters
+    ----------
+    rot : numpy.ndarray
+        Rotation matrices (..., 3, 3).
+
+    Returns
+    -------
+    numpy.ndarray
+        Quaternions (..., 4), w >= 0.
     """
     R = np.asarray(rot, float).reshape(-1, 3, 3)
     d = np.stack([R[:, 0, 0], R[:, 1, 1], R[:, 2, 2], R[:, 0, 0] + R[:, 1, 1] + R[:, 2, 2]], axis=-1)
@@ -86,6 +123,16 @@ def rotvec_to_quats(rv: np.ndarray) -> np.ndarray:
     """Rotation vectors (..., 3) [rad] -> quaternions (..., 4) (x, y, z, w).
 
     ``Rotation.from_rotvec``'s formula, with its series for angles below 1e-3 rad.
+
+    Parameters
+    ----------
+    rv : numpy.ndarray
+        Rotation vectors (..., 3) [rad].
+
+    Returns
+    -------
+    numpy.ndarray
+        Quaternions (..., 4).
     """
     rv = np.asarray(rv, float)
     angle = np.linalg.norm(rv, axis=-1, keepdims=True)
@@ -97,10 +144,24 @@ def rotvec_to_quats(rv: np.ndarray) -> np.ndarray:
 
 
 def corrupt(clean: MocapSeries, noise: MocapNoise, rng: np.random.Generator) -> MocapSeries:
-    """Return a recorded copy of ``clean`` with noise, occlusion gaps and dropped frames.
+    """A recorded copy of ``clean`` with noise, occlusion gaps and dropped frames.
 
     The random draws happen in a fixed order (positions, rotations, marker error, gaps, drops) with
     fixed shapes, so equal seeds give identical recordings.
+
+    Parameters
+    ----------
+    clean : MocapSeries
+        The noise-free recording.
+    noise : MocapNoise
+        What to add.
+    rng : numpy.random.Generator
+        Source of the draws.
+
+    Returns
+    -------
+    MocapSeries
+        The recording.
     """
     b, n = clean.position.shape[:2]
     pos = clean.position + rng.normal(0.0, 1.0, (b, n, 3)) * noise.pos_sigma_m

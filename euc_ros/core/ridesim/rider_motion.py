@@ -45,6 +45,18 @@ class PedalFlex:
 
     Stiffness ``k_n_per_m`` along the EUC's axis, damping ratio ``damping_ratio`` of the rider bouncing on
     them.
+
+    Parameters
+    ----------
+    k_n_per_m : float
+        Stiffness along the EUC's axis [N/m].
+    damping_ratio : float
+        Damping ratio of the rider on the pedals.
+
+    Raises
+    ------
+    ConfigError
+        When the stiffness is not positive or the damping ratio is negative.
     """
 
     k_n_per_m: float = 1.0e5
@@ -57,7 +69,18 @@ class PedalFlex:
             raise ConfigError(f"must be >= 0, got {self.damping_ratio}", key="pedals.damping_ratio")
 
     def damping(self, rider_mass: float) -> float:
-        """Damping [N s/m] of the rider on the pedals."""
+        """Damping [N s/m] of the rider on the pedals.
+
+        Parameters
+        ----------
+        rider_mass : float
+            Rider mass [kg].
+
+        Returns
+        -------
+        float
+            The damping [N s/m].
+        """
         return 2.0 * self.damping_ratio * math.sqrt(self.k_n_per_m * rider_mass)
 
     def to_dict(self) -> dict:
@@ -76,6 +99,22 @@ class ArmSwing:
     """Both arms swinging about the shoulders in the pitch plane.
 
     ``amplitude_deg`` at ``freq_hz``; the phase of run k is ``phase_rad + k * phase_step_rad``.
+
+    Parameters
+    ----------
+    amplitude_deg : float
+        Swing amplitude [deg], in [0, 60].
+    freq_hz : float
+        Swing frequency [Hz], in (0, 5].
+    phase_rad : float
+        Phase of run 0 [rad].
+    phase_step_rad : float
+        Phase step from run to run [rad].
+
+    Raises
+    ------
+    ConfigError
+        When the amplitude is outside [0, 60] deg or the frequency outside (0, 5] Hz.
     """
 
     amplitude_deg: float = 10.0
@@ -110,6 +149,24 @@ class ArmKinematics:
     """The swinging arms of one run on a :class:`~.skeleton.Skeleton`.
 
     Rider mass ``mass``, CoG height ``h`` above the hinge with the arms at rest.
+
+    Parameters
+    ----------
+    swing : ArmSwing
+        The swing.
+    skeleton : Skeleton
+        The rider's skeleton (with upper-arm and forearm bodies).
+    h : float
+        CoG height above the hinge with the arms at rest [m].
+    mass : float
+        Rider mass [kg].
+    run_index : int
+        Run index (sets the phase).
+
+    Raises
+    ------
+    ConfigError
+        When the skeleton lacks the arm bodies.
     """
 
     #: Step of the five-point derivative stencil in the arm angle [rad] (truncation ~ step^4, rounding ~1e-12).
@@ -135,7 +192,22 @@ class ArmKinematics:
 
     # --- geometry as a function of the arm angle (vectorized over angles) ---
     def segments(self, th: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Pivots (b, n, 3), rotations (b, n, 3, 3) and CoMs (b, n, 3) in the skeleton frame S."""
+        """Pivots (b, n, 3), rotations (b, n, 3, 3) and CoMs (b, n, 3) in the skeleton frame S.
+
+        Parameters
+        ----------
+        th : numpy.ndarray
+            Arm angles (n,) [rad].
+
+        Returns
+        -------
+        pivots : numpy.ndarray
+            Pivots (b, n, 3) [m].
+        rotations : numpy.ndarray
+            Rotations (b, n, 3, 3).
+        coms : numpy.ndarray
+            CoMs (b, n, 3) [m].
+        """
         th = np.atleast_1d(np.asarray(th, float))
         R = _ry(th)                                                         # (n, 3, 3)
         eye = np.broadcast_to(np.eye(3), R.shape)
@@ -159,7 +231,18 @@ class ArmKinematics:
         return self.mass * np.einsum("b,bn->n", self.sk.fractions, c[..., 0] ** 2 + c[..., 2] ** 2)
 
     def angle(self, t):
-        """Arm angle and its first two time derivatives."""
+        """Arm angle and its first two time derivatives.
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time [s].
+
+        Returns
+        -------
+        tuple
+            The angle [rad] and its rates [rad/s, rad/s^2].
+        """
         t = np.asarray(t, float)
         s, co = np.sin(self.w * t + self.p0), np.cos(self.w * t + self.p0)
         return self.amp * s, self.amp * self.w * co, -self.amp * self.w * self.w * s
@@ -191,6 +274,18 @@ class ArmKinematics:
         ``H_dot`` [N m] (the relative motion's angular momentum about the pitch axis, ``theta_dot K``, and its
         rate ``theta_dot^2 P + theta_ddot K``). The functions of the arm angle come from cubic splines on a
         grid of :data:`GRID` angles (``exact``: from the geometry at every call, 50x slower).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+        exact : bool
+            Compute from the geometry instead of the splines.
+
+        Returns
+        -------
+        dict
+            The quantities by name: floats for a scalar ``t``, else arrays.
         """
         scalar = np.ndim(t) == 0
         th, thd, thdd = (np.atleast_1d(v) for v in self.angle(t))
@@ -209,7 +304,24 @@ class ArmKinematics:
         return {k: float(v[0]) for k, v in out.items()} if scalar else out
 
     def poses(self, A: np.ndarray, R_lean: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """World pivots (b, n, 3) and rotations (b, n, 3, 3): the skeleton frame ``R_S = R_L Ry(-beta)``."""
+        """World pivots (b, n, 3) and rotations (b, n, 3, 3): the skeleton frame ``R_S = R_L Ry(-beta)``.
+
+        Parameters
+        ----------
+        A : numpy.ndarray
+            Ankle hinge positions (n, 3) [m].
+        R_lean : numpy.ndarray
+            Lean-frame rotations (n, 3, 3).
+        t : numpy.ndarray
+            Times (n,) [s].
+
+        Returns
+        -------
+        pivots : numpy.ndarray
+            World pivots (b, n, 3) [m].
+        rotations : numpy.ndarray
+            Rotations (b, n, 3, 3).
+        """
         th = self.angle(t)[0]
         piv, rot, _ = self.segments(th)
         beta = self._relative(th)[2]

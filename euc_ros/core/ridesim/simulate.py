@@ -55,7 +55,7 @@ BALANCE_TOL = 1e-10
 class RideConfig:
     """What to simulate.
 
-    Attributes
+    Parameters
     ----------
     maneuver : str
         ``constant_speed``, ``acceleration``, ``deceleration`` or ``figure_eight``.
@@ -124,7 +124,13 @@ class RideConfig:
     arms: ArmSwing | None = None
 
     def nominal_session(self) -> Session:
-        """The session written to session.yaml (nominal values)."""
+        """The session written to session.yaml (nominal values).
+
+        Returns
+        -------
+        Session
+            ``session``, or the default Y-up session.
+        """
         return self.session if self.session is not None else default_session("y")
 
 
@@ -132,7 +138,7 @@ class RideConfig:
 class RunResult:
     """Truth and synthesized mocap of one run (arrays over the n samples of the recording).
 
-    Attributes
+    Parameters
     ----------
     name : str
         Run name (``<maneuver>_NN``), also the CSV stem.
@@ -193,7 +199,19 @@ class RunResult:
 
 @dataclass
 class RideResult:
-    """All runs of a simulated ride, with the true and nominal parameters."""
+    """All runs of a simulated ride, with the true and nominal parameters.
+
+    Parameters
+    ----------
+    config : RideConfig
+        What was simulated.
+    session : Session
+        The nominal session.
+    params_true, params_nominal : PlanarParams
+        True (effects applied) and nominal parameters.
+    runs : list of RunResult
+        The runs.
+    """
 
     config: RideConfig
     session: Session
@@ -202,7 +220,13 @@ class RideResult:
     runs: list[RunResult]
 
     def truth_dict(self) -> dict:
-        """JSON-friendly description of the hidden truth (what ``truth.json`` holds)."""
+        """JSON-friendly description of the hidden truth (what ``truth.json`` holds).
+
+        Returns
+        -------
+        dict
+            The truth by name.
+        """
         differ = {}
         names = {"m": "rider.mass", "J": "rider.inertia_pitch", "R": "euc.wheel_radius", "m0": "euc.body_mass",
                  "mw": "euc.wheel_mass", "Jw": "euc.wheel_inertia", "J0": "euc.body_inertia", "h0": "euc.h0",
@@ -241,7 +265,20 @@ class RideResult:
 
 
 def true_params(nominal: PlanarParams, effects: EffectSet) -> PlanarParams:
-    """Apply the parameter effects (rider mass/inertia, wheel radius) to the nominal parameters."""
+    """Apply the parameter effects (rider mass/inertia, wheel radius) to the nominal parameters.
+
+    Parameters
+    ----------
+    nominal : PlanarParams
+        Nominal parameters.
+    effects : EffectSet
+        Active effects.
+
+    Returns
+    -------
+    PlanarParams
+        True parameters.
+    """
     return nominal.with_changes(
         m=nominal.m + effects.get("rider_mass_error", "delta_m_kg"),
         J=nominal.J + effects.get("rider_inertia_error", "delta_j_kgm2"),
@@ -442,6 +479,16 @@ def yaw_tilt_pitch_matrices(psi, theta, pitch) -> np.ndarray:
 
     The matrices of :func:`~euc_ros.core.rotations.quat_from_yaw_tilt_pitch`, without the quaternion round
     trip.
+
+    Parameters
+    ----------
+    psi, theta, pitch : array_like
+        Yaw, tilt and pitch [rad] (broadcast together).
+
+    Returns
+    -------
+    numpy.ndarray
+        Rotation matrices (..., 3, 3).
     """
     psi, theta, pitch = np.broadcast_arrays(*(np.asarray(v, float) for v in (psi, theta, pitch)))
     cz, sz, cx, sx, cy, sy = np.cos(psi), np.sin(psi), np.cos(theta), np.sin(theta), np.cos(pitch), np.sin(pitch)
@@ -569,7 +616,33 @@ def integrate_run(dyn: _RunDynamics, config: RideConfig, t0: float, t_end: float
 
 def simulate_run(plan: RunPlan, config: RideConfig, params: PlanarParams, skeleton: Skeleton,
                  noise_rng: np.random.Generator) -> RunResult:
-    """Simulate one planned run (see :func:`simulate_ride`)."""
+    """Simulate one planned run (see :func:`simulate_ride`).
+
+    Parameters
+    ----------
+    plan : RunPlan
+        The run's plan.
+    config : RideConfig
+        The ride's settings.
+    params : PlanarParams
+        True parameters.
+    skeleton : Skeleton
+        The rider's skeleton.
+    noise_rng : numpy.random.Generator
+        Source of the mocap noise.
+
+    Returns
+    -------
+    RunResult
+        Truth and mocap of the run.
+
+    Raises
+    ------
+    ConfigError
+        When the step exceeds the settle time.
+    EucError
+        When the integration fails.
+    """
     session = config.nominal_session()
     effects = config.effects
     dyn = run_dynamics(plan, config, params, skeleton)

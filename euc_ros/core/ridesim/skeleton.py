@@ -57,7 +57,7 @@ def _ry(beta: np.ndarray) -> np.ndarray:
 class Skeleton:
     """Rider skeleton for a session's segment table.
 
-    Attributes
+    Parameters
     ----------
     bodies : list of str
         Segment bodies (session order).
@@ -82,7 +82,23 @@ class Skeleton:
 
     @classmethod
     def for_session(cls, session: Session) -> "Skeleton":
-        """Build the skeleton for the session's segments (bodies must be those of Table 2)."""
+        """Build the skeleton for the session's segments (bodies must be those of Table 2).
+
+        Parameters
+        ----------
+        session : Session
+            The session.
+
+        Returns
+        -------
+        Skeleton
+            The skeleton.
+
+        Raises
+        ------
+        ConfigError
+            Unknown segment bodies, or no mass above the ankles or the hinge.
+        """
         names, fr, off = session.segment_arrays()
         unknown = [n for n in names if n not in BASE_POSTURE]
         if unknown:
@@ -113,11 +129,33 @@ class Skeleton:
         return float(self.fractions @ np.einsum("bij,bj->bi", self.rel_rot, self.offsets)[:, 2])
 
     def scale(self, h) -> np.ndarray:
-        """Height scale of the pivots that puts the weighted CoG at height h [m] (array-friendly)."""
+        """Height scale of the pivots that puts the weighted CoG at height h [m] (array-friendly).
+
+        Parameters
+        ----------
+        h : float or array_like
+            CoG height(s) [m].
+
+        Returns
+        -------
+        float or numpy.ndarray
+            The scale(s).
+        """
         return (np.asarray(h, float) - self._com_rel_z()) / self._height_gain()
 
     def pivots_lean(self, h) -> np.ndarray:
-        """Pivots in the lean frame (b, ..., 3) for CoG height(s) h."""
+        """Pivots in the lean frame (b, ..., 3) for CoG height(s) h.
+
+        Parameters
+        ----------
+        h : float or array_like
+            CoG height(s) [m].
+
+        Returns
+        -------
+        numpy.ndarray
+            Pivots (b, ..., 3) [m].
+        """
         s = self.scale(h)
         p = self.base + self.shift
         col = (-1,) + (1,) * s.ndim
@@ -138,6 +176,13 @@ class Skeleton:
             Lean-frame rotations ``Rz(psi) Rx(theta) Ry(phi)``.
         h : float or ndarray (n,)
             CoG height(s) [m].
+
+        Returns
+        -------
+        pivots : numpy.ndarray
+            World pivots (b, n, 3) [m].
+        rotations : numpy.ndarray
+            Rotations (b, n, 3, 3).
         """
         n = A.shape[0]
         p = self.pivots_lean(np.broadcast_to(np.asarray(h, float), (n,)))  # (b, n, 3)
@@ -146,6 +191,19 @@ class Skeleton:
         return pos, rot
 
     def cog(self, pos: np.ndarray, rot: np.ndarray) -> np.ndarray:
-        """Weighted CoG (n, 3) of segment poses, as an analysis would reconstruct it."""
+        """Weighted CoG (n, 3) of segment poses, as an analysis would reconstruct it.
+
+        Parameters
+        ----------
+        pos : numpy.ndarray
+            World pivots (b, n, 3) [m].
+        rot : numpy.ndarray
+            Rotations (b, n, 3, 3).
+
+        Returns
+        -------
+        numpy.ndarray
+            CoG (n, 3) [m].
+        """
         com = pos + np.einsum("bnij,bj->bni", rot, self.offsets)
         return np.einsum("b,bni->ni", self.fractions, com)

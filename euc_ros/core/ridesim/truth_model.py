@@ -54,7 +54,7 @@ EQUATIONS = ("generated", "sympy")
 class PlanarParams:
     """Physical parameters of the planar model (EUC paper, Table 3), SI units.
 
-    Attributes
+    Parameters
     ----------
     m : float
         Rider mass [kg].
@@ -91,17 +91,45 @@ class PlanarParams:
 
     @classmethod
     def from_session(cls, session: Session) -> "PlanarParams":
-        """Return the parameters a session file states (nominal values)."""
+        """The parameters a session file states (nominal values).
+
+        Parameters
+        ----------
+        session : Session
+            The session.
+
+        Returns
+        -------
+        PlanarParams
+            Its parameters.
+        """
         e, r = session.euc, session.rider
         return cls(m=r.mass, m0=e.body_mass, mw=e.wheel_mass, Jw=e.wheel_inertia, J0=e.body_inertia,
                    J=r.inertia_pitch, R=e.wheel_radius, l0=e.l0, h0=e.h0)
 
     def as_tuple(self) -> tuple[float, ...]:
-        """Return the values in the order of :data:`_PARAM_ORDER` (the lambdified functions' order)."""
+        """The values in the order of :data:`_PARAM_ORDER` (the lambdified functions' order).
+
+        Returns
+        -------
+        tuple of float
+            The values, ``g`` excluded.
+        """
         return tuple(float(getattr(self, n)) for n in _PARAM_ORDER)
 
     def with_changes(self, **changes: float) -> "PlanarParams":
-        """Return a copy with some parameters replaced."""
+        """A copy with some parameters replaced.
+
+        Parameters
+        ----------
+        **changes : float
+            New values by parameter name.
+
+        Returns
+        -------
+        PlanarParams
+            The copy.
+        """
         return replace(self, **changes)
 
     @property
@@ -259,13 +287,34 @@ def _derive() -> _Compiled:
 
 
 def symbolic_model() -> tuple["sp.Matrix", "sp.Matrix", dict]:
-    """Return the derived ``(M, b, symbols)`` as sympy objects (for documentation and checks)."""
+    """The derived ``(M, b, symbols)`` as sympy objects (for documentation and checks).
+
+    Returns
+    -------
+    M, b : sympy.Matrix
+        Mass matrix (3, 3) and bias vector (3,).
+    symbols : dict
+        The symbols by role.
+    """
     c = _derive()
     return c.M, c.b, c.syms
 
 
 def solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2):
-    """Solve a symmetric 3x3 system by Cramer's rule (scalars or broadcasting arrays)."""
+    """Solve a symmetric 3x3 system by Cramer's rule (scalars or broadcasting arrays).
+
+    Parameters
+    ----------
+    a00, a01, a02, a11, a12, a22 : float or numpy.ndarray
+        Upper triangle of the matrix.
+    r0, r1, r2 : float or numpy.ndarray
+        Right-hand side.
+
+    Returns
+    -------
+    tuple
+        The solution ``(x0, x1, x2)``.
+    """
     c00 = a11 * a22 - a12 * a12
     c01 = a02 * a12 - a01 * a22
     c02 = a01 * a12 - a02 * a11
@@ -325,9 +374,27 @@ class PlanarModel:
     # --- scalar (ODE right-hand side) -------------------------------------------------------------
     def accel_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float,
                      hdd: float, gx: float, gz: float, Q0: float, Q1: float, Q2: float, dJ: float = 0.0):
-        """Return ``(x_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc.
+        """``(x_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc.
 
         ``dJ`` [kg m^2] adds to the rider's pitch inertia (a rider whose segments move: :mod:`.rider_motion`).
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd : float
+            gamma, phi [rad], x_dot [m/s], gamma_dot, phi_dot [rad/s].
+        h, hd, hdd : float
+            Rider CoG height [m] and its rates [m/s, m/s^2].
+        gx, gz : float
+            In-plane gravity [m/s^2].
+        Q0, Q1, Q2 : float
+            Generalized forces Q_nc [N, N m, N m].
+        dJ : float
+            Added rider pitch inertia [kg m^2].
+
+        Returns
+        -------
+        tuple of float
+            The accelerations [m/s^2, rad/s^2, rad/s^2].
         """
         p = self._p
         a = self._c.mass_s(gam, phi, h, *p)
@@ -335,39 +402,109 @@ class PlanarModel:
         return solve3(a[0], a[1], a[2], a[3], a[4], a[5] + dJ, Q0 - b[0], Q1 - b[1], Q2 - b[2])
 
     def g_point_scalar(self, gam: float, phi: float, xd: float, gd: float, pd: float, h: float, hd: float):
-        """Return (dG/dq as 6 numbers row-major (2x3), v_G as 2 numbers) for scalar states."""
+        """The pair (dG/dq as 6 numbers row-major (2x3), v_G as 2 numbers) for scalar states.
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd : float
+            States as in :meth:`accel_scalar`.
+
+        Returns
+        -------
+        tuple
+            dG/dq (6) [m, m/rad] and v_G (2) [m/s].
+        """
         p = self._p
         return self._c.jac_g_s(gam, phi, h, *p), self._c.vel_g_s(gam, phi, xd, gd, pd, h, hd, *p)
 
     # --- vectorized (samples) ---------------------------------------------------------------------
     def mass_matrix(self, gam, phi, h) -> np.ndarray:
-        """Mass matrix M(q) (..., 3, 3) of eq. (5) for arrays of gamma, phi, h."""
+        """Mass matrix M(q) (..., 3, 3) of eq. (5) for arrays of gamma, phi, h.
+
+        Parameters
+        ----------
+        gam, phi, h : array_like
+            gamma, phi [rad] and h [m] (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            M (..., 3, 3) [kg, kg m, kg m^2].
+        """
         gam, phi, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, h)))
         e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.mass_v(gam, phi, h, *self._p)]
         return np.stack([np.stack([e[0], e[1], e[2]], -1), np.stack([e[1], e[3], e[4]], -1),
                          np.stack([e[2], e[4], e[5]], -1)], -2)
 
     def bias(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz) -> np.ndarray:
-        """Bias vector b (..., 3): velocity terms, rheonomic h(t) terms, minus gravity forces."""
+        """Bias vector b (..., 3): velocity terms, rheonomic h(t) terms, minus gravity forces.
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd, hdd, gx, gz : array_like
+            States as in :meth:`accel_scalar` (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            b (..., 3) [N, N m, N m].
+        """
         args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz)))
         e = self._c.bias_v(*args, *self._p)
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
 
     def accelerations(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, Q, dJ=0.0) -> np.ndarray:
-        """Generalized accelerations (..., 3) for generalized forces Q (..., 3) (``dJ``: as ``accel_scalar``)."""
+        """Generalized accelerations (..., 3) for generalized forces Q (..., 3) (``dJ``: as ``accel_scalar``).
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd, hdd, gx, gz : array_like
+            States as in :meth:`accel_scalar` (broadcast together).
+        Q : array_like
+            Generalized forces (..., 3) [N, N m, N m].
+        dJ : float or array_like
+            Added rider pitch inertia [kg m^2].
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) [m/s^2, rad/s^2, rad/s^2].
+        """
         M = self.mass_matrix(gam, phi, h)
         M[..., 2, 2] += dJ
         rhs = np.asarray(Q, float) - self.bias(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz)
         return np.linalg.solve(M, rhs[..., None])[..., 0]
 
     def rider_cog_jacobian(self, gam, phi, h) -> np.ndarray:
-        """dG/dq (..., 2, 3) of the rider CoG G (in-plane x and z rows)."""
+        """dG/dq (..., 2, 3) of the rider CoG G (in-plane x and z rows).
+
+        Parameters
+        ----------
+        gam, phi, h : array_like
+            gamma, phi [rad] and h [m] (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            dG/dq (..., 2, 3).
+        """
         gam, phi, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, h)))
         e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.jac_g_v(gam, phi, h, *self._p)]
         return np.stack([np.stack(e[:3], -1), np.stack(e[3:], -1)], -2)
 
     def rider_cog_velocity(self, gam, phi, xd, gd, pd, h, hd) -> np.ndarray:
-        """In-plane velocity of G (..., 2) including the h_dot term."""
+        """In-plane velocity of G (..., 2) including the h_dot term.
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd : array_like
+            States as in :meth:`accel_scalar` (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            v_G (..., 2) [m/s].
+        """
         args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd)))
         e = self._c.vel_g_v(*args, *self._p)
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
@@ -625,12 +762,35 @@ def input_directions(R: float) -> tuple[tuple[float, float, float], tuple[float,
     Derived by virtual power: M_d acts on the wheel (spin rate x_dot/R) and -M_d on the body (pitch
     rate gamma_dot), so ``delta P = M_d (delta x_dot / R - delta gamma_dot)``; M_h acts on the body and
     -M_h on the rider, ``delta P = M_h (delta gamma_dot - delta phi_dot)`` (EUC paper, eq. A.2).
+
+    Parameters
+    ----------
+    R : float
+        Wheel radius [m].
+
+    Returns
+    -------
+    b_d, b_h : tuple of float
+        The directions.
     """
     return (1.0 / R, -1.0, 0.0), (0.0, 1.0, -1.0)
 
 
 def wheel_rate(x_dot, R):
-    """Wheel spin rate [rad/s] for rolling without slip at radius R."""
+    """Wheel spin rate [rad/s] for rolling without slip at radius R.
+
+    Parameters
+    ----------
+    x_dot : float or array_like
+        Speed [m/s].
+    R : float
+        Rolling radius [m].
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The spin rate [rad/s].
+    """
     return x_dot / R
 
 

@@ -59,7 +59,7 @@ def _motive_time(dt: datetime) -> str:
 
 
 def motive_csv_text(series: MocapSeries, *, total_frames: int | None = None, start: datetime = CAPTURE_START) -> str:
-    """Return a Motive CSV (format 1.23, quaternions, meters, global, Y-up, CRLF like Motive) of a Z-up series.
+    """A Motive CSV (format 1.23, quaternions, meters, global, Y-up, CRLF like Motive) of a Z-up series.
 
     Parameters
     ----------
@@ -69,6 +69,11 @@ def motive_csv_text(series: MocapSeries, *, total_frames: int | None = None, sta
         ``Total Frames in Take`` (default: last frame + 1).
     start : datetime
         Capture start time written in the header.
+
+    Returns
+    -------
+    str
+        The file's text.
     """
     rate = series.rate_hz
     b, n = len(series.bodies), series.n_frames
@@ -100,14 +105,42 @@ def motive_csv_text(series: MocapSeries, *, total_frames: int | None = None, sta
 
 
 def write_motive_csv(series: MocapSeries, path: str | Path, **kwargs) -> Path:
-    """Write :func:`motive_csv_text` to ``path``; returns the path."""
+    """Write :func:`motive_csv_text` to ``path``; returns the path.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        Z-up poses.
+    path : str or Path
+        File to write.
+    **kwargs
+        Passed to :func:`motive_csv_text`.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
     p = Path(path)
     p.write_text(motive_csv_text(series, **kwargs), encoding="utf-8", newline="")
     return p
 
 
 def truth_table(run: RunResult) -> tuple[tuple[str, ...], np.ndarray]:
-    """Columns and (n, k) values of a run's truth CSV (every frame, including dropped ones)."""
+    """Columns and (n, k) values of a run's truth CSV (every frame, including dropped ones).
+
+    Parameters
+    ----------
+    run : RunResult
+        The run.
+
+    Returns
+    -------
+    columns : tuple of str
+        Column names.
+    values : numpy.ndarray
+        Values (n, k), SI units, radians.
+    """
     s = run.signals
     cols = {
         "t": run.t, "frame": run.frame.astype(float),
@@ -126,7 +159,20 @@ def truth_table(run: RunResult) -> tuple[tuple[str, ...], np.ndarray]:
 
 
 def write_truth_csv(run: RunResult, path: str | Path) -> Path:
-    """Write a run's truth table as CSV (header row of column names, SI units, radians)."""
+    """Write a run's truth table as CSV (header row of column names, SI units, radians).
+
+    Parameters
+    ----------
+    run : RunResult
+        The run.
+    path : str or Path
+        File to write.
+
+    Returns
+    -------
+    Path
+        The path written.
+    """
     cols, data = truth_table(run)
     p = Path(path)
     buf = io.StringIO()
@@ -146,6 +192,20 @@ def posestamped_cdr_block(stamp_ns: np.ndarray, position: np.ndarray, quat: np.n
     """Serialized PoseStamped messages (k, 84) uint8 for k stamps [ns], positions and quaternions.
 
     Vectorized equivalent of ``typestore.serialize_cdr`` for frame_id ``world`` (checked in the tests).
+
+    Parameters
+    ----------
+    stamp_ns : numpy.ndarray
+        Stamps (k,) [ns].
+    position : numpy.ndarray
+        Positions (k, 3) [m].
+    quat : numpy.ndarray
+        Quaternions (k, 4), (x, y, z, w).
+
+    Returns
+    -------
+    numpy.ndarray
+        Messages (k, 84), uint8.
     """
     k = stamp_ns.shape[0]
     rec = np.zeros(k, _POSE_CDR)
@@ -163,6 +223,25 @@ def write_bag(series: MocapSeries, path: str | Path, start: datetime = CAPTURE_S
 
     Stamps are capture times (``start`` + frame / rate); frame_id ``world``; Z-up; untracked samples
     are not published. Messages are written in time order.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        Z-up poses.
+    path : str or Path
+        Bag directory to write.
+    start : datetime
+        Capture start time.
+
+    Returns
+    -------
+    Path
+        The bag directory.
+
+    Raises
+    ------
+    InputError
+        When ``path`` exists and is not a bag directory.
     """
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -205,6 +284,20 @@ def prepare_ride_dir(out_dir: str | Path, *, overwrite: bool = False, dry_run: b
 
     With ``dry_run`` only the checks run (nothing is deleted or created).
 
+    Parameters
+    ----------
+    out_dir : str or Path
+        The output folder.
+    overwrite : bool
+        Replace a previous ride.
+    dry_run : bool
+        Only check.
+
+    Returns
+    -------
+    Path
+        The folder.
+
     Raises
     ------
     InputError
@@ -244,6 +337,29 @@ def write_ride(result: RideResult, out_dir: str | Path, *, bag: bool = False, ov
     ``bag=True`` one MCAP bag directory per run, and the truth (``truth/truth.json``, per run
     ``truth/<run>_truth.csv``). ``out_dir`` must be new or empty, or hold a previous ride and
     ``overwrite`` be given (:func:`prepare_ride_dir`). ``progress(iterable)`` wraps the runs.
+
+    Parameters
+    ----------
+    result : RideResult
+        The ride.
+    out_dir : str or Path
+        The output folder.
+    bag : bool
+        Also write a bag per run.
+    overwrite : bool
+        Replace a previous ride.
+    progress : callable, optional
+        Wraps the iterable of runs (a progress bar).
+
+    Returns
+    -------
+    list of Path
+        The paths written.
+
+    Raises
+    ------
+    InputError
+        When ``out_dir`` cannot be used (:func:`prepare_ride_dir`).
     """
     out = prepare_ride_dir(out_dir, overwrite=overwrite)
     (out / TRUTH_DIR).mkdir()

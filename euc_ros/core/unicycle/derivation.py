@@ -36,7 +36,7 @@ __all__ = ["DerivedModel", "derive_kane", "derive_lagrange"]
 class DerivedModel:
     """Lambdified equations of motion from a symbolic derivation.
 
-    Attributes
+    Parameters
     ----------
     method : str
         ``'kane'`` or ``'lagrange'``.
@@ -53,7 +53,22 @@ class DerivedModel:
     _rhs: Callable
 
     def rhs(self, x, u, params: UnicycleParams) -> np.ndarray:
-        """Return ``x_dot`` (n, N) for states ``x`` (n, N) or (n,), input ``u`` [N]."""
+        """``x_dot`` (n, N) for states ``x`` (n, N) or (n,), input ``u`` [N].
+
+        Parameters
+        ----------
+        x : array_like
+            States (n, N) or (n,) in the order of ``state_names``.
+        u : float or array_like
+            Control force [N].
+        params : UnicycleParams
+            Physical parameters.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``x_dot``, the shape of ``x``.
+        """
         x = np.asarray(x, dtype=float)
         squeeze = x.ndim == 1
         X = x.reshape(x.shape[0], -1)
@@ -62,11 +77,37 @@ class DerivedModel:
         return out[:, 0] if squeeze else out
 
     def f(self, x, params: UnicycleParams) -> np.ndarray:
-        """Drift ``f(x)`` (right-hand side at ``u = 0``)."""
+        """Drift ``f(x)`` (right-hand side at ``u = 0``).
+
+        Parameters
+        ----------
+        x : array_like
+            States (n, N) or (n,).
+        params : UnicycleParams
+            Physical parameters.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``f(x)``, the shape of ``x``.
+        """
         return self.rhs(x, 0.0, params)
 
     def g(self, x, params: UnicycleParams) -> np.ndarray:
-        """Input field ``g(x) = rhs(x, 1) - rhs(x, 0)`` (exact: the forcing is affine in ``u``)."""
+        """Input field ``g(x) = rhs(x, 1) - rhs(x, 0)`` (exact: the forcing is affine in ``u``).
+
+        Parameters
+        ----------
+        x : array_like
+            States (n, N) or (n,).
+        params : UnicycleParams
+            Physical parameters.
+
+        Returns
+        -------
+        numpy.ndarray
+            ``g(x)`` per N of input, the shape of ``x``.
+        """
         return self.rhs(x, 1.0, params) - self.rhs(x, 0.0, params)
 
 

@@ -55,7 +55,18 @@ WHEEL_ESSENTIAL_STATES = 4
 
 
 def state_index(name: str) -> int:
-    """Return the index of a unicycle state by name (``'theta'`` -> 3)."""
+    """The index of a unicycle state by name (``'theta'`` -> 3).
+
+    Parameters
+    ----------
+    name : str
+        A name of :data:`STATE_NAMES`.
+
+    Returns
+    -------
+    int
+        Its index.
+    """
     return STATE_NAMES.index(name)
 
 
@@ -73,6 +84,11 @@ class UnicycleParams:
         Wheel radius [m].
     g : float
         Gravitational acceleration [m/s^2].
+
+    Raises
+    ------
+    ConfigError
+        When ``m``, ``R`` or ``g`` is not positive and finite, or ``m0`` is negative or not finite.
     """
 
     m: float = 10.0
@@ -89,7 +105,13 @@ class UnicycleParams:
             raise ConfigError(f"must be a non-negative finite number, got {self.m0!r}", key="m0")
 
     def require_point_mass(self) -> None:
-        """Raise :class:`ConfigError` if ``m0`` is zero (the unicycle model needs it, eq (36))."""
+        """Raise :class:`ConfigError` if ``m0`` is zero (the unicycle model needs it, eq (36)).
+
+        Raises
+        ------
+        ConfigError
+            When ``m0`` is 0 (key ``m0``).
+        """
         if not self.m0 > 0:
             raise ConfigError("the unicycle model needs a positive point mass m0 (m0 = 0 is the bare wheel, "
                               "use the wheel model)", key="m0")
@@ -164,7 +186,20 @@ def unicycle_rhs(x, u, params: UnicycleParams) -> np.ndarray:
 
 
 def drift(x, params: UnicycleParams) -> np.ndarray:
-    """Drift vector field ``f(x)`` of eq (36) (the right-hand side with ``u = 0``), shape (10, ...)."""
+    """Drift vector field ``f(x)`` of eq (36) (the right-hand side with ``u = 0``), shape (10, ...).
+
+    Parameters
+    ----------
+    x : array_like
+        States (10, ...) (:data:`STATE_NAMES`).
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``f(x)`` (10, ...).
+    """
     return unicycle_rhs(x, 0.0, params)
 
 
@@ -173,6 +208,18 @@ def input_field(x, params: UnicycleParams) -> np.ndarray:
 
     Only ``omega1_dot`` (``4 R / D1``) and ``sigma_dot`` (``(5 m R^2 / m0 + 4 R^2 + 4 r^2) / D1``)
     depend on ``u``, with ``D1 = 5 m R^2 + 4 m0 r^2``.
+
+    Parameters
+    ----------
+    x : array_like
+        States (10, ...) (:data:`STATE_NAMES`).
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``g(x)`` (10, ...).
     """
     x = np.asarray(x)
     p = params
@@ -197,6 +244,16 @@ def updfcn(t, x, u, params: UnicycleParams) -> np.ndarray:
         Control force [N].
     params : UnicycleParams
         Physical parameters.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``x_dot`` (10,).
+
+    Raises
+    ------
+    ValueError
+        When ``u`` is neither a scalar nor of shape (1,).
     """
     u = np.asarray(u, dtype=float).reshape(-1)
     if u.size != 1:
@@ -231,7 +288,20 @@ def wheel_rhs(x, params: UnicycleParams) -> np.ndarray:
 
 
 def mass_height(x, params: UnicycleParams):
-    """Height of the point mass above the ground, ``z_A = R cos(theta) + r sin(theta)`` [m], eq (47)."""
+    """Height of the point mass above the ground, ``z_A = R cos(theta) + r sin(theta)`` [m], eq (47).
+
+    Parameters
+    ----------
+    x : array_like
+        States (10, ...) (:data:`STATE_NAMES`).
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        ``z_A`` [m].
+    """
     x = np.asarray(x)
     return params.R * np.cos(x[3]) + x[5] * np.sin(x[3])
 
@@ -242,6 +312,18 @@ def energy(x, params: UnicycleParams):
     Uses the rolling kinematics resolved in F2: ``v_G = [R omega2, -R omega1, 0]`` and
     ``v_A = v_G + [-r omega3, sigma, r omega1]``. Along solutions ``dE/dt = u sigma`` (the power of
     the internal force pair), which the tests use as an independent check of eq (36).
+
+    Parameters
+    ----------
+    x : array_like
+        States (10, ...) (:data:`STATE_NAMES`).
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The energy [J].
     """
     x = np.asarray(x)
     p = params
@@ -255,7 +337,20 @@ def energy(x, params: UnicycleParams):
 
 
 def wheel_energy(x, params: UnicycleParams):
-    """Total mechanical energy of the rolling wheel [J] (conserved by eq (6))."""
+    """Total mechanical energy of the rolling wheel [J] (conserved by eq (6)).
+
+    Parameters
+    ----------
+    x : array_like
+        Wheel states (8, ...) (:data:`WHEEL_STATE_NAMES`).
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float or numpy.ndarray
+        The energy [J].
+    """
     x = np.asarray(x)
     p = params
     w1, w2, w3, th = x[0], x[1], x[2], x[3]
@@ -268,6 +363,20 @@ def scalar_rhs(x: list[float], u: float, p: UnicycleParams) -> list[float]:
 
     Same formula as :func:`unicycle_rhs` (shared :func:`_unicycle_rates`), about 20x faster than
     numpy on scalars.
+
+    Parameters
+    ----------
+    x : list of float
+        State (10) (:data:`STATE_NAMES`).
+    u : float
+        Control force [N].
+    p : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    list of float
+        ``x_dot`` (10).
     """
     w1, w2, w3, th, sg, r, psi = x[0], x[1], x[2], x[3], x[4], x[5], x[6]
     dw1, dw2, dw3, dsg = _unicycle_rates(w1, w2, w3, th, sg, r, u, p, math.sin, math.cos, math.tan)

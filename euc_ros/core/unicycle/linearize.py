@@ -78,7 +78,20 @@ def linearize(params: UnicycleParams, x, u: float = 0.0) -> tuple[np.ndarray, np
 
 
 def wheel_jacobian(params: UnicycleParams, x) -> np.ndarray:
-    """State matrix of the rolling wheel, eq (6), at ``x`` (8,) or (8, N): eq (18) numerically."""
+    """State matrix of the rolling wheel, eq (6), at ``x`` (8,) or (8, N): eq (18) numerically.
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    x : array_like
+        Wheel state(s) (8,) or (8, N) (:data:`~euc_ros.core.unicycle.dynamics.WHEEL_STATE_NAMES`).
+
+    Returns
+    -------
+    numpy.ndarray
+        The Jacobian (8, 8), or (N, 8, 8) for N states.
+    """
     return complex_step_jacobian(lambda X: wheel_rhs(X, params), x)
 
 
@@ -93,6 +106,20 @@ def straight_rolling_state(params: UnicycleParams, speed: float, t: float = 0.0)
     """Straight rolling along +x0 at wheel-centre speed ``v = R phi_dot*`` (eq (24)), unicycle state.
 
     ``omega2 = phi = v/R`` (times ``t`` for ``phi``), ``x_G = v t``, every other state zero.
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    speed : float
+        Wheel-centre speed [m/s].
+    t : float
+        Time [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        The state (10,).
     """
     v = _check_speed(speed)
     x = np.zeros(len(STATE_NAMES))
@@ -103,13 +130,43 @@ def straight_rolling_state(params: UnicycleParams, speed: float, t: float = 0.0)
 
 
 def wheel_straight_rolling_state(params: UnicycleParams, speed: float, t: float = 0.0) -> np.ndarray:
-    """Straight rolling of the bare wheel (eq (24)), wheel state of eq (7)."""
+    """Straight rolling of the bare wheel (eq (24)), wheel state of eq (7).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    speed : float
+        Wheel-centre speed [m/s].
+    t : float
+        Time [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        The wheel state (8,).
+    """
     x = straight_rolling_state(params, speed, t)
     return np.delete(x, [4, 5])
 
 
 def linearize_straight_rolling(params: UnicycleParams, speed: float) -> tuple[np.ndarray, np.ndarray]:
-    """Numerical ``(A, B)`` of the unicycle about straight rolling at ``speed`` [m/s] (t = 0)."""
+    """Numerical ``(A, B)`` of the unicycle about straight rolling at ``speed`` [m/s] (t = 0).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    speed : float
+        Wheel-centre speed [m/s].
+
+    Returns
+    -------
+    A : numpy.ndarray
+        State matrix (10, 10).
+    B : numpy.ndarray
+        Input matrix (10,) [per N].
+    """
     return linearize(params, straight_rolling_state(params, speed))
 
 
@@ -126,6 +183,13 @@ def straight_rolling_matrices(params: UnicycleParams, speed: float) -> tuple[np.
         Physical parameters (``m0 > 0``).
     speed : float
         Wheel-centre speed ``v = R phi_dot*`` [m/s].
+
+    Returns
+    -------
+    A : numpy.ndarray
+        State matrix (10, 10).
+    B : numpy.ndarray
+        Input matrix (10,) [per N].
     """
     params.require_point_mass()
     m, m0, R, g = params.m, params.m0, params.R, params.g
@@ -147,7 +211,20 @@ def straight_rolling_matrices(params: UnicycleParams, speed: float) -> tuple[np.
 
 
 def wheel_straight_rolling_matrix(params: UnicycleParams, speed: float) -> np.ndarray:
-    """Analytic state matrix of the bare wheel about straight rolling, eq (25)."""
+    """Analytic state matrix of the bare wheel about straight rolling, eq (25).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    speed : float
+        Wheel-centre speed [m/s].
+
+    Returns
+    -------
+    numpy.ndarray
+        State matrix (8, 8).
+    """
     R, g = params.R, params.g
     p = _check_speed(speed) / R
     A = np.zeros((8, 8))
@@ -166,6 +243,13 @@ def reduced_matrices(params: UnicycleParams, speed: float) -> tuple[np.ndarray, 
 
     The reduction drops the unreachable ``omega2, phi, x_G`` and eliminates ``omega3`` with the
     linear invariant ``omega3 = -2 phi_dot* theta`` (eq (59)).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters (``m0 > 0``).
+    speed : float
+        Wheel-centre speed [m/s].
 
     Returns
     -------
@@ -192,6 +276,22 @@ def reduce_linear_system(A, B, pitch_rate: float) -> tuple[np.ndarray, np.ndarra
     Restricts ``x_dot = A x + B u`` to the invariant subspace ``omega2 = phi = x_G = 0``,
     ``omega3 = -2 phi_dot* theta`` (eq (59)): ``A_r = P A S``, ``B_r = P B`` with ``S`` the
     embedding of the reduced state and ``P`` the selection of :data:`REDUCED_STATES`.
+
+    Parameters
+    ----------
+    A : array_like
+        State matrix (10, 10).
+    B : array_like
+        Input matrix (10,).
+    pitch_rate : float
+        Steady pitch rate ``phi_dot*`` [rad/s].
+
+    Returns
+    -------
+    A_r : numpy.ndarray
+        Reduced state matrix (6, 6).
+    B_r : numpy.ndarray
+        Reduced input matrix (6,).
     """
     A = np.asarray(A, float)
     B = np.asarray(B, float)

@@ -46,7 +46,22 @@ _N = len(STATE_NAMES)
 
 
 def domain_status(x, params: UnicycleParams, max_tilt: float = DEFAULT_MAX_TILT) -> str:
-    """Status of a state: :data:`STATUS_OK` or why it is outside the model's domain (module docstring)."""
+    """Status of a state: :data:`STATUS_OK` or why it is outside the model's domain (module docstring).
+
+    Parameters
+    ----------
+    x : array_like
+        State (10,).
+    params : UnicycleParams
+        Physical parameters.
+    max_tilt : float
+        Largest tilt |theta| in the domain [rad].
+
+    Returns
+    -------
+    str
+        A ``STATUS_*`` constant.
+    """
     x = [float(v) for v in np.asarray(x, dtype=float).reshape(-1)]
     if not all(math.isfinite(v) for v in x):
         return STATUS_NON_FINITE
@@ -64,6 +79,20 @@ def wheel_pose(x, params: UnicycleParams) -> tuple[np.ndarray, np.ndarray]:
     The body frame is F2 (eq (73)) turned by the rolling angle ``phi`` about the axle:
     ``Rz(psi) Rx(theta) Ry(phi)`` (yaw, tilt about the forward axis, rolling angle about the axle;
     :func:`euc_ros.core.rotations.quat_from_yaw_tilt_pitch`), REP-103 world frame.
+
+    Parameters
+    ----------
+    x : array_like
+        State (10,).
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    position : numpy.ndarray
+        Wheel centre (3,) [m].
+    quat : numpy.ndarray
+        Body quaternion (4,), (x, y, z, w).
     """
     x = np.asarray(x, dtype=float)
     pos = np.array([x[8], x[9], params.R * math.cos(x[3])])
@@ -71,7 +100,24 @@ def wheel_pose(x, params: UnicycleParams) -> tuple[np.ndarray, np.ndarray]:
 
 
 def rk4_step(params: UnicycleParams, x: list[float], u: float, h: float) -> list[float]:
-    """One classical Runge-Kutta step of eq (36) with constant input ``u`` [N] over ``h`` [s]."""
+    """One classical Runge-Kutta step of eq (36) with constant input ``u`` [N] over ``h`` [s].
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    x : list of float
+        State (10).
+    u : float
+        Control force [N].
+    h : float
+        Step [s].
+
+    Returns
+    -------
+    list of float
+        The state after the step (10).
+    """
     k1 = scalar_rhs(x, u, params)
     k2 = scalar_rhs([a + 0.5 * h * b for a, b in zip(x, k1)], u, params)
     k3 = scalar_rhs([a + 0.5 * h * b for a, b in zip(x, k2)], u, params)
@@ -96,6 +142,11 @@ class UnicycleSimulator:
         RK4 steps per period.
     t0 : float
         Initial time [s].
+
+    Raises
+    ------
+    ConfigError
+        When the initial state has not 10 entries, or ``dt``, ``max_tilt`` or ``substeps`` is out of range.
 
     Examples
     --------
@@ -154,6 +205,18 @@ class UnicycleSimulator:
 
         Once the status is not :data:`STATUS_OK` the simulator stays stopped: further calls return
         the same state and status without integrating.
+
+        Parameters
+        ----------
+        u : float
+            Control force [N].
+
+        Returns
+        -------
+        x : numpy.ndarray
+            The state (10,).
+        status : str
+            A ``STATUS_*`` constant.
         """
         if self._status != STATUS_OK:
             return self.x, self._status
@@ -181,7 +244,7 @@ class UnicycleSimulator:
 class SimulationResult:
     """A closed-loop run.
 
-    Attributes
+    Parameters
     ----------
     t : numpy.ndarray, shape (n + 1,)
         Times [s] of the states.
@@ -230,6 +293,11 @@ def simulate(params: UnicycleParams, controller, x0, t_end: float, dt: float = D
     -------
     SimulationResult
         Stops early (with the status) if the state leaves the model's domain.
+
+    Raises
+    ------
+    ConfigError
+        When ``t_end`` is not a positive finite duration.
     """
     if not (math.isfinite(t_end) and t_end > 0):
         raise ConfigError(f"must be a positive finite duration in s, got {t_end!r}", key="t_end")
@@ -256,7 +324,7 @@ def simulate(params: UnicycleParams, controller, x0, t_end: float, dt: float = D
 class ManeuverMetrics:
     """Summary of a maneuver run (what ``euc-ros steer`` reports).
 
-    Attributes
+    Parameters
     ----------
     final_lateral_error : float
         Signed distance [m] of the wheel centre from the final reference line at the end (left of
@@ -283,7 +351,13 @@ class ManeuverMetrics:
     t_end: float
 
     def as_dict(self) -> dict:
-        """JSON-serializable dict (angles also in degrees, with ``_deg`` keys, for reports)."""
+        """JSON-serializable dict (angles also in degrees, with ``_deg`` keys, for reports).
+
+        Returns
+        -------
+        dict
+            The fields, plus ``final_yaw_error_deg`` and ``max_abs_tilt_deg``.
+        """
         return {"final_lateral_error": self.final_lateral_error, "final_yaw_error": self.final_yaw_error,
                 "final_yaw_error_deg": math.degrees(self.final_yaw_error), "max_abs_u": self.max_abs_u,
                 "max_abs_tilt": self.max_abs_tilt, "max_abs_tilt_deg": math.degrees(self.max_abs_tilt),
@@ -295,6 +369,20 @@ def reference_path(controller, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
     Lane change: ``(v t, y_des(t), 0)``. Turn: heading ``psi_des(t)`` integrated at the design
     speed from the origin (trapezoidal rule on a 1 ms grid).
+
+    Parameters
+    ----------
+    controller : SteeringController
+        The maneuver's controller.
+    t : array_like
+        Times (n,) [s].
+
+    Returns
+    -------
+    x_ref, y_ref : numpy.ndarray
+        Position (n,) [m].
+    psi_ref : numpy.ndarray
+        Heading (n,) [rad].
     """
     t = np.asarray(t, dtype=float)
     v = controller.speed
@@ -310,7 +398,20 @@ def reference_path(controller, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 
 def maneuver_metrics(result: SimulationResult, controller) -> ManeuverMetrics:
-    """Final lateral and yaw errors, max |u| and max |tilt| of a run (:class:`ManeuverMetrics`)."""
+    """Final lateral and yaw errors, max |u| and max |tilt| of a run (:class:`ManeuverMetrics`).
+
+    Parameters
+    ----------
+    result : SimulationResult
+        The run.
+    controller : SteeringController
+        Its controller (the maneuver and reference).
+
+    Returns
+    -------
+    ManeuverMetrics
+        The summary.
+    """
     t_end = float(result.t[-1])
     x_end = result.x[-1]
     xr, yr, pr = (float(np.asarray(a)) for a in reference_path(controller, t_end))

@@ -53,7 +53,18 @@ _CHUNK = 8192  # states per Jacobian batch (bounds memory of the complex-step ar
 # closed-form critical values
 # ---------------------------------------------------------------------------------------------
 def wheel_critical_pitch_rate(params: UnicycleParams) -> float:
-    """Critical pitch rate of straight rolling of the bare wheel, ``sqrt(g / (3 R))`` [rad/s], eq (27)."""
+    """Critical pitch rate of straight rolling of the bare wheel, ``sqrt(g / (3 R))`` [rad/s], eq (27).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float
+        The pitch rate [rad/s].
+    """
     return float(np.sqrt(params.g / (3 * params.R)))
 
 
@@ -61,17 +72,49 @@ def unicycle_critical_pitch_rate(params: UnicycleParams) -> float:
     """Critical pitch rate of straight rolling of the unicycle, ``sqrt(g / (2 R))`` [rad/s], eq (54).
 
     Independent of ``m`` and ``m0`` (for any ``m0 > 0``).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float
+        The pitch rate [rad/s].
     """
     return float(np.sqrt(params.g / (2 * params.R)))
 
 
 def critical_speed(params: UnicycleParams) -> float:
-    """Critical wheel-centre speed of the unicycle, ``sqrt(g R / 2)`` [m/s] (1.213 m/s for Table I)."""
+    """Critical wheel-centre speed of the unicycle, ``sqrt(g R / 2)`` [m/s] (1.213 m/s for Table I).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float
+        The speed [m/s].
+    """
     return params.R * unicycle_critical_pitch_rate(params)
 
 
 def wheel_critical_speed(params: UnicycleParams) -> float:
-    """Critical wheel-centre speed of the bare wheel, ``sqrt(g R / 3)`` [m/s]."""
+    """Critical wheel-centre speed of the bare wheel, ``sqrt(g R / 3)`` [m/s].
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float
+        The speed [m/s].
+    """
     return params.R * wheel_critical_pitch_rate(params)
 
 
@@ -79,12 +122,28 @@ def critical_tilt_angle() -> float:
     """Tilt angle above which every turning-rolling state of the wheel is stable [rad], eq (23).
 
     ``arcsin(sqrt(12/19 - 9 sqrt(5) / 38))`` = 18.62 deg, independent of every physical parameter.
+
+    Returns
+    -------
+    float
+        The angle [rad].
     """
     return float(np.arcsin(np.sqrt(12 / 19 - 9 * np.sqrt(5) / 38)))
 
 
 def spinning_critical_yaw_rate(params: UnicycleParams) -> float:
-    """Critical yaw rate of the wheel spinning on the spot, ``sqrt(4 g / (5 R))`` [rad/s], eq (31)."""
+    """Critical yaw rate of the wheel spinning on the spot, ``sqrt(4 g / (5 R))`` [rad/s], eq (31).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    float
+        The yaw rate [rad/s].
+    """
     return float(np.sqrt(4 * params.g / (5 * params.R)))
 
 
@@ -94,6 +153,18 @@ def wheel_critical_yaw_rates(theta, params: UnicycleParams) -> tuple[np.ndarray,
     Turning rolling of the wheel at tilt ``theta`` is unstable for
     ``psi_dot_crit1 < |psi_dot| < psi_dot_crit2``; NaN where ``|theta|`` exceeds the critical tilt
     angle (eq (23)) and no unstable band exists.
+
+    Parameters
+    ----------
+    theta : array_like
+        Steady tilt [rad].
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    psi_dot_crit1, psi_dot_crit2 : numpy.ndarray
+        Lower and upper critical yaw rates [rad/s].
     """
     th = np.asarray(theta, dtype=float)
     s2 = np.sin(th) ** 2
@@ -115,6 +186,20 @@ def wheel_turning_pitch_rate(theta, psi_dot, params: UnicycleParams):
     """Pitch rate of the wheel's turning-rolling steady state, eq (14) [rad/s].
 
     ``phi_dot* = -5/6 psi_dot* sin(theta*) - 2 g tan(theta*) / (3 R psi_dot*)``, for ``psi_dot* != 0``.
+
+    Parameters
+    ----------
+    theta : array_like
+        Steady tilt [rad].
+    psi_dot : array_like
+        Steady yaw rate [rad/s], non-zero.
+    params : UnicycleParams
+        Physical parameters.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``phi_dot*`` [rad/s].
     """
     th = np.asarray(theta, dtype=float)
     pd = np.asarray(psi_dot, dtype=float)
@@ -157,6 +242,22 @@ def non_tilted_turning(r, params: UnicycleParams, sign: int = 1) -> tuple[float,
 
     Returns ``(psi_dot*, phi_dot*)`` with ``psi_dot* = sign sqrt(2 m0 g / (3 m R))`` and
     ``phi_dot* = sign sqrt(2 m0 g / (3 m R^3)) r``.
+
+    Parameters
+    ----------
+    r : float or array_like
+        Point-mass position along the axle [m].
+    params : UnicycleParams
+        Physical parameters (``m0 > 0``).
+    sign : int
+        +1 or -1: the turning direction.
+
+    Returns
+    -------
+    psi_dot : float
+        Yaw rate [rad/s].
+    phi_dot : numpy.ndarray
+        Pitch rate [rad/s].
     """
     m, m0, R, g = params.m, params.m0, params.R, params.g
     return (sign * float(np.sqrt(2 * m0 * g / (3 * m * R))),
@@ -165,6 +266,13 @@ def non_tilted_turning(r, params: UnicycleParams, sign: int = 1) -> tuple[float,
 
 def tilted_spinning(theta, params: UnicycleParams) -> tuple[np.ndarray, np.ndarray]:
     """Tilted spinning of the unicycle (``phi_dot* = 0``, ``theta* != 0``), eq (46).
+
+    Parameters
+    ----------
+    theta : array_like
+        Steady tilt [rad].
+    params : UnicycleParams
+        Physical parameters (``m0 > 0``).
 
     Returns
     -------
@@ -184,7 +292,22 @@ def tilted_spinning(theta, params: UnicycleParams) -> tuple[np.ndarray, np.ndarr
 
 
 def wheel_steady_state(theta, psi_dot, phi_dot) -> np.ndarray:
-    """Wheel state (eq (7)) of a steady state at t = 0, eq (17): shape (8, ...)."""
+    """Wheel state (eq (7)) of a steady state at t = 0, eq (17): shape (8, ...).
+
+    Parameters
+    ----------
+    theta : array_like
+        Steady tilt [rad].
+    psi_dot : array_like
+        Steady yaw rate [rad/s].
+    phi_dot : array_like
+        Steady pitch rate [rad/s].
+
+    Returns
+    -------
+    numpy.ndarray
+        Wheel states (8, ...).
+    """
     th, pd, fd = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (theta, psi_dot, phi_dot)))
     x = np.zeros((len(WHEEL_STATE_NAMES),) + th.shape)
     x[1] = pd * np.sin(th) + fd
@@ -194,7 +317,24 @@ def wheel_steady_state(theta, psi_dot, phi_dot) -> np.ndarray:
 
 
 def unicycle_steady_state(theta, psi_dot, phi_dot, r) -> np.ndarray:
-    """Unicycle state (eq (37)) of a steady state at t = 0 (eq (38), ``sigma = 0``): shape (10, ...)."""
+    """Unicycle state (eq (37)) of a steady state at t = 0 (eq (38), ``sigma = 0``): shape (10, ...).
+
+    Parameters
+    ----------
+    theta : array_like
+        Steady tilt [rad].
+    psi_dot : array_like
+        Steady yaw rate [rad/s].
+    phi_dot : array_like
+        Steady pitch rate [rad/s].
+    r : array_like
+        Point-mass position along the axle [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        Unicycle states (10, ...).
+    """
     th, pd, fd, rr = np.broadcast_arrays(*(np.asarray(v, dtype=float) for v in (theta, psi_dot, phi_dot, r)))
     x = np.zeros((len(STATE_NAMES),) + th.shape)
     x[1] = pd * np.sin(th) + fd
@@ -208,13 +348,35 @@ def unicycle_steady_state(theta, psi_dot, phi_dot, r) -> np.ndarray:
 # stability
 # ---------------------------------------------------------------------------------------------
 def wheel_stability_coefficients(J) -> np.ndarray:
-    """``s = lambda_{1,2}^2 = tr(J^2)/2`` of the wheel's essential Jacobian(s) ``J`` (..., 4, 4), eq (20)."""
+    """``s = lambda_{1,2}^2 = tr(J^2)/2`` of the wheel's essential Jacobian(s) ``J`` (..., 4, 4), eq (20).
+
+    Parameters
+    ----------
+    J : array_like
+        Essential Jacobian(s) (..., 4, 4).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``s`` (...): negative means neutrally stable.
+    """
     J = np.asarray(J, dtype=float)
     return np.einsum("...ij,...ji->...", J, J) / 2
 
 
 def unicycle_stability_coefficients(J) -> tuple[np.ndarray, np.ndarray]:
-    """``(p, q)`` of ``lambda^2 (lambda^4 + p lambda^2 + q)`` for essential Jacobian(s) (..., 6, 6), eq (49)."""
+    """``(p, q)`` of ``lambda^2 (lambda^4 + p lambda^2 + q)`` for essential Jacobian(s) (..., 6, 6), eq (49).
+
+    Parameters
+    ----------
+    J : array_like
+        Essential Jacobian(s) (..., 6, 6).
+
+    Returns
+    -------
+    p, q : numpy.ndarray
+        The coefficients (...).
+    """
     J = np.asarray(J, dtype=float)
     J2 = J @ J
     t2 = np.einsum("...ii->...", J2)
@@ -230,7 +392,20 @@ def _unicycle_stable(p, q):
 
 
 def straight_rolling_coefficients(params: UnicycleParams, pitch_rate: float) -> tuple[float, float, float]:
-    """Coefficients ``(a, b, c)`` of ``a lambda^4 + b lambda^2 + c``, eq (52) (straight rolling)."""
+    """Coefficients ``(a, b, c)`` of ``a lambda^4 + b lambda^2 + c``, eq (52) (straight rolling).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    pitch_rate : float
+        Steady pitch rate ``phi_dot*`` [rad/s].
+
+    Returns
+    -------
+    a, b, c : float
+        The coefficients.
+    """
     m, m0, R, g = params.m, params.m0, params.R, params.g
     p2 = float(pitch_rate) ** 2
     return 5 * m * R**2, 12 * p2 * m * R**2 + 4 * (m0 - m) * g * R, 4 * m0 * g * (2 * p2 * R - g)
@@ -240,6 +415,20 @@ def straight_rolling_is_stable(params: UnicycleParams, pitch_rate: float, wheel:
     """Neutral stability of straight rolling at ``pitch_rate`` [rad/s] from the numerical Jacobian.
 
     ``wheel=True`` uses the bare wheel (eq (6)), else the unicycle with ``u = 0`` (eq (36)).
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    pitch_rate : float
+        Steady pitch rate ``phi_dot*`` [rad/s].
+    wheel : bool
+        Use the bare wheel.
+
+    Returns
+    -------
+    bool
+        Whether straight rolling is neutrally stable.
     """
     if wheel:
         x = np.zeros(len(WHEEL_STATE_NAMES))
@@ -255,7 +444,7 @@ def straight_rolling_is_stable(params: UnicycleParams, pitch_rate: float, wheel:
 class StabilityMap:
     """Turning-rolling steady states on a ``(theta*, psi_dot*)`` grid and their stability.
 
-    Attributes
+    Parameters
     ----------
     theta : numpy.ndarray, shape (n_theta,)
         Steady tilt angles [rad].
@@ -297,6 +486,20 @@ def wheel_turning_lambda2(params: UnicycleParams, theta, psi_dot) -> np.ndarray:
 
     Computed from the numerical Jacobian of eq (6) at the steady state with the pitch rate of
     eq (14); negative means neutrally stable, positive unstable. NaN where ``psi_dot* = 0``.
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    theta : array_like
+        Steady tilts [rad].
+    psi_dot : array_like
+        Steady yaw rates [rad/s] (broadcast with ``theta``).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``lambda^2`` [1/s^2] (broadcast shape of ``theta`` and ``psi_dot``).
     """
     TH, PD = np.broadcast_arrays(np.asarray(theta, dtype=float), np.asarray(psi_dot, dtype=float))
     FD = wheel_turning_pitch_rate(TH, PD, params)
@@ -351,6 +554,19 @@ def wheel_steady_state_counts_rates(params: UnicycleParams, psi_dot, phi_dot, ma
     solutions (the folding of the steady-state surface); they are found by sign changes on
     ``n_theta`` samples of ``|theta| < max_tilt`` and refined linearly.
 
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    psi_dot : array_like
+        Yaw rates [rad/s].
+    phi_dot : array_like
+        Pitch rates [rad/s] (broadcast with ``psi_dot``).
+    max_tilt : float
+        Largest tilt searched [rad].
+    n_theta : int
+        Tilt samples searched.
+
     Returns
     -------
     n_stable, n_unstable : numpy.ndarray of int, shape ``np.broadcast(psi_dot, phi_dot).shape``
@@ -382,6 +598,15 @@ def wheel_steady_state_counts_tilt(params: UnicycleParams, theta, phi_dot) -> tu
     Eq (13) is quadratic in the yaw rate: ``(5 R sin cos) psi_dot^2 + (6 phi_dot R cos) psi_dot +
     4 g sin = 0``; each real root (``theta* != 0``) is a steady state.
 
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    theta : array_like
+        Tilts [rad].
+    phi_dot : array_like
+        Pitch rates [rad/s] (broadcast with ``theta``).
+
     Returns
     -------
     n_stable, n_unstable : numpy.ndarray of int
@@ -411,6 +636,15 @@ def unicycle_stability_map(params: UnicycleParams, theta, psi_dot) -> StabilityM
     if it exists and the point mass is above the ground (eq (47)); its stability is decided from
     the numerical essential Jacobian (module docstring). ``params.m0 == 0`` falls back to
     :func:`wheel_stability_map`.
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    theta : array_like
+        Steady tilts (n_theta,) [rad].
+    psi_dot : array_like
+        Steady yaw rates (n_psi,) [rad/s].
 
     Returns
     -------

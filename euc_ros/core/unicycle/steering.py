@@ -72,7 +72,18 @@ def _check_maneuver(maneuver: str) -> str:
 
 
 def output_matrix(maneuver: str) -> np.ndarray:
-    """Output matrix ``C`` of eq (62) (lane change, 6x10) or eq (69) (turn, 5x10)."""
+    """Output matrix ``C`` of eq (62) (lane change, 6x10) or eq (69) (turn, 5x10).
+
+    Parameters
+    ----------
+    maneuver : str
+        ``"lane_change"`` or ``"turn"``.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``C`` (6, 10) or (5, 10).
+    """
     names = OUTPUTS[_check_maneuver(maneuver)]
     C = np.zeros((len(names), len(STATE_NAMES)))
     for i, n in enumerate(names):
@@ -81,7 +92,20 @@ def output_matrix(maneuver: str) -> np.ndarray:
 
 
 def controllability_matrix(A, B) -> np.ndarray:
-    """Controllability matrix ``[B, A B, ..., A^(n-1) B]`` (eq (56)), shape (n, n) for a single input."""
+    """Controllability matrix ``[B, A B, ..., A^(n-1) B]`` (eq (56)), shape (n, n) for a single input.
+
+    Parameters
+    ----------
+    A : array_like
+        State matrix (n, n).
+    B : array_like
+        Input matrix (n,) or (n, 1).
+
+    Returns
+    -------
+    numpy.ndarray
+        The matrix (n, n).
+    """
     A = np.asarray(A, float)
     cols = [np.asarray(B, float).reshape(-1)]
     for _ in range(A.shape[0] - 1):
@@ -94,6 +118,18 @@ def numerical_rank(M, rtol: float = 1e-9) -> int:
 
     The columns of a controllability matrix grow like ``|A|^k``; scaling them first keeps the
     relative threshold ``rtol`` meaningful.
+
+    Parameters
+    ----------
+    M : array_like
+        The matrix.
+    rtol : float
+        Singular values below ``rtol`` times the largest count as zero.
+
+    Returns
+    -------
+    int
+        The rank.
     """
     M = np.asarray(M, float)
     norms = np.linalg.norm(M, axis=0)
@@ -140,6 +176,23 @@ def check_speed(params: UnicycleParams, speed) -> float:
     yaw is unreachable since ``psi_dot = -2 phi_dot* theta``, eq (59)). Speeds at which the
     reduced model is so badly conditioned that the gains are meaningless are rejected in
     :func:`steering_gains`.
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    speed : float
+        The design speed [m/s].
+
+    Returns
+    -------
+    float
+        The speed [m/s].
+
+    Raises
+    ------
+    ConfigError
+        When the speed is not a finite positive number (key ``speed``).
     """
     try:
         v = float(speed)
@@ -155,7 +208,7 @@ def check_speed(params: UnicycleParams, speed) -> float:
 class SteeringGains:
     """Gains of eq (64) for one maneuver and speed, with the resulting closed-loop roots.
 
-    Attributes
+    Parameters
     ----------
     maneuver : str
     speed : float
@@ -185,7 +238,13 @@ class SteeringGains:
     placement_error: float
 
     def as_dict(self) -> dict:
-        """Gains by name plus metadata, JSON-serializable (roots as ``[re, im]`` pairs)."""
+        """Gains by name plus metadata, JSON-serializable (roots as ``[re, im]`` pairs).
+
+        Returns
+        -------
+        dict
+            The gains by name, ``maneuver``, ``speed``, ``pole``, the roots and the checks.
+        """
         out = {name: float(k) for name, k in zip(self.names, self.K)}
         out.update({
             "maneuver": self.maneuver, "speed": self.speed, "pole": self.pole,
@@ -273,6 +332,22 @@ def lane_change_reference(t, offset: float, start: float = MANEUVER_START,
     ``-L``: a 2 L jump-free path would not reach its own end value. Used here: the half-amplitude
     cosine ``offset (1 - cos(pi (t - 2)/5)) / 2``, which is continuous with zero slope at both ends
     and ends at ``offset`` (the paper's ``-L``: to the right, REP-103 y is left).
+
+    Parameters
+    ----------
+    t : array_like
+        Times [s].
+    offset : float
+        Final lateral position [m].
+    start : float
+        Start of the maneuver [s].
+    duration : float
+        Its duration [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``y_des`` [m], the shape of ``t``.
     """
     return _cosine_step(t, float(offset), start, duration)
 
@@ -284,12 +359,46 @@ def turn_reference(t, angle: float = -np.pi / 2, start: float = MANEUVER_START,
     Printed (71) moves ``pi/4 (cos(pi (t-2)/5) - 1)`` from 0 to ``-pi/2`` (a right turn, yaw about
     +z0) but then holds ``+pi/2``. Used here: ``angle (1 - cos(pi (t-2)/5)) / 2`` with the default
     ``angle = -pi/2``, i.e. the printed transition and the paper's "90 deg right turn".
+
+    Parameters
+    ----------
+    t : array_like
+        Times [s].
+    angle : float
+        Final yaw [rad].
+    start : float
+        Start of the maneuver [s].
+    duration : float
+        Its duration [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``psi_des`` [rad], the shape of ``t``.
     """
     return _cosine_step(t, float(angle), start, duration)
 
 
 def default_lane_offset(params: UnicycleParams, speed: float) -> float:
-    """The paper's lane-change offset for a speed: ``-2.5 m`` below the critical speed, ``-10 m`` above."""
+    """The paper's lane-change offset for a speed: ``-2.5 m`` below the critical speed, ``-10 m`` above.
+
+    Parameters
+    ----------
+    params : UnicycleParams
+        Physical parameters.
+    speed : float
+        The design speed [m/s].
+
+    Returns
+    -------
+    float
+        The offset [m].
+
+    Raises
+    ------
+    ConfigError
+        When the speed is not a finite positive number.
+    """
     return -2.5 if check_speed(params, speed) < critical_speed(params) else -10.0
 
 
@@ -354,7 +463,18 @@ class SteeringController:
         return OUTPUTS[self.maneuver]
 
     def reference(self, t) -> np.ndarray:
-        """Desired outputs ``y_des(t)``: shape (k,) for scalar ``t``, (k, n) for ``t`` of shape (n,)."""
+        """Desired outputs ``y_des(t)``: shape (k,) for scalar ``t``, (k, n) for ``t`` of shape (n,).
+
+        Parameters
+        ----------
+        t : float or array_like
+            Time(s) [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            ``y_des`` (k,) or (k, n).
+        """
         t = np.asarray(t, dtype=float)
         y = np.zeros((len(self._idx),) + t.shape)
         if self.maneuver == "lane_change":
@@ -364,7 +484,22 @@ class SteeringController:
         return y
 
     def command(self, t: float, x) -> tuple[float, np.ndarray]:
-        """Control force ``u`` [N] and the desired outputs ``y_des`` at time ``t`` [s] for state ``x`` (10,)."""
+        """Control force ``u`` [N] and the desired outputs ``y_des`` at time ``t`` [s] for state ``x`` (10,).
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        x : array_like
+            State (10,).
+
+        Returns
+        -------
+        u : float
+            Control force [N].
+        y_des : numpy.ndarray
+            Desired outputs (k,).
+        """
         y_des = self.reference(t)
         y = np.asarray(x, dtype=float)[self._idx]
         return float(-self.gains.K @ (y - y_des)), y_des

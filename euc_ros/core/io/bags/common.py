@@ -36,7 +36,18 @@ def bag_dir(path) -> Path:
 
 
 def bag_info(bag: Path) -> dict:
-    """metadata.yaml's ``rosbag2_bagfile_information`` mapping ({} when unreadable)."""
+    """metadata.yaml's ``rosbag2_bagfile_information`` mapping ({} when unreadable).
+
+    Parameters
+    ----------
+    bag : Path
+        The bag directory.
+
+    Returns
+    -------
+    dict
+        The mapping, or {} when metadata.yaml is missing or unreadable.
+    """
     try:
         info = yaml.load((bag / "metadata.yaml").read_text(encoding="utf-8"),
                          Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))["rosbag2_bagfile_information"]
@@ -46,7 +57,18 @@ def bag_info(bag: Path) -> dict:
 
 
 def listed_in_metadata(mcap: Path) -> bool:
-    """True when ``mcap`` sits in a bag directory whose metadata.yaml lists it."""
+    """True when ``mcap`` sits in a bag directory whose metadata.yaml lists it.
+
+    Parameters
+    ----------
+    mcap : Path
+        The MCAP file.
+
+    Returns
+    -------
+    bool
+        Whether its directory's metadata.yaml lists it (True also for a metadata.yaml without the mapping).
+    """
     meta = mcap.parent / "metadata.yaml"
     if not meta.is_file():
         return False
@@ -60,6 +82,21 @@ def require_readable_bag(path) -> Path:
     Raises a one-line InputError naming the file and the command that helps: no metadata.yaml, a
     metadata.yaml that is not valid YAML or lacks ``rosbag2_bagfile_information``, a listed MCAP file
     that is missing or truncated (no end magic: the writer was killed).
+
+    Parameters
+    ----------
+    path : str or Path
+        The bag directory or a file in it.
+
+    Returns
+    -------
+    Path
+        The bag directory.
+
+    Raises
+    ------
+    InputError
+        For each of the damages above.
     """
     bag = bag_dir(path)
     meta = bag / "metadata.yaml"
@@ -136,6 +173,22 @@ def scan_mcap(path: Path, *, keep_messages: bool = False, validate_crcs: bool = 
 
     Returns ``(scan, messages)``; ``messages`` holds ``(channel_id, log_time, data)`` of messages in
     complete chunks when ``keep_messages``.
+
+    Parameters
+    ----------
+    path : Path
+        The MCAP file.
+    keep_messages : bool
+        Keep the messages of complete chunks.
+    validate_crcs : bool
+        Check the CRCs of chunks and the data section.
+
+    Returns
+    -------
+    scan : McapScan
+        Schemas, channels, message counts and time spans, and where the damage begins.
+    messages : list of tuple
+        ``(channel_id, log_time, data)``; empty unless ``keep_messages``.
     """
     from mcap.records import Channel, Chunk, Footer, Message, Schema, Statistics
     from mcap.stream_reader import StreamReader, breakup_chunk

@@ -168,6 +168,24 @@ def read_mocap_fast(bag: Path, info: dict, prefix: str, frame_topic: str | None,
 
     Handles one uncompressed, indexed MCAP file whose MocapFrame messages share one CDR layout (or
     PoseStamped topics). Topics are taken in metadata.yaml order, as rosbags lists its connections.
+
+    Parameters
+    ----------
+    bag : Path
+        The bag directory.
+    info : dict
+        Its ``rosbag2_bagfile_information`` mapping.
+    prefix : str
+        Topic prefix of the per-body PoseStamped topics.
+    frame_topic : str or None
+        The MocapFrame topic, or None to look for one.
+    merge_tolerance : float
+        Stamps closer than this many frame periods are one frame [frame periods].
+
+    Returns
+    -------
+    MocapSeries or None
+        The recording, or None.
     """
     try:
         files = info.get("relative_file_paths") or []

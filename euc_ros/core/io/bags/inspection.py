@@ -29,6 +29,11 @@ def inspect_bag(path) -> dict:
         metadata.yaml the figures come from what the MCAP scan could read. A topic's ``rate_hz`` is
         ``(count - 1)`` over the span from its own first to its last message (log time), None with
         fewer than two messages; ``duration_s`` is the bag's span over all topics.
+
+    Raises
+    ------
+    InputError
+        When the bag directory does not exist.
     """
     bag = bag_dir(path)
     if not bag.is_dir():

@@ -70,6 +70,11 @@ def write_mocap_bag(series: MocapSeries, path, *, prefix: str = "/vrpn_mocap", f
     -------
     dict
         Messages written per topic.
+
+    Raises
+    ------
+    InputError
+        When the series' arrays disagree in shape.
     """
     if start_ns is None:
         start_ns = int(series.meta.get("start_ns", 0))
@@ -155,6 +160,11 @@ def read_mocap_bag(path, *, prefix: str = "/vrpn_mocap", frame_topic: str | None
         :func:`write_mocap_bag` stored in metadata.yaml, else the first stamp; ``meta['start_ns']``
         holds it. Frame numbers from MocapFrame (``-1`` ones, and PoseStamped data, get
         ``round(t * rate)``). Samples without data are NaN with ``tracked == False``.
+
+    Raises
+    ------
+    InputError
+        When the bag cannot be read (the message names ``euc-ros inspect`` and ``euc-ros recover``).
 
     Notes
     -----

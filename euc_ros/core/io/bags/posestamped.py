@@ -87,7 +87,25 @@ def posestamped_arrays(raws: list[bytes]) -> tuple[np.ndarray, np.ndarray, np.nd
 
 
 def posestamped_rows(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Stamps [ns] and (position, quaternion) values (m, 7) of PoseStamped CDR rows of one length (m, L)."""
+    """Stamps [ns] and (position, quaternion) values (m, 7) of PoseStamped CDR rows of one length (m, L).
+
+    Parameters
+    ----------
+    arr : numpy.ndarray
+        CDR rows (m, L) of uint8.
+
+    Returns
+    -------
+    stamps : numpy.ndarray
+        Header stamps (m,) [ns], int64.
+    values : numpy.ndarray
+        Position [m] and quaternion (x, y, z, w) (m, 7).
+
+    Raises
+    ------
+    InputError
+        When the rows are not little-endian XCDR1 PoseStamped messages.
+    """
     m, length = arr.shape
     if length < 16 or np.any(arr[:, 1] != 1) or np.any(arr[:, 0] != 0):
         raise InputError("PoseStamped CDR is not little-endian XCDR1 or is too short", key=POSE_STAMPED)
@@ -106,7 +124,26 @@ def posestamped_rows(arr: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def merge_poses(bodies: list, per_body: list, prefix: str, bag: Path, merge_tolerance: float) -> MocapSeries:
-    """Align per-body PoseStamped ``(stamp_ns, position, quat)`` arrays on their header stamps."""
+    """Align per-body PoseStamped ``(stamp_ns, position, quat)`` arrays on their header stamps.
+
+    Parameters
+    ----------
+    bodies : list of str
+        Body names.
+    per_body : list of tuple
+        ``(stamp_ns (k,), position (k, 3), quat (k, 4))`` of each body.
+    prefix : str
+        Topic prefix, for the metadata.
+    bag : Path
+        The bag, for the metadata.
+    merge_tolerance : float
+        Stamps closer than this many frame periods are one frame [frame periods].
+
+    Returns
+    -------
+    MocapSeries
+        One frame per merged stamp, frame numbers -1.
+    """
     all_stamps = np.unique(np.concatenate([s for s, _, _ in per_body]))
     # Merge stamps of one frame that differ by jitter: new frame where the gap exceeds the tolerance.
     periods = [np.median(np.diff(np.unique(s))) for s, _, _ in per_body if np.unique(s).size > 1]

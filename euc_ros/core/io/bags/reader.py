@@ -24,6 +24,17 @@ class readable_bag:
     A standalone ``.mcap`` file (no metadata.yaml listing it) is rebuilt into a temporary bag that
     lives until the block ends.
 
+    Parameters
+    ----------
+    path : str or Path
+        A bag directory, a file in one, or a standalone ``.mcap`` file.
+
+    Raises
+    ------
+    InputError
+        When the bag is not readable (:func:`~euc_ros.core.io.bags.common.require_readable_bag`) or the
+        standalone MCAP is truncated.
+
     Examples
     --------
     >>> with readable_bag("ride/run_bag") as bag:   # doctest: +SKIP
@@ -76,6 +87,11 @@ def read_bag(path, topics=None, *, raw: bool = False) -> Iterator[tuple]:
     tuple
         ``(topic, msgtype, stamp_ns, msg)``: the bag's receive time [ns] and a rosbags message object
         (types auto-registered from the bag) or bytes.
+
+    Raises
+    ------
+    InputError
+        When the bag cannot be opened.
     """
     from rosbags.highlevel import AnyReader
 

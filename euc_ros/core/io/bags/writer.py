@@ -113,6 +113,11 @@ class BagWriter:
     ----------
     counts : dict of str to int
         Messages written per topic.
+
+    Raises
+    ------
+    InputError
+        When the bag exists already, ``chunk_size`` is not positive, or the bag cannot be created.
     """
 
     def __init__(self, path, typestore=None, *, chunk_size: int = DEFAULT_CHUNK_SIZE,
@@ -147,7 +152,7 @@ class BagWriter:
     # -- connections -----------------------------------------------------------------------------------------------
     def connection(self, topic: str, msgtype: str, *, msgdef: str | None = None, rihs01: str | None = None,
                    offered_qos_profiles=()):
-        """Return the connection of ``(topic, msgtype)``, adding it on first use.
+        """The connection of ``(topic, msgtype)``, added on first use.
 
         Parameters
         ----------
@@ -157,6 +162,16 @@ class BagWriter:
         rihs01 : str, optional
             Type hash to store with ``msgdef``; computed from the typestore when omitted.
         offered_qos_profiles : sequence of rosbags Qos
+
+        Returns
+        -------
+        rosbags.interfaces.Connection
+            The connection.
+
+        Raises
+        ------
+        InputError
+            When the bag is closed.
         """
         key = (topic, msgtype)
         conn = self._connections.get(key)
@@ -174,7 +189,19 @@ class BagWriter:
 
     # -- writing ---------------------------------------------------------------------------------------------------
     def write_raw(self, topic: str, msgtype: str, data: bytes, stamp_ns: int) -> None:
-        """Write one serialized (CDR) message with receive time ``stamp_ns`` [ns since the epoch]."""
+        """Write one serialized (CDR) message with receive time ``stamp_ns`` [ns since the epoch].
+
+        Parameters
+        ----------
+        topic : str
+            Topic name.
+        msgtype : str
+            Message type, e.g. ``euc_msgs/msg/MocapFrame``.
+        data : bytes
+            The serialized message.
+        stamp_ns : int
+            Receive time [ns since the epoch].
+        """
         conn = self.connection(topic, msgtype)
         self._writer.write(conn, int(stamp_ns), data)
         self.counts[topic] += 1
@@ -193,6 +220,22 @@ class BagWriter:
         The same file as that many :meth:`write_raw` calls (records, message indexes, chunk boundaries
         and statistics), at a fraction of the cost per message: the MCAP message records are packed
         here instead of through rosbags' per-message writer (~4x faster; a recorder's batch).
+
+        Parameters
+        ----------
+        topic : str
+            Topic name.
+        msgtype : str
+            Message type.
+        datas : sequence of bytes
+            The serialized messages.
+        stamp_ns : int or sequence of int
+            Receive time(s) [ns since the epoch].
+
+        Raises
+        ------
+        ValueError
+            When the numbers of messages and stamps differ.
         """
         conn = self.connection(topic, msgtype)
         stamps = [int(stamp_ns)] * len(datas) if isinstance(stamp_ns, (int, np.integer)) else \
@@ -252,12 +295,32 @@ class BagWriter:
         return self._fast
 
     def write(self, topic: str, msgtype: str, msg, stamp_ns: int) -> None:
-        """Serialize a rosbags message object to CDR and write it (see :meth:`write_raw`)."""
+        """Serialize a rosbags message object to CDR and write it (see :meth:`write_raw`).
+
+        Parameters
+        ----------
+        topic : str
+            Topic name.
+        msgtype : str
+            Message type.
+        msg : object
+            The rosbags message object.
+        stamp_ns : int
+            Receive time [ns since the epoch].
+        """
         _ensure_type(self.typestore, msgtype)
         self.write_raw(topic, msgtype, self.typestore.serialize_cdr(msg, msgtype), stamp_ns)
 
     def set_custom_data(self, key: str, value: str) -> None:
-        """Set a metadata.yaml ``custom_data`` entry (before :meth:`close`)."""
+        """Set a metadata.yaml ``custom_data`` entry (before :meth:`close`).
+
+        Parameters
+        ----------
+        key : str
+            Entry name.
+        value : str
+            Entry value.
+        """
         self._writer.set_custom_data(str(key), str(value))
 
     @property

@@ -405,6 +405,30 @@ def read_rows(fh, hdr: Header, selected: list[BodyColumns], rot_type: str | None
 
     Returns the block (row count, line numbering, :meth:`_Block.error`) and the filled arrays; a file the
     exact scan has to read in whole 2048-row blocks is read again, aligned.
+
+    Parameters
+    ----------
+    fh : file
+        The file, opened in binary mode, positioned at the first data row.
+    hdr : Header
+        Its parsed header.
+    selected : list of BodyColumns
+        The bodies to read.
+    rot_type : str or None
+        Rotation type of the file: quaternion, or the Euler sequence of its angle columns [deg].
+    scale : float
+        Factor of the positions to metres.
+    world_up : str
+        ``"y"`` or ``"z"``: the file's up axis.
+    check_reach : bool
+        Keep the largest tracked coordinate magnitude (the block's ``reach``) for the caller's check.
+
+    Returns
+    -------
+    block : _Block
+        Row count and line numbering.
+    arrays : _SeriesArrays
+        The filled arrays.
     """
     block = _Block(fh, hdr)
     while True:

@@ -57,7 +57,23 @@ class _Column:
 
 @dataclass
 class BodyColumns:
-    """0-based column indices of one rigid body's group."""
+    """0-based column indices of one rigid body's group.
+
+    Parameters
+    ----------
+    name : str
+        Rigid-body name.
+    id : str
+        Its ID as written.
+    first : int
+        Its first column.
+    rotation : dict of str to int
+        Rotation component (X, Y, Z, W) -> column.
+    position : dict of str to int
+        Position component (X, Y, Z) -> column.
+    error : int, optional
+        Column of the mean marker error.
+    """
 
     name: str
     id: str
@@ -71,7 +87,7 @@ class BodyColumns:
 class Header:
     """The parsed header of a Motive CSV export (:func:`parse_header`).
 
-    Attributes
+    Parameters
     ----------
     path : str
         File the header was read from (for error messages).
@@ -110,7 +126,20 @@ class Header:
     skipped: dict[str, list[str]] = field(default_factory=dict)   # column type -> asset names, file order
 
     def get(self, key: str) -> tuple[str | None, int | None]:
-        """Value and 1-based column of metadata ``key`` (case-insensitive), or (None, None)."""
+        """Value and 1-based column of metadata ``key`` (case-insensitive), or (None, None).
+
+        Parameters
+        ----------
+        key : str
+            Metadata key.
+
+        Returns
+        -------
+        value : str or None
+            Its value.
+        column : int or None
+            Its 1-based column on line 1.
+        """
         for k, v in self.meta.items():
             if k.lower() == key.lower():
                 return v, self.meta_col[k.lower()]
@@ -314,7 +343,18 @@ def parse_header(raw: bytes, path: str) -> Header:
 
 
 def skipped_text(skipped: dict[str, list[str]]) -> str:
-    """``{"Bone": [...13], "Marker": [...4]}`` -> ``13 Bone (Skeleton:Hip, ...), 4 Marker (...)``."""
+    """``{"Bone": [...13], "Marker": [...4]}`` -> ``13 Bone (Skeleton:Hip, ...), 4 Marker (...)``.
+
+    Parameters
+    ----------
+    skipped : dict of str to list of str
+        Asset names by column type.
+
+    Returns
+    -------
+    str
+        One line.
+    """
     parts = []
     for kind, names in skipped.items():
         shown = ", ".join(names[:4]) + (", ..." if len(names) > 4 else "")
@@ -323,12 +363,30 @@ def skipped_text(skipped: dict[str, list[str]]) -> str:
 
 
 def skipped_assets(series_or_header: dict) -> dict[str, list[str]]:
-    """The asset names a read skipped, by Motive column type (``meta`` of a series or a header summary)."""
+    """The asset names a read skipped, by Motive column type (``meta`` of a series or a header summary).
+
+    Parameters
+    ----------
+    series_or_header : dict
+        The ``meta`` mapping.
+
+    Returns
+    -------
+    dict of str to list of str
+        Asset names by column type.
+    """
     return dict(series_or_header.get("skipped") or {})
 
 
 def require_rigid_bodies(series, path=None) -> None:
     """Refuse a Motive CSV with no rigid body: say what it holds and what to export instead.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording read.
+    path : str or Path, optional
+        File named in the error.
 
     Raises
     ------
@@ -464,6 +522,16 @@ def head_bytes(fh) -> bytes:
 
     Reading stops at that row, after :data:`MAX_HEADER_LINES` lines, or at a line the header parser
     rejects (it reports it); the file is left positioned after the returned bytes.
+
+    Parameters
+    ----------
+    fh : file
+        The file, opened in binary mode.
+
+    Returns
+    -------
+    bytes
+        The header's lines.
     """
     lines: list[bytes] = []
     while len(lines) < MAX_HEADER_LINES:

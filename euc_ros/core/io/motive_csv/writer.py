@@ -54,6 +54,11 @@ def write_motive_csv(series: MocapSeries, path: str | Path, *, world_up: str = "
     Path
         The written file. ``read_motive_csv(path, world_up=world_up)`` returns ``series`` again to within
         ``0.5 * 10**-decimals``.
+
+    Raises
+    ------
+    InputError
+        Without a positive frame rate, or with body names that are empty or not unique.
     """
     world_up = check_world_up(world_up)
     path = Path(path)
