@@ -23,13 +23,40 @@ LOCAL_STEP_M = 5e-4
 
 
 def residuals_at(coef: np.ndarray, h: float) -> np.ndarray:
-    """Per-sample residual ``e(h) = c (a0 + a1 h + a2 h^2) / (d0 + d1 h)`` [N m]."""
+    """Per-sample residual ``e(h) = c (a0 + a1 h + a2 h^2) / (d0 + d1 h)`` [N m].
+
+    Parameters
+    ----------
+    coef : ndarray (6, n)
+        Rows ``c, a0, a1, a2, d0, d1`` of :func:`~euc_ros.core.identify.fit.residual_coefficients`.
+    h : float
+        CoG height [m].
+
+    Returns
+    -------
+    ndarray (n,)
+        ``M_d1 - M_d2`` of every sample at ``h`` [N m].
+    """
     c, a0, a1, a2, d0, d1 = coef
     return c * (a0 + h * (a1 + h * a2)) / (d0 + d1 * h)
 
 
 def first_zero_crossing(e: np.ndarray, max_lag: int) -> int:
-    """Lag [samples] where the autocorrelation of ``e`` first drops to zero (``max_lag`` if never)."""
+    """Lag [samples] where the autocorrelation of ``e`` first drops to zero (``max_lag`` if never).
+
+    Parameters
+    ----------
+    e : array_like (n,)
+        A series (its mean is removed).
+    max_lag : int
+        Largest lag searched [samples].
+
+    Returns
+    -------
+    int
+        The first lag with a non-positive autocorrelation; ``min(max_lag, n - 1)`` when there is none, 1 for
+        fewer than 4 samples or a constant series.
+    """
     e = np.asarray(e, dtype=float) - np.mean(e)
     n = e.size
     if n < 4:
@@ -44,14 +71,43 @@ def first_zero_crossing(e: np.ndarray, max_lag: int) -> int:
 
 
 def block_length(coefs: Sequence[np.ndarray], h: float, window: int) -> int:
-    """Block length [samples]: twice the residual's first ACF zero crossing, at least one filter window."""
+    """Block length [samples]: twice the residual's first ACF zero crossing, at least one filter window.
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples in time order.
+    h : float
+        CoG height the residual is taken at [m].
+    window : int
+        Savitzky-Golay window [samples].
+
+    Returns
+    -------
+    int
+        Twice the median first zero crossing over the recordings of more than 8 samples (``window`` when
+        there is none), and at least ``window``.
+    """
     lags = [first_zero_crossing(residuals_at(c, h), 20 * window) for c in coefs if c.shape[1] > 8]
     k0 = int(np.median(lags)) if lags else window
     return max(int(window), 2 * k0)
 
 
 def block_counts(coefs: Sequence[np.ndarray], length: int) -> list[int]:
-    """Per recording, the number of blocks of :func:`_blocks_of` (0 for a recording without samples)."""
+    """Per recording, the number of blocks of :func:`_blocks_of` (0 for a recording without samples).
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples.
+    length : int
+        Block length [samples].
+
+    Returns
+    -------
+    list of int
+        ``max(1, n_i // length)``, 0 when ``n_i`` is 0.
+    """
     return [max(1, c.shape[1] // length) if c.shape[1] else 0 for c in coefs]
 
 
@@ -73,7 +129,22 @@ def _blocks_of(coefs: Sequence[np.ndarray], length: int, counts: Sequence[int] |
 
 
 def block_sse(coefs: Sequence[np.ndarray], length: int, grid: np.ndarray) -> np.ndarray:
-    """SSE(h) of every block of ``length`` consecutive samples of each recording: (n_blocks, g)."""
+    """SSE(h) of every block of ``length`` consecutive samples of each recording.
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples in time order.
+    length : int
+        Block length [samples].
+    grid : ndarray (g,)
+        CoG heights [m].
+
+    Returns
+    -------
+    ndarray (n_blocks, g)
+        Each block's sum of squared residuals at every grid point [N^2 m^2].
+    """
     rows = [sse_grid(c, grid) for c in _blocks_of(coefs, length)]
     return np.array(rows).reshape(-1, grid.size)
 
@@ -99,6 +170,36 @@ def block_bootstrap(coefs: Sequence[np.ndarray], h: float, window: int, dt: floa
     one above the highest. A replicate's fine optimum lies within one coarse step of its coarse one
     whenever its SSE curve has a single minimum on the scale of a coarse step (5 mm), so the
     replicates are those of the whole fine grid, at the cost of the span the replicates cover.
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples in time order.
+    h : float
+        The pooled fit's h [m] (the centre of the fine grid).
+    window : int
+        Savitzky-Golay window [samples] (the shortest block).
+    dt : float
+        Sample period [s] (not used: lengths are in samples).
+    n_boot : int
+        Number of replicates.
+    seed : int
+        Seed of the block draws.
+    h_bounds : tuple of float
+        Search range of h [m]; the fine grid spans ``h +- LOCAL_HALF_WIDTH_M`` within it.
+    counts : sequence of int, optional
+        Blocks per recording (default :func:`block_counts`).
+
+    Returns
+    -------
+    replicates : ndarray (n_boot,)
+        Bootstrap replicates of h [m] (+-inf at the fine grid's edges).
+    length : int
+        Block length [samples] (:func:`block_length`).
+    n_blocks : int
+        Number of blocks drawn from.
+    grid : ndarray
+        The fine grid [m].
     """
     length = block_length(coefs, h, window)
     lo = max(h_bounds[0], h - LOCAL_HALF_WIDTH_M)

@@ -72,7 +72,25 @@ _PARAM_KEYS = {
 
 
 def parse_tolerances(items: Sequence[str] | None) -> dict:
-    """``["rider.mass=2", "euc.body_inertia=20%"]`` over :data:`DEFAULT_TOLERANCES`; ConfigError naming the key."""
+    """Tolerances ``["rider.mass=2", "euc.body_inertia=20%"]`` over :data:`DEFAULT_TOLERANCES`.
+
+    Parameters
+    ----------
+    items : sequence of str or None
+        ``KEY=VALUE`` items (the ``--tolerance`` option): an absolute half-width in the key's unit, or a
+        percentage of the nominal value (not for the ``rider.segments.*`` keys).
+
+    Returns
+    -------
+    dict
+        :data:`DEFAULT_TOLERANCES` with the items' values (numbers, or ``"<p>%"`` strings).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``--tolerance``: an item without ``=``, an unknown key, a value that is not a number, a
+        percentage for a segment key, or a negative value.
+    """
     tol = dict(DEFAULT_TOLERANCES)
     for item in items or ():
         key, sep, value = item.partition("=")
@@ -200,10 +218,28 @@ def budget(series_list, states, session, params, h: float, *, reconstruction: Re
     offsets enter the geometry, so the recordings are reconstructed again with every offset moved
     along its body's z axis.
 
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings (reconstructed again for the segment values).
+    states : sequence of RiderStates
+        Their reconstructed states (for the model-only values).
+    session : Session
+        The session the nominal values come from.
+    params : EucParams
+        Its model parameters.
+    h : float
+        The identified h [m] (the centre of ``h_range_m``).
+    reconstruction : ReconstructionSettings
+        How the recordings are reconstructed again.
+    tolerances : dict, optional
+        Half-widths by key (default :data:`DEFAULT_TOLERANCES`; :func:`parse_tolerances`).
+
     Returns
     -------
     dict
-        ``{"sensitivity": {key: {"dh_dp": [m per unit], "unit", "tolerance", "dh_m"}}, "h_range_m": [lo, hi]}``
+        ``{"sensitivity": {key: {"dh_dp": [m per unit], "unit", "nominal", "tolerance", "dh_m", "u_m"}},
+        "h_range_m": [lo, hi], "tolerances": {key: tolerance}}``
     """
     tolerances = tolerances or dict(DEFAULT_TOLERANCES)
 

@@ -66,7 +66,7 @@ __all__ = ["H_BOUNDS", "HIdentification", "FilterPair", "identify_h", "uncertain
 class HIdentification:
     """The headline h with its interval, and everything ``euc-ros identify`` reports about it.
 
-    Attributes
+    Parameters
     ----------
     h : float
         The headline h [m], the JSON's ``h_m``: the best estimate, the one to give ``torque_estimator``.
@@ -119,6 +119,10 @@ class HIdentification:
         ``identifiable`` and ``h_std_m``; with a corrected headline the fit at the chosen filter is under
         ``diagnostics`` (``h_at_chosen_filter_m``, ``h_at_chosen_filter_ci95_m``, ...). ``per_recording``
         and ``models`` hold the fits of every model (each at its optimum, uncorrected).
+
+        Returns
+        -------
+        dict
         """
         data = self.fits.to_json(self.model)
         if self.uncertainty is not None:
@@ -131,7 +135,12 @@ class HIdentification:
         return data
 
     def to_json(self) -> str:
-        """:meth:`to_dict` as JSON text (indented, with a final newline)."""
+        """:meth:`to_dict` as JSON text (indented, with a final newline).
+
+        Returns
+        -------
+        str
+        """
         return json.dumps(self.to_dict(), indent=2) + "\n"
 
 
@@ -276,6 +285,25 @@ def extended_uncertainty(base: dict, states, params: EucParams, effects: dict, h
     corrected h, with its ``diagnostics``; else the fit ``base_h``), so no interval stands beside another
     model's h. ``uncertainty.excitation`` is the base model's (the ride's speed changes and
     sensitivities) with the extended model's blocks and the recording they need.
+
+    Parameters
+    ----------
+    base : dict
+        The 3-DoF model's uncertainty keys (:func:`uncertainty_of_h`).
+    states, params
+        The recordings' states and the session's parameters, as for :func:`identify_h`.
+    effects : dict
+        ``{effect: {parameter: value}}`` of the extended model.
+    h : float
+        The extended model's fitted h [m].
+    base_h : float
+        The pooled 3-DoF fit's h [m] (the base model's ``h_m`` when ``base`` has none).
+
+    Returns
+    -------
+    dict
+        ``base``'s keys with the extended model's ``h_ci95_m``, ``identifiable``, ``identifiability_reason``,
+        ``h_std_m`` and ``uncertainty``, and the base model's under ``base_model``.
     """
     u = base.get("uncertainty") or {}
     block_s = u.get("block_s") or DEFAULT_BLOCK_S

@@ -85,7 +85,17 @@ MIN_SPEED_CHANGE_SHARE = 0.5
 def sensitivities(coef: np.ndarray, h: float) -> np.ndarray:
     """Per-sample ``s = de/dh`` of the residual ``e = c N / D`` at ``h`` [N m per m].
 
-    ``coef``: the coefficients of :func:`~euc_ros.core.identify.fit.residual_coefficients`.
+    Parameters
+    ----------
+    coef : ndarray (6, n)
+        Rows ``c, a0, a1, a2, d0, d1`` of :func:`~euc_ros.core.identify.fit.residual_coefficients`.
+    h : float
+        CoG height [m].
+
+    Returns
+    -------
+    ndarray (n,)
+        ``de/dh`` of every sample [N m per m].
     """
     c, a0, a1, a2, d0, d1 = coef
     n = a0 + h * (a1 + h * a2)
@@ -94,12 +104,42 @@ def sensitivities(coef: np.ndarray, h: float) -> np.ndarray:
 
 
 def needed_sensitivity(rmse_nm: float, min_sharpness: float, step_m: float = SHARPNESS_STEP_M) -> float:
-    """RMS sensitivity ``S`` [N m per m] whose quadratic RMSE curve rises by ``min_sharpness`` at ``+-step_m``."""
+    """RMS sensitivity ``S`` [N m per m] whose quadratic RMSE curve rises by ``min_sharpness`` at ``+-step_m``.
+
+    Parameters
+    ----------
+    rmse_nm : float
+        RMSE at the optimum, RMSE0 [N m].
+    min_sharpness : float
+        Relative rise of the RMSE curve wanted at ``+-step_m``.
+    step_m : float
+        Distance from the optimum [m].
+
+    Returns
+    -------
+    float
+        ``RMSE0 sqrt((1 + min_sharpness)^2 - 1) / step_m`` [N m per m].
+    """
     return float(rmse_nm * math.sqrt(max((1.0 + min_sharpness) ** 2 - 1.0, 0.0)) / step_m)
 
 
 def predicted_sharpness(sensitivity: float, rmse_nm: float, step_m: float = SHARPNESS_STEP_M) -> float:
-    """Relative rise ``sqrt(1 + (step S / RMSE0)^2) - 1`` of the quadratic RMSE curve at ``+-step_m``."""
+    """Relative rise ``sqrt(1 + (step S / RMSE0)^2) - 1`` of the quadratic RMSE curve at ``+-step_m``.
+
+    Parameters
+    ----------
+    sensitivity : float
+        RMS sensitivity ``S`` of the residual to h [N m per m].
+    rmse_nm : float
+        RMSE at the optimum, RMSE0 [N m].
+    step_m : float
+        Distance from the optimum [m].
+
+    Returns
+    -------
+    float
+        The sharpness (inf when ``rmse_nm`` is not positive).
+    """
     return float(math.sqrt(1.0 + (step_m * sensitivity / rmse_nm) ** 2) - 1.0) if rmse_nm > 0 else math.inf
 
 
@@ -108,6 +148,18 @@ def quasi_static_gain(coefs: Sequence[np.ndarray], h: float) -> float:
 
     See the module docstring. Taken as the mean of ``|c d0 / (h D)|`` over the samples (``c = R m_eq``, ``d0 = B`` at
     level EUC pitch); NaN without samples.
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples.
+    h : float
+        CoG height [m].
+
+    Returns
+    -------
+    float
+        The gain [N m per m, per m/s^2].
     """
     num = cnt = 0.0
     for coef in coefs:
@@ -126,6 +178,20 @@ def quadratic_error_bound(coefs: Sequence[np.ndarray], h: float, step_m: float =
 
     The rise is the two-sided one; the bound is ``3 kappa^2 + U + 4 kappa sqrt(U) + |2 mean(r e2)| / S^2`` (module
     docstring; ``kappa^2`` and ``U`` weighted by ``s^2`` over the samples); NaN without samples.
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples.
+    h : float
+        The fitted h [m].
+    step_m : float
+        Distance from the optimum [m].
+
+    Returns
+    -------
+    float
+        The relative error bound.
     """
     sk = ss = su = sr = 0.0
     for coef in coefs:
@@ -150,7 +216,7 @@ def quadratic_error_bound(coefs: Sequence[np.ndarray], h: float, step_m: float =
 class Needs:
     """What the sharpness criterion needs of a ride, from :meth:`Excitation.needs`.
 
-    Attributes
+    Parameters
     ----------
     sensitivity_nm_per_m : float
         RMS sensitivity ``S`` needed [N m per m].
@@ -178,7 +244,10 @@ class Needs:
 class Excitation:
     """What excites h in a set of recordings (their valid samples), in the lab's terms.
 
-    Attributes
+    Without the recordings' states the ride's quantities are NaN (or empty) and only the
+    sensitivities are measured.
+
+    Parameters
     ----------
     usable_s : tuple of float
         Per recording, the seconds of valid samples [s] (empty without the states).
@@ -204,9 +273,6 @@ class Excitation:
         balance motion, whose regression says nothing of speed changes).
     rmse_nm : float
         RMSE of ``M_d1 - M_d2`` at the fitted h [N m].
-
-    Without the recordings' states the ride's quantities are NaN (or empty) and only the
-    sensitivities are measured.
     """
 
     usable_s: tuple
@@ -236,6 +302,19 @@ class Excitation:
         at least ``S_needed / S`` for a ride below the criterion and at most that for one above it
         (``S(k)`` lies between ``S`` and ``k S``), so the factor never reads as enough for a ride that
         falls short, nor as short for one that has enough.
+
+        Parameters
+        ----------
+        min_sharpness : float
+            The sharpness wanted (relative RMSE rise at ``+-step_m``).
+        step_m : float
+            Distance from the optimum [m].
+        sharpness : float, optional
+            The RMSE curve's measured sharpness (None: the quadratic model uncalibrated).
+
+        Returns
+        -------
+        Needs
         """
         s_n = needed_sensitivity(self.rmse_nm, min_sharpness, step_m)
         q = 1.0
@@ -376,6 +455,18 @@ def more_data_for_seconds(usable_s: Sequence[float], needed_s: float) -> tuple[f
     """``(usable seconds more, more runs like these)`` for a total of ``needed_s`` usable seconds.
 
     A run like these has the median recording's usable seconds; ``(0, 0)`` when there are enough.
+
+    Parameters
+    ----------
+    usable_s : sequence of float
+        Per recording, its usable seconds [s].
+    needed_s : float
+        Usable seconds needed in all [s].
+
+    Returns
+    -------
+    (float, int)
+        The seconds missing [s], and the runs like these that add them (0 when no recording has usable seconds).
     """
     have = float(sum(usable_s))
     short = float(needed_s) - have

@@ -26,6 +26,22 @@ def fit_from_sse(sse_of, h_grid: np.ndarray, n: int, model: str):
 
     Same steps as the paper models' fits: grid minimum, bounded refinement between its neighbours,
     formal std from the curvature (``sigma^2 = 2 s^2 / SSE''``), sharpness at +-0.1 m.
+
+    Parameters
+    ----------
+    sse_of : callable
+        ``sse_of(h) -> float``: the sum of squared residuals at h [m], in [N^2 m^2].
+    h_grid : ndarray (g,)
+        CoG heights [m], increasing.
+    n : int
+        Number of samples the sums run over.
+    model : str
+        The model's name, copied into the fit.
+
+    Returns
+    -------
+    ModelFit
+        NaN values when ``n`` is 0 or no sum is finite.
     """
     sse = np.array([sse_of(float(h)) for h in h_grid])
     if n == 0 or not np.any(np.isfinite(sse)):
@@ -53,6 +69,21 @@ def extended_inputs(states, params, effects: dict) -> list[tuple[dict, dict]]:
     tilt; the yaw rate is the Savitzky-Golay derivative of the (unwrapped) yaw with the states' own
     window. With ``mocap_time_offset``, which needs the time-shift hook of the residual analysis, the
     inputs are those of :func:`euc_ros.core.states.contexts.prepare` (its sample set).
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states.
+    params : EucParams
+        The session's parameters.
+    effects : dict
+        ``{effect: {parameter: value}}`` of the extended model.
+
+    Returns
+    -------
+    list of (dict, dict)
+        Per recording, the arrays of :data:`EXTENDED_KEYS` over its samples (SI units: ``t`` [s], angles
+        [rad]) and the effects' ``extras``.
     """
     if "mocap_time_offset" in effects:
         out = []
@@ -80,6 +111,17 @@ def extended_fits(states, params, effects: dict, h_grid: np.ndarray):
     :class:`~euc_ros.core.model.extended.Model` with the effects' parameters fixed (see
     :func:`extended_inputs` for the samples). The sum of squares is evaluated at every h of the grid
     (vectorized over samples), then refined as for the paper's models.
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states.
+    params : EucParams
+        The session's parameters.
+    effects : dict
+        ``{effect: {parameter: value}}`` of the extended model.
+    h_grid : ndarray (g,)
+        CoG heights [m], increasing.
 
     Returns
     -------
@@ -122,6 +164,27 @@ def extended_interval(states, params, effects: dict, h: float, block_s: float, *
     ``J = dr/dh`` (central differences) and ``s_b`` the sum of ``J r`` over a block of ``block_s``
     seconds of one recording (blocks about as long as the base model's bootstrap blocks, so nearly
     independent), times ``B / (B - 1)``; the interval uses Student's t with ``B - 1`` degrees of freedom.
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states.
+    params : EucParams
+        The session's parameters.
+    effects : dict
+        ``{effect: {parameter: value}}`` of the extended model.
+    h : float
+        The extended model's fitted h [m].
+    block_s : float
+        Block length [s].
+    level : float
+        Confidence level of the interval.
+
+    Returns
+    -------
+    (float, float, float, int)
+        Low and high end [m], standard error [m] and number of blocks; NaN ends and error with fewer than 3
+        blocks or no sensitivity to h.
     """
     from scipy.stats import t as student
 

@@ -40,7 +40,24 @@ SHARPNESS_STEP_M = 0.1
 
 
 def model_params(params: EucParams, model: str) -> EucParams:
-    """Return the parameters of ``model`` ("3dof" as given, "2dof" with ``J0 = h0 = l0 = 0``)."""
+    """Parameters of ``model``: "3dof" as given, "2dof" with ``J0 = h0 = l0 = 0``.
+
+    Parameters
+    ----------
+    params : EucParams
+        The nominal parameters.
+    model : {"3dof", "2dof"}
+        The model.
+
+    Returns
+    -------
+    EucParams
+
+    Raises
+    ------
+    ConfigError
+        ``model`` is not one of :data:`MODELS` (key ``model``).
+    """
     if model == "3dof":
         return params
     if model == "2dof":
@@ -112,6 +129,18 @@ def sse_grid(coef: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Sum of squared residuals for every h.
 
     One compiled pass over the samples: :func:`~euc_ros.core.identify.fit_compiled.sse_curve`.
+
+    Parameters
+    ----------
+    coef : ndarray (6, n)
+        Rows ``c, a0, a1, a2, d0, d1`` of :func:`residual_coefficients`.
+    h : array_like (g,)
+        CoG heights [m].
+
+    Returns
+    -------
+    ndarray (g,)
+        ``sum e(h)^2`` [N^2 m^2]; zeros without samples.
     """
     from euc_ros.core.identify.fit_compiled import sse_curve  # numba: on first use only
 
@@ -242,7 +271,7 @@ def rmse_curve(states, params: EucParams, h_grid=DEFAULT_H_GRID, model: str = "3
 class ModelFit:
     """Optimal h of one model on one recording (or pooled).
 
-    Attributes
+    Parameters
     ----------
     model : str
         "3dof" or "2dof".
@@ -274,7 +303,14 @@ class ModelFit:
     sharpness: float
 
     def summary(self) -> dict[str, Any]:
-        """JSON-ready scalars."""
+        """JSON-ready scalars of the fit.
+
+        Returns
+        -------
+        dict
+            ``model``, ``h_m``, ``rmse_nm``, ``n_samples``, ``h_std_m``, ``sharpness``, ``at_bound`` (non-finite
+            numbers None).
+        """
         return {"model": self.model, "h_m": _f(self.h_m), "rmse_nm": _f(self.rmse_nm), "n_samples": self.n_samples,
                 "h_std_m": _f(self.h_std_m), "sharpness": _f(self.sharpness), "at_bound": bool(self.at_bound)}
 
@@ -313,7 +349,17 @@ def _fit(coef: np.ndarray, h_grid: np.ndarray, model: str, sse: np.ndarray | Non
 
 @dataclass
 class RecordingFit:
-    """Fits of both models on one recording."""
+    """Fits of both models on one recording.
+
+    Parameters
+    ----------
+    recording : str
+        The recording's name.
+    n_samples : int
+        Its valid samples.
+    fits : dict of str to ModelFit
+        The fit of each model, by model name.
+    """
 
     recording: str
     n_samples: int
@@ -324,7 +370,7 @@ class RecordingFit:
 class IdentifyResult:
     """Optimal h per recording and pooled, for each model (Section 4, Fig. 8).
 
-    Attributes
+    Parameters
     ----------
     h_grid : ndarray (g,)
         Grid of CoG heights [m].
@@ -340,7 +386,19 @@ class IdentifyResult:
     settings: dict = field(default_factory=dict)
 
     def to_json(self, model: str = "3dof") -> dict[str, Any]:
-        """The analysis output of docs/residual.md, JSON, headed by ``model``, plus every model's results and curves."""
+        """The analysis output of docs/residual.md, JSON, headed by ``model``, plus every model's results and curves.
+
+        Parameters
+        ----------
+        model : str
+            The model heading the document (a key of :attr:`pooled`).
+
+        Returns
+        -------
+        dict
+            ``model``, ``h_m``, ``rmse_nm``, ``n_samples``, ``h_std_m``, ``at_bound``, ``per_recording``,
+            ``models``, ``h_grid_m`` and ``settings`` (non-finite numbers None).
+        """
         head = self.pooled[model]
         out: dict[str, Any] = {
             "model": model, "h_m": _f(head.h_m), "rmse_nm": _f(head.rmse_nm), "n_samples": head.n_samples,
@@ -417,6 +475,21 @@ def pooled_fit(coefs: Sequence[np.ndarray], h_grid=DEFAULT_H_GRID, model: str = 
     """The pooled fit of :func:`fit_h` from the recordings' residual coefficients: what ``fit_h(...).pooled[model]`` is.
 
     Also from their SSE curves over ``h_grid`` (``sses``), computed here when not given.
+
+    Parameters
+    ----------
+    coefs : sequence of ndarray (6, n_i)
+        Per recording, the residual coefficients of its valid samples.
+    h_grid : array_like (g,)
+        CoG heights [m], increasing.
+    model : str
+        The model's name, copied into the fit.
+    sses : sequence of ndarray (g,), optional
+        Per recording, its SSE over ``h_grid`` [N^2 m^2].
+
+    Returns
+    -------
+    ModelFit
     """
     h_grid = np.asarray(h_grid, dtype=float).reshape(-1)
     if sses is None:
@@ -433,6 +506,18 @@ def pooled_h_of_states(states, params: EucParams) -> float:
     sample, where the states are ~170 a frame), so the fit runs without them: a list ``states`` is emptied; any other
     iterable (e.g. a generator making each recording's states when asked) is read one recording at a time, none held
     beside the next.
+
+    Parameters
+    ----------
+    states : list or iterable of RiderStates
+        The recordings' states (a list is emptied).
+    params : EucParams
+        Model parameters (``h`` ignored).
+
+    Returns
+    -------
+    float
+        The pooled 3-DoF h [m] on :data:`DEFAULT_H_GRID` (NaN without a valid sample).
     """
     coefs = []
     if isinstance(states, list):

@@ -136,7 +136,7 @@ def data_bound_h(sharpness: float, accel_needed_mps2: float | None) -> bool:
 class HeldH:
     """The held h with its Type B uncertainty and why it is held.
 
-    Attributes
+    Parameters
     ----------
     h_m : float
         The segments' geometric h [m] (:func:`geometric_h`).
@@ -165,7 +165,14 @@ class HeldH:
         return self.h_m - Z95 * self.std_m, self.h_m + Z95 * self.std_m
 
     def to_json(self) -> dict:
-        """The JSON's ``h_held``: the value, its uncertainty and interval, the source, the reason, the data's h."""
+        """The JSON's ``h_held``: the value, its uncertainty and interval, the source, the reason, the data's h.
+
+        Returns
+        -------
+        dict
+            ``held``, ``h_m``, ``std_m``, ``ci95_m``, ``source``, ``uncertainty``, ``tolerances_m``, ``reason``,
+            ``h_from_data_m`` and ``h_from_data_ci95_m`` (non-finite numbers None).
+        """
         def f(v):
             return float(v) if v is not None and math.isfinite(float(v)) else None
 
@@ -176,7 +183,12 @@ class HeldH:
                 "h_from_data_ci95_m": [f(v) for v in self.h_from_data_ci95_m]}
 
     def console_line(self) -> str:
-        """One line: h is held at the geometric value, why, and the number to use."""
+        """One line: h is held at the geometric value, why, and the number to use.
+
+        Returns
+        -------
+        str
+        """
         lo, hi = self.ci95_m
         return (f"h held at the segments' geometric h: use h = {self.h_m:.3f} m (standard uncertainty "
                 f"{self.std_m * 1e3:.1f} mm from the session tolerances, 95 % interval [{lo:.3f}, {hi:.3f}] m), "

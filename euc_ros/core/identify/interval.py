@@ -70,7 +70,7 @@ MAX_RIDE_ACCEL_RMS_MPS2 = 3.0
 class Interval:
     """The 95 % interval of h and what it is made of.
 
-    Attributes
+    Parameters
     ----------
     h_m : float
         The identified h [m].
@@ -176,13 +176,35 @@ def extend_by_prior(lo: float, hi: float, prior_range_m) -> tuple[float, float]:
     """``(lo, hi)`` moved out by a prior's range of the change of h (``[p_lo <= 0 <= p_hi]``); never narrowed.
 
     The truth may lie at ``h - p_hi`` to ``h - p_lo``.
+
+    Parameters
+    ----------
+    lo, hi : float
+        The interval's ends [m].
+    prior_range_m : pair of float or None
+        ``(p_lo, p_hi)`` [m]; a None or non-finite end counts 0.
+
+    Returns
+    -------
+    (float, float)
+        ``(lo - max(p_hi, 0), hi + max(-p_lo, 0))`` [m].
     """
     p_lo, p_hi = (float(v) if v is not None and np.isfinite(v) else 0.0 for v in prior_range_m)
     return lo - max(p_hi, 0.0), hi + max(-p_lo, 0.0)
 
 
 def json_float(v) -> float | None:
-    """``v`` as a JSON number: None for None, NaN and infinities, else a float."""
+    """A number as a JSON number: None for None, NaN and infinities, else a float.
+
+    Parameters
+    ----------
+    v : float or None
+        The number.
+
+    Returns
+    -------
+    float or None
+    """
     return None if v is None or not np.isfinite(v) else float(v)
 
 
@@ -190,6 +212,18 @@ def percentiles95(replicates: np.ndarray, n_blocks: int) -> tuple[float, float]:
     """The 2.5 and 97.5 % percentiles of bootstrap replicates; infinite with fewer than 2 blocks.
 
     Unbounded replicates (+-inf or NaN) make them infinite.
+
+    Parameters
+    ----------
+    replicates : ndarray (n_boot,)
+        Bootstrap replicates of h [m].
+    n_blocks : int
+        Number of blocks they were drawn from.
+
+    Returns
+    -------
+    (float, float)
+        The low and high percentile [m].
     """
     if n_blocks < 2:
         return -np.inf, np.inf
@@ -202,6 +236,16 @@ def student_factor(n_blocks: int) -> float:
     """Widening of a bootstrap interval over ``n_blocks`` blocks (1 below 2 blocks).
 
     Few blocks make the percentiles undercover, so they move out as Student's t quantile does against the normal one.
+
+    Parameters
+    ----------
+    n_blocks : int
+        Number of bootstrap blocks.
+
+    Returns
+    -------
+    float
+        ``t_0.975(n_blocks - 1) / z_0.975`` (at least 1).
     """
     from scipy.stats import t as student
 
@@ -209,7 +253,19 @@ def student_factor(n_blocks: int) -> float:
 
 
 def turning_rms(states) -> float:
-    """RMS centripetal acceleration ``x_dot psi_dot`` over the valid samples [m/s^2]."""
+    """RMS centripetal acceleration ``x_dot psi_dot`` over the valid samples [m/s^2].
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states (a recording with fewer valid samples than its filter window is left out);
+        ``psi_dot`` is the Savitzky-Golay derivative of the yaw with the states' window.
+
+    Returns
+    -------
+    float
+        The RMS [m/s^2]; 0 without a sample.
+    """
     vals = []
     for st in states:
         psi = np.asarray(st.psi, dtype=float)
@@ -270,6 +326,15 @@ def interval(coefs: Sequence[np.ndarray], fit, *, window: int, dt: float,
         Sample period [s].
     systematics : Systematics
         The SIMEX bias with its error, the filter's floor and the prior's range.
+    h_bounds : tuple of float
+        Search range of h [m] (:func:`~euc_ros.core.identify.bootstrap.block_bootstrap`).
+    n_boot : int
+        Number of bootstrap replicates.
+    seed : int
+        Seed of the bootstrap's block draws.
+    turning_ms2 : float
+        RMS centripetal acceleration of the ride [m/s^2] (:func:`turning_rms`; above
+        :data:`MAX_TURNING_MS2` h is not identifiable).
     states : sequence of RiderStates, optional
         The recordings' states, in the order of ``coefs``: the reasons then give the ride's speed
         changes, accelerations and rider pitch range against what h needs
@@ -438,6 +503,25 @@ def excitation_json(exc: Excitation, needs: Needs, usable, blocks: int, block_s:
     ``speed_change_accel_rms_needed_mps2`` and ``accel_rms_needed_mps2``;
     ``record_more_s`` (usable seconds to add to one take) and ``more_runs_needed`` (runs like these to
     add) for the duration, block and width criteria (0 when they hold). Non-finite numbers are null.
+
+    Parameters
+    ----------
+    exc : Excitation
+        What the ride had (:func:`~euc_ros.core.identify.excitation.measure_excitation`).
+    needs : Needs
+        What the sharpness criterion needs (:meth:`~euc_ros.core.identify.excitation.Excitation.needs`).
+    usable : sequence of float
+        Per recording, its usable seconds [s].
+    blocks : int
+        Number of bootstrap blocks.
+    block_s : float
+        Block length [s].
+    more : dict
+        ``record_more_s`` [s] and ``more_runs_needed``.
+
+    Returns
+    -------
+    dict
     """
     f = json_float
     return {

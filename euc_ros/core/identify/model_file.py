@@ -41,7 +41,7 @@ _OUTCOMES = ("none", "discovered", "unexplained")
 class AppliedModel:
     """h and the effects of an analysis result, with where they came from.
 
-    Attributes
+    Parameters
     ----------
     h_m : float
         The rider CoG height of this model [m] (a residual's final model's ``h_after_m``, an identify
@@ -78,7 +78,13 @@ class AppliedModel:
         return "+".join(["3dof", *self.effects])
 
     def assignments(self) -> list[str]:
-        """The effects' parameters as ``torque_estimator``'s ``effect_parameters`` (``effect.param=value``)."""
+        """The effects' parameters as ``torque_estimator``'s ``effect_parameters`` (``effect.param=value``).
+
+        Returns
+        -------
+        list of str
+            One ``effect.param=value`` item per parameter (empty for the 3-DoF model).
+        """
         return [f"{e}.{k}={v!r}" for e, values in self.effects.items() for k, v in values.items()]
 
     def check(self, *, session: str | Path | None = None, recordings: Sequence[str | Path] | None = None,

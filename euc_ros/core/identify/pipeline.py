@@ -123,11 +123,12 @@ def worse_fit_warnings(fits) -> list[str]:
 class AnalysisRun:
     """What one analysis of files made: its JSON document, the states and the parameters.
 
-    Attributes
+    Parameters
     ----------
     data : dict
         The analysis JSON (the command's ``--json``).
     states : list of RiderStates
+        The recordings' reconstructed states.
     params : EucParams
         The session's nominal parameters.
     """
@@ -150,9 +151,16 @@ class AnalysisRun:
 class IdentifyRun(AnalysisRun):
     """An identification's :class:`AnalysisRun` with its result.
 
-    Attributes
+    Parameters
     ----------
-    identification : HIdentification
+    data : dict
+        The identification JSON (the command's ``--json``).
+    states : list of RiderStates
+        The recordings' reconstructed states.
+    params : EucParams
+        The session's nominal parameters.
+    identification : HIdentification or None
+        The headline h with its interval and fits.
     """
 
     identification: HIdentification | None = None

@@ -44,7 +44,18 @@ class SimexShare:
         self.h_m: float | None = None
 
     def noise_of(self, series_list) -> list:
-        """Per recording, :func:`estimate_pose_noise` (computed once per set of recordings)."""
+        """Per recording, :func:`estimate_pose_noise` (computed once per set of recordings).
+
+        Parameters
+        ----------
+        series_list : sequence of MocapSeries
+            The recordings; other objects than those kept reset what is kept.
+
+        Returns
+        -------
+        list
+            Per recording, its ``(sigma_pos [m], sigma_rot [rad])`` per body.
+        """
         if self.series is None or len(self.series) != len(series_list) or \
                 any(a is not b for a, b in zip(self.series, series_list)):
             self.series, self.noise, self.key, self.h_m = list(series_list), None, None, None
@@ -101,6 +112,28 @@ def first_replicate(series_list, session, params, *, reconstruction: Reconstruct
     dropped (reduced to their residual coefficients first: :func:`~euc_ros.core.identify.fit.pooled_h_of_states`),
     so the states and the fit's working set are never held together. ``use`` is not called (None is
     returned) when the noise cannot be estimated.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    session : Session
+        Their session.
+    params : EucParams
+        The session's parameters.
+    reconstruction : ReconstructionSettings
+        How the re-noised recordings are reconstructed.
+    seed : int
+        Seed of the noise draws (that of :func:`eiv_bias`).
+    share : SimexShare, optional
+        Where the replicate's h is kept.
+    use : callable, optional
+        ``use(states)``, called with the replicate's states.
+
+    Returns
+    -------
+    list of RiderStates, or ``use``'s result, or None
+        None when the noise cannot be estimated.
     """
     share = share if share is not None else SimexShare()
     noise = share.noise_of(series_list)
@@ -139,6 +172,34 @@ def eiv_bias(series_list, session, params, h: float, *, reconstruction: Reconstr
     the quadratic part's own scatter. The standard error is that of the pair means (independent).
     ``share``: a :class:`SimexShare` whose first replicate (made by :func:`first_replicate` with the
     same settings) is used instead of being made again.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    session : Session
+        Their session.
+    params : EucParams
+        The session's parameters.
+    h : float
+        The h fitted on the recordings as given [m].
+    reconstruction : ReconstructionSettings
+        How the re-noised recordings are reconstructed (its filter is the one used).
+    replicates : int
+        Re-noised reconstructions.
+    seed : int
+        Seed of the noise draws.
+    with_error : bool
+        Also return the bias' standard error.
+    antithetic : bool
+        Draw the replicates in mirrored pairs.
+    share : SimexShare, optional
+        The first replicate, made already.
+
+    Returns
+    -------
+    float or (float, float)
+        The bias [m], or ``(bias, standard error)`` [m] with ``with_error``.
     """
     rec = reconstruction
     (bias, err), = eiv_biases(series_list, session, params, [(rec.window_s, rec.polyorder, h)], reconstruction=rec,
@@ -157,6 +218,32 @@ def eiv_biases(series_list, session, params, filters, *, reconstruction: Reconst
     (:func:`~euc_ros.core.states.kinematics.iter_states_filters`: one filter's states at a time); each
     filter's result is the one :func:`eiv_bias` gives for it alone, number for number. Returns
     ``[(bias, standard error), ...]`` in the order of ``filters``.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    session : Session
+        Their session.
+    params : EucParams
+        The session's parameters.
+    filters : sequence of (float, int, float)
+        ``(window_s [s], polyorder, h [m])`` per filter.
+    reconstruction : ReconstructionSettings
+        How the re-noised recordings are reconstructed (all but the filter).
+    replicates : int
+        Re-noised reconstructions.
+    seed : int
+        Seed of the noise draws.
+    antithetic : bool
+        Draw the replicates in mirrored pairs.
+    share : SimexShare, optional
+        The first replicate, made already (used with one filter).
+
+    Returns
+    -------
+    list of (float, float)
+        Per filter, the bias and its standard error [m] (NaN when the noise cannot be estimated).
     """
     filters = [(float(w), int(p), float(h)) for w, p, h in filters]
     share = share if share is not None else SimexShare()

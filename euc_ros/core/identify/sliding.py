@@ -43,6 +43,26 @@ def sliding_bias(series_list, session, params, h: float, *, reconstruction: Reco
     the bias of h as recorded ``h - h0`` (errors in variables flatten faster than linearly, so a
     straight line through two points would undershoot).
 
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    session : Session
+        Their session.
+    params : EucParams
+        The session's parameters.
+    h : float
+        The h fitted on the recordings as given [m].
+    reconstruction : ReconstructionSettings
+        How the slid recordings are reconstructed.
+    replicates : int
+        Slid reconstructions per variance level.
+    seed : int
+        Seed of the added sliding.
+    sliding : dict, optional
+        The measured sliding (default :func:`~euc_ros.core.states.link_sliding.estimate_sliding` of the
+        recordings).
+
     Returns
     -------
     dict

@@ -52,7 +52,7 @@ PRIOR_SEED = 7
 class SlidingPrior:
     """Common sliding of the rider's CoG that the data cannot see.
 
-    Attributes
+    Parameters
     ----------
     rms_m : float or None
         RMS displacement of G per in-plane axis (forward, up) [m]; 0 for none; None (the default): from
@@ -61,6 +61,11 @@ class SlidingPrior:
         Its frequency band [Hz].
     accel_share : float
         Share of its variance that follows G's acceleration with the opposite sign (0-1).
+
+    Raises
+    ------
+    ConfigError
+        ``rms_m`` outside 0-0.1 m, a band not ``0 < low < high``, or ``accel_share`` outside [0, 1].
     """
 
     rms_m: float | None = None
@@ -83,6 +88,21 @@ def rms_from_sliding(sliding: dict | None, session, min_rms_m: float) -> float:
 
     ``f_i``: the mass fractions; every body's sliding is taken in phase, the most a common part can be. 0 when no body
     slides by ``min_rms_m`` or more (white noise and round-off) or nothing was measured.
+
+    Parameters
+    ----------
+    sliding : dict or None
+        The measured sliding (:func:`~euc_ros.core.states.link_sliding.estimate_sliding`: ``bodies``, ``rms_m``,
+        ``rms_max_m``).
+    session : Session
+        The session (the segments' mass fractions).
+    min_rms_m : float
+        Smallest sliding counted [m].
+
+    Returns
+    -------
+    float
+        The prior's RMS [m].
     """
     if not sliding or float(sliding.get("rms_max_m") or 0.0) < min_rms_m:
         return 0.0

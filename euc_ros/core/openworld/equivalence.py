@@ -46,7 +46,7 @@ _Z95 = 1.959963984540054
 class Ride:
     """One ride as one version analysed it.
 
-    Attributes
+    Parameters
     ----------
     h, lo, hi : float or None
         The estimate of h and its 95 % interval [m] (None: unbounded or missing).
@@ -78,7 +78,20 @@ def _num(v) -> float | None:
 
 
 def identify_rides(rows: list[dict], label: str = "perturbed_session") -> dict[str, Ride]:
-    """The real-ride study's rows (``studies/real_ride_identify.py``), keyed ``identify/<seed>``."""
+    """The real-ride study's rows (``studies/real_ride_identify.py``), keyed ``identify/<seed>``.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The study's rows (``rows.jsonl``).
+    label : str
+        The key of the analysis compared in each row.
+
+    Returns
+    -------
+    dict of str to Ride
+        A failed analysis is a ride without an estimate and with the verdict ``("failed",)``.
+    """
     out = {}
     for r in rows:
         d = r.get(label) or {}
@@ -94,7 +107,19 @@ def identify_rides(rows: list[dict], label: str = "perturbed_session") -> dict[s
 
 
 def open_world_rides(rows: list[dict]) -> dict[str, Ride]:
-    """The open-world study's rows (``results.csv``, :func:`~euc_ros.core.openworld.study.read_rows`), keyed by task."""
+    """The open-world study's rows (``results.csv``, :func:`~euc_ros.core.openworld.study.read_rows`), keyed by task.
+
+    Parameters
+    ----------
+    rows : list of dict
+        The study's rows.
+
+    Returns
+    -------
+    dict of str to Ride
+        Keyed ``residual/<task>``; a row not ``ok`` is a ride without an estimate and with the verdict
+        ``("failed",)``.
+    """
     out = {}
     for r in rows:
         key = f"residual/{r['task']}"
@@ -112,7 +137,20 @@ def open_world_rides(rows: list[dict]) -> dict[str, Ride]:
 
 
 def binomial_se(k: int, n: int) -> float:
-    """``sqrt(p (1 - p) / n)`` at the Jeffreys mean ``p = (k + 1/2) / (n + 1)`` (NaN for no rides)."""
+    """Binomial standard error ``sqrt(p (1 - p) / n)`` at the Jeffreys mean ``p = (k + 1/2) / (n + 1)``.
+
+    Parameters
+    ----------
+    k : int
+        Rides counted.
+    n : int
+        Rides in all.
+
+    Returns
+    -------
+    float
+        NaN for no rides.
+    """
     if n <= 0:
         return float("nan")
     p = (k + 0.5) / (n + 1.0)
@@ -180,7 +218,19 @@ def compare(base: dict[str, Ride], new: dict[str, Ride], criteria: dict | None =
 
 
 def markdown(report: dict, title: str = "Statistical equivalence") -> str:
-    """The report as a Markdown page: the verdict, the pooled statistics, the rates and the rides that flip."""
+    """The report as a Markdown page: the verdict, the pooled statistics, the rates and the rides that flip.
+
+    Parameters
+    ----------
+    report : dict
+        :func:`compare`'s result.
+    title : str
+        The page's heading.
+
+    Returns
+    -------
+    str
+    """
     h, w, c = report["h"], report["width"], report["criteria"]
 
     def fmt(v, spec=".3f"):
@@ -212,7 +262,18 @@ def _scaled(v, k):
 
 
 def load_rides(folder) -> dict[str, Ride]:
-    """The rides of one version's output folder: ``rr/rows.jsonl`` and ``ow/results.csv``, where present."""
+    """The rides of one version's output folder: ``rr/rows.jsonl`` and ``ow/results.csv``, where present.
+
+    Parameters
+    ----------
+    folder : str or Path
+        The folder.
+
+    Returns
+    -------
+    dict of str to Ride
+        Empty when neither file is there.
+    """
     from euc_ros.core.openworld.study import read_rows
 
     folder = Path(folder)

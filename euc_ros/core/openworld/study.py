@@ -92,7 +92,25 @@ COLUMNS = ("task", "family", "seed", "status", "error", "seconds", "ride_seed", 
 # rides
 # --------------------------------------------------------------------------------------------------
 def ride_rng(seed: int, family: str) -> np.random.Generator:
-    """The ride's random stream for the law, the artefact level and the target ratio."""
+    """The ride's random stream for the law, the artefact level and the target ratio.
+
+    Parameters
+    ----------
+    seed : int
+        The ride's seed.
+    family : str
+        One of :data:`~euc_ros.core.worldsim.open_world_seeds.FAMILIES`.
+
+    Returns
+    -------
+    numpy.random.Generator
+        Seeded with ``[seed, family index, STREAM]``.
+
+    Raises
+    ------
+    ConfigError
+        ``family`` is unknown (key ``family``).
+    """
     if family not in FAMILIES:
         raise ConfigError(f"must be one of {FAMILIES}, got {family!r}", key="family")
     return np.random.default_rng([int(seed), FAMILIES.index(family), STREAM])
@@ -106,6 +124,29 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
     segment's acceleration, orientation sliding :data:`ARTEFACT_DEG_PER_MM` per mm, no further noise) is
     applied to the series read back from the CSV, which is then written again (6 decimals, as Motive).
     Equal ``seed`` gives equal noise and sliding.
+
+    Parameters
+    ----------
+    ride : Ride
+        A ride of the generator (:func:`euc_ros.core.worldsim.simulate_ride`).
+    out : Path
+        Output folder.
+    name : str
+        File stem and take name.
+    seed : int
+        Seed of the noise and the sliding.
+    artefact_mm : float
+        RMS 3-D pivot sliding of every rider body [mm] (0: none).
+
+    Returns
+    -------
+    dict
+        :func:`~euc_ros.core.worldsim.write_ride`'s paths (``csv``, ``session``, ``truth``) and ``kept_frames``.
+
+    Raises
+    ------
+    ConfigError
+        ``artefact_mm`` is negative or not finite (key ``artefact_mm``).
     """
     from euc_ros.core.io.motive_csv import read_motive_csv, write_motive_csv
     from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts
@@ -125,7 +166,20 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
 
 
 def floor_rmse(session, csv_paths) -> float:
-    """Held-out RMSE of the base model [N m] (``euc-ros residual`` without candidates or discovery)."""
+    """Held-out RMSE of the base model [N m] (``euc-ros residual`` without candidates or discovery).
+
+    Parameters
+    ----------
+    session : str or Path
+        The session file.
+    csv_paths : str, Path or sequence of them
+        The recordings.
+
+    Returns
+    -------
+    float
+        The analysis' ``rmse_before_nm`` [N m].
+    """
     from euc_ros.core.residual.pipeline import ResidualOptions, trace_residual
 
     paths = [csv_paths] if isinstance(csv_paths, (str, Path)) else list(csv_paths)
@@ -142,6 +196,18 @@ def seen_effect(effect, rate_hz: float) -> np.ndarray:
     :data:`~euc_ros.core.residual.analysis.RESIDUAL_POLYORDER`). The residual is linear in the accelerations,
     which the filter smooths, so a law faster than the filter passes (a tyre's harmonics at speed) reaches the
     residual attenuated; a perfect model can only explain what reaches it.
+
+    Parameters
+    ----------
+    effect : array_like (n,)
+        The law's contribution to ``M_d1 - M_d2`` along the ride, sampled at ``rate_hz`` [N m].
+    rate_hz : float
+        Sample rate [Hz].
+
+    Returns
+    -------
+    ndarray (n,)
+        The effect smoothed by the analysis' filter [N m] (as given when not longer than the window).
     """
     from scipy.signal import savgol_filter
 
@@ -307,6 +373,16 @@ def run_task(task) -> dict:
     ``task`` has a ``name``, a ``seed`` and ``simulate`` (a campaign task of kind ``open_world``);
     ``task.simulate`` holds ``family`` and optionally ``duration_s``, ``rate_hz``, ``rtol``. Returns a row
     of :data:`COLUMNS`; a failure is a row with ``status: failed`` and the error.
+
+    Parameters
+    ----------
+    task : object
+        The campaign task (``name``, ``seed``, ``simulate``).
+
+    Returns
+    -------
+    dict
+        The ride's row, by column of :data:`COLUMNS`.
     """
     from euc_ros.core.residual.pipeline import trace_residual
 
@@ -347,6 +423,32 @@ def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float 
 
     The first ``per_family`` seeds of ``seed_set`` (``tuning``, ``report``), as ``(name, seed, options)`` (a
     campaign task of kind ``open_world``).
+
+    Parameters
+    ----------
+    seed_set : str
+        A key of :data:`~euc_ros.core.worldsim.open_world_seeds.SEED_SETS`.
+    per_family : int
+        Seeds per family (1 to the set's size).
+    families : sequence of str
+        Families of :data:`~euc_ros.core.worldsim.open_world_seeds.FAMILIES`.
+    duration : float
+        Length of each run [s].
+    rate_hz : float
+        Sample rate [Hz].
+    rtol : float
+        Integrator tolerance (0-1).
+
+    Returns
+    -------
+    list of (str, int, dict)
+        ``(name, seed, options)`` per task, name ``<family>_<seed:06d>``.
+
+    Raises
+    ------
+    ConfigError
+        An unknown seed set or family, ``per_family`` out of range, or a duration, rate or tolerance out of
+        range (keyed by the command-line option).
     """
     if seed_set not in SEED_SETS:
         raise ConfigError(f"must be one of {tuple(SEED_SETS)}, got {seed_set!r}", key="--seeds")
@@ -368,7 +470,20 @@ def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float 
 # the rows of results.csv
 # --------------------------------------------------------------------------------------------------
 def write_rows(rows: list[dict], path) -> Path:
-    """results.csv: one line per ride (:data:`COLUMNS`; lists as JSON)."""
+    """Write results.csv: one line per ride (:data:`COLUMNS`; lists and dicts as JSON).
+
+    Parameters
+    ----------
+    rows : list of dict
+        The rows (:func:`run_task`).
+    path : str or Path
+        The file (its folder is made).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with open(path, "w", newline="", encoding="utf-8") as f:
@@ -380,7 +495,19 @@ def write_rows(rows: list[dict], path) -> Path:
 
 
 def read_rows(path) -> list[dict]:
-    """The rows of a results.csv written by :func:`write_rows`, with their types (to redo the table)."""
+    """The rows of a results.csv written by :func:`write_rows`, with their types (to redo the table).
+
+    Parameters
+    ----------
+    path : str or Path
+        The file.
+
+    Returns
+    -------
+    list of dict
+        Per ride, its values by column: numbers, booleans and JSON values parsed, None for empty cells, names
+        and the ``point`` and ``law`` JSON texts as text.
+    """
     def value(text: str):
         if text == "":
             return None
