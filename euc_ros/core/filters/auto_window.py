@@ -262,8 +262,13 @@ class WindowChoice:
         2; NaN when the chosen filter predicts none).
     noise_model : {"white", "coloured"}
         How the noise was modelled (:func:`choose_window`, Notes).
+    near_optimal : list of tuple
+        ``(window_s, polyorder)`` of every candidate whose score lies within :data:`NEAR_OPTIMAL_SIGMAS`
+        standard deviations of its own noise of the chosen one's, shortest window first (:func:`choose_window`,
+        Notes): filters the recording cannot tell apart.
     candidates : list of dict
-        Every candidate evaluated, with its total score.
+        Every candidate evaluated, with its total score, the standard deviation of its score's difference from
+        the chosen one's (``score_sd``) and whether it is near-optimal.
     """
 
     window_s: float
@@ -277,6 +282,7 @@ class WindowChoice:
     probe: tuple
     probe_ratio: float = float("nan")
     noise_model: str = "white"
+    near_optimal: list = field(repr=False, default_factory=list)
     candidates: list = field(repr=False, default_factory=list)
 
     def to_json(self) -> dict:
@@ -355,11 +361,12 @@ class _Spectra(NamedTuple):
     floors: dict           # per signal: white noise floor N_s
     sigma: dict            # per signal: white-noise standard deviation used
     n_avg: dict            # per signal: number of Welch segments averaged
+    estimated: dict        # per signal: whether the floor was read from the spectrum (not given)
 
 
 def _spectra_and_floors(dt: float, signals: Mapping[str, object], noise_std: dict, segment_s: float) -> _Spectra:
     """Every signal's spectrum on one frequency grid and its white noise floor (:func:`choose_window`, Notes)."""
-    specs, floors, sig_used, n_avg = {}, {}, {}, {}
+    specs, floors, sig_used, n_avg, estimated = {}, {}, {}, {}, {}
     spectra = {}
     for name, y in signals.items():
         spectra[name] = displacement_spectrum(y, dt, segment_s)
@@ -374,7 +381,8 @@ def _spectra_and_floors(dt: float, signals: Mapping[str, object], noise_std: dic
     for name in signals:
         f, S, n_avg[name] = spectra.pop(name)
         top = (f >= NOISE_BAND[0] * f[-1]) & (f <= NOISE_BAND[1] * f[-1])
-        if name in noise_std and noise_std[name] is not None:
+        estimated[name] = not (name in noise_std and noise_std[name] is not None)
+        if not estimated[name]:
             sigma = float(noise_std[name])
             N = 2.0 * sigma**2 * dt
         else:
@@ -385,73 +393,184 @@ def _spectra_and_floors(dt: float, signals: Mapping[str, object], noise_std: dic
         sig_used[name] = sigma
     names = list(signals)
     return _Spectra(names=names, f=specs[names[0]][0], S={n: specs[n][1] for n in names}, floors=floors,
-                    sigma=sig_used, n_avg=n_avg)
+                    sigma=sig_used, n_avg=n_avg, estimated=estimated)
 
 
 def _motion_spectra(sp: _Spectra, segment_s: float, coloured: bool):
-    """Each signal's motion spectrum, its band's end and (``coloured``) its noise spectrum.
+    """Each signal's motion spectrum, its band's end, (``coloured``) its noise spectrum and the level under both.
 
     ``coloured`` False: above the white floor; True: above the noise measured above the motion's band, which
-    may be coloured. Returns ``(S_sig, cutoff, S_noise)`` (``S_noise`` empty when not ``coloured``).
+    may be coloured. Returns ``(S_sig, cutoff, S_noise, level)`` (``S_noise`` empty when not ``coloured``;
+    ``level[n]`` is ``(value, bins its median was read from, or 0 for the white floor)``).
     """
     f = sp.f
-    S_sig, cutoff, S_noise = {}, {}, {}
+    S_sig, cutoff, S_noise, levels = {}, {}, {}, {}
     for n in sp.names:
         S = np.where(np.isfinite(sp.S[n]), sp.S[n], np.inf)
         above = S > sp.floors[n] * (1.0 + FLOOR_SIGMAS / np.sqrt(sp.n_avg[n]))
         # the motion's band: from 0 Hz up to the first bin (past the lowest ones) under the threshold
         below = np.flatnonzero(~above & (f > 2.0 / segment_s))
         cutoff[n] = float(f[below[0]]) if below.size else float(f[-1])
-        level = sp.floors[n]
+        level, bins = sp.floors[n], 0
         if coloured:
             # no further than where the noise's rising acceleration spectrum takes over; the noise as
             # measured above that, and below it as flat as just above it
             cutoff[n] = min(cutoff[n], _noise_rise_start(f, sp.S[n], sp.n_avg[n], 2.0 / segment_s))
             near = (f >= cutoff[n]) & (f <= cutoff[n] + NOISE_LEVEL_HZ)
-            level = max(sp.floors[n], float(np.nanmedian(sp.S[n][near])))
+            measured = float(np.nanmedian(sp.S[n][near]))
+            if measured > level:
+                level, bins = measured, int(np.count_nonzero(near & np.isfinite(sp.S[n])))
             S_noise[n] = np.where(f >= cutoff[n], sp.S[n], level)
             S_noise[n][0] = 0.0
+        levels[n] = (level, bins)
         S_sig[n] = np.where((f < cutoff[n]) & (f > 0), np.maximum(sp.S[n] - level, 0.0), 0.0)
-    return S_sig, cutoff, S_noise
+    return S_sig, cutoff, S_noise, levels
+
+
+class _Responses(NamedTuple):
+    """Every candidate's second-derivative response on the spectra's grid (:func:`_responses`)."""
+
+    windows: np.ndarray    # (C,) window [samples]
+    orders: np.ndarray     # (C,) polynomial order
+    e2: np.ndarray         # (C, F) |H_2 / (2 pi i f)^2 - 1|^2 (0 at 0 Hz)
+    h2: np.ndarray | None  # (C, F) |H_2|^2 (coloured noise only)
+    k2: np.ndarray         # (C,) sum of the squared second-derivative weights [1/s^4]
+
+
+def _responses(dt: float, f: np.ndarray, orders: Sequence[int], max_window_s: float, coloured: bool) -> _Responses:
+    """The candidates' responses (:func:`choose_window`, Notes), one row per candidate."""
+    cands = _candidate_windows(dt, orders, max_window_s)
+    w2 = (2 * np.pi * f) ** 2
+    e2, h2, k2 = [], [], []
+    for W, p in cands:
+        H2 = savgol_response(W, p, 2, dt, f)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            e2.append(np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0))
+        if coloured:
+            h2.append(np.abs(H2) ** 2)
+        k = savgol_kernel(W, p, 2, dt)
+        k2.append(float(k @ k))
+    return _Responses(np.array([c[0] for c in cands]), np.array([c[1] for c in cands]), np.array(e2),
+                      np.array(h2) if coloured else None, np.array(k2))
+
+
+def _welch_correlations(nper: int) -> tuple[float, float, float]:
+    """``(rho, c_1, c_2)`` of the periodic Hann window: half-overlap and neighbouring-bin correlations.
+
+    For a locally white spectrum a windowed periodogram's bins ``j`` apart correlate by
+    ``c_j = |sum_n w_n^2 exp(-2 pi i j n / N)|^2 / (sum_n w_n^2)^2`` (4/9 and 1/36 for Hann), and the same bin
+    of two segments overlapping by half by ``rho = (sum_n w_n w_{n + N/2})^2 / (sum_n w_n^2)^2`` (1/9).
+    """
+    n = max(int(nper), 4)
+    w = 0.5 - 0.5 * np.cos(2.0 * np.pi * np.arange(n) / n)
+    e = float(w @ w)
+    rho = float(w[: n - n // 2] @ w[n // 2:]) ** 2 / e**2
+    W2 = np.fft.fft(w**2)
+    return rho, float(abs(W2[1]) ** 2 / e**2), float(abs(W2[2]) ** 2 / e**2)
 
 
 def _evaluate(sp: _Spectra, dt: float, orders: Sequence[int], max_window_s: float, segment_s: float,
-              noise_power: int, coloured: bool):
+              noise_power: int, coloured: bool, ref: int | None = None):
     """The candidates scored with the white noise floor or with the noise as measured above the motion's band.
 
     ``coloured`` False: the white floor; True: the noise measured above the motion's band, which may be
-    coloured. Returns ``(cands, best, S_sig, A, P, cutoff, worst)``.
+    coloured. Returns ``(cands, best, S_sig, A, P, cutoff, worst)``; ``cands[i]["score_sd"]`` is the standard
+    deviation of its score's difference from the smallest (:func:`_difference_variance`), ``["near_optimal"]``
+    whether that difference is within :data:`NEAR_OPTIMAL_SIGMAS` of it (``ref``: the standard deviation
+    of the difference from candidate ``ref`` instead).
     """
     names, f = sp.names, sp.f
     df = f[1] - f[0]
-    w2 = (2 * np.pi * f) ** 2
-    S_sig, cutoff, S_noise = _motion_spectra(sp, segment_s, coloured)
-    A = {n: w2**2 * S_sig[n] for n in names}
+    w4 = (2 * np.pi * f) ** 4
+    S_sig, cutoff, S_noise, levels = _motion_spectra(sp, segment_s, coloured)
+    A = {n: w4 * S_sig[n] for n in names}
     P = {n: float(np.sum(A[n]) * df) for n in names}
     if any(v <= 0 for v in P.values()):
         empty = [n for n, v in P.items() if v <= 0]
         raise InputError(f"no motion above the noise floor in {', '.join(empty)}", key="signals")
-    cands = []
-    for W, p in _candidate_windows(dt, orders, max_window_s):
-        H2 = savgol_response(W, p, 2, dt, f)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            e2 = np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0)
-        k2 = savgol_kernel(W, p, 2, dt)
-        h2 = np.abs(H2) ** 2 if coloured else None
-        score, B, V = 0.0, {}, {}
-        for n in names:
-            B[n] = float(np.sum(e2 * A[n]) * df)
-            V[n] = sp.sigma[n] ** 2 * float(k2 @ k2)
-            score += B[n] / P[n] + (V[n] / P[n]) ** noise_power
-            if coloured:
-                # the coloured excess over the white noise: SIMEX does not remove its bias, so it counts whole
-                excess = max(float(np.sum(h2 * S_noise[n]) * df) - V[n], 0.0)
-                V[n] += excess
-                score += excess / P[n]
-        cands.append({"window": W, "polyorder": p, "score": score, "B2": B, "V": V})
-    best = min(cands, key=lambda c: (c["score"], c["window"]))
-    worst = max(np.sqrt(best["B2"][n] / P[n]) for n in names)
+    r = _responses(dt, f, orders, max_window_s, coloured)
+    score = np.zeros(r.k2.size)
+    B, V, terms = {}, {}, {}
+    for n in names:
+        B[n] = r.e2 @ A[n] * df
+        V[n] = sp.sigma[n] ** 2 * r.k2
+        # the coloured excess over the white noise: SIMEX does not remove its bias, so it counts whole
+        X = np.maximum(r.h2 @ S_noise[n] * df - V[n], 0.0) if coloured else np.zeros_like(V[n])
+        score += B[n] / P[n] + (V[n] / P[n]) ** noise_power + X / P[n]
+        terms[n] = (B[n], V[n], X)
+        V[n] = V[n] + X
+    i_min = int(np.lexsort((r.windows, score))[0])
+    sd = np.sqrt(sum(_difference_variance(sp, n, r, P[n], terms[n], levels[n], cutoff[n], S_noise.get(n),
+                                          noise_power, i_min if ref is None else ref, segment_s, dt)
+                     for n in names))
+    near = score - score[i_min] <= NEAR_OPTIMAL_SIGMAS * sd
+    cands = [{"window": int(r.windows[c]), "polyorder": int(r.orders[c]), "score": float(score[c]),
+              "score_sd": float(sd[c]), "near_optimal": bool(near[c]), "B2": {n: float(B[n][c]) for n in names},
+              "V": {n: float(V[n][c]) for n in names}} for c in range(score.size)]
+    best = cands[i_min]
+    worst = max(np.sqrt(cands[i_min]["B2"][n] / P[n]) for n in names)
     return cands, best, S_sig, A, P, cutoff, worst
+
+
+def _difference_variance(sp: _Spectra, n: str, r: _Responses, P: float, terms: tuple, level: tuple, cutoff: float,
+                         S_noise, noise_power: int, ref: int, segment_s: float, dt: float) -> np.ndarray:
+    """Variance of every candidate's score less candidate ``ref``'s, from signal ``n``'s spectrum.
+
+    Notes
+    -----
+    Each bin of a Welch average of ``K`` segments is a scaled chi-square variate,
+    ``var S(f) = S(f)^2 / K_eff`` with ``K_eff = K / (1 + 2 rho (K - 1) / K)`` (``rho`` = 1/9 for
+    half-overlapping Hann segments), and bins ``j`` apart correlate by ``c_j`` (4/9 and 1/36 for ``j`` = 1, 2;
+    :func:`_welch_correlations`). The score is a ratio of sums linear in ``S``, so to first order (delta
+    method) the difference ``D_c`` of candidate ``c``'s score from ``ref``'s has the variance
+    ``sum_{f, f'} g_c(f) g_c(f') cov(S(f), S(f'))``, with ``g_c = d D_c / d S(f)`` written out below
+    (through the motion's ``A``, its power ``P``, the noise spectrum above the band when coloured); the
+    levels read as medians of ``m`` bins add theirs (``pi / 2`` of the variance of the bins' mean, the
+    ``m`` bins ``m / (1 + 2 c_1 + 2 c_2)`` independent). The band's end and the noise's rise are thresholds,
+    held fixed. Summed over the signals (independent spectra) this is ``score_sd^2``
+    (``test_auto_window`` checks it against the scatter over noise draws).
+    """
+    f, S = sp.f, np.where(np.isfinite(sp.S[n]), sp.S[n], 0.0)
+    df = f[1] - f[0]
+    w4 = (2 * np.pi * f) ** 4
+    B, V, X = terms
+    k = noise_power
+    band = (f > 0) & (f < cutoff) & (S > level[0])
+    # d score / d A(f) on the motion's band, and d score / d S_noise(f) (coloured)
+    gA = df * (r.e2 / P - ((B + X) / P**2 + k * (V / P) ** k / P)[:, None]) * band
+    gN = (df / P) * r.h2 * (X > 0)[:, None] if S_noise is not None else np.zeros_like(gA)
+    G = gA * w4 + gN * (f >= cutoff)                    # d score / d S(f)
+    dL = -(gA @ w4)                                     # the level under the motion
+    if S_noise is not None:
+        dL += gN @ ((f > 0) & (f < cutoff))             # the noise below the band, as flat as the level
+    dF = np.zeros_like(dL)                              # the white floor through sigma (when estimated)
+    if not level[1]:
+        dL += k * (V / P) ** k / level[0] - (X > 0) * V / (P * level[0])
+    else:
+        dF = k * (V / P) ** k / sp.floors[n] - (X > 0) * V / (P * sp.floors[n])
+    rho, c1, c2 = _welch_correlations(int(round(segment_s / dt)))
+    K = sp.n_avg[n] / (1.0 + 2.0 * rho * max(sp.n_avg[n] - 1.0, 0.0) / sp.n_avg[n])
+    v = (G - G[ref]) * S
+    var = (np.einsum("cf,cf->c", v, v) + 2 * c1 * np.einsum("cf,cf->c", v[:, 1:], v[:, :-1])
+           + 2 * c2 * np.einsum("cf,cf->c", v[:, 2:], v[:, :-2])) / K
+    # a median of m bins (m / (1 + 2 c_1 + 2 c_2) independent) scatters by sqrt(pi / 2) of their mean's
+    spread = np.pi / 2 * (1 + 2 * c1 + 2 * c2) / K
+    top = int(np.count_nonzero((f >= NOISE_BAND[0] * f[-1]) & (f <= NOISE_BAND[1] * f[-1])))
+    var_floor = 0.0 if not sp.estimated[n] else sp.floors[n] ** 2 * spread / max(top, 1)
+    var_level = level[0] ** 2 * spread / level[1] if level[1] else var_floor
+    return var + (dL - dL[ref]) ** 2 * var_level + (dF - dF[ref]) ** 2 * var_floor
+
+
+#: The score's noise a candidate may lie within of the smallest score to count as near-optimal [standard
+#: deviations of the difference] (:func:`choose_window`, Notes).
+NEAR_OPTIMAL_SIGMAS = 1.0
+
+
+def _listing(cands: list, dt: float) -> dict:
+    """``near_optimal`` and ``candidates`` of a :class:`WindowChoice`."""
+    return {"near_optimal": sorted((c["window"] * dt, c["polyorder"]) for c in cands if c["near_optimal"]),
+            "candidates": [{k: c[k] for k in ("window", "polyorder", "score", "score_sd", "near_optimal")}
+                           for c in cands]}
 
 
 def _diagnostics(sp: _Spectra, dt: float, best: dict, S_sig: dict, A: dict, P: dict, cutoff: dict):
@@ -570,6 +689,8 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
     coloured, gives an acceleration spectrum rising to Nyquist), the noise is the measured spectrum
     above that and flat below, and its part beyond the white floor counts whole in the score (SIMEX,
     which adds white noise, does not remove its bias). ``noise_model`` says which was used.
+
+    Candidates within the score's noise of the choice (:func:`_difference_variance`) are ``near_optimal``.
     """
     if not (np.isfinite(dt) and dt > 0):
         raise InputError(f"sample spacing must be > 0 s, got {dt!r}", key="dt")
@@ -590,6 +711,4 @@ def choose_window(dt: float, signals: Mapping[str, object], noise_std: Mapping[s
     probe, ratio = _probe(cands, best, P, sp.names, dt)
     return WindowChoice(window_s=W * dt, window=W, polyorder=p, distortion=distortion, noise=noise,
                         noise_model=noise_model, noise_std=sp.sigma, acceleration_rms=acc_rms, band_hz=band,
-                        probe=probe, probe_ratio=ratio,
-                        candidates=[{"window": c["window"], "polyorder": c["polyorder"], "score": c["score"]}
-                                    for c in cands])
+                        probe=probe, probe_ratio=ratio, **_listing(cands, dt))

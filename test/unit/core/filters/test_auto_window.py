@@ -284,3 +284,52 @@ def test_recordings_of_different_lengths_pool_their_segments():
     mean = sum(Sp * kp for _, Sp, kp in parts) / k
     np.testing.assert_allclose(S[1:], mean[1:], rtol=1e-12)
     choose_window(dt, {"y": ys})     # the choice takes them as given
+
+
+#: Seed of the score-noise test's draws, drawn once from a range by a fixed generator (not picked).
+SCORE_NOISE_SEED = int(np.random.default_rng(20261129).integers(0, 10_000))
+
+
+def test_predicted_scatter_of_the_score_is_its_scatter_over_noise_draws():
+    """The score's noise (``score_sd``, ``_difference_variance`` Notes: chi-square bins of the Welch average
+    propagated to first order) against the scatter of the score differences over independent draws of a
+    signal of known spectrum: Gaussian motion (white noise through a 6th-order low-pass at 2 Hz, so every bin
+    is a chi-square variate, as the derivation assumes) plus white pose noise whose floor is read from the
+    spectrum. The difference of each candidate's score from a fixed reference (the first draw's choice)
+    is collected over ``R`` draws; its sample variance over the variance predicted (the mean of the draws'
+    predictions) scatters as chi-square with ``R - 1`` degrees of freedom over ``R - 1``. The candidates' ratios
+    come from the same draws, so their geometric mean scatters at most as one of them: it must lie within that
+    law's 0.05 % and 99.95 % quantiles. (Single candidates stray further, by up to about 25 % in the standard
+    deviation: the band's end is a threshold the derivation holds fixed.)"""
+    from scipy.signal import butter, sosfilt
+    from scipy.stats import chi2
+
+    import euc_ros.core.filters.auto_window as aw
+
+    rng = np.random.default_rng(SCORE_NOISE_SEED)
+    dt, n, sigma, R = 1 / 120, 120 * 30, 2e-3, 100
+    sos = butter(6, 2.0, fs=1 / dt, output="sos")
+
+    def spectra():
+        motion = sosfilt(sos, rng.standard_normal(n + 2000))[2000:]
+        y = 0.5 * motion + sigma * rng.standard_normal(n)
+        return aw._spectra_and_floors(dt, {"y": y}, {}, SEGMENT_S)
+
+    def evaluate(sp, ref=None):
+        return aw._evaluate(sp, dt, (2, 4), 1.5, SEGMENT_S, 2, False, ref=ref)
+
+    cands, best, *_ = evaluate(spectra())
+    ref = cands.index(best)
+    diff, var = [], []
+    for _ in range(R):
+        cands = evaluate(spectra(), ref)[0]
+        score = np.array([c["score"] for c in cands])
+        diff.append(score - score[ref])
+        var.append(np.array([c["score_sd"] for c in cands]) ** 2)
+    observed = np.var(diff, axis=0, ddof=1)
+    predicted = np.mean(var, axis=0)
+    lo, hi = chi2.ppf([0.0005, 0.9995], R - 1) / (R - 1)
+    checked = np.flatnonzero(predicted > 0)
+    assert checked.size >= 10
+    ratio = observed[checked] / predicted[checked]
+    assert lo <= np.exp(np.mean(np.log(ratio))) <= hi, (ratio, lo, hi)
