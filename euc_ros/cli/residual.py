@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from euc_ros.cli.figures import add_figure_arguments, configure_from_args, write_plots
+from euc_ros.cli.identify import window_arg
 from euc_ros.cli.loading import format_cog_faults, print_warnings, progress_bar
 from euc_ros.cli.outputs import Output, check_outputs, write_output
 from euc_ros.cli.residual_report import console_warnings, format_summary, headline_text, markdown_report
@@ -46,11 +47,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--candidates", nargs="+", default=None, metavar="EFFECT",
                         help=f"restrict the library (default: all: {', '.join(LIBRARY)})")
     parser.add_argument("--max-effects", type=int, default=3, help="most effects to select (3)")
-    parser.add_argument("--window-s", type=float, default=RESIDUAL_WINDOW_S, metavar="S",
+    parser.add_argument("--window-s", type=window_arg, default=RESIDUAL_WINDOW_S, metavar="S|auto",
                         help=f"Savitzky-Golay window [s] ({RESIDUAL_WINDOW_S}: less bias of the accelerations "
-                             "than identify's default; see README)")
-    parser.add_argument("--polyorder", type=int, default=RESIDUAL_POLYORDER,
-                        help=f"Savitzky-Golay order ({RESIDUAL_POLYORDER})")
+                             "than identify's default; see README), or 'auto': window and order chosen from the "
+                             "recordings' spectra as identify chooses them")
+    parser.add_argument("--polyorder", type=int, default=None,
+                        help=f"Savitzky-Golay order with a numeric --window-s ({RESIDUAL_POLYORDER})")
     parser.add_argument("--no-discovery", action="store_true",
                         help="skip the discovery step (group-sparse forces from function families for what no "
                              "named effect explains)")

@@ -29,7 +29,7 @@ FAMILY_ALIASES = {"lab": "lab_field", "lab_field": "lab_field", "lab field": "la
                   "field": "lab_field", "wheel": "wheel", "wheel_angle": "wheel", "wheel angle": "wheel",
                   "periodic": "wheel", "speed": "speed", "velocity": "speed", "drift": "drift", "time": "drift",
                   "dynamic": "dynamic", "dynamics": "dynamic", "lag": "dynamic", "filter": "dynamic",
-                 "wheel rotation": "wheel"}
+                 "wheel rotation": "wheel", "oscillator": "dynamic"}
 
 
 def right_library_names(law: F.ForceLaw | None) -> tuple[str, ...]:

@@ -53,7 +53,7 @@ from euc_ros.core.residual.groups import (
     point_gains,
 )
 from euc_ros.core.residual.search import GroupSearch, independent_columns
-from euc_ros.core.residual.selection import HeldOut, fit_model, held_out
+from euc_ros.core.residual.selection import HeldOut, admissibility, fit_model, held_out
 from euc_ros.core.residual.shrinkage import fit_with_free
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
 from euc_ros.core.states.contexts import Recording
@@ -345,7 +345,7 @@ def fold_errors(problem: DiscoveryProblem, lin: Linearisation) -> tuple[dict[int
     return per_k, test_blocks
 
 
-def select(problem: DiscoveryProblem, h_lin: float | None) -> GroupChoice:
+def select(problem: DiscoveryProblem, h_lin: float | None, most: int | None = None) -> GroupChoice:
     """The groups chosen linearised at ``h_lin``.
 
     ``h_lin`` None: at the current model's fit, in each fold its own h; else at ``h_lin``, h refitted within each fold's
@@ -356,6 +356,8 @@ def select(problem: DiscoveryProblem, h_lin: float | None) -> GroupChoice:
     ----------
     problem : DiscoveryProblem
     h_lin : float or None
+    most : int, optional
+        At most this many groups (the search path's first ones).
 
     Returns
     -------
@@ -368,6 +370,8 @@ def select(problem: DiscoveryProblem, h_lin: float | None) -> GroupChoice:
     rmse = {k: float(np.sqrt(np.mean(v ** 2))) for k, v in complete.items()}
     # parsimony: the fewest groups within one standard error of the best held-out error
     best_k = problem.search.size(complete, np.concatenate(test_blocks))
+    if most is not None:
+        best_k = min(best_k, int(most))
     if best_k == 0:
         return GroupChoice(rmse, 0, complete, None, None, 0.0)
     rows = [b[1] for b in lin.base]
@@ -526,6 +530,27 @@ def preferred(a: Refit | None, b: Refit | None) -> Refit | None:
     return lo
 
 
+def admissible_subset(problem: DiscoveryProblem, best: Refit | None, first: GroupChoice,
+                      h_geometric: float) -> Refit | None:
+    """``best``, or the largest of its search path's smaller sets whose joint fit is admissible.
+
+    A group that moves h with the force it stands for (a vertical force at the rider's CoG acts like a weight) can
+    carry the joint fit's h out of the rider's geometric window
+    (:func:`~euc_ros.core.residual.selection.admissibility`) while the groups before it on the search path
+    explain the structure with an h inside it: those are refitted, one group fewer at a time, and the first
+    admissible one is the discovered model (its held-out error is judged as any other's). ``best`` when it is
+    admissible, has one group, or no smaller set is admissible.
+    """
+    if best is None or admissibility(best.model, best.x, h_geometric) is None:
+        return best
+    h_arg = None if best.choice is first else best.h_lin
+    for k in range(best.choice.best_k - 1, 0, -1):
+        smaller = refit(problem, select(problem, h_arg, most=k), best.h_lin)
+        if smaller is not None and admissibility(smaller.model, smaller.x, h_geometric) is None:
+            return smaller
+    return best
+
+
 # ---------------------------------------------------------------------------------------------- the driver
 def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recording], folds, h0: float,
                    current_ho: HeldOut, h_geometric: float = float("nan"), *,
@@ -591,6 +616,7 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         if nxt is best:
             break
         best = nxt
+    best = admissible_subset(problem, best, first, h_geometric)
     choice = first if best is None else best.choice
     record = dict(heldout_rmse_by_terms=[choice.rmse[k] for k in sorted(choice.rmse)], terms=choice.best_k,
                   families=sorted({f.key for f in basis.families}), undetectable=UNDETECTABLE,

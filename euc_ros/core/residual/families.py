@@ -26,6 +26,11 @@ family              argument                        columns (level = complexity)
                                                     (level 1), and their squares (critically damped second
                                                     order, level 2): a force obeying its own linear
                                                     dynamics driven by a state
+``oscillator``      x_dot, phi_dot, gamma_dot       a resonance of the state without its ends (no mass, no
+(not in the         (:data:`OSCILLATORS`)           acceleration: :func:`payload_band`), with the derivatives
+default)                                            in ``ln w``, one resonance frequency per level
+                                                    (:data:`RESONANCE_HZ`, damping :data:`RESONANCE_DAMPING`):
+                                                    a payload on a spring carried by the rider or the EUC
 a user's family     one of :data:`ARGUMENTS`        the user's ``basis(x, level) -> (n, m)``
                                                     (:meth:`Family.custom`)
 ==================  ==============================  =========================================================
@@ -64,6 +69,14 @@ SIGN_SPEED = 0.05
 #: Time constants of the dynamics family [s] (a factor ~3 apart: a first-order law between two of them is
 #: a combination of its neighbours to a few per cent, measured in ``test_families.py``).
 TIME_CONSTANTS_S = (0.1, 0.3, 1.0, 3.0)
+#: Resonance frequencies of the oscillator family [Hz], one per level (a geometric grid, 16 % apart). A payload's
+#: reaction of a resonance between two of them (damping 0.05-0.2) carried at a random speed is explained by
+#: its nearer level's columns to 0.78-0.90 of its variance (5 draws; ``test_families.py`` asks 0.7).
+RESONANCE_HZ = tuple(float(f) for f in np.geomspace(0.5, 4.0, 15))
+#: Relative step of the frequency derivative's central difference.
+RESONANCE_STEP = 0.03
+#: Damping ratio of the oscillator family's resonators.
+RESONANCE_DAMPING = 0.1
 #: Most wheel-angle harmonics.
 MAX_HARMONICS = 4
 #: Spline levels of the speed: (degree, interior knots at quantiles of the observed argument).
@@ -183,8 +196,14 @@ def _family_list() -> list[Family]:
     return out
 
 
-#: Every family before the recordings prune duplicates.
+#: Every family of the default discovery before the recordings prune duplicates.
 FAMILIES = tuple(_family_list())
+#: The oscillator families (one per state), not in :data:`FAMILIES`: on rides with soft-tissue sliding and no
+#: force they explain the sliding (a tissue that follows the segment's acceleration is itself a damped
+#: oscillator; ``test_artefacts_residual.py``), so they are the user's to add (``FAMILIES + OSCILLATORS``).
+OSCILLATORS = tuple(Family("osc", (state,), "oscillator", f"time after a unit step of {state}", "s",
+                           f"H_f(s) {state}", unit)
+                    for state, unit in (("x_dot", "m/s"), ("phi_dot", "rad/s"), ("gamma_dot", "rad/s")))
 
 
 #: The signals a user's family (:meth:`Family.custom`) may take: name -> (how it is made from a recording's
@@ -208,7 +227,7 @@ def n_levels(fam: Family) -> int:
     if fam.kind == "custom":
         return fam.levels
     return {"lab": len(LAB_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
-            "drift": MAX_DRIFT_DEGREE + 1, "dyn": 2}[fam.kind]
+            "drift": MAX_DRIFT_DEGREE + 1, "dyn": 2, "osc": len(RESONANCE_HZ)}[fam.kind]
 
 
 def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np.ndarray) -> np.ndarray:
@@ -238,6 +257,49 @@ def low_pass(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
     b, den = [1.0 - a], [1.0, -a]
     y, _ = signal.lfilter(b, den, u, zi=signal.lfilter_zi(b, den) * u[0])
     return y
+
+
+def resonate(u: np.ndarray, f_hz: float, dt: float, zeta: float = RESONANCE_DAMPING) -> np.ndarray:
+    """``u`` through the resonator ``w^2 / (s^2 + 2 zeta w s + w^2)`` and ``w s / (...)`` (``w = 2 pi f_hz``): (n, 2).
+
+    The bilinear transform of the two transfer functions, sampled every ``dt``, started in the steady state of
+    the first sample (the first column equal to it, the second zero).
+    """
+    w = 2.0 * np.pi * float(f_hz)
+    den = [1.0, 2.0 * zeta * w, w * w]
+    out = np.empty((u.size, 2))
+    for j, num in enumerate(([w * w], [w, 0.0])):
+        b, a = signal.bilinear(num, den, fs=1.0 / dt)
+        out[:, j], _ = signal.lfilter(b, a, u, zi=signal.lfilter_zi(b, a) * u[0])
+    return out
+
+
+def payload_band(u: np.ndarray, f_hz: float, dt: float, zeta: float = RESONANCE_DAMPING) -> np.ndarray:
+    """A resonance of the carrier's velocity ``u`` without its ends: (n, 2).
+
+    ``w s^2 / ((s + w) D)`` and ``s^3 / ((s + w) D)`` of ``u``, ``D = s^2 + 2 zeta w s + w^2``: in quadrature at
+    the resonance, of the order ``s^2`` at low frequency (no mass: the carried mass at rest on its spring is a
+    force in phase with the carrier's acceleration, which the residual is linear in) and no faster than a
+    velocity above it (no acceleration either). Bilinear transform, started in the steady state of the first
+    sample.
+    """
+    w = 2.0 * np.pi * float(f_hz)
+    den = np.polymul([1.0, w], [1.0, 2.0 * zeta * w, w * w])
+    out = np.empty((u.size, 2))
+    for j, num in enumerate(([w, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0])):
+        b, a = signal.bilinear(num, den, fs=1.0 / dt)
+        out[:, j], _ = signal.lfilter(b, a, u, zi=signal.lfilter_zi(b, a) * u[0])
+    return out
+
+
+def resonator_columns(u: np.ndarray, f_hz: float, dt: float) -> np.ndarray:
+    """The oscillator family's columns at one resonance frequency (n, 4).
+
+    :func:`payload_band` at ``f_hz`` and its central difference in ``ln f`` (steps of :data:`RESONANCE_STEP`): a
+    resonance near ``f_hz`` is a combination of the four.
+    """
+    a, b = (payload_band(u, f_hz * m, dt) for m in (1.0 + RESONANCE_STEP, 1.0 / (1.0 + RESONANCE_STEP)))
+    return np.concatenate([payload_band(u, f_hz, dt), a - b], axis=1)
 
 
 def _signals(ctx) -> dict:
@@ -408,6 +470,8 @@ class Families:
             return 2 * (level + 1) * (len(self.run_names) if self.families[f].option else 1)
         if kind == "drift":
             return len(self.run_names) * (level + 1)
+        if kind == "osc":
+            return 4
         return len(TIME_CONSTANTS_S) * (level + 1)
 
     def _degenerate(self, fam: Family) -> bool:
@@ -464,9 +528,11 @@ class Families:
                 u = np.clip(2.0 * (sig["t"] - lo) / max(hi - lo, 1e-9) - 1.0, -1.0, 1.0)
                 out[:, j * (level + 1):(j + 1) * (level + 1)] = legendre.legvander(u, level)
             return out
-        # dynamics
+        # dynamics and oscillators
         u = _state(sig, fam.option[0])
         dt = float(np.median(np.diff(sig["t"]))) if sig["t"].size > 1 else 1.0
+        if fam.kind == "osc":
+            return resonator_columns(u, RESONANCE_HZ[level], dt)
         # written column by column into the result (no list of full-rate columns beside it)
         k = len(TIME_CONSTANTS_S)
         out = np.empty((u.size, k * (2 if level >= 1 else 1)))
@@ -573,6 +639,12 @@ class Families:
                 P[lo + grid > hi + 1e-9] = np.nan
                 rows.append(P)
             return grid, np.stack(rows), list(self.run_names)
+        if fam.kind == "osc":     # the columns' response to a unit step of the state (sampled at 1 kHz)
+            grid = np.linspace(0.0, 3.0, g)
+            fine = np.linspace(0.0, 3.0, 3001)
+            u = (fine > 0).astype(float)
+            P = resonator_columns(u, RESONANCE_HZ[level], fine[1])
+            return grid, P[np.searchsorted(fine, grid)][None], [""]
         # dynamics: the response to a unit step of the state
         grid = np.linspace(0.0, 3.0 * max(TIME_CONSTANTS_S), g)
         taus = np.array(TIME_CONSTANTS_S)

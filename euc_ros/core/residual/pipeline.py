@@ -33,11 +33,13 @@ from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.effects import make_candidates
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.analysis import RESIDUAL_POLYORDER, RESIDUAL_WINDOW_S, analyze
+from euc_ros.core.residual.discovery import GroupSparseDiscovery
 from euc_ros.core.residual.interval import FinalInterval, base_widening, filter_refit
 from euc_ros.core.residual.noise import make_noise_floor
 from euc_ros.core.residual.result import ResidualResult
 from euc_ros.core.residual.selector import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, ForwardSelector
 from euc_ros.core.session import load_session
+from euc_ros.core.states.contexts import analysis_rate
 from euc_ros.core.states.filter_choice import data_filters
 from euc_ros.core.states.link_sliding import sliding_or_none, usable_poses
 from euc_ros.core.states.load import cog_faults, collect_warnings, load_states, usage_table
@@ -66,6 +68,8 @@ class ResidualOptions:
         Compare the wheel-centre height with the session's wheel radius (rolling radius, floor).
     discover : bool
         Run the discovery step for what no named effect explains.
+    families : sequence of Family, optional
+        The discovery's function families (default :data:`~euc_ros.core.residual.families.FAMILIES`).
     plausible : dict
         Plausible ranges of library parameters by ``"effect.parameter"`` instead of the library's.
 
@@ -82,6 +86,13 @@ class ResidualOptions:
     use_geometry: bool = True
     discover: bool = True
     plausible: dict = field(default_factory=dict)
+    families: Sequence | None = None
+
+    def discovery(self):
+        """The ``discovery`` argument of :func:`~euc_ros.core.residual.analysis.analyze` these options ask for."""
+        if self.discover and self.families:
+            return GroupSparseDiscovery(families=tuple(self.families))
+        return self.discover
 
     def __post_init__(self) -> None:
         if not 0 < self.alpha < 1:
@@ -165,6 +176,38 @@ def held_keys(held: HeldH, final: FinalInterval | None) -> dict:
     return out
 
 
+def residual_filter(states: Sequence, settings: ReconstructionSettings) -> tuple:
+    """The settings with the residual's filter fixed, and the choice behind it (None for a window in seconds).
+
+    With the window ``auto`` the filter is the one :func:`~euc_ros.core.states.load.load_states` chose from the
+    recordings' spectra (:func:`~euc_ros.core.states.filter_choice.choose_filter`, as identify chooses it;
+    ``settings.filter_chosen`` in the JSON); the analysis, the noise floor included, then runs at that filter and
+    at a sub-sample rate scaled with its passband (:func:`~euc_ros.core.states.contexts.analysis_rate`).
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The loaded recordings (their ``meta["filter"]``).
+    settings : ReconstructionSettings
+
+    Returns
+    -------
+    tuple
+        ``(settings, FilterChoice or None)``.
+
+    Raises
+    ------
+    ConfigError
+        ``auto`` without a choice in the states.
+    """
+    chosen = states[0].meta.get("filter") if settings.is_auto and states else None
+    if chosen is not None:
+        settings = settings.with_filter(chosen.window_s, chosen.polyorder)
+    if settings.is_auto:
+        raise ConfigError("no filter could be chosen from the recordings; give a window in seconds", key="--window-s")
+    return settings, chosen
+
+
 def trace_residual(session_path, recordings: Sequence, settings: ReconstructionSettings | None = None, *,
                    options: ResidualOptions | None = None, tolerances: dict | None = None,
                    sliding_prior_mm: float | None = None, progress: Callable[[Sequence], Iterable] | None = None,
@@ -178,7 +221,8 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     recordings : sequence of str or Path
         Motive CSV exports, bag directories or ``.mcap`` files.
     settings : ReconstructionSettings, optional
-        The reconstruction (default :data:`RESIDUAL_SETTINGS`); its window must be a number of seconds.
+        The reconstruction (default :data:`RESIDUAL_SETTINGS`); the window may be ``auto``
+        (:func:`residual_filter`).
     options : ResidualOptions, optional
         The library and the selection's thresholds (default: the command's).
     tolerances : dict, optional
@@ -201,10 +245,10 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     """
     settings = RESIDUAL_SETTINGS if settings is None else settings
     options = ResidualOptions() if options is None else options
-    if settings.is_auto:
-        raise ConfigError("the residual analysis needs a window in seconds", key="--window-s")
     session = load_session(session_path)
     states = load_states(session, recordings, settings, progress=progress, keep_series=True)
+    settings, chosen_filter = residual_filter(states, settings)
+    rate_hz = analysis_rate(settings.window_s, settings.polyorder)
     params = EucParams.from_session(session)
     series = [st.meta.get("series") for st in states]
     # which poses the links can use (the time offset's pedal links and the sliding's chain); the rider-to-EUC
@@ -222,7 +266,7 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     del usable
     # the recordings' pose-noise estimate is made once for the interval's SIMEX and the noise floor
     simex = SimexShare()
-    noise_of = make_noise_floor(series, states, session, params, share=simex) \
+    noise_of = make_noise_floor(series, states, session, params, share=simex, analysis_rate_hz=rate_hz) \
         if all(s is not None for s in series) else None
     # how well the data determine the base model's h (identify's); unbounded: h held in every fit (.held)
     iv = IntervalOptions(sliding_prior=sliding_prior(sliding_prior_mm), with_budget=bool(tolerances),
@@ -232,8 +276,8 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     base, held = ident.uncertainty, ident.held
     result = analyze(states, params, candidates=cands,
                      selector=ForwardSelector(options.alpha, options.min_gain, options.max_effects),
-                     discovery=options.discover, use_geometry=options.use_geometry, noise_floor_of=noise_of,
-                     progress=say, h_held=None if held is None else held.h_m)
+                     discovery=options.discovery(), use_geometry=options.use_geometry, noise_floor_of=noise_of,
+                     analysis_rate_hz=rate_hz, progress=say, h_held=None if held is None else held.h_m)
     data = result.to_json()
     for k in ("h_ci95_m", "identifiable", "identifiability_reason"):
         data.setdefault(k, base[k])
@@ -254,7 +298,8 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     data["per_recording"] = usage_table(states)
     data["warnings"] = collect_warnings(states)
     data["settings"] = {"session": str(session_path), "window_s": settings.window_s, "polyorder": settings.polyorder,
-                        "candidates": [c.name for c in cands], "cog_method": settings.cog_method}
+                        "candidates": [c.name for c in cands], "cog_method": settings.cog_method,
+                        **({"filter_chosen": chosen_filter.to_json()} if chosen_filter is not None else {})}
     if settings.phi_definition != "hinge":
         data["settings"]["phi_definition"] = settings.phi_definition
     if options.plausible:

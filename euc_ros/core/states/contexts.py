@@ -156,6 +156,37 @@ def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:
     return max(1, int(math.floor(1.0 / (dt * analysis_rate_hz) + 1e-9)))
 
 
+def analysis_rate(window_s: float, polyorder: int) -> float:
+    """Analysis rate [Hz] for states of a Savitzky-Golay filter: :data:`ANALYSIS_RATE_HZ` scaled with its passband.
+
+    The second derivative of a window of ``T`` seconds and order ``p`` follows a sinusoid up to about
+    ``(p + 2) / (2 T)`` Hz; the rate keeps the ratio of :data:`ANALYSIS_RATE_HZ` to the passband of the
+    residual's default filter (1.2 s, order 6), and never goes below :data:`ANALYSIS_RATE_HZ`.
+
+    Parameters
+    ----------
+    window_s : float
+        Window [s].
+    polyorder : int
+        Order.
+
+    Returns
+    -------
+    float
+
+    Examples
+    --------
+    >>> analysis_rate(1.2, 6), analysis_rate(0.6, 6), analysis_rate(2.4, 6)
+    (10.0, 20.0, 10.0)
+    """
+    passband = (int(polyorder) + 2) / (2.0 * float(window_s))
+    return max(ANALYSIS_RATE_HZ, ANALYSIS_RATE_HZ * passband / _DEFAULT_PASSBAND_HZ)
+
+
+#: Passband of the residual's default filter, 1.2 s and order 6 [Hz] (:func:`analysis_rate`).
+_DEFAULT_PASSBAND_HZ = 8 / 2.4
+
+
 def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float = DEFAULT_BLOCK_S,
             floor: FloorFit | None = None, analysis_rate_hz: float | None = None) -> list[Recording]:
     """Turn reconstructed recordings into analysis inputs (valid samples, yaw rate, time-shift hook).

@@ -21,7 +21,7 @@ from euc_ros.core.model.extended import Model
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.residual.folds import folds_of, residual_block_length, with_blocks
 from euc_ros.core.residual.selection import fit_base_h, fit_model, held_out, model_jacobian
-from euc_ros.core.states.contexts import Recording, decimation_step, prepare
+from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, Recording, analysis_rate, decimation_step, prepare
 from euc_ros.core.states.kinematics import reconstruct_states
 
 
@@ -85,6 +85,32 @@ def test_decimation_step():
     assert decimation_step(1 / 360, 10.0) == 36
     assert decimation_step(1 / 120, None) == 1
     assert decimation_step(1 / 5, 10.0) == 1
+
+
+@pytest.mark.parametrize("window_s", [0.3, 0.525, 0.6, 0.9, 1.2, 2.0])
+@pytest.mark.parametrize("polyorder", [2, 4, 6, 8])
+def test_analysis_rate_samples_beyond_the_filters_main_lobe(window_s, polyorder):
+    # the smoothing response of the states' filter, computed from its own coefficients: its main lobe (response
+    # above 1 % of the peak) must end below 0.6 of the sub-sample's Nyquist frequency (the default filter,
+    # 1.2 s / order 6 at 10 Hz: 2.6 Hz against 5 Hz), so what the filter passes is not folded by the sub-sampling
+    from euc_ros.core.filters.auto_window import savgol_response
+
+    dt = 1 / 120
+    window = int(round(window_s / dt)) // 2 * 2 + 1
+    f = np.linspace(0.005, 60.0, 12000)
+    r = np.abs(savgol_response(window, polyorder, 0, dt, f))
+    lobe_end = f[np.argmax(r < 0.01)]
+    rate = analysis_rate(window * dt, polyorder)
+    assert rate >= ANALYSIS_RATE_HZ
+    assert lobe_end <= 0.6 * rate / 2
+    # and never much faster than needed: within a factor 2.5 of the lobe's own Nyquist rate where the rate is
+    # above the default's floor
+    if rate > ANALYSIS_RATE_HZ:
+        assert rate <= 2.5 * 2 * lobe_end / 0.6
+
+
+def test_analysis_rate_of_the_default_filter_is_the_default_rate():
+    assert analysis_rate(1.2, 6) == ANALYSIS_RATE_HZ
 
 
 @pytest.fixture(scope="module")
