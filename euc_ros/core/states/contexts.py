@@ -110,8 +110,9 @@ def _phi_shift_fn(st: RiderStates, params: EucParams, window: int, polyorder: in
             base["trig"] = (np.cos(psi), np.sin(psi), np.cos(theta), np.sin(theta))
             uniform = st.frame is not None and len(st.frame) == len(t) and bool(np.all(np.diff(st.frame) == 1)) \
                 and np.isfinite(st.dt)
-            # the filter's centre weights evaluated only at the samples the analysis uses (valid samples lie at
-            # least half a window inside their stretch, so the centre weights are the ones the full filter uses)
+            # the filter's centre weights evaluated only at the samples the analysis uses: those of a whole
+            # window; the valid samples nearer a stretch's end (fits through a gap, the take's one-sided ends)
+            # see a missing or padded sample and come out NaN, which the time-offset effect leaves out (its mask)
             base["weights"] = savgol_coefficients(window, polyorder, st.dt, [half])[:, 0, :] if uniform else None
         return base["A"], base["phi0"], base["weights"], base["trig"]
 
@@ -203,7 +204,7 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
     out = []
     for st in states:
         window = st.window if st.window and st.window % 2 == 1 else 9
-        valid = np.asarray(st.valid, bool).copy()   # already half a window inside each stretch
+        valid = np.asarray(st.valid, bool).copy()
         dpsi = savgol_derivatives(st.t, np.unwrap(st.psi), window=window, polyorder=st.polyorder, frame=st.frame)
         valid &= np.isfinite(dpsi.y_dot) & np.isfinite(st.theta)
         step = decimation_step(st.dt if np.isfinite(st.dt) else float(np.median(np.diff(st.t))), analysis_rate_hz)

@@ -63,9 +63,12 @@ class RiderStates:
     has_euc, has_rider : ndarray (n,) of bool
         E tracked; all rider segments of non-zero mass tracked.
     valid : ndarray (n,) of bool
-        Every state and derivative finite and measured (not filled across a short gap), and at least
-        half a filter window inside its gap-free stretch (the Savitzky-Golay ends extrapolate; the
-        online fixed-lag filter gives no state there either).
+        Every state and derivative finite and measured (not filled across a short gap), and either at
+        least half a filter window inside its gap-free stretch, or, nearer a stretch's end (beside a gap,
+        or at the take's own ends), where a least-squares fit through the recorded samples of the window
+        (:func:`~euc_ros.core.filters.masked_savgol.masked_savgol`: one-sided at the take's ends) has a
+        second derivative within 4 times the variance of the full window's (the online fixed-lag filter
+        gives no state within half a window of a stretch's end).
     phi_definition : str
         ``"hinge"`` or ``"eq3"``.
     cog_method : str
@@ -266,14 +269,15 @@ def _geometry(series, session, *, max_gap: int, cog_method: str, skeleton) -> di
 
 def _across_gaps(frame: np.ndarray, valid: np.ndarray, geo: dict, phi_raw: np.ndarray, psi: np.ndarray,
                  dt: float, window: int, polyorder: int):
-    """The states the Savitzky-Golay stretches leave out beside the recording's gaps, from fits through them.
+    """The states the Savitzky-Golay stretches leave out at their ends, from fits through the gaps.
 
-    A gap longer than the bridged ``max_gap`` frames ends a stretch, and the half-windows beside it are
-    trimmed; at those recorded samples the local least-squares polynomials through the samples that are there
+    A gap longer than the bridged ``max_gap`` frames ends a stretch, and the half-windows at every stretch's
+    ends are trimmed (the recording's own first and last ones too); at those recorded samples the local
+    least-squares polynomials through the samples that are there
     (:func:`~euc_ros.core.filters.masked_savgol.masked_savgol`) give the states, where their second
     derivatives' variance stays within :data:`~euc_ros.core.filters.masked_savgol.MAX_INFLATION` of the full
-    window's. The recording's own first and last half-windows are left as they are (a fit there is
-    one-sided), and a recording without gaps is not touched.
+    window's. Beside a gap the window is centred and sees across it; at the recording's ends it is the first
+    or last whole window, evaluated off its centre (one-sided). Only those samples' fits are solved.
 
     Returns
     -------
@@ -287,25 +291,22 @@ def _across_gaps(frame: np.ndarray, valid: np.ndarray, geo: dict, phi_raw: np.nd
     if n < window:
         return None
     k = frame - frame[0]
-    half = window // 2
     cols = np.column_stack([geo["C_raw"], geo["gamma_raw"], phi_raw])
     recorded = np.all(np.isfinite(cols), axis=1) & np.isfinite(psi)
-    inner = (k >= k[0] + half) & (k <= k[-1] - half)
-    want = recorded & inner & ~valid
-    if not want.any():
+    want = np.flatnonzero(recorded & ~valid)
+    if want.size == 0:
         return None
     grid = np.full((int(k[-1]) + 1, cols.shape[1]), np.nan)
     grid[k[recorded]] = cols[recorded]
-    fit = masked_savgol(grid, window, polyorder, dt)
-    rows = np.flatnonzero(want & fit.usable[k])
+    fit = masked_savgol(grid, window, polyorder, dt, rows=k[want])
+    rows, use = want[fit.usable], fit.usable
     if rows.size == 0:
         return None
-    at = k[rows]
     c, s_ = np.cos(psi[rows]), np.sin(psi[rows])
-    x_dot = c * fit.y_dot[at, 0] + s_ * fit.y_dot[at, 1]
-    x_ddot = c * fit.y_ddot[at, 0] + s_ * fit.y_ddot[at, 1]
-    return rows, (x_dot, x_ddot, fit.y[at, 3], fit.y_dot[at, 3], fit.y_ddot[at, 3], fit.y[at, 4], fit.y_dot[at, 4],
-                  fit.y_ddot[at, 4])
+    x_dot = c * fit.y_dot[use, 0] + s_ * fit.y_dot[use, 1]
+    x_ddot = c * fit.y_ddot[use, 0] + s_ * fit.y_ddot[use, 1]
+    return rows, (x_dot, x_ddot, fit.y[use, 3], fit.y_dot[use, 3], fit.y_ddot[use, 3], fit.y[use, 4],
+                  fit.y_dot[use, 4], fit.y_ddot[use, 4])
 
 
 def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float, polyorder: int, max_gap: int,
@@ -365,15 +366,16 @@ def _filtered_states(series, geo: dict, *, phi_definition: str, window_s: float,
     filled |= d_gamma.filled
     filled |= d_phi.filled
     fields_ = (x_dot, x_ddot, d_gamma.y, d_gamma.y_dot, d_gamma.y_ddot, d_phi.y, d_phi.y_dot, d_phi.y_ddot)
-    # measured samples at least half a window inside their stretch (where the SG fit interpolates);
-    # the fields' finiteness and-ed one at a time (no (8, n) stack of the fields)
+    # measured samples at least half a window inside their stretch (where the SG fit interpolates; those
+    # nearer a stretch's end come from _across_gaps); the fields' finiteness and-ed one at a time (no (8, n)
+    # stack of the fields)
     finite = np.isfinite(fields_[0])
     for f in fields_[1:]:
         finite &= np.isfinite(f)
     valid = trim_edges(finite, d_gamma.window // 2, frame, max_gap) & ~filled
     across = _across_gaps(frame, valid, geo, phi_raw, geo["psi"], dt, d_gamma.window, polyorder)
     del geo["C_raw"], geo["gamma_raw"]
-    if across is not None:          # the samples the gaps' stretch ends cost: least-squares fits through the gaps
+    if across is not None:          # the samples the stretches' ends cost: least-squares fits through the gaps
         rows, f = across
         for field_, fitted in zip(fields_, f):
             field_[rows] = fitted

@@ -137,14 +137,15 @@ def test_a_short_deceleration_is_told_how_much_more_to_record():
 
 
 def test_too_few_blocks_are_told_the_blocks_needed_and_more_runs_give_them():
-    iv = _interval(runs=1, seed=1, duration_s=6.0)
+    # 5 s: usable states over more than MIN_DURATION_S but fewer than MIN_BLOCKS blocks of the 1.2 s window
+    iv = _interval(runs=1, seed=1, duration_s=5.0)
     ex = iv.extra["excitation"]
     assert not iv.identifiable and iv.reason.startswith("too few independent blocks")
     assert ex["blocks"] == iv.n_blocks < ex["blocks_needed"] == MIN_BLOCKS
     assert f"({ex['blocks']} of {ex['block_s']:.1f} s in {ex['usable_s']:.1f} s of usable states" in iv.reason
     assert ex["record_more_s"] > 0 and ex["more_runs_needed"] >= 1
     assert f"{ex['more_runs_needed']} more run" in iv.reason
-    runs = _interval(runs=1 + ex["more_runs_needed"], seed=1, duration_s=6.0)
+    runs = _interval(runs=1 + ex["more_runs_needed"], seed=1, duration_s=5.0)
     assert runs.n_blocks >= MIN_BLOCKS and "blocks" not in runs.reason
 
 
