@@ -251,17 +251,15 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     rate_hz = analysis_rate(settings.window_s, settings.polyorder)
     params = EucParams.from_session(session)
     series = [st.meta.get("series") for st in states]
-    # which poses the links can use (the time offset's pedal links and the sliding's chain); the rider-to-EUC
-    # time offset measured from the ankles on the pedals bounds the name mocap_time_offset (unless the user
-    # set its range)
+    # the poses the links can use; the time offset measured from the ankles on the pedals bounds the name
+    # mocap_time_offset (unless the user set its range)
     usable = [usable_poses(s) for s in series] if all(s is not None for s in series) else None
     offset = measure_time_offset(series, session, usable) if usable is not None else None
     ranges = dict(options.plausible or {})
     if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
         ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
     cands = make_candidates(options.candidates, ranges)
-    # what the rigid links show (measured once: the interval's sliding terms and the filter choice); the links'
-    # usable poses are let go before the analysis
+    # what the rigid links show, measured once (the interval's sliding terms, the filter choice)
     links = sliding_or_none(series, session, usable) if usable is not None else None
     del usable
     # the recordings' pose-noise estimate is made once for the interval's SIMEX and the noise floor
