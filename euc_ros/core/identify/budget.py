@@ -206,7 +206,20 @@ def _nominal(session, key: str) -> float:
     return float("nan")
 
 
-def _absolute(tol, nominal: float) -> float:
+def absolute_tolerance(tol, nominal: float) -> float:
+    """A tolerance in the value's unit: ``"5%"`` of ``nominal``, or the number itself.
+
+    Parameters
+    ----------
+    tol : float or str
+        The tolerance: a number, or a percentage string such as ``"10%"``.
+    nominal : float
+        The nominal value a percentage is of.
+
+    Returns
+    -------
+    float
+    """
     return abs(nominal) * float(tol[:-1]) / 100.0 if isinstance(tol, str) else float(tol)
 
 
@@ -254,13 +267,13 @@ def budget(series_list, states, session, params, h: float, *, reconstruction: Re
         hp = h_of(states, dataclasses.replace(params, **{fld: nominal + step}))
         hm = h_of(states, dataclasses.replace(params, **{fld: nominal - step}))
         d = (hp - hm) / (2 * step)
-        tol = _absolute(tolerances[key], nominal)
+        tol = absolute_tolerance(tolerances[key], nominal)
         unit = {"m": "kg", "m0": "kg", "mw": "kg", "J": "kg m^2", "J0": "kg m^2", "Jw": "kg m^2"}.get(fld, "m")
         out[key] = {"dh_dp": json_float(d), "unit": f"m per {unit}", "nominal": nominal, "tolerance": tol,
                     "dh_m": json_float(abs(d) * tol), "u_m": json_float(standard_uncertainty(d, tol))}
         total += abs(d) * tol if np.isfinite(d) else 0.0
     for key, (d, unit) in _segment_sensitivities(series_list, session, params, reconstruction).items():
-        tol = _absolute(tolerances[key], 0.0)
+        tol = absolute_tolerance(tolerances[key], 0.0)
         out[key] = {"dh_dp": json_float(d), "unit": unit, "nominal": None, "tolerance": tol,
                     "dh_m": json_float(abs(d) * tol), "u_m": json_float(standard_uncertainty(d, tol))}
         total += abs(d) * tol if np.isfinite(d) else 0.0

@@ -36,7 +36,7 @@ from typing import Sequence
 
 import numpy as np
 
-from euc_ros.core.identify.budget import DEFAULT_TOLERANCES
+from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, absolute_tolerance
 from euc_ros.core.identify.interval import MAX_RIDE_ACCEL_RMS_MPS2, MIN_SHARPNESS
 from euc_ros.core.states.contexts import hinge_path
 
@@ -71,11 +71,6 @@ def geometric_h(states: Sequence, params) -> float:
     return float(np.median(v)) if v.size else float("nan")
 
 
-def _absolute(tol, nominal: float) -> float:
-    """A tolerance as a length [m]: ``"5%"`` of ``nominal``, or the number itself."""
-    return abs(nominal) * float(tol[:-1]) / 100.0 if isinstance(tol, str) else float(tol)
-
-
 def geometric_h_uncertainty(tolerances: dict | None, *, l0: float) -> float:
     """Standard uncertainty of the geometric h from the tolerances of the values it rests on [m] (Type B).
 
@@ -105,8 +100,8 @@ def geometric_h_uncertainty(tolerances: dict | None, *, l0: float) -> float:
     """
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
-    a_offset = _absolute(tol["rider.segments.com_offset"], 0.0)
-    a_l0 = _absolute(tol["euc.l0"], l0)
+    a_offset = absolute_tolerance(tol["rider.segments.com_offset"], 0.0)
+    a_l0 = absolute_tolerance(tol["euc.l0"], l0)
     return float(math.hypot(a_offset, a_l0) / math.sqrt(3.0))
 
 
@@ -229,7 +224,7 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
         return None
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
-    used = {k: _absolute(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS}
+    used = {k: absolute_tolerance(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS}
     lo, hi = (float("nan") if v is None else float(v) for v in ci95)
     ends = ", ".join("unbounded" if not math.isfinite(v) else f"{v:.3f}" for v in (lo, hi))
     why = (f"the RMSE curve rises only {100 * sharpness:.0f} % at h +- 0.1 m (at least {100 * MIN_SHARPNESS:.0f} % "

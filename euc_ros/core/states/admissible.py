@@ -133,7 +133,7 @@ def _frame_bounds(series, session, massive: list, fraction_tolerance: float):
     C = pos[e, ok] + R_E @ np.asarray(session.euc.pivot_to_wheel_center, float)
     A = C - session.euc.l0 * R_E[:, :, 2]
     up = np.array([0.0, 0.0, 1.0])
-    fr = {b: segs_fraction for b, segs_fraction in ((b, session.rider.segments[b].mass_fraction) for b in massive)}
+    fr = {b: session.rider.segments[b].mass_fraction for b in massive}
     low_seg, high_seg = {}, {}
     for b in massive:
         ends = np.stack([pos[idx[o], ok] - A for o in SEGMENT_ENDS[b]])            # (k, m, 3)
