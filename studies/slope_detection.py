@@ -33,10 +33,12 @@ from euc_ros.core.online.alarm import rmse_threshold  # noqa: E402
 from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator, series_torques  # noqa: E402
 from euc_ros.core.ridesim.floors import FloorProfile  # noqa: E402
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride  # noqa: E402
+from euc_ros.core.states.settings import ReconstructionSettings  # noqa: E402
 
 FILTERS = {
     "savgol 1.2 s (default, lag 0.6 s)": dict(estimator="savgol"),
-    "savgol 0.6 s order 4, lag 0.2 s": dict(estimator="savgol", window_s=0.6, polyorder=4, lag_s=0.2),
+    "savgol 0.6 s order 4, lag 0.2 s": dict(estimator="savgol", lag_s=0.2,
+                                             settings=ReconstructionSettings(window_s=0.6, polyorder=4)),
     "kalman, lag 0.2 s": dict(estimator="kalman", lag_s=0.2),
     "kalman, lag 0.1 s (low-lag mode)": dict(estimator="kalman", lag_s=0.1),
     "split, lag 0.1 s": dict(estimator="split", lag_s=0.1),

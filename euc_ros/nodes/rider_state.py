@@ -39,6 +39,7 @@ from euc_ros.core.io.cdr_flat import FlatEncoder
 from euc_ros.core.mocap.presence import BodyPresence
 from euc_ros.core.online.estimators import FrameSequencer, RiderStateEstimator
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
+from euc_ros.core.states.settings import ReconstructionSettings
 from euc_ros.core.states.skeleton import COG_METHODS
 from euc_ros.ros import convert
 from euc_ros.ros import interfaces as itf
@@ -145,11 +146,12 @@ class RiderStateNode(Node):
 
     def _build(self, rate: float) -> None:
         cfg = self.config
-        self.estimator = RiderStateEstimator(self.session, 1.0 / rate, phi_definition=cfg["phi_definition"],
-                                             window_s=cfg["window_s"], polyorder=cfg["polyorder"],
-                                             max_gap=cfg["max_gap"], estimator=cfg["estimator"],
+        settings = ReconstructionSettings(window_s=cfg["window_s"], polyorder=cfg["polyorder"],
+                                          phi_definition=cfg["phi_definition"], cog_method=cfg["cog_method"],
+                                          max_gap=cfg["max_gap"])
+        self.estimator = RiderStateEstimator(self.session, 1.0 / rate, settings=settings, estimator=cfg["estimator"],
                                              lag_s=cfg["lag_s"] if cfg["lag_s"] >= 0 else None,
-                                             smoothing_s=cfg["smoothing_s"] or None, cog_method=cfg["cog_method"],
+                                             smoothing_s=cfg["smoothing_s"] or None,
                                              skeleton_calibration_frames=max(
                                                  1, int(round(cfg["skeleton_calibration_s"] * rate))),
                                              split_euc_center=cfg["split_euc_center"])

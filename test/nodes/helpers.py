@@ -9,6 +9,7 @@ conftest.py provides its fixtures ``ride`` and ``pipes`` and keeps it out of the
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from types import SimpleNamespace
 
@@ -24,6 +25,7 @@ from euc_ros.core.mocap.frame import Frame
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.online.estimators import RiderStateEstimator, TorqueEstimator
 from euc_ros.core.session import save_session
+from euc_ros.core.states.settings import ReconstructionSettings
 from euc_ros.nodes.rider_state import RiderStateNode
 from euc_ros.nodes.torque_estimator import TorqueEstimatorNode
 from euc_ros.ros import convert
@@ -208,9 +210,19 @@ def rider_node(ctx, session_file, **params):
     return RiderStateNode(context=ctx, parameter_overrides=overrides)
 
 
+def live_estimator(session, **kw):
+    """The core's live estimator at the session's rate: the settings' keywords (TEST_FILTER by default) go into
+    its ReconstructionSettings, the rest to the estimator."""
+    kw = {**TEST_FILTER, **kw}
+    names = {f.name for f in dataclasses.fields(ReconstructionSettings)}
+    settings = ReconstructionSettings(**{k: v for k, v in kw.items() if k in names})
+    return RiderStateEstimator(session, 1 / session.rate_hz, settings=settings,
+                               **{k: v for k, v in kw.items() if k not in names})
+
+
 def core_states(series, session, frames=None, **kw):
     """The core estimator on the same frames, keyed by the capture stamp of each state's frame [ns]."""
-    est = RiderStateEstimator(session, 1 / session.rate_hz, **{**TEST_FILTER, **kw})
+    est = live_estimator(session, **kw)
     out = {}
     for _, s in est.update_series(series, frames):
         out[T0_NS + int(round(s.t * 1e9))] = s

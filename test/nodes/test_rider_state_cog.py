@@ -13,7 +13,6 @@ pytest.importorskip("rclpy")
 
 from scipy.spatial.transform import Rotation  # noqa: E402
 
-from euc_ros.core.online.estimators import RiderStateEstimator  # noqa: E402
 from euc_ros.testing import load_module  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -38,9 +37,8 @@ def test_skeleton_states_equal_the_core_and_flips_are_counted(pipes, ros_context
                         diagnostics_period=0.1)
     pipe = pipes([node])
     pipe.feed(H.frame_msgs(series))
-    est = RiderStateEstimator(session, 1 / session.rate_hz, cog_method="skeleton",
-                              skeleton_calibration_frames=int(round(CALIBRATION_S * session.rate_hz)),
-                              **H.TEST_FILTER)
+    est = H.live_estimator(session, cog_method="skeleton",
+                           skeleton_calibration_frames=int(round(CALIBRATION_S * session.rate_hz)))
     want = {}
     for _, s in est.update_series(series):
         want[H.T0_NS + int(round(s.t * 1e9))] = s

@@ -22,8 +22,6 @@ EXCEPTIONS = {
     "euc_ros/core/ridesim/truth_model.py:accelerations": "numba kernel with scalar arguments",
     "euc_ros/core/states/geometry_compiled.py:segments_geometry": "numba kernel with array arguments",
     "euc_ros/core/ridesim/compiled.py:dop853": "numba integrator: one loop over steps, its tableau inline",
-    # still to do: the live estimator's filter settings could be one ReconstructionSettings
-    "euc_ros/core/online/estimators.py:__init__": "RiderStateEstimator: 13 parameters (to do)",
 }
 
 

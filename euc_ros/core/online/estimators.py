@@ -26,15 +26,16 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.filters.causal import STATE_ESTIMATORS, streaming_filter
-from euc_ros.core.filters.derivatives import DEFAULT_MAX_GAP, StreamingSavgol, window_samples
+from euc_ros.core.filters.derivatives import StreamingSavgol, window_samples
 from euc_ros.core.mocap.bridging import PoseBridge
 from euc_ros.core.model.extended import Model, parse_effect_assignments
 from euc_ros.core.model.terms import EucParams
 from euc_ros.core.model.torque import torques, torques_2dof, torques_one
 from euc_ros.core.online.window import OnlineHEstimator, SlidingRmse
 from euc_ros.core.states.geometry import frame_geometry
-from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, PHI_DEFINITIONS
-from euc_ros.core.states.skeleton import COG_METHODS, OnlineSkeleton
+from euc_ros.core.states.kinematics import DEFAULT_WINDOW_S
+from euc_ros.core.states.settings import ReconstructionSettings
+from euc_ros.core.states.skeleton import OnlineSkeleton
 from euc_ros.core.states.split_lag import SPLIT_LAG_S, StreamingSplit, split_pieces
 
 
@@ -101,14 +102,13 @@ class RiderStateEstimator:
         Segments, EUC geometry.
     dt : float
         Frame period [s] (1 / rate).
-    phi_definition : {"hinge", "eq3"}
-        Which rider pitch ``phi`` holds.
-    window_s : float
-        Savitzky-Golay window [s]; the lag is half of it.
-    polyorder : int
-        Savitzky-Golay order.
-    max_gap : int
-        Longest run of missing frames bridged (bridged frames give no output).
+    settings : ReconstructionSettings, optional
+        The filter (a window in seconds; the lag is half of it), the pitch definition ``phi``
+        holds, the CoG method and the longest run of missing frames bridged (bridged frames give
+        no output). Default: the offline defaults with a :data:`DEFAULT_WINDOW_S` window.
+        ``cog_method`` ``skeleton`` fits the chain to each frame
+        (:class:`~euc_ros.core.states.skeleton.OnlineSkeleton`: no lag, ``cog_lag_s`` = 0; swapped or
+        flipped bodies excluded and counted in ``cog_faults``).
     estimator : {"savgol", "kalman", "split"}
         Derivative filter (:func:`~euc_ros.core.filters.causal.streaming_filter`): the Savitzky-Golay
         filter (default) or the low-lag Kalman fixed-lag smoother; or ``split``
@@ -121,10 +121,6 @@ class RiderStateEstimator:
         Output delay [s]: default half the Savitzky-Golay window, or 0.1 s for ``kalman`` and ``split``.
     smoothing_s : float, optional
         Smoothing time of the ``kalman`` estimator [s] (default: measured per lag).
-    cog_method : {"segments", "skeleton"}
-        Rider CoG from the measured segments or from the chain fitted to each frame
-        (:class:`~euc_ros.core.states.skeleton.OnlineSkeleton`: no lag, ``cog_lag_s`` = 0; swapped or
-        flipped bodies excluded and counted in ``cog_faults``).
     skeleton : SkeletonModel, optional
         The session's chain estimated offline; default: calibrated on the first
         ``skeleton_calibration_frames`` frames.
@@ -138,19 +134,19 @@ class RiderStateEstimator:
     Raises
     ------
     ConfigError
-        For an unknown or inconsistent ``phi_definition``, ``cog_method``, ``estimator`` or ``split_euc_center``.
+        For a window chosen from the data (``"auto"``: a live filter needs it in seconds), or an
+        unknown or inconsistent ``estimator`` or ``split_euc_center``.
     """
 
-    def __init__(self, session, dt: float, *, phi_definition: str = "hinge", window_s: float = DEFAULT_WINDOW_S,
-                 polyorder: int = DEFAULT_SG_POLYORDER, max_gap: int = DEFAULT_MAX_GAP, estimator: str = "savgol",
-                 lag_s: float | None = None, smoothing_s: float | None = None, cog_method: str = "segments",
+    def __init__(self, session, dt: float, *, settings: ReconstructionSettings | None = None,
+                 estimator: str = "savgol", lag_s: float | None = None, smoothing_s: float | None = None,
                  skeleton=None, skeleton_calibration_frames: int = 240,
                  split_euc_center=(0.0, 0.0, 0.0)) -> None:
-        if phi_definition not in PHI_DEFINITIONS:
-            raise ConfigError(f"phi definition must be one of {PHI_DEFINITIONS}, got {phi_definition!r}",
-                              key="phi_definition")
-        if cog_method not in COG_METHODS:
-            raise ConfigError(f"cog method must be one of {COG_METHODS}, got {cog_method!r}", key="cog_method")
+        settings = ReconstructionSettings(window_s=DEFAULT_WINDOW_S) if settings is None else settings
+        if settings.is_auto:
+            raise ConfigError("a live filter needs its window in seconds, not 'auto'", key="window_s")
+        phi_definition, cog_method, max_gap = settings.phi_definition, settings.cog_method, settings.max_gap
+        window_s, polyorder = settings.window_s, settings.polyorder
         self.session = session
         self.dt = float(dt)
         self.phi_definition = phi_definition

@@ -24,7 +24,8 @@ from euc_ros.core.online.estimators import RiderStateEstimator
 from euc_ros.core.rotations import quat_from_yaw_tilt_pitch
 from euc_ros.core.session import Euc, Rider, Segment, Session, default_session
 from euc_ros.core.states.geometry import frame_geometry
-from euc_ros.core.states.kinematics import reconstruct_states
+from euc_ros.core.states.kinematics import DEFAULT_WINDOW_S, reconstruct_states
+from euc_ros.core.states.settings import ReconstructionSettings
 from euc_ros.core.states.skeleton import OnlineSkeleton, SkeletonFitConfig, SkeletonModel, skeleton_cog
 
 RATE = 120.0
@@ -249,7 +250,8 @@ def test_option_threads_through_offline_and_live(session):
     with pytest.raises(ConfigError, match="cog"):
         frame_geometry(clean.position, clean.quat, None, session, clean.bodies, cog_method="bones")
     # live: the per-frame chain fit has no lag; states equal the offline ones (same filter, same G)
-    est = RiderStateEstimator(session, 1.0 / RATE, cog_method="skeleton", skeleton_calibration_frames=120)
+    est = RiderStateEstimator(session, 1.0 / RATE, settings=ReconstructionSettings(window_s=DEFAULT_WINDOW_S,
+                              cog_method="skeleton"), skeleton_calibration_frames=120)
     assert est.cog_lag_s == 0.0
     est_seg = RiderStateEstimator(session, 1.0 / RATE)
     assert est.lag_s == est_seg.lag_s

@@ -11,6 +11,7 @@ from euc_ros.core.mocap.bridging import bridge_series
 from euc_ros.core.ridesim.mocap_synth import MocapNoise
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.states.geometry import frame_geometry
+from euc_ros.core.states.settings import ReconstructionSettings
 from euc_ros.core.states.split_lag import (
     GROUPS,
     SPLIT_SMOOTHING,
@@ -245,7 +246,7 @@ def test_rider_state_estimator_runs_the_split_estimator(ride):
         assert o.valid and o.filter_lag_s == pytest.approx(0.1)
     for bad in (dict(phi_definition="eq3"), dict(cog_method="skeleton")):
         with pytest.raises(ConfigError):
-            RiderStateEstimator(session, DT, estimator="split", **bad)
+            RiderStateEstimator(session, DT, estimator="split", settings=ReconstructionSettings(window_s=1.2, **bad))
     for center in ((0.0, 0.1), (0.0, float("nan"), 0.0)):
         with pytest.raises(ConfigError, match="split_euc_center"):
             RiderStateEstimator(session, DT, estimator="split", split_euc_center=center)
