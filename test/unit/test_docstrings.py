@@ -36,7 +36,7 @@ DOCUMENTED: tuple[str, ...] = (
     "euc_ros.core.yamlfile", "euc_ros.core.anthropometry", "euc_ros.core.session",
     "euc_ros.core.io", "euc_ros.core.model", "euc_ros.core.mocap", "euc_ros.core.online",
     "euc_ros.core.unicycle", "euc_ros.core.ridesim", "euc_ros.core.identify",
-    "euc_ros.core.openworld.study", "euc_ros.core.openworld.equivalence",
+    "euc_ros.core.openworld", "euc_ros.core.worldsim",
 )
 
 #: Modules of DOCUMENTED packages whose sections are still to write, with why (the list only shrinks: a module

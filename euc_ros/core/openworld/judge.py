@@ -43,6 +43,16 @@ def right_library_names(law: F.ForceLaw | None) -> tuple[str, ...]:
       weight).
 
     Everything else has no library counterpart (a wheel-periodic law, an even speed law, a pitch torque).
+
+    Parameters
+    ----------
+    law : ForceLaw or None
+        The ride's hidden law (:func:`euc_ros.core.worldsim.forces.draw_law`); None for a control ride.
+
+    Returns
+    -------
+    tuple of str
+        The library effect names (empty: none is right, every name is a false one).
     """
     if law is None:
         return ()
@@ -65,7 +75,35 @@ def _family_of(row: dict) -> str | None:
 
 
 def judge(data: dict, family: str, law: F.ForceLaw | None) -> dict:
-    """What the analysis' JSON says about a ride with a known hidden law (the row's judged columns)."""
+    """What the analysis' JSON says about a ride with a known hidden law (the row's judged columns).
+
+    Parameters
+    ----------
+    data : dict
+        The JSON of ``euc-ros residual`` on the ride: ``rmse_before_nm`` and ``rmse_after_nm`` (required),
+        ``effect``, ``discovered`` (rows with ``family``, ``formula`` or ``function``, ``coordinate``,
+        ``point``) and ``noise_floor_nm``.
+    family : str
+        The ride's family (:data:`~euc_ros.core.worldsim.open_world_seeds.FAMILIES`; ``"none"``: a control).
+    law : ForceLaw or None
+        The hidden law (None for a control).
+
+    Returns
+    -------
+    dict
+        ``effect``, ``library_names``, ``right_names``, ``right_name`` and ``false_name`` (a library name
+        in / not in :func:`right_library_names`), ``discovered_terms``, ``discovered``,
+        ``discovered_families`` and ``family_match`` (both None without discovered rows or when one has no
+        ``family``),
+        ``rmse_before_nm``, ``rmse_after_nm`` [N m], ``ratio_measured`` (after / before), ``explained``
+        (None for a control; else the ratio is at most :data:`EXPLAINED_RATIO` with a right name, or with
+        discovered terms whose families include ``family`` or are not given) and ``noise_floor_nm``.
+
+    Raises
+    ------
+    KeyError
+        ``data`` lacks ``rmse_before_nm`` or ``rmse_after_nm``.
+    """
     names = library_effects(data.get("effect", "none"))
     right = set(right_library_names(law))
     disc = list(data.get("discovered") or [])
@@ -91,7 +129,18 @@ def judge_interval(ci, h_true: float) -> dict:
     """Whether the analysis' interval of h (``h_after_ci95_m``) holds the true h (the row's interval columns).
 
     An end the data do not bound (None) is open: it holds the truth on its side, and the width is infinite.
-    Returns ``h_after_lo_m``, ``h_after_hi_m`` (the ends as given), ``width_mm`` and ``covered``.
+
+    Parameters
+    ----------
+    ci : sequence of (float or None), or None
+        ``[low, high]`` [m]; None: both ends open.
+    h_true : float
+        The ride's true h [m].
+
+    Returns
+    -------
+    dict
+        ``h_after_lo_m``, ``h_after_hi_m`` (the ends as given) [m], ``width_mm`` [mm] and ``covered``.
     """
     ci = ci or [None, None]
     lo = -math.inf if ci[0] is None else float(ci[0])
@@ -109,7 +158,18 @@ def _pct(flags) -> float | None:
 
 
 def median(values) -> float | None:
-    """Median of the given numbers (an infinite width, an unbounded interval, counts as the largest)."""
+    """Median of the given numbers (an infinite width, an unbounded interval, counts as the largest).
+
+    Parameters
+    ----------
+    values : iterable of (float or None)
+        The numbers; None and NaN are left out.
+
+    Returns
+    -------
+    float or None
+        None when no number is left.
+    """
     v = [float(x) for x in values if x is not None and not math.isnan(float(x))]
     return float(np.median(v)) if v else None
 
@@ -117,11 +177,19 @@ def median(values) -> float | None:
 def summarize(rows: list[dict]) -> dict:
     """Per-family table: counts, explained / false-name / coverage percentages, interval widths, and the goals.
 
+    Parameters
+    ----------
+    rows : list of dict
+        A run's rows (:data:`~euc_ros.core.openworld.study.COLUMNS`, as
+        :func:`~euc_ros.core.openworld.study.run_task` makes them); a row whose ``status`` is not ``"ok"``
+        is a failure.
+
     Returns
     -------
     dict
-        ``families`` (family -> statistics), ``goals`` (the thresholds), ``family_key`` (whether the
-        discovered rows carried a ``family``), ``failures``.
+        ``families`` (family -> statistics and ``goals_met``), ``goals`` (the thresholds),
+        ``explained_ratio``, ``clean_mm`` [mm], ``family_key`` (whether the discovered rows carried a
+        ``family``; None without any) and ``failures`` (``task`` and ``error`` of each failed row).
     """
     out = {"goals": dict(GOALS), "explained_ratio": EXPLAINED_RATIO, "clean_mm": CLEAN_MM, "families": {},
            "failures": [{"task": r["task"], "error": r["error"]} for r in rows if r["status"] != "ok"]}

@@ -29,7 +29,18 @@ GYRATION = {"H": 0.30, "CH": 0.35, "UA": 0.30, "LA": 0.30, "HP": 0.35, "T": 0.33
 
 
 def ry(a) -> np.ndarray:
-    """Rotation matrices about +y by ``a`` [rad], shape ``a.shape + (3, 3)``."""
+    """Rotation matrices about +y by ``a`` [rad], shape ``a.shape + (3, 3)``.
+
+    Parameters
+    ----------
+    a : array_like
+        Angles [rad] (any shape).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``a.shape + (3, 3)``: ``[[cos a, 0, sin a], [0, 1, 0], [-sin a, 0, cos a]]``.
+    """
     a = np.asarray(a, dtype=float)
     c, s = np.cos(a), np.sin(a)
     z, o = np.zeros_like(a), np.ones_like(a)
@@ -37,7 +48,18 @@ def ry(a) -> np.ndarray:
 
 
 def quat_mul(a, b) -> np.ndarray:
-    """Hamilton product of quaternions (x, y, z, w), broadcast over leading axes."""
+    """Hamilton product of quaternions (x, y, z, w), broadcast over leading axes.
+
+    Parameters
+    ----------
+    a, b : array_like (..., 4)
+        Quaternions (x, y, z, w).
+
+    Returns
+    -------
+    numpy.ndarray (..., 4)
+        ``a b``: as rotations, ``b`` first, then ``a``.
+    """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     ax, ay, az, aw = np.moveaxis(a, -1, 0)
     bx, by, bz, bw = np.moveaxis(b, -1, 0)
@@ -48,7 +70,20 @@ def quat_mul(a, b) -> np.ndarray:
 
 
 def quat_axis(axis: int, a) -> np.ndarray:
-    """Quaternions (x, y, z, w) of rotations by ``a`` [rad] about coordinate axis ``axis`` (0, 1, 2)."""
+    """Quaternions (x, y, z, w) of rotations by ``a`` [rad] about coordinate axis ``axis`` (0, 1, 2).
+
+    Parameters
+    ----------
+    axis : int
+        0, 1 or 2 (x, y or z).
+    a : array_like
+        Angles [rad] (any shape).
+
+    Returns
+    -------
+    numpy.ndarray
+        ``a.shape + (4,)``.
+    """
     a = np.asarray(a, dtype=float)
     q = np.zeros(a.shape + (4,))
     q[..., axis] = np.sin(a / 2)
@@ -57,7 +92,20 @@ def quat_axis(axis: int, a) -> np.ndarray:
 
 
 def quat_rotate(q, v) -> np.ndarray:
-    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4): ``v + 2 w (u x v) + 2 u x (u x v)``."""
+    """Rotate vectors ``v`` (..., 3) by unit quaternions ``q`` (..., 4): ``v + 2 w (u x v) + 2 u x (u x v)``.
+
+    Parameters
+    ----------
+    q : array_like (..., 4)
+        Unit quaternions (x, y, z, w) = (u, w).
+    v : array_like (..., 3)
+        Vectors (broadcast against ``q``).
+
+    Returns
+    -------
+    numpy.ndarray (..., 3)
+        The rotated vectors.
+    """
     q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
     u, w = q[..., :3], q[..., 3:]
     t = 2.0 * np.cross(u, v)
@@ -65,7 +113,18 @@ def quat_rotate(q, v) -> np.ndarray:
 
 
 def quat_from_rotvec(r) -> np.ndarray:
-    """Quaternions (x, y, z, w) of rotation vectors ``r`` (..., 3) [rad]: ``(sin(|r|/2) r/|r|, cos(|r|/2))``."""
+    """Quaternions (x, y, z, w) of rotation vectors ``r`` (..., 3) [rad]: ``(sin(|r|/2) r/|r|, cos(|r|/2))``.
+
+    Parameters
+    ----------
+    r : array_like (..., 3)
+        Rotation vectors: axis times angle [rad].
+
+    Returns
+    -------
+    numpy.ndarray (..., 4)
+        Unit quaternions; ``(0, 0, 0, 1)`` for ``r = 0``.
+    """
     r = np.asarray(r, dtype=float)
     ang = np.linalg.norm(r, axis=-1, keepdims=True)
     half = 0.5 * ang
@@ -78,7 +137,7 @@ def quat_from_rotvec(r) -> np.ndarray:
 class Posture:
     """A riding posture, angles from the upright standing pose [rad] and stature [m].
 
-    Attributes
+    Parameters
     ----------
     stature : float
         Standing height [m].
@@ -102,7 +161,18 @@ class Posture:
 
     @staticmethod
     def draw(rng: np.random.Generator) -> "Posture":
-        """A random riding posture: stature 1.55-1.95 m, knees bent 10-45 deg, trunk lean 0-25 deg."""
+        """A random riding posture: stature 1.55-1.95 m, knees bent 10-45 deg, trunk lean 0-25 deg.
+
+        Parameters
+        ----------
+        rng : numpy.random.Generator
+            Source of the draws (uniform; the knee bend is shared 40-60 % by the shank).
+
+        Returns
+        -------
+        Posture
+            Also upper arm 0-30 deg, forearm 20-80 deg, head -0.1-0.3 rad.
+        """
         knee = rng.uniform(np.radians(10), np.radians(45))
         share = rng.uniform(0.4, 0.6)
         return Posture(stature=rng.uniform(1.55, 1.95), shank=share * knee, thigh=-(1 - share) * knee,
@@ -114,7 +184,7 @@ class Posture:
 class RiderBody:
     """The rider as a rigid body: segment pivots, pitches and centres of mass in the rider frame.
 
-    Attributes
+    Parameters
     ----------
     bodies : tuple of str
         :data:`SEGMENT_BODIES`.
@@ -126,6 +196,7 @@ class RiderBody:
         Segment centre of mass from its pivot, in the segment's body frame [m] (the session's
         ``com_offset``).
     mass_fraction : ndarray (13,)
+        Share of the rider mass of each segment (:data:`MASS_FRACTIONS`; sums to 1).
     mass : float
         Rider mass [kg].
     h : float
@@ -144,11 +215,23 @@ class RiderBody:
     J: float
 
     def com_rider_frame(self) -> np.ndarray:
-        """Segment centres of mass in the rider frame (13, 3): ``pivot + R_y(pitch) com_offset``."""
+        """Segment centres of mass in the rider frame (13, 3): ``pivot + R_y(pitch) com_offset``.
+
+        Returns
+        -------
+        numpy.ndarray (13, 3)
+            In the order of :attr:`bodies` [m].
+        """
         return self.pivot + np.einsum("kij,kj->ki", ry(self.pitch), self.com_offset)
 
     def cog_rider_frame(self) -> np.ndarray:
-        """Mass-weighted centre of the segments in the rider frame (3,): ``(0, 0, h)`` by construction."""
+        """Mass-weighted centre of the segments in the rider frame (3,): ``(0, 0, h)`` by construction.
+
+        Returns
+        -------
+        numpy.ndarray (3,)
+            The rider's centre of gravity G [m] (for a rider of :func:`build_rider`).
+        """
         return self.mass_fraction @ self.com_rider_frame()
 
 
@@ -257,7 +340,7 @@ def build_rider(posture: Posture, mass: float) -> RiderBody:
 class Placement:
     """Where the ride happens in the lab: origin of the path, heading, and the EUC's pivot.
 
-    Attributes
+    Parameters
     ----------
     origin : ndarray (2,)
         Ground point (x, y) where the wheel starts, Z-up world [m].

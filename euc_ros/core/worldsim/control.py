@@ -67,7 +67,7 @@ def plant_jacobians(p: PlantParams, step: float = 1e-6) -> dict[str, np.ndarray]
 class EucLoop:
     """The EUC's balance loop: ``M_d_cmd = k_p (gamma - gamma_ref(v)) + k_d gamma_dot``.
 
-    Attributes
+    Parameters
     ----------
     k_p : float
         Pitch stiffness [N m / rad].
@@ -80,7 +80,7 @@ class EucLoop:
     tilt_back : float
         Tilt-back slope [rad per m/s].
     natural_hz, damping : float
-        The pitch mode the gains were set for (informative).
+        The pitch mode the gains were set for (informative): frequency [Hz] and damping ratio.
     """
 
     k_p: float
@@ -95,6 +95,16 @@ class EucLoop:
         """Pitch reference [rad]: ``-tilt_back * s softplus((v - v_limit) / s)``, ``s = 0.1 m/s``.
 
         Zero well below the limit, a slope of ``-tilt_back`` well above; smooth in between.
+
+        Parameters
+        ----------
+        v : array_like
+            Wheel speed [m/s] (any shape).
+
+        Returns
+        -------
+        numpy.ndarray
+            The shape of ``v`` [rad] (zeros without a finite limit or with no tilt-back).
         """
         if not np.isfinite(self.v_limit) or self.tilt_back == 0.0:
             return np.zeros_like(np.asarray(v, dtype=float))
@@ -102,20 +112,66 @@ class EucLoop:
         return -self.tilt_back * s * np.logaddexp(0.0, (np.asarray(v, dtype=float) - self.v_limit) / s)
 
     def pitch_reference_one(self, v: float) -> float:
-        """:meth:`pitch_reference` of one speed, in scalar arithmetic."""
+        """:meth:`pitch_reference` of one speed, in scalar arithmetic.
+
+        Parameters
+        ----------
+        v : float
+            Wheel speed [m/s].
+
+        Returns
+        -------
+        float
+            Pitch reference [rad].
+        """
         if not math.isfinite(self.v_limit) or self.tilt_back == 0.0:
             return 0.0
         u = (v - self.v_limit) / 0.1
         return -self.tilt_back * 0.1 * (max(u, 0.0) + math.log1p(math.exp(-abs(u))))
 
     def command(self, gamma, gamma_dot, v):
-        """Commanded motor torque [N m] (any shape)."""
+        """Commanded motor torque [N m] (any shape).
+
+        Parameters
+        ----------
+        gamma : array_like
+            EUC body pitch [rad].
+        gamma_dot : array_like
+            Its rate [rad/s].
+        v : array_like
+            Wheel speed [m/s] (the tilt-back's input); the three broadcast.
+
+        Returns
+        -------
+        numpy.ndarray or float
+            ``M_d_cmd`` [N m].
+        """
         return self.k_p * (gamma - self.pitch_reference(v)) + self.k_d * gamma_dot
 
 
 def design_euc_loop(p: PlantParams, natural_hz: float, damping: float, tau: float, *, v_limit: float = np.inf,
                     tilt_back: float = 0.0) -> EucLoop:
     """Set the balance loop's PD gains for a pitch mode of given frequency and damping.
+
+    Parameters
+    ----------
+    p : PlantParams
+        The plant.
+    natural_hz : float
+        Natural frequency of the design's pitch mode [Hz].
+    damping : float
+        Its damping ratio.
+    tau : float
+        Motor torque lag [s] (not part of the design, see Notes).
+    v_limit : float
+        Speed above which the pitch reference tilts back [m/s] (inf: never).
+    tilt_back : float
+        Tilt-back slope [rad per m/s].
+
+    Returns
+    -------
+    EucLoop
+        The gains and the design values.
 
     Notes
     -----
@@ -137,10 +193,21 @@ def design_euc_loop(p: PlantParams, natural_hz: float, damping: float, tau: floa
 def open_loop_matrices(p: PlantParams, euc: EucLoop, tau_h: float) -> tuple[np.ndarray, np.ndarray]:
     """Linear model of :data:`LOOP_STATES` with the EUC loop closed; input: the rider's commanded torque.
 
+    Parameters
+    ----------
+    p : PlantParams
+        The plant, linearized about upright rest (:func:`plant_jacobians`).
+    euc : EucLoop
+        The balance loop (its gains and motor lag).
+    tau_h : float
+        The rider's muscle lag [s].
+
     Returns
     -------
     A : ndarray (7, 7)
+        State matrix on :data:`LOOP_STATES`.
     B : ndarray (7, 1)
+        Input matrix of the commanded ankle torque [N m].
 
     Notes
     -----
@@ -167,7 +234,7 @@ def open_loop_matrices(p: PlantParams, euc: EucLoop, tau_h: float) -> tuple[np.n
 class RiderLoop:
     """The rider's ankle-torque law ``M_h_cmd = M_h_ff(a_ref) - K (z - z_ref(v_ref, a_ref))``.
 
-    Attributes
+    Parameters
     ----------
     K : ndarray (7,)
         State-feedback gains on :data:`LOOP_STATES` [N m per unit].
@@ -185,7 +252,23 @@ class RiderLoop:
     weights: dict
 
     def command(self, z, v_ref, a_ref):
-        """Commanded ankle torque [N m]; ``z`` (..., 7) in :data:`LOOP_STATES` order."""
+        """Commanded ankle torque [N m]; ``z`` (..., 7) in :data:`LOOP_STATES` order.
+
+        Parameters
+        ----------
+        z : array_like (..., 7)
+            Loop states [rad, m/s, rad/s, N m].
+        v_ref : array_like (...)
+            Speed reference [m/s].
+        a_ref : array_like (...)
+            Reference acceleration [m/s^2]: ``z_ref = steady a_ref`` with speed entry ``v_ref``, and the
+            feed-forward ``M_h_ff = steady[6] a_ref``.
+
+        Returns
+        -------
+        numpy.ndarray (...)
+            ``M_h_cmd`` [N m].
+        """
         z = np.asarray(z, dtype=float)
         zr = np.asarray(a_ref, dtype=float)[..., None] * self.steady
         zr = zr + np.asarray(v_ref, dtype=float)[..., None] * np.eye(7)[2]
@@ -194,6 +277,18 @@ class RiderLoop:
 
 def steady_acceleration(p: PlantParams, euc: EucLoop) -> np.ndarray:
     """Linear steady state of :data:`LOOP_STATES` per unit acceleration (speed entry 0).
+
+    Parameters
+    ----------
+    p : PlantParams
+        The plant (linearized, :func:`plant_jacobians`).
+    euc : EucLoop
+        The balance loop (its ``k_p``).
+
+    Returns
+    -------
+    numpy.ndarray (7,)
+        States per m/s^2 of acceleration [rad, m/s, rad/s, N m per m/s^2]; rates and speed entries 0.
 
     Notes
     -----
@@ -248,13 +343,44 @@ def design_rider_loop(p: PlantParams, euc: EucLoop, tau: float, *, max_gamma: fl
 
 
 def closed_loop_matrix(p: PlantParams, euc: EucLoop, rider: RiderLoop) -> np.ndarray:
-    """``A - B K``: the linearized ride with both loops closed (:data:`LOOP_STATES`)."""
+    """``A - B K``: the linearized ride with both loops closed (:data:`LOOP_STATES`).
+
+    Parameters
+    ----------
+    p : PlantParams
+        The plant.
+    euc : EucLoop
+        The balance loop.
+    rider : RiderLoop
+        The rider's loop (its gains ``K`` and muscle lag).
+
+    Returns
+    -------
+    numpy.ndarray (7, 7)
+        State matrix of :func:`open_loop_matrices` with ``u = -K z``.
+    """
     A, B = open_loop_matrices(p, euc, rider.tau)
     return A - B @ rider.K[None, :]
 
 
 def pitch_mode_hz(p: PlantParams, euc: EucLoop, rider: RiderLoop) -> float:
-    """Frequency [Hz] of the closed-loop mode with the largest EUC-pitch share (its natural frequency |lambda|/2 pi)."""
+    """Frequency [Hz] of the closed-loop mode with the largest EUC-pitch share (its natural frequency |lambda|/2 pi).
+
+    Parameters
+    ----------
+    p : PlantParams
+        The plant.
+    euc : EucLoop
+        The balance loop.
+    rider : RiderLoop
+        The rider's loop.
+
+    Returns
+    -------
+    float
+        ``|lambda| / (2 pi)`` [Hz] of the eigenvalue of :func:`closed_loop_matrix` whose eigenvector has the
+        largest share of EUC pitch rate.
+    """
     lam, vec = np.linalg.eig(closed_loop_matrix(p, euc, rider))
     share = np.abs(vec[3]) / np.linalg.norm(vec, axis=0)   # pitch-rate component of each mode
     return float(np.abs(lam[int(np.argmax(share))]) / (2 * np.pi))

@@ -28,7 +28,7 @@ UNKNOWNS = ("x_ddot", "gamma_ddot", "phi_ddot", "F_t", "N", "F_Cx", "F_Cz", "F_A
 class PlantParams:
     """Masses, inertias and lengths of the wheel, the EUC body and the rider (SI units).
 
-    Attributes
+    Parameters
     ----------
     R : float
         Wheel radius [m].
@@ -61,7 +61,23 @@ class PlantParams:
     g: float = GRAVITY
 
     def with_(self, **changes) -> "PlantParams":
-        """Return a copy with some fields changed."""
+        """Return a copy with some fields changed.
+
+        Parameters
+        ----------
+        **changes : float
+            New values by field name (SI units, as the fields).
+
+        Returns
+        -------
+        PlantParams
+            The copy.
+
+        Raises
+        ------
+        TypeError
+            A name is not a field.
+        """
         return replace(self, **changes)
 
 
@@ -224,7 +240,23 @@ def solve_one(q, qd, M_d: float, M_h: float, p: PlantParams, Q=None) -> np.ndarr
     """:func:`solve` for one state, in scalar arithmetic (the integrator's right-hand side).
 
     Same entries as :func:`newton_euler_system` (:func:`_system_rows`); building the matrix from
-    floats costs a third of the broadcasting path on a single state. ``Q``: three floats or None.
+    floats costs a third of the broadcasting path on a single state.
+
+    Parameters
+    ----------
+    q, qd : sequence of float (3,)
+        Coordinates ``(x, gamma, phi)`` [m, rad, rad] and their rates [m/s, rad/s, rad/s].
+    M_d, M_h : float
+        Motor and ankle torques [N m].
+    p : PlantParams
+        The plant.
+    Q : sequence of float (3,), optional
+        External generalized force ``(Q_x, Q_gamma, Q_phi)`` [N, N m, N m]; None for none.
+
+    Returns
+    -------
+    numpy.ndarray (9,)
+        As :func:`solve`: :data:`UNKNOWNS` [m/s^2, rad/s^2, N].
     """
     rows, rhs = _system_rows(math.sin(q[1]), math.cos(q[1]), math.sin(q[2]), math.cos(q[2]),
                              float(qd[1]), float(qd[2]), float(M_d), float(M_h), p, Q)
@@ -253,12 +285,41 @@ def solve(q, qd, M_d, M_h, p: PlantParams, Q=None) -> np.ndarray:
 
 
 def accelerations(q, qd, M_d, M_h, p: PlantParams, Q=None) -> np.ndarray:
-    """Generalized accelerations ``(x_ddot, gamma_ddot, phi_ddot)`` (..., 3); see :func:`solve`."""
+    """Generalized accelerations ``(x_ddot, gamma_ddot, phi_ddot)`` (..., 3); see :func:`solve`.
+
+    Parameters
+    ----------
+    q, qd : array_like (..., 3)
+        Coordinates ``(x, gamma, phi)`` [m, rad, rad] and their rates [m/s, rad/s, rad/s].
+    M_d, M_h : array_like (...)
+        Motor and ankle torques [N m].
+    p : PlantParams
+        The plant.
+    Q : array_like (..., 3), optional
+        External generalized force [N, N m, N m] (:func:`newton_euler_system`).
+
+    Returns
+    -------
+    numpy.ndarray (..., 3)
+        ``(x_ddot, gamma_ddot, phi_ddot)`` [m/s^2, rad/s^2, rad/s^2].
+    """
     return solve(q, qd, M_d, M_h, p, Q)[..., :3]
 
 
 def energy(q, qd, p: PlantParams) -> np.ndarray:
     """Kinetic plus potential energy [J] of the three bodies (ground level z = 0).
+
+    Parameters
+    ----------
+    q, qd : array_like (..., 3)
+        Coordinates ``(x, gamma, phi)`` [m, rad, rad] and their rates [m/s, rad/s, rad/s].
+    p : PlantParams
+        The plant.
+
+    Returns
+    -------
+    numpy.ndarray (...)
+        ``T + V`` [J].
 
     Notes
     -----
@@ -284,11 +345,26 @@ def energy(q, qd, p: PlantParams) -> np.ndarray:
 def torque_power(qd, M_d, M_h, p: PlantParams) -> np.ndarray:
     """Power [W] of the motor and ankle torques: ``M_d (x_dot / R - gamma_dot) + M_h (gamma_dot - phi_dot)``.
 
+    Parameters
+    ----------
+    qd : array_like (..., 3)
+        Rates ``(x_dot, gamma_dot, phi_dot)`` [m/s, rad/s, rad/s].
+    M_d, M_h : array_like (...)
+        Motor and ankle torques [N m].
+    p : PlantParams
+        The plant (its wheel radius).
+
+    Returns
+    -------
+    numpy.ndarray (...)
+        The power [W].
+
     Notes
     -----
     Each torque acts on two bodies with opposite signs, so its power is the torque times the relative
     rate; the joint forces do no net work (equal and opposite at one point) and the ground force none
-    (``v_P = 0``). Hence ``dE/dt`` equals this power (:func:`energy`).
+    (``v_P = 0``). Hence ``dE/dt`` equals this power (:func:`energy`), plus ``Q . q_dot`` with an external
+    generalized force.
     """
     qd = np.asarray(qd, dtype=float)
     return M_d * (qd[..., 0] / p.R - qd[..., 1]) + M_h * (qd[..., 1] - qd[..., 2])

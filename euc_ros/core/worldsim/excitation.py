@@ -19,7 +19,7 @@ SKIRT_FACTOR = 2.5
 class BandNoise:
     """One realization of band-limited Gaussian noise, ``d(t) = sum_k a_k cos(2 pi f_k t) + b_k sin(2 pi f_k t)``.
 
-    Attributes
+    Parameters
     ----------
     freqs : ndarray (k,)
         Frequencies [Hz] (multiples of ``1 / period``).
@@ -49,7 +49,13 @@ class BandNoise:
 
     @staticmethod
     def zero() -> "BandNoise":
-        """A disturbance that is identically zero."""
+        """A disturbance that is identically zero.
+
+        Returns
+        -------
+        BandNoise
+            With no frequencies.
+        """
         return BandNoise(np.zeros(0), np.zeros(0), np.zeros(0))
 
 
@@ -102,7 +108,23 @@ def band_noise(rng: np.random.Generator, period: float, f_lo: float, f_hi: float
 
 
 def random_band(rng: np.random.Generator, limits=BAND_LIMITS_HZ, min_ratio: float = 3.0) -> tuple[float, float]:
-    """Draw band corners ``f_lo < f_hi`` log-uniformly within ``limits`` with ``f_hi / f_lo >= min_ratio``."""
+    """Draw band corners ``f_lo < f_hi`` log-uniformly within ``limits`` with ``f_hi / f_lo >= min_ratio``.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the draws.
+    limits : (float, float)
+        Lowest and highest corner [Hz], at least ``min_ratio`` apart as a ratio.
+    min_ratio : float
+        Smallest ratio ``f_hi / f_lo``.
+
+    Returns
+    -------
+    tuple of float
+        ``(f_lo, f_hi)`` [Hz]: ``f_hi`` first, log-uniform in ``[limits[0] min_ratio, limits[1]]``, then
+        ``f_lo`` log-uniform in ``[limits[0], f_hi / min_ratio]``.
+    """
     lo, hi = np.log(limits[0]), np.log(limits[1])
     f_hi = float(np.exp(rng.uniform(lo + np.log(min_ratio), hi)))
     f_lo = float(np.exp(rng.uniform(lo, np.log(f_hi / min_ratio))))
@@ -113,7 +135,7 @@ def random_band(rng: np.random.Generator, limits=BAND_LIMITS_HZ, min_ratio: floa
 class SpeedProfile:
     """Piecewise speed reference: holds joined by cosine-acceleration ramps.
 
-    Attributes
+    Parameters
     ----------
     t0, t1 : ndarray (k,)
         Start and end of each piece [s], contiguous (``t0[i+1] == t1[i]``).
@@ -142,12 +164,34 @@ class SpeedProfile:
         return i, d, tau
 
     def speed(self, t):
-        """Reference speed [m/s] at ``t``."""
+        """Reference speed [m/s] at ``t``.
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s] (any shape).
+
+        Returns
+        -------
+        numpy.ndarray
+            The shape of ``t`` [m/s].
+        """
         i, _, tau = self._piece(t)
         return self.v0[i] + (self.v1[i] - self.v0[i]) * (tau - np.sin(2 * np.pi * tau) / (2 * np.pi))
 
     def acceleration(self, t):
-        """Reference acceleration [m/s^2] at ``t`` (the derivative of :meth:`speed`)."""
+        """Reference acceleration [m/s^2] at ``t`` (the derivative of :meth:`speed`).
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s] (any shape).
+
+        Returns
+        -------
+        numpy.ndarray
+            The shape of ``t`` [m/s^2] (zero before the first piece and after the last).
+        """
         i, d, tau = self._piece(t)
         return (self.v1[i] - self.v0[i]) / d * (1.0 - np.cos(2 * np.pi * tau))
 

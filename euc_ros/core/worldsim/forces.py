@@ -102,7 +102,7 @@ def _loguniform(rng: np.random.Generator, lo: float, hi: float, size=None):
 class Point:
     """Where a law's force acts (:data:`POINTS`).
 
-    Attributes
+    Parameters
     ----------
     kind : str
         One of :data:`POINTS`.
@@ -111,6 +111,11 @@ class Point:
         (``cog_x``, ``cog_z``: the rider's h, set by :meth:`bind`).
     forward : float
         ``rider_x``: offset along the rider's forward axis [m].
+
+    Raises
+    ------
+    ConfigError
+        ``kind`` is not one of :data:`POINTS` (key ``point``).
     """
 
     kind: str
@@ -127,7 +132,18 @@ class Point:
         return "N m" if self.kind == "pitch" else "N"
 
     def bind(self, p: PlantParams) -> "Point":
-        """The point with the rider's h filled in for the CoG points."""
+        """The point with the rider's h filled in for the CoG points.
+
+        Parameters
+        ----------
+        p : PlantParams
+            The plant (its ``h``).
+
+        Returns
+        -------
+        Point
+            ``cog_x``, ``cog_z``: ``height = p.h``, ``forward = 0``; any other point unchanged.
+        """
         return replace(self, height=p.h, forward=0.0) if self.kind in ("cog_x", "cog_z") else self
 
     def jacobian(self, gamma, phi, p: PlantParams) -> np.ndarray:
@@ -135,6 +151,18 @@ class Point:
 
         For the force points, the row of the point's velocity Jacobian along the force's direction;
         for ``pitch``, ``(0, 0, 1)``.
+
+        Parameters
+        ----------
+        gamma, phi : array_like
+            EUC and rider pitch [rad] (broadcast).
+        p : PlantParams
+            The plant (``l_0``, and ``h`` for the CoG points).
+
+        Returns
+        -------
+        numpy.ndarray (..., 3)
+            ``(dQ_x, dQ_gamma, dQ_phi) / dF`` [1, m, m] (dimensionless at the pitch point).
         """
         gamma, phi = np.broadcast_arrays(np.asarray(gamma, dtype=float), np.asarray(phi, dtype=float))
         J = np.zeros(gamma.shape + (3,))
@@ -153,7 +181,20 @@ class Point:
         return J
 
     def jacobian_one(self, gamma: float, phi: float, p: PlantParams) -> tuple[float, float, float]:
-        """:meth:`jacobian` of one state in scalar arithmetic (the integrator's right-hand side)."""
+        """:meth:`jacobian` of one state in scalar arithmetic (the integrator's right-hand side).
+
+        Parameters
+        ----------
+        gamma, phi : float
+            EUC and rider pitch [rad].
+        p : PlantParams
+            The plant.
+
+        Returns
+        -------
+        tuple of float
+            ``(dQ_x, dQ_gamma, dQ_phi) / dF``.
+        """
         k = self.kind
         if k == "contact":
             return 1.0, 0.0, 0.0
@@ -166,7 +207,13 @@ class Point:
         return 1.0, -p.l_0 * math.cos(gamma), d * math.cos(phi) - f * math.sin(phi)
 
     def describe(self) -> dict:
-        """Plain mapping for the truth file."""
+        """Plain mapping for the truth file.
+
+        Returns
+        -------
+        dict
+            ``kind``, ``height_m``, ``forward_m`` [m] and ``unit`` (of the law's value).
+        """
         return {"kind": self.kind, "height_m": self.height, "forward_m": self.forward, "unit": self.unit}
 
 
@@ -174,6 +221,23 @@ def draw_point(rng: np.random.Generator, stature: float) -> Point:
     """A random point, uniform over :data:`POINTS`.
 
     A ``rider_x`` point 0.45-0.78 of the stature above the ankle (hands to shoulders) and 0-0.3 m forward.
+
+    Parameters
+    ----------
+    rng : numpy.random.Generator
+        Source of the draws.
+    stature : float
+        Rider's stature [m].
+
+    Returns
+    -------
+    Point
+        Unbound (:meth:`Point.bind` fills in a CoG point's height).
+
+    Raises
+    ------
+    ConfigError
+        ``stature`` is not > 0 (key ``stature``).
     """
     if not stature > 0:
         raise ConfigError(f"must be > 0 m, got {stature}", key="stature")
@@ -216,15 +280,21 @@ EVEN_BASIS = ("square", "tanh2", "abs_cubic", "soft_abs")
 class ForceLaw:
     """A hidden force law: ``value = amplitude * shape`` at a :class:`Point`.
 
-    Attributes
+    Parameters
     ----------
     family : str
         One of :data:`FAMILIES`.
     point : Point
+        Where it acts.
     amplitude : float
         Scale of the law [N, or N m at the pitch point]; 1 for a drawn, uncalibrated law.
     params : dict
         The shape's draws (plain floats, lists and strings; see :func:`draw_law`).
+
+    Raises
+    ------
+    ConfigError
+        ``family`` is unknown (key ``family``) or ``amplitude`` not finite (key ``amplitude``).
     """
 
     family: str
@@ -249,14 +319,38 @@ class ForceLaw:
         return xd if u == "speed" else (pd if u == "rider_pitch_rate" else gd)
 
     def initial_states(self, xd: float, gd: float, pd: float) -> np.ndarray:
-        """States at rest for a constant input: ``z = u`` (and ``z' = 0``)."""
+        """States at rest for a constant input: ``z = u`` (and ``z' = 0``).
+
+        Parameters
+        ----------
+        xd, gd, pd : float
+            Speed [m/s], EUC and rider pitch rates [rad/s] (the law's input is one of them).
+
+        Returns
+        -------
+        numpy.ndarray (n_states,)
+            Empty for a law without states.
+        """
         if self.n_states == 0:
             return np.zeros(0)
         u = float(self._input(xd, gd, pd))
         return np.array([u] if self.n_states == 1 else [u, 0.0])
 
     def state_rates(self, xd, gd, pd, z):
-        """``dz/dt`` (..., n_states) of the dynamic law; ``z`` (..., n_states)."""
+        """``dz/dt`` (..., n_states) of the dynamic law; ``z`` (..., n_states).
+
+        Parameters
+        ----------
+        xd, gd, pd : array_like
+            Speed [m/s], EUC and rider pitch rates [rad/s].
+        z : array_like (..., n_states)
+            The law's states (unit of its input; the second is its rate).
+
+        Returns
+        -------
+        numpy.ndarray (..., n_states)
+            Zeros of ``z``'s shape for a law without states.
+        """
         z = np.asarray(z, dtype=float)
         if self.n_states == 0:
             return np.zeros_like(z)
@@ -268,7 +362,20 @@ class ForceLaw:
         return np.stack([z[..., 1], w * w * (u - z[..., 0]) - 2.0 * zeta * w * z[..., 1]], -1)
 
     def state_rates_one(self, xd: float, gd: float, pd: float, z) -> list[float]:
-        """:meth:`state_rates` of one state, scalar arithmetic."""
+        """:meth:`state_rates` of one state, scalar arithmetic.
+
+        Parameters
+        ----------
+        xd, gd, pd : float
+            Speed [m/s], EUC and rider pitch rates [rad/s].
+        z : sequence of float (n_states,)
+            The law's states.
+
+        Returns
+        -------
+        list of float
+            ``dz/dt`` (empty for a law without states).
+        """
         n = self.n_states
         if n == 0:
             return []
@@ -281,12 +388,42 @@ class ForceLaw:
 
     # -- the value -------------------------------------------------------------------------------
     def value(self, t, x, xd, gd, pd, z=None):
-        """The law's value [N or N m] at times and states (arrays broadcasting; ``z`` (..., n_states))."""
+        """The law's value [N or N m] at times and states (arrays broadcasting; ``z`` (..., n_states)).
+
+        Parameters
+        ----------
+        t : array_like
+            Times [s].
+        x : array_like
+            The integrator's travel [m] (the lab field's and the wheel angle's coordinate).
+        xd, gd, pd : array_like
+            Speed [m/s], EUC and rider pitch rates [rad/s].
+        z : array_like (..., n_states), optional
+            The dynamic law's states (needed by that family only).
+
+        Returns
+        -------
+        numpy.ndarray
+            ``amplitude * shape`` [N, or N m at the pitch point].
+        """
         t, x, xd, gd, pd = (np.asarray(a, dtype=float) for a in (t, x, xd, gd, pd))
         return self.amplitude * self._shape(t, x, xd, z, np)
 
     def value_one(self, t: float, x: float, xd: float, gd: float, pd: float, z=()) -> float:
-        """:meth:`value` of one state, scalar arithmetic."""
+        """:meth:`value` of one state, scalar arithmetic.
+
+        Parameters
+        ----------
+        t, x, xd, gd, pd : float
+            One time and state, as for :meth:`value` [s, m, m/s, rad/s, rad/s].
+        z : sequence of float
+            The dynamic law's states (empty for the others).
+
+        Returns
+        -------
+        float
+            [N, or N m at the pitch point].
+        """
         return self.amplitude * self._shape(t, x, xd, z, math)
 
     def _shape(self, t, x, v, z, xp):
@@ -326,7 +463,24 @@ class ForceLaw:
         return P["sign"] * z0 / P["input_scale"]
 
     def generalized(self, t, x, xd, gd, pd, gamma, phi, p: PlantParams, z=None) -> np.ndarray:
-        """Generalized force ``Q`` (..., 3) [N, N m, N m] of the law at times and states."""
+        """Generalized force ``Q`` (..., 3) [N, N m, N m] of the law at times and states.
+
+        Parameters
+        ----------
+        t, x, xd, gd, pd : array_like
+            Times and states, as for :meth:`value` [s, m, m/s, rad/s, rad/s].
+        gamma, phi : array_like
+            EUC and rider pitch [rad].
+        p : PlantParams
+            The plant.
+        z : array_like (..., n_states), optional
+            The dynamic law's states.
+
+        Returns
+        -------
+        numpy.ndarray (..., 3)
+            ``value * Point.jacobian`` [N, N m, N m].
+        """
         F = self.value(t, x, xd, gd, pd, z)
         return F[..., None] * self.point.jacobian(gamma, phi, p)
 
@@ -345,7 +499,13 @@ class ForceLaw:
         return replace(self, amplitude=float(amplitude))
 
     def describe(self) -> dict:
-        """Plain mapping for the truth file."""
+        """Plain mapping for the truth file.
+
+        Returns
+        -------
+        dict
+            ``family``, ``amplitude``, ``unit``, ``point`` (:meth:`Point.describe`) and ``params``.
+        """
         return {"family": self.family, "amplitude": self.amplitude, "unit": self.point.unit,
                 "point": self.point.describe(), "params": self.params}
 
@@ -435,6 +595,20 @@ def residual_effect(Q, gamma, phi, p: PlantParams) -> np.ndarray:
 
     ``R m_eq (R Q_x + Q_gamma + Q_phi) / (R m_eq - (m l_0 - m_0 h_0) cos gamma + m h cos phi)`` with
     ``m_eq = m + m_0 + m_w + J_w / R^2`` (module docstring), for a model with the true parameters.
+
+    Parameters
+    ----------
+    Q : array_like (..., 3)
+        ``(Q_x, Q_gamma, Q_phi)`` [N, N m, N m].
+    gamma, phi : array_like (...)
+        EUC and rider pitch [rad].
+    p : PlantParams
+        The true plant.
+
+    Returns
+    -------
+    numpy.ndarray (...)
+        Change of ``M_d1 - M_d2`` [N m].
     """
     Q = np.asarray(Q, dtype=float)
     m_eq = p.m + p.m_0 + p.m_w + p.J_w / p.R**2
@@ -447,6 +621,20 @@ def law_states_on(law: ForceLaw, t, xd, gd, pd) -> np.ndarray:
 
     The linear dynamics are integrated exactly for an input linear between samples
     (``scipy.signal.lsim``).
+
+    Parameters
+    ----------
+    law : ForceLaw
+        The law (no states: an (n, 0) result).
+    t : array_like (n,)
+        Sample times [s], increasing.
+    xd, gd, pd : array_like (n,)
+        Speed [m/s], EUC and rider pitch rates [rad/s] at the samples.
+
+    Returns
+    -------
+    numpy.ndarray (n, n_states)
+        The states at the samples.
     """
     from scipy.signal import lsim
 
@@ -466,7 +654,24 @@ def law_states_on(law: ForceLaw, t, xd, gd, pd) -> np.ndarray:
 
 
 def values_on(law: ForceLaw, truth: dict, t, x_offset: float = 0.0) -> np.ndarray:
-    """The law's value [N or N m] along a recorded ride (see :func:`effect_on`)."""
+    """The law's value [N or N m] along a recorded ride (see :func:`effect_on`).
+
+    Parameters
+    ----------
+    law : ForceLaw
+        The law.
+    truth : dict
+        The ride's ``x``, ``x_dot``, ``gamma_dot``, ``phi_dot`` (n,) (:attr:`Ride.truth`) [m, m/s, rad/s].
+    t : array_like (n,)
+        Sample times [s].
+    x_offset : float
+        Added to ``truth["x"]`` to give the integrator's travel [m].
+
+    Returns
+    -------
+    numpy.ndarray (n,)
+        [N, or N m at the pitch point].
+    """
     x = np.asarray(truth["x"], float) + x_offset
     xd, gd, pd = (np.asarray(truth[k], float) for k in ("x_dot", "gamma_dot", "phi_dot"))
     z = law_states_on(law, t, xd, gd, pd) if law.n_states else None
@@ -479,6 +684,25 @@ def effect_on(law: ForceLaw, truth: dict, t, p: PlantParams, x_offset: float = 0
     ``x_offset`` is added to the truth's travel ``x`` (counted from the first sample) to give the
     integrator's ``x``, on which the lab field and the wheel angle are defined. The dynamic law's
     states come from :func:`law_states_on` (from rest at the first sample).
+
+    Parameters
+    ----------
+    law : ForceLaw
+        The law.
+    truth : dict
+        The ride's ``x``, ``x_dot``, ``gamma``, ``gamma_dot``, ``phi``, ``phi_dot`` (n,)
+        (:attr:`Ride.truth`) [m, m/s, rad, rad/s].
+    t : array_like (n,)
+        Sample times [s].
+    p : PlantParams
+        The true plant.
+    x_offset : float
+        The integrator's travel at the first sample [m].
+
+    Returns
+    -------
+    numpy.ndarray (n,)
+        :func:`residual_effect` of the law's generalized force [N m].
     """
     x = np.asarray(truth["x"], float) + x_offset
     xd, gd, pd = (np.asarray(truth[k], float) for k in ("x_dot", "gamma_dot", "phi_dot"))
@@ -503,7 +727,20 @@ def rms(a) -> float:
 
 
 def ratio_of(floor: float, effect: float) -> float:
-    """Design ratio ``floor / sqrt(floor^2 + effect^2)`` (a perfect model's RMSE over the RMSE without it)."""
+    """Design ratio ``floor / sqrt(floor^2 + effect^2)`` (a perfect model's RMSE over the RMSE without it).
+
+    Parameters
+    ----------
+    floor : float
+        RMSE of the residual without the effect [N m].
+    effect : float
+        RMS of the effect [N m].
+
+    Returns
+    -------
+    float
+        In (0, 1] for ``floor > 0`` (``ZeroDivisionError`` when both are 0).
+    """
     return float(floor / math.hypot(floor, effect))
 
 

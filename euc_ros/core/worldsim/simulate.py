@@ -46,14 +46,20 @@ ATOL_SCALE_WORK_EXT, ATOL_SCALE_LAW = 10.0, 1.0
 class RideSpec:
     """Everything a ride is made of (drawn by :func:`draw_spec`, or built by hand).
 
-    Attributes
+    Parameters
     ----------
     plant : PlantParams
+        Masses, inertias and lengths (:func:`draw_spec` takes the rider's ``m``, ``J``, ``h`` from ``rider``).
     rider : RiderBody
+        The rider's segments (the recording's rigid bodies).
     place : Placement
+        Start point and heading in the lab, and the EUC's pivot.
     euc : EucLoop
+        The EUC's balance loop.
     rider_loop : RiderLoop
+        The rider's ankle-torque loop.
     profile : SpeedProfile
+        The speed reference.
     dist_h, dist_d, dist_v : BandNoise
         Disturbances of the ankle torque [N m], of the motor torque [N m] and of the speed
         reference [m/s].
@@ -84,13 +90,33 @@ class RideSpec:
         return len(STATE) + (0 if self.force is None else 1 + self.force.n_states)
 
     def atol_scale(self) -> np.ndarray:
-        """Absolute tolerance scale per integrator state."""
+        """Absolute tolerance scale per integrator state.
+
+        Returns
+        -------
+        numpy.ndarray (n_state,)
+            :data:`ATOL_SCALE`, with a law also :data:`ATOL_SCALE_WORK_EXT` and :data:`ATOL_SCALE_LAW` per
+            law state [the states' units].
+        """
         if self.force is None:
             return ATOL_SCALE
         return np.concatenate([ATOL_SCALE, [ATOL_SCALE_WORK_EXT], np.full(self.force.n_states, ATOL_SCALE_LAW)])
 
     def inputs(self, t, y):
-        """Commanded torques ``(M_d_cmd, M_h_cmd)`` [N m] at times ``t`` and states ``y`` (..., 9)."""
+        """Commanded torques ``(M_d_cmd, M_h_cmd)`` [N m] at times ``t`` and states ``y`` (..., 9).
+
+        Parameters
+        ----------
+        t : array_like (...)
+            Times [s].
+        y : array_like (..., 9)
+            Integrator states on :data:`STATE` (entries after the ninth are not read).
+
+        Returns
+        -------
+        tuple of numpy.ndarray (...)
+            ``(M_d_cmd, M_h_cmd)`` [N m], the disturbances included.
+        """
         y = np.asarray(y, dtype=float)
         v_ref = self.profile.speed(t) + self.dist_v(t)
         a_ref = self.profile.acceleration(t) + self.dist_v(t, deriv=1)
@@ -126,6 +152,18 @@ class RideSpec:
         The same laws as :meth:`inputs`, in scalar arithmetic (tested equal): the integrator calls
         this some 10^5 times per ride. A hidden law adds its generalized force to the dynamics, its power
         ``Q . q_dot`` as the rate of ``work_ext``, and its states' rates.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+        y : numpy.ndarray (n_state,)
+            The state.
+
+        Returns
+        -------
+        numpy.ndarray (n_state,)
+            ``dy/dt``.
         """
         c = self._scalar
         ph = c["w"] * t
@@ -184,15 +222,22 @@ def draw_spec(seed: int, *, duration: float = 30.0, kind: str = "mixed", euc_hz=
     -------
     RideSpec
 
+    Raises
+    ------
+    ConfigError
+        An unknown ``kind`` or a ``duration`` not > 0 (keys ``kind``, ``duration``), or a draw whose
+        linearized closed loop is unstable (key ``seed``).
+
     Notes
     -----
     Draws (uniform unless said): rider mass 55-95 kg and a posture (:meth:`Posture.draw`); wheel
     radius 0.18-0.25 m, wheel 2.5-5 kg, body 10-20 kg, their inertias, ``h_0`` 0.03-0.12 m,
-    ``l_0`` 0.02-0.10 m; the EUC pitch mode (``euc_hz``, ``euc_damping``), motor lag 2-8 ms, a
+    ``l_0`` 0.02-0.10 m; the EUC pitch mode (``euc_hz``, ``euc_damping``), motor lag 1-4 ms, a
     tilt-back 0.05-0.15 rad per m/s above 70-100 % of ``v_max``; the rider's design weights (pitch
     4-10 deg, lean 8-15 deg, speed error 0.5-1.5 m/s, rates 60-150 deg/s, torque 25-60 N m) and
-    muscle lag 30-90 ms; the disturbances' bands log-uniform within 0.1-3 Hz with rms 5-20 N m on
-    the ankle torque, 2-10 N m on the motor torque and 0.05-0.3 m/s on the speed reference.
+    muscle lag 30-90 ms; the disturbances (:data:`DISTURBANCES`, rms times ``disturbance_scale``): 2-8 N m
+    on the ankle torque and 0.5-3 N m on the motor torque, bands log-uniform within 0.1-3 Hz, and
+    0.05-0.2 m/s on the speed reference, within :data:`SPEED_BAND_HZ`.
     """
     if kind not in PROFILE_KINDS:
         raise ConfigError(f"must be one of {PROFILE_KINDS}, got {kind!r}", key="kind")
@@ -263,6 +308,12 @@ def another_run(spec: "RideSpec", seed: int, *, kind: str | None = None, v_max: 
         Speed-profile kind (default: the spec's).
     v_max, disturbance_scale : float
         As for :func:`draw_spec`.
+
+    Returns
+    -------
+    RideSpec
+        ``spec`` with a new ``profile``, ``dist_h``, ``dist_d``, ``dist_v``; ``info`` gains the run's
+        ``disturbances`` and ``run_seed``.
     """
     rng = np.random.default_rng(seed)
     kind = kind or spec.info.get("kind", "mixed")
@@ -276,18 +327,19 @@ def another_run(spec: "RideSpec", seed: int, *, kind: str | None = None, v_max: 
 class Ride:
     """A simulated ride on a time grid: the truth and the spec it came from.
 
-    Attributes
+    Parameters
     ----------
     spec : RideSpec
+        What the ride is made of.
     t : ndarray (n,)
         Sample times [s].
     truth : dict of ndarray (n,)
         ``x, x_dot, x_ddot, gamma, gamma_dot, gamma_ddot, phi, phi_dot, phi_ddot`` [m, rad and their
         derivatives], ``M_d, M_h`` [N m] (applied), ``M_d_cmd, M_h_cmd``, ground forces ``F_t, N``
-        [N], ``energy`` and ``work`` [J]; with a hidden law also its value, generalized force, work,
-        residual contribution and states (:func:`simulate`).
+        [N], ``energy`` and ``work`` [J], ``v_ref`` [m/s] (the disturbed speed reference); with a hidden
+        law also its value, generalized force, work, residual contribution and states (:func:`simulate`).
     stats : dict
-        Integrator statistics (``nfev``, steps, tolerances).
+        Integrator statistics (``nfev``, ``rtol``, ``method``, ``x_offset_m``, ``power_check``).
     """
 
     spec: RideSpec
@@ -331,6 +383,18 @@ def integrate(spec: RideSpec, t_eval, *, rtol: float = 1e-9, y0=None, method: st
     warmup : float
         Time integrated before ``t_eval[0]`` and not recorded [s] (the profile holds its first
         speed there; the disturbances are periodic).
+
+    Returns
+    -------
+    scipy.integrate.OdeResult
+        ``solve_ivp``'s result: ``y`` (spec.n_state, n) at ``t_eval``, ``nfev``.
+
+    Raises
+    ------
+    ConfigError
+        ``y0`` is not of shape ``(spec.n_state,)`` (key ``y0``).
+    RuntimeError
+        The integration fails, or takes over :data:`MAX_RHS_PER_S` evaluations per simulated second.
     """
     t_start = float(t_eval[0]) - warmup
     if y0 is None:
@@ -379,6 +443,8 @@ def simulate(spec: RideSpec, rate_hz: float = 120.0, *, rtol: float = 1e-9) -> R
     ------
     ConfigError
         If the ride falls (pitch beyond :data:`FALL_GAMMA` or lean beyond :data:`FALL_PHI`).
+    RuntimeError
+        The integration fails (:func:`integrate`).
 
     Notes
     -----
@@ -445,6 +511,11 @@ def simulate_ride(seed: int, rate_hz: float = 120.0, *, max_attempts: int = 20, 
     -------
     Ride
         ``ride.spec.info["seed"]`` is the sub-seed used; ``["requested_seed"]`` the one given.
+
+    Raises
+    ------
+    ConfigError
+        None of the ``max_attempts`` draws gives a stable ride that does not fall (key ``seed``).
     """
     last = None
     for k in range(max_attempts):

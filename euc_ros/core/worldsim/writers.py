@@ -24,7 +24,7 @@ MEAN_MARKER_ERROR_M = 0.0002
 class Capture:
     """How the motion-capture system sees the ride.
 
-    Attributes
+    Parameters
     ----------
     world_up : {"y", "z"}
         Up axis of the exported world (Motive's default is ``"y"``).
@@ -44,6 +44,7 @@ class Capture:
     flip_quaternion_signs : bool
         Negate the quaternion of random frames (the sign of a quaternion is arbitrary).
     take_name : str
+        Take name of the CSV's metadata (and :func:`write_ride`'s default file stem).
     """
 
     world_up: str = "y"
@@ -64,6 +65,18 @@ def to_y_up(position, quat) -> tuple[np.ndarray, np.ndarray]:
     -----
     Motive's axes are ``(X, Y, Z) = (x, z, -y)``, a proper rotation ``P``; vectors map as ``P v`` and
     a rotation's quaternion axis as ``P u``: ``(qx, qy, qz, qw) -> (qx, qz, -qy, qw)``.
+
+    Parameters
+    ----------
+    position : array_like (..., 3)
+        Z-up positions [m].
+    quat : array_like (..., 4)
+        Z-up quaternions (x, y, z, w).
+
+    Returns
+    -------
+    position, quat : numpy.ndarray
+        The same shapes, in Motive's Y-up world.
     """
     position, quat = np.asarray(position, dtype=float), np.asarray(quat, dtype=float)
     pos = np.stack([position[..., 0], position[..., 2], -position[..., 1]], -1)
@@ -171,6 +184,20 @@ def session_text(ride, capture: Capture, rate_hz: float) -> str:
 
     The segment table and the EUC's values are the generator's own, so the weighted segment centres of
     mass give the model's G exactly (noise-free), and the EUC parameters are the truth.
+
+    Parameters
+    ----------
+    ride : Ride
+        The ride (its plant, rider and placement).
+    capture : Capture
+        Its ``world_up`` is written.
+    rate_hz : float
+        Frame rate written as ``rate_hz`` [Hz].
+
+    Returns
+    -------
+    str
+        The YAML text, ending in a newline.
     """
     p, rider, place = ride.spec.plant, ride.spec.rider, ride.spec.place
 
@@ -194,7 +221,21 @@ def session_text(ride, capture: Capture, rate_hz: float) -> str:
 
 
 def truth_dict(ride, frames=None) -> dict:
-    """The truth of a ride as plain JSON types: parameters, draws and the state arrays (SI units)."""
+    """The truth of a ride as plain JSON types: parameters, draws and the state arrays (SI units).
+
+    Parameters
+    ----------
+    ride : Ride
+        The ride.
+    frames : array_like of int, optional
+        Sample indices to keep (default: all).
+
+    Returns
+    -------
+    dict
+        ``generator``, ``h_m`` [m], ``plant``, ``euc_loop``, ``rider_loop``, ``info``, ``force`` (None
+        without a law), ``integrator`` (the ride's stats), ``t`` [s], ``frame`` and each truth array.
+    """
     spec = ride.spec
     keep = slice(None) if frames is None else np.asarray(frames)
     arrays = {k: np.asarray(v)[keep].tolist() for k, v in ride.truth.items()}
@@ -232,6 +273,11 @@ def write_ride(ride, out_dir, capture: Capture = Capture(), *, seed: int = 0, na
     -------
     dict
         Paths ``csv``, ``session``, ``truth``, and ``kept_frames`` (the frames exported).
+
+    Raises
+    ------
+    ValueError
+        ``capture.world_up`` is neither ``"y"`` nor ``"z"``.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
