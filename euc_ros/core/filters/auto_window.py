@@ -81,6 +81,29 @@ def savgol_response(window: int, polyorder: int, deriv: int, dt: float, freqs) -
     (``freqs`` the ``N``-point DFT's ``m / (N dt)``, to 1e-12 relative) it is one FFT: the weights folded
     modulo ``N`` (the exponential's period in ``j``), ``H_m = conj(rfft(a))_m``; elsewhere the sum itself.
     Both are the same sum to round-off.
+
+    Parameters
+    ----------
+    window : int
+        Odd window length [samples], ``> polyorder``.
+    polyorder : int
+        Polynomial order.
+    deriv : int
+        Derivative order (0, 1, 2).
+    dt : float
+        Sample spacing [s].
+    freqs : array_like (m,)
+        Frequencies [Hz].
+
+    Returns
+    -------
+    numpy.ndarray of complex (m,)
+        The response [1 / s^deriv].
+
+    Raises
+    ------
+    ConfigError
+        Naming ``window`` when it is even or not longer than ``polyorder``.
     """
     w = savgol_kernel(window, polyorder, deriv, dt)
     c = (w.size - 1) // 2
@@ -114,7 +137,21 @@ def welch_linear(x: np.ndarray, fs: float, nperseg: int) -> tuple[np.ndarray, np
     each segment is projected off ``[1, t]`` (orthogonal, so the same line): equal to round-off
     (``test_auto_window``).
 
-    Returns ``(freqs [Hz], psd)``.
+    Parameters
+    ----------
+    x : numpy.ndarray (n,)
+        Evenly sampled signal, ``n >= nperseg``.
+    fs : float
+        Sampling rate [Hz].
+    nperseg : int
+        Segment length [samples].
+
+    Returns
+    -------
+    freqs : numpy.ndarray (nperseg // 2 + 1,)
+        Frequencies [Hz].
+    psd : numpy.ndarray (nperseg // 2 + 1,)
+        Power spectral density [unit^2/Hz].
     """
     x = np.asarray(x, dtype=float)
     n = int(nperseg)
@@ -233,13 +270,14 @@ def displacement_spectrum(y, dt: float, segment_s: float = SEGMENT_S) -> tuple[n
 class WindowChoice:
     """The chosen filter and what it leaves.
 
-    Attributes
+    Parameters
     ----------
     window_s : float
         Window [s] (``window / rate``; pass it as ``--window-s``).
     window : int
         Window [samples], odd.
     polyorder : int
+        Polynomial order.
     distortion : dict
         Per signal: the predicted relative RMS error of the filtered value, first and second
         derivative from the filter's response alone (``{"gamma": (d0, d1, d2), ...}``), each
@@ -286,7 +324,13 @@ class WindowChoice:
     candidates: list = field(repr=False, default_factory=list)
 
     def to_json(self) -> dict:
-        """Plain-JSON form (candidates left out)."""
+        """The plain-JSON form (``near_optimal`` and ``candidates`` left out).
+
+        Returns
+        -------
+        dict
+            The fields as JSON values (tuples as lists; a ``probe_ratio`` that is not finite as None).
+        """
         return {"window_s": self.window_s, "window": self.window, "polyorder": self.polyorder,
                 "distortion": {k: list(v) for k, v in self.distortion.items()}, "noise": dict(self.noise),
                 "noise_std": dict(self.noise_std), "acceleration_rms": dict(self.acceleration_rms),

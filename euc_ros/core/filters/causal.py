@@ -86,7 +86,18 @@ MAX_MEMORY_SAMPLES = 100_000
 
 
 def default_smoothing_s(lag_s: float) -> float:
-    """Smoothing time [s] of :data:`SMOOTHING_TABLE` for a lag [s] (linear between the entries)."""
+    """The smoothing time [s] of :data:`SMOOTHING_TABLE` for a lag [s] (linear between the entries).
+
+    Parameters
+    ----------
+    lag_s : float
+        Output delay [s]; outside the table, its first or last entry's smoothing time.
+
+    Returns
+    -------
+    float
+        Smoothing time [s].
+    """
     lags, taus = np.array(SMOOTHING_TABLE).T
     return float(np.interp(lag_s, lags, taus))
 
@@ -232,8 +243,16 @@ def _stretch(seg: np.ndarray, w: np.ndarray, lag: int) -> np.ndarray:
 class LaggedDerivatives(Derivatives):
     """:class:`~euc_ros.core.filters.derivatives.Derivatives` of a fixed-lag filter.
 
-    Attributes
+    Parameters
     ----------
+    y, y_dot, y_ddot : numpy.ndarray
+        Filtered signal and its first and second derivatives [unit, unit/s, unit/s^2], the input's shape.
+    filled : numpy.ndarray of bool (n,)
+        Samples filled by interpolation across a short gap.
+    window : int
+        Memory of the filter [samples].
+    dt : float
+        Sample spacing [s].
     lag : int
         Output delay of the streaming twin [frames]: the last ``lag`` samples of a stretch are NaN.
     """
@@ -323,7 +342,25 @@ def _derivs(out, filled, window, dt, lag) -> LaggedDerivatives:
 
 
 def lag_frames(lag_s: float, dt: float) -> int:
-    """Lag [s] rounded to whole frames (>= 0)."""
+    """A lag [s] rounded to whole frames.
+
+    Parameters
+    ----------
+    lag_s : float
+        Lag [s], finite and ``>= 0``.
+    dt : float
+        Frame period [s].
+
+    Returns
+    -------
+    int
+        The lag [frames], ``>= 0``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``lag_s`` when it is negative or not finite.
+    """
     if not (np.isfinite(lag_s) and lag_s >= 0):
         raise ConfigError(f"lag_s must be >= 0 s, got {lag_s!r}", key="lag_s")
     return int(round(lag_s / dt))
@@ -395,8 +432,21 @@ def streaming_filter(estimator: str, dt: float, *, window_s: float, polyorder: i
         (default from :data:`SMOOTHING_TABLE`); ``window_s`` and ``polyorder`` are not used.
     dt : float
         Frame period [s].
-    window_s, polyorder, max_gap, lag_s, smoothing_s
-        See above.
+    window_s : float
+        Savitzky-Golay window [s].
+    polyorder : int
+        Savitzky-Golay polynomial order.
+    max_gap : int
+        Longest run of missing frames bridged.
+    lag_s : float, optional
+        Output delay [s].
+    smoothing_s : float, optional
+        Smoothing time of the ``kalman`` filter [s].
+
+    Returns
+    -------
+    StreamingSavgol
+        A :class:`~euc_ros.core.filters.derivatives.StreamingSavgol`, or a :class:`StreamingKalman`.
 
     Raises
     ------

@@ -92,10 +92,17 @@ def window_samples(dt: float, window_s: float | None = None, window: int | None 
     polyorder : int
         Polynomial order; the window must be longer than it.
 
+    Returns
+    -------
+    int
+        Window length [samples], odd and ``> polyorder``.
+
     Raises
     ------
     ConfigError
         Naming ``window_s``, ``window`` or ``polyorder`` when the combination is invalid.
+    InputError
+        Naming ``dt`` when it is not a finite positive number.
     """
     if (window_s is None) == (window is None):
         raise ConfigError("give exactly one of window_s [s] and window [samples]", key="window_s")
@@ -256,10 +263,11 @@ def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None
 class Derivatives:
     """Smoothed signal and its analytic derivatives (unpacks as ``y, y_dot, y_ddot``).
 
-    Attributes
+    Parameters
     ----------
     y, y_dot, y_ddot : ndarray
-        Same shape as the input; NaN outside usable stretches.
+        Value and its first and second derivatives [unit, unit/s, unit/s^2], the input's shape; NaN outside
+        usable stretches.
     filled : ndarray of bool (n,)
         Samples that were missing in the input and were filled by interpolation across a short gap:
         they have values, but they are not measurements.
@@ -281,7 +289,30 @@ class Derivatives:
 
 
 def grid_positions(t_or_dt, n: int, frame) -> tuple[float, np.ndarray]:
-    """Return (dt [s], integer grid position of every sample)."""
+    """The sample spacing and the integer grid position of every sample.
+
+    Parameters
+    ----------
+    t_or_dt : float or array_like (n,)
+        Sample spacing [s], or the sample times [s] (then the spacing is the median step, per frame when
+        ``frame`` is given).
+    n : int
+        Number of samples.
+    frame : array_like of int (n,) or None
+        Frame numbers; when given they are the grid positions (from the first one).
+
+    Returns
+    -------
+    dt : float
+        Sample spacing [s]; NaN when times are given for fewer than two samples.
+    k : numpy.ndarray of int (n,)
+        Grid position of every sample, 0 at the first.
+
+    Raises
+    ------
+    InputError
+        Naming ``frame`` or ``t`` for a wrong shape, and ``t`` for times or frames that do not increase.
+    """
     t_arr = np.asarray(t_or_dt, dtype=float)
     if frame is not None:
         k = np.asarray(frame, dtype=np.int64)
@@ -399,6 +430,25 @@ def filter_stretches(y: np.ndarray, k: np.ndarray, max_gap: int, min_length: int
     given, does the same for a stretch without missing samples straight into ``dst``, three (L, c) views
     of ``out`` (no copy of the stretch, no (3, L, c) result: the memory of filtering a long recording is
     its outputs plus one stretch).
+
+    Parameters
+    ----------
+    y : numpy.ndarray (n,) or (n, c)
+        Signal, time along axis 0; a sample with any non-finite component is missing.
+    k : numpy.ndarray of int (n,)
+        Grid position of every sample, strictly increasing.
+    max_gap : int
+        Longest run of missing grid samples bridged [samples].
+    min_length : int
+        Shortest stretch filtered [grid samples].
+    filter_stretch : callable
+        ``filter_stretch(seg) -> (3, L, c)`` for a gap-free (L, c) stretch.
+    out : list of numpy.ndarray
+        Three arrays of ``y``'s shape: value and first and second derivatives, written in place.
+    filled : numpy.ndarray of bool (n,)
+        Set in place to True at the samples filled by interpolation.
+    filter_into : callable, optional
+        ``filter_into(seg, dst)`` writing a stretch without missing samples into ``dst``.
     """
     n = y.shape[0]
     y2 = y.reshape(n, -1)
@@ -423,7 +473,17 @@ def filter_stretches(y: np.ndarray, k: np.ndarray, max_gap: int, min_length: int
 
 
 class StreamSample(NamedTuple):
-    """One output of :class:`StreamingSavgol`: the smoothed sample ``lag`` frames back."""
+    """One output of :class:`StreamingSavgol`: the smoothed sample ``lag`` frames back.
+
+    Parameters
+    ----------
+    frame : int
+        Frame number of the sample.
+    y, y_dot, y_ddot : float or numpy.ndarray (k,)
+        Value and its first and second derivatives [unit, unit/s, unit/s^2] (floats for a scalar signal).
+    filled : bool
+        The sample was filled by interpolation across a short gap.
+    """
 
     frame: int
     y: np.ndarray | float
@@ -580,6 +640,22 @@ def trim_edges(mask: np.ndarray, k: int, position: np.ndarray | None = None,
     are much less accurate than inside; the online fixed-lag filter never outputs those samples.
     ``position`` gives each sample's frame number (rows may skip dropped frames; a skip of more than
     ``max_gap`` frames ends a stretch, as in :func:`savgol_derivatives`); default: the row index.
+
+    Parameters
+    ----------
+    mask : array_like of bool (n,)
+        Usable samples.
+    k : int
+        Frames dropped at each end of a stretch.
+    position : array_like of int (n,), optional
+        Frame number of every sample.
+    max_gap : int
+        Longest skip of frames inside a stretch.
+
+    Returns
+    -------
+    numpy.ndarray of bool (n,)
+        ``mask`` without the samples near the stretches' ends.
     """
     mask = np.asarray(mask, dtype=bool)
     if k <= 0:

@@ -50,7 +50,7 @@ class MaskedDerivatives:
 
     One row per sample (``n``), or per wanted row when :func:`masked_savgol` is given ``rows``.
 
-    Attributes
+    Parameters
     ----------
     y, y_dot, y_ddot : ndarray (n,) or (n, k)
         The fit's value and its first and second time derivatives [unit, unit/s, unit/s^2]; NaN where

@@ -1,6 +1,6 @@
 """Print the sympy-derived truth equations as plain numeric functions (:mod:`.eom_generated`).
 
-:mod:`.truth_model` derives the equations of motion of the three truth geometries (level, floor of
+:mod:`.eom_derivation` derives the equations of motion of the three truth geometries (level, floor of
 varying slope, pedals that flex) from the point kinematics with sympy. The derivation is the single
 source; this module prints its expressions, after common-subexpression elimination, as Python
 functions of floats that use only ``numpy`` functions. The printed file, :mod:`.eom_generated`, serves
@@ -36,7 +36,7 @@ _DOCS = {
     "vel_g": "In-plane velocity of the rider CoG G, including the h_dot term.",
 }
 
-_HEADER = '''"""Numeric truth equations, printed from the sympy derivation of :mod:`.truth_model`: do not edit.
+_HEADER = '''"""Numeric truth equations, printed from the sympy derivation of :mod:`.eom_derivation`: do not edit.
 
 Written by :mod:`euc_ros.core.ridesim.eom_codegen` (``python -m euc_ros.core.ridesim.eom_codegen``).
 Each function returns a tuple of floats or of broadcasting numpy arrays; the arguments are the
@@ -50,9 +50,9 @@ import numpy
 
 
 def _derivations() -> dict:
-    from euc_ros.core.ridesim import truth_model as tm
+    from euc_ros.core.ridesim import eom_derivation as d
 
-    return {"planar": tm._derive, "floor": tm._derive_floor, "pedal": tm._derive_pedal}
+    return {"planar": d.derive_planar, "floor": d.derive_floor, "pedal": d.derive_pedal}
 
 
 def _function_source(name: str, args, exprs, doc: str) -> str:

@@ -1,4 +1,4 @@
-"""Numeric truth equations, printed from the sympy derivation of :mod:`.truth_model`: do not edit.
+"""Numeric truth equations, printed from the sympy derivation of :mod:`.eom_derivation`: do not edit.
 
 Written by :mod:`euc_ros.core.ridesim.eom_codegen` (``python -m euc_ros.core.ridesim.eom_codegen``).
 Each function returns a tuple of floats or of broadcasting numpy arrays; the arguments are the

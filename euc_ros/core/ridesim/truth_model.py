@@ -1,9 +1,10 @@
-"""Truth dynamics of the ride simulator: the planar EUC + rider, derived here with sympy.
+"""Truth dynamics of the ride simulator: the planar EUC + rider, derived with sympy.
 
 This module deliberately shares no code with the model and states packages (the estimator). Instead of
-transcribing the EUC paper's eqs (5)-(8), it writes down the *point kinematics* of Fig. 5 (with the
-geometry of ``papers/ERRATA.md``) and lets sympy form Lagrange's equations of the second kind (eq. 4)
-once, on first use. The tests then compare the result with eqs (5)-(8) written out by hand.
+transcribing the EUC paper's eqs (5)-(8), :mod:`.eom_derivation` writes down the *point kinematics* of Fig. 5
+(with the geometry of ``papers/ERRATA.md``) and lets sympy form Lagrange's equations of the second kind
+(eq. 4); the models here evaluate them (printed into :mod:`.eom_generated`, or lambdified in the process). The
+tests then compare the result with eqs (5)-(8) written out by hand.
 
 Geometry (longitudinal plane, axes (x forward, z up), SI units)::
 
@@ -30,14 +31,12 @@ import math
 import types
 from dataclasses import dataclass, fields, replace
 from functools import lru_cache
-from typing import TYPE_CHECKING, Callable
+from typing import Callable
 
 import numpy as np
 
+from euc_ros.core.ridesim.eom_derivation import derive_floor, derive_pedal, derive_planar, symbolic_model
 from euc_ros.core.session import Session
-
-if TYPE_CHECKING:
-    import sympy as sp
 
 #: Standard gravity [m/s^2].
 G_M_PER_S2 = 9.81
@@ -155,151 +154,6 @@ class _Numeric:
     vel_g_v: Callable
 
 
-@dataclass(frozen=True)
-class _Compiled(_Numeric):
-    """Lambdified pieces of the derived model and its sympy expressions.
-
-    Each piece comes in a scalar ``math`` and a vectorized ``numpy`` version.
-    """
-
-    # sympy expressions kept for the docs, for independent checks and for code generation
-    M: sp.Matrix
-    b: sp.Matrix
-    syms: dict
-    #: ``{"mass": (args, exprs), "bias": ..., "jac_g": ..., "vel_g": ...}``: what each function computes
-    functions: dict
-
-
-def _time_to_symbols(t, pairs) -> dict:
-    """``{f'': s2, f': s1, f: s0}`` for each ``(f(t), s0, s1, s2)``: functions of time to plain symbols."""
-    subs = {}
-    for f, s0, s1, s2 in pairs:
-        subs[f.diff(t, 2)] = s2
-        subs[f.diff(t)] = s1
-        subs[f] = s0
-    return subs
-
-
-def _substitute(e, subs):
-    """Apply :func:`_time_to_symbols`' map, second derivatives first.
-
-    Second derivatives go first so that Derivative(f, t) inside them is not replaced early.
-    """
-    for k in sorted(subs, key=lambda d: -getattr(d, "derivative_count", 0)):
-        e = e.subs(k, subs[k])
-    return e
-
-
-def _lam(args, expr, module):
-    import sympy as sp  # lazily: only simulations need it
-
-    return sp.lambdify(args, expr, modules=module, cse=True)
-
-
-def _extension(M, b, mass_args, m_entries, bias_args, syms) -> _Compiled:
-    """A model that extends the planar one (:func:`_derive`).
-
-    Its own mass matrix and bias, lambdified, with the planar model's rider-CoG Jacobian and velocity (the
-    rider's geometry is the same).
-    """
-    base = _derive()
-    return _Compiled(
-        mass_s=_lam(mass_args, m_entries, "math"), bias_s=_lam(bias_args, list(b), "math"),
-        jac_g_s=base.jac_g_s, vel_g_s=base.vel_g_s,
-        mass_v=_lam(mass_args, m_entries, "numpy"), bias_v=_lam(bias_args, list(b), "numpy"),
-        jac_g_v=base.jac_g_v, vel_g_v=base.vel_g_v, M=M, b=b, syms=syms,
-        functions={"mass": (mass_args, m_entries), "bias": (bias_args, list(b))})
-
-
-@lru_cache(maxsize=1)
-def _derive() -> _Compiled:
-    """Form Lagrange's equations from the point kinematics (once per process, about 0.8 s)."""
-    import sympy as sp  # lazily: only simulations need it
-
-    t = sp.Symbol("t")
-    m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
-    gx, gz = sp.symbols("g_x g_z")
-    xf, gf, pf, hf = (sp.Function(n)(t) for n in ("x", "gamma", "phi", "h"))
-
-    def planar(v0, v1):
-        return sp.Matrix([v0, v1])
-
-    C = planar(xf, R)
-    A = C + l0 * planar(-sp.sin(gf), -sp.cos(gf))
-    G0 = C + h0 * planar(sp.sin(gf), sp.cos(gf))
-    G = A + hf * planar(sp.sin(pf), sp.cos(pf))
-    g_vec = planar(gx, gz)
-
-    def kin(point, mass):
-        v = point.diff(t)
-        return sp.Rational(1, 2) * mass * (v.T * v)[0]
-
-    T = (kin(C, mw) + sp.Rational(1, 2) * Jw * (xf.diff(t) / R) ** 2
-         + kin(G0, m0) + sp.Rational(1, 2) * J0 * gf.diff(t) ** 2
-         + kin(G, m) + sp.Rational(1, 2) * J * pf.diff(t) ** 2)
-    V = -(mw * (g_vec.T * C)[0] + m0 * (g_vec.T * G0)[0] + m * (g_vec.T * G)[0])
-    L = T - V
-
-    qf = [xf, gf, pf]
-    eom = [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in qf]
-
-    # Replace functions of time by plain symbols.
-    x, gam, phi, xd, gd, pd, xdd, gdd, pdd = sp.symbols("x gamma phi x_d gamma_d phi_d x_dd gamma_dd phi_dd")
-    h, hd, hdd = sp.symbols("h h_d h_dd")
-    subs = _time_to_symbols(t, ((xf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)))
-
-    def plain(e):
-        return sp.expand(_substitute(e, subs))
-
-    eom_s = [plain(e) for e in eom]
-    qdd = [xdd, gdd, pdd]
-    M = sp.Matrix(3, 3, lambda i, j: sp.diff(eom_s[i], qdd[j]))
-    b = sp.Matrix([sp.expand(eom_s[i] - sum(M[i, j] * qdd[j] for j in range(3))) for i in range(3)])
-
-    Gp = G.subs(subs)
-    Gs = sp.Matrix([plain(Gp[0]), plain(Gp[1])])
-    jac_G = Gs.jacobian([x, gam, phi])
-    vel_G = sp.Matrix([plain(G.diff(t)[i]) for i in range(2)])
-
-    pars = (m, m0, mw, Jw, J0, J, R, l0, h0)
-    mass_args = (gam, phi, h) + pars
-    m_entries = [M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2]]
-    bias_args = (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz) + pars
-    jac_args = (gam, phi, h) + pars
-    vel_args = (gam, phi, xd, gd, pd, h, hd) + pars
-
-    jac_list = [jac_G[i, j] for i in range(2) for j in range(3)]
-    return _Compiled(
-        mass_s=_lam(mass_args, m_entries, "math"),
-        bias_s=_lam(bias_args, list(b), "math"),
-        jac_g_s=_lam(jac_args, jac_list, "math"),
-        vel_g_s=_lam(vel_args, list(vel_G), "math"),
-        mass_v=_lam(mass_args, m_entries, "numpy"),
-        bias_v=_lam(bias_args, list(b), "numpy"),
-        jac_g_v=_lam(jac_args, jac_list, "numpy"),
-        vel_g_v=_lam(vel_args, list(vel_G), "numpy"),
-        M=M, b=b,
-        syms={"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
-              "g": (gx, gz), "params": pars, "G": Gs},
-        functions={"mass": (mass_args, m_entries), "bias": (bias_args, list(b)), "jac_g": (jac_args, jac_list),
-                   "vel_g": (vel_args, list(vel_G))},
-    )
-
-
-def symbolic_model() -> tuple["sp.Matrix", "sp.Matrix", dict]:
-    """The derived ``(M, b, symbols)`` as sympy objects (for documentation and checks).
-
-    Returns
-    -------
-    M, b : sympy.Matrix
-        Mass matrix (3, 3) and bias vector (3,).
-    symbols : dict
-        The symbols by role.
-    """
-    c = _derive()
-    return c.M, c.b, c.syms
-
-
 def solve3(a00, a01, a02, a11, a12, a22, r0, r1, r2):
     """Solve a symmetric 3x3 system by Cramer's rule (scalars or broadcasting arrays).
 
@@ -338,7 +192,7 @@ def _on_floats(f: Callable) -> Callable:
 def _numeric(model: str, equations: str) -> _Numeric:
     """The numeric functions of ``model`` (``planar``, ``floor``, ``pedal``) from the source ``equations``."""
     if equations == "sympy":
-        c = {"planar": _derive, "floor": _derive_floor, "pedal": _derive_pedal}[model]()
+        c = {"planar": derive_planar, "floor": derive_floor, "pedal": derive_pedal}[model]()
         return _Numeric(c.mass_s, c.bias_s, c.jac_g_s, c.vel_g_s, c.mass_v, c.bias_v, c.jac_g_v, c.vel_g_v)
     if equations != "generated":
         raise ValueError(f"equations must be one of {EQUATIONS}, got {equations!r}")
@@ -510,76 +364,19 @@ class PlanarModel:
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
 
 
-@lru_cache(maxsize=1)
-def _derive_floor() -> _Compiled:
-    """Lagrange's equations on a floor of varying slope, gravity along the mocap's vertical (level lab).
-
-    A second geometry, written independently of :func:`_derive` and of the estimator: the wheel centre
-    moves along a curve of the vertical plane of travel with tangent angle ``a(s)`` (positive uphill)
-    at arc length ``s``: ``C_dot = s_dot (cos a, sin a)``; the EUC body and rider angles gamma, phi are
-    measured from the vertical (gravity), as a level-calibrated mocap measures them::
-
-        A  = C + l0 (-sin gamma, -cos gamma),  G0 = C + h0 (sin gamma, cos gamma),
-        G  = A + h(t) (sin phi, cos phi)
-
-    The wheel spins at ``s_dot / R`` (rolling on the floor; the floor's curvature changes the spin by
-    ``R da/ds`` relative, below 1e-3 for any floor a person rides). ``a`` depends on ``s``:
-    ``dT/ds = dT/da a1`` with ``a1 = da/ds``, and ``d/dt a = a1 s_dot``. Gravity ``(g_x, g_z)`` is a
-    uniform field (nominally ``(0, -g)``): its force on s is ``m_tot (g_x cos a + g_z sin a)``.
-    The equations are ``M(q, a) q_ddot + b(q, q_dot, h..., g, a, a1) = Q_nc`` with the same inputs as
-    :func:`_derive` (``M_d/R`` on s, ``M_h - M_d`` on gamma, ``-M_h`` on phi).
-    """
-    import sympy as sp
-
-    t = sp.Symbol("t")
-    m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
-    gx, gz = sp.symbols("g_x g_z")
-    sf, gf, pf, hf, af = (sp.Function(n)(t) for n in ("s", "gamma", "phi", "h", "a"))
-    vC = sf.diff(t) * sp.Matrix([sp.cos(af), sp.sin(af)])
-    rho_A = l0 * sp.Matrix([-sp.sin(gf), -sp.cos(gf)])
-    rho_0 = h0 * sp.Matrix([sp.sin(gf), sp.cos(gf)])
-    rho_G = rho_A + hf * sp.Matrix([sp.sin(pf), sp.cos(pf)])
-    g_vec = sp.Matrix([gx, gz])
-
-    def ke(v, mass):
-        return sp.Rational(1, 2) * mass * (v.T * v)[0]
-
-    T = (ke(vC, mw) + sp.Rational(1, 2) * Jw * (sf.diff(t) / R) ** 2
-         + ke(vC + rho_0.diff(t), m0) + sp.Rational(1, 2) * J0 * gf.diff(t) ** 2
-         + ke(vC + rho_G.diff(t), m) + sp.Rational(1, 2) * J * pf.diff(t) ** 2)
-    V_rel = -(m0 * (g_vec.T * rho_0)[0] + m * (g_vec.T * rho_G)[0])
-    L = T - V_rel
-    a, a1 = sp.symbols("a a1")
-    x, gam, phi, xd, gd, pd, xdd, gdd, pdd = sp.symbols("x gamma phi x_d gamma_d phi_d x_dd gamma_dd phi_dd")
-    h, hd, hdd = sp.symbols("h h_d h_dd")
-    eom = [sp.diff(sp.diff(L, sf.diff(t)), t) - sp.diff(L, af) * a1
-           - (m + m0 + mw) * (gx * sp.cos(af) + gz * sp.sin(af))]
-    eom += [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in (gf, pf)]
-    subs = _time_to_symbols(t, ((sf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (hf, h, hd, hdd)))
-
-    def plain(e):
-        # the slope's rate first: da/dt = (da/ds) s_dot
-        return sp.expand(_substitute(e.subs(af.diff(t), a1 * sf.diff(t)), subs).subs(af, a))
-
-    eom_s = [plain(e) for e in eom]
-    qdd = [xdd, gdd, pdd]
-    M = sp.Matrix(3, 3, lambda i, j: sp.diff(eom_s[i], qdd[j]))
-    b = sp.Matrix([sp.expand(eom_s[i] - sum(M[i, j] * qdd[j] for j in range(3))) for i in range(3)])
-    pars = (m, m0, mw, Jw, J0, J, R, l0, h0)
-    mass_args = (gam, phi, h, a) + pars
-    bias_args = (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1) + pars
-    m_entries = [M[0, 0], M[0, 1], M[0, 2], M[1, 1], M[1, 2], M[2, 2]]
-
-    return _extension(M, b, mass_args, m_entries, bias_args,
-                      {"q": (x, gam, phi), "qd": (xd, gd, pd), "qdd": (xdd, gdd, pdd), "h": (h, hd, hdd),
-                       "g": (gx, gz), "floor": (a, a1), "params": pars})
-
-
 class FloorModel:
-    """The planar truth model on a floor of slope ``a(s)`` in a level lab (:func:`_derive_floor`).
+    """The planar truth model on a floor of slope ``a(s)`` in a level lab (:func:`.eom_derivation.derive_floor`).
 
     Same call pattern as :class:`PlanarModel` with the floor's slope ``a`` [rad] and its rate along the
-    path ``a1 = da/ds`` [rad/m] as extra arguments.
+    path ``a1 = da/ds`` [rad/m] as extra arguments; the first coordinate is the arc length s [m] of the wheel
+    centre's path (``xd`` its rate [m/s]).
+
+    Parameters
+    ----------
+    params : PlanarParams
+        True physical parameters.
+    equations : {"generated", "sympy"}
+        Source of the numeric functions (:data:`EQUATIONS`).
     """
 
     def __init__(self, params: PlanarParams, equations: str = "generated") -> None:
@@ -589,34 +386,95 @@ class FloorModel:
         self._plain = PlanarModel(params, equations)
 
     def accel_scalar(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, Q0, Q1, Q2):
-        """``(s_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc."""
+        """``(s_ddot, gamma_ddot, phi_ddot)`` for scalar states and generalized forces Q_nc.
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd, hdd, gx, gz : float
+            States, h and gravity as in :meth:`PlanarModel.accel_scalar` (``xd``: s_dot [m/s]).
+        a, a1 : float
+            Floor slope [rad] and its rate along the path [rad/m].
+        Q0, Q1, Q2 : float
+            Generalized forces Q_nc [N, N m, N m].
+
+        Returns
+        -------
+        tuple of float
+            The accelerations [m/s^2, rad/s^2, rad/s^2].
+        """
         p = self._p
         m_ = self._c.mass_s(gam, phi, h, a, *p)
         b = self._c.bias_s(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, *p)
         return solve3(m_[0], m_[1], m_[2], m_[3], m_[4], m_[5], Q0 - b[0], Q1 - b[1], Q2 - b[2])
 
     def mass_matrix(self, gam, phi, h, a) -> np.ndarray:
-        """M(q, a) (..., 3, 3)."""
+        """The mass matrix M(q, a) for arrays of gamma, phi, h, a.
+
+        Parameters
+        ----------
+        gam, phi, h, a : array_like
+            gamma, phi [rad], h [m] and the floor slope [rad] (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            M (..., 3, 3) [kg, kg m, kg m^2].
+        """
         gam, phi, h, a = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, h, a)))
         e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.mass_v(gam, phi, h, a, *self._p)]
         return np.stack([np.stack([e[0], e[1], e[2]], -1), np.stack([e[1], e[3], e[4]], -1),
                          np.stack([e[2], e[4], e[5]], -1)], -2)
 
     def bias(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1) -> np.ndarray:
-        """The bias b (..., 3): velocity, rheonomic and floor-curvature terms minus gravity."""
+        """The bias b (..., 3): velocity, rheonomic and floor-curvature terms minus gravity.
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1 : array_like
+            As in :meth:`accel_scalar` (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            b (..., 3) [N, N m, N m].
+        """
         args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a,
                                                                      a1)))
         e = self._c.bias_v(*args, *self._p)
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
 
     def accelerations(self, gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1, Q) -> np.ndarray:
-        """Generalized accelerations (..., 3) for generalized forces Q (..., 3)."""
+        """Generalized accelerations (..., 3) for generalized forces Q (..., 3).
+
+        Parameters
+        ----------
+        gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1 : array_like
+            As in :meth:`accel_scalar` (broadcast together).
+        Q : array_like
+            Generalized forces (..., 3) [N, N m, N m].
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 3) [m/s^2, rad/s^2, rad/s^2].
+        """
         M = self.mass_matrix(gam, phi, h, a)
         rhs = np.asarray(Q, float) - self.bias(gam, phi, xd, gd, pd, h, hd, hdd, gx, gz, a, a1)
         return np.linalg.solve(M, rhs[..., None])[..., 0]
 
     def g_point_scalar(self, *args):
-        """Rider CoG Jacobian and velocity relative to C's plane of travel (as :class:`PlanarModel`)."""
+        """Rider CoG Jacobian and velocity relative to C's plane of travel (as :class:`PlanarModel`).
+
+        Parameters
+        ----------
+        *args : float
+            ``gam, phi, xd, gd, pd, h, hd`` as in :meth:`PlanarModel.g_point_scalar`.
+
+        Returns
+        -------
+        tuple
+            dG/dq (6) [m, m/rad] and v_G (2) [m/s].
+        """
         return self._plain.g_point_scalar(*args)
 
     def rider_cog_jacobian(self, *args):
@@ -648,70 +506,18 @@ class FloorModel:
         return self._plain.rider_cog_velocity(*args)
 
 
-@lru_cache(maxsize=1)
-def _derive_pedal() -> _Compiled:
-    """Lagrange's equations with pedals that flex: a fourth coordinate u along the EUC's axis.
-
-    A third geometry, written independently of :func:`_derive`: the pedals (massless) carry the ankle
-    hinge, which moves down the EUC's axis by ``u`` (u = 0 unloaded, u > 0 compressed)::
-
-        A = C + (l0 + u) (-sin gamma, -cos gamma),   G = A + h(t) (sin phi, cos phi)
-
-    C and G0 as in :func:`_derive`. The pedals' spring and damper are not in the Lagrangian: they enter
-    as the generalized force ``Q_u = -k u - c u_dot`` (so the same M, b serve any stiffness). u moves
-    only the rider: the u equation reads ``m (a_G - g_vec) . e_ax = k u + c u_dot`` with
-    ``e_ax = (sin gamma, cos gamma)``, the rider's load on the pedals along the axis (quasi-static:
-    ``k u = m g cos gamma`` at rest). At u = u_dot = 0 the (x, gamma, phi) block of M and b is the
-    rigid model's (checked in ``test/unit/core/ridesim/test_rider_motion.py``, with the energy balance).
-    """
-    import sympy as sp
-
-    t = sp.Symbol("t")
-    m, m0, mw, Jw, J0, J, R, l0, h0 = sp.symbols("m m0 mw Jw J0 J R l0 h0", positive=True)
-    gx, gz = sp.symbols("g_x g_z")
-    xf, gf, pf, uf, hf = (sp.Function(n)(t) for n in ("x", "gamma", "phi", "u", "h"))
-    C = sp.Matrix([xf, R])
-    ax_dn = sp.Matrix([-sp.sin(gf), -sp.cos(gf)])
-    A = C + (l0 + uf) * ax_dn
-    G0 = C - h0 * ax_dn
-    G = A + hf * sp.Matrix([sp.sin(pf), sp.cos(pf)])
-    g_vec = sp.Matrix([gx, gz])
-
-    def ke(point, mass):
-        v = point.diff(t)
-        return sp.Rational(1, 2) * mass * (v.T * v)[0]
-
-    T = (ke(C, mw) + sp.Rational(1, 2) * Jw * (xf.diff(t) / R) ** 2 + ke(G0, m0)
-         + sp.Rational(1, 2) * J0 * gf.diff(t) ** 2 + ke(G, m) + sp.Rational(1, 2) * J * pf.diff(t) ** 2)
-    V = -(mw * (g_vec.T * C)[0] + m0 * (g_vec.T * G0)[0] + m * (g_vec.T * G)[0])
-    L = T - V
-    qf = [xf, gf, pf, uf]
-    eom = [sp.diff(sp.diff(L, q.diff(t)), t) - sp.diff(L, q) for q in qf]
-    x, gam, phi, u = sp.symbols("x gamma phi u")
-    xd, gd, pd, ud = sp.symbols("x_d gamma_d phi_d u_d")
-    xdd, gdd, pdd, udd = sp.symbols("x_dd gamma_dd phi_dd u_dd")
-    h, hd, hdd = sp.symbols("h h_d h_dd")
-    subs = _time_to_symbols(t, ((xf, x, xd, xdd), (gf, gam, gd, gdd), (pf, phi, pd, pdd), (uf, u, ud, udd),
-                                (hf, h, hd, hdd)))
-    eom_s = [sp.expand(_substitute(e, subs)) for e in eom]
-    qdd = [xdd, gdd, pdd, udd]
-    M = sp.Matrix(4, 4, lambda i, j: sp.diff(eom_s[i], qdd[j]))
-    b = sp.Matrix([sp.expand(eom_s[i] - sum(M[i, j] * qdd[j] for j in range(4))) for i in range(4)])
-    pars = (m, m0, mw, Jw, J0, J, R, l0, h0)
-    mass_args = (gam, phi, u, h) + pars
-    bias_args = (gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz) + pars
-    m_entries = [M[i, j] for i in range(4) for j in range(4)]
-
-    return _extension(M, b, mass_args, m_entries, bias_args,
-                      {"q": (x, gam, phi, u), "qd": (xd, gd, pd, ud), "qdd": (xdd, gdd, pdd, udd),
-                       "h": (h, hd, hdd), "g": (gx, gz), "params": pars})
-
-
 class PedalModel:
-    """The truth model with pedals that flex (:func:`_derive_pedal`): coordinates (x, gamma, phi, u).
+    """The truth model with pedals that flex (:func:`.eom_derivation.derive_pedal`): coordinates (x, gamma, phi, u).
 
     ``accel_scalar`` and ``accelerations`` take the pedal state (u, u_dot) and the generalized force on u
     (``-k u - c u_dot``) and return the four accelerations.
+
+    Parameters
+    ----------
+    params : PlanarParams
+        True physical parameters.
+    equations : {"generated", "sympy"}
+        Source of the numeric functions (:data:`EQUATIONS`).
     """
 
     def __init__(self, params: PlanarParams, equations: str = "generated") -> None:
@@ -721,25 +527,77 @@ class PedalModel:
         self._equations = equations
 
     def mass_matrix(self, gam, phi, u, h) -> np.ndarray:
-        """M (..., 4, 4)."""
+        """The mass matrix M (..., 4, 4) for arrays of gamma, phi, u, h.
+
+        Parameters
+        ----------
+        gam, phi, u, h : array_like
+            gamma, phi [rad], the pedals' deflection u [m] and h [m] (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            M (..., 4, 4) [kg, kg m, kg m^2].
+        """
         gam, phi, u, h = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, u, h)))
         e = [np.broadcast_to(np.asarray(v, float), gam.shape) for v in self._c.mass_v(gam, phi, u, h, *self._p)]
         return np.stack(e, -1).reshape(gam.shape + (4, 4))
 
     def bias(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz) -> np.ndarray:
-        """The bias b (..., 4): velocity and rheonomic terms minus gravity."""
+        """The bias b (..., 4): velocity and rheonomic terms minus gravity.
+
+        Parameters
+        ----------
+        gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz : array_like
+            As in :meth:`accel_scalar` (broadcast together).
+
+        Returns
+        -------
+        numpy.ndarray
+            b (..., 4) [N, N m, N m, N].
+        """
         args = np.broadcast_arrays(*(np.asarray(v, float) for v in (gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz)))
         e = self._c.bias_v(*args, *self._p)
         return np.stack([np.broadcast_to(np.asarray(v, float), args[0].shape) for v in e], -1)
 
     def accel_scalar(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz, Q):
-        """(x_ddot, gamma_ddot, phi_ddot, u_ddot) for scalar states and generalized forces Q (4,)."""
+        """(x_ddot, gamma_ddot, phi_ddot, u_ddot) for scalar states and generalized forces Q (4,).
+
+        Parameters
+        ----------
+        gam, phi, u : float
+            gamma, phi [rad] and the pedals' deflection [m].
+        xd, gd, pd, ud : float
+            x_dot [m/s], gamma_dot, phi_dot [rad/s] and u_dot [m/s].
+        h, hd, hdd, gx, gz : float
+            Rider CoG height, its rates and in-plane gravity as in :meth:`PlanarModel.accel_scalar`.
+        Q : array_like
+            Generalized forces (4,) [N, N m, N m, N].
+
+        Returns
+        -------
+        numpy.ndarray
+            (4,) [m/s^2, rad/s^2, rad/s^2, m/s^2].
+        """
         a = np.array(self._c.mass_s(gam, phi, u, h, *self._p), float).reshape(4, 4)
         b = np.array(self._c.bias_s(gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz, *self._p), float)
         return np.linalg.solve(a, np.asarray(Q, float) - b)
 
     def accelerations(self, gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz, Q) -> np.ndarray:
-        """Generalized accelerations (..., 4) for generalized forces Q (..., 4)."""
+        """Generalized accelerations (..., 4) for generalized forces Q (..., 4).
+
+        Parameters
+        ----------
+        gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz : array_like
+            As in :meth:`accel_scalar` (broadcast together).
+        Q : array_like
+            Generalized forces (..., 4) [N, N m, N m, N].
+
+        Returns
+        -------
+        numpy.ndarray
+            (..., 4) [m/s^2, rad/s^2, rad/s^2, m/s^2].
+        """
         M = self.mass_matrix(gam, phi, u, h)
         rhs = np.asarray(Q, float) - self.bias(gam, phi, u, xd, gd, pd, ud, h, hd, hdd, gx, gz)
         return np.linalg.solve(M, rhs[..., None])[..., 0]
@@ -748,11 +606,32 @@ class PedalModel:
         """dG/d(x, gamma, phi) of the unflexed geometry (u = 0).
 
         The simulator uses it only for forces at G, which it does not combine with pedals.
+
+        Parameters
+        ----------
+        *args : array_like
+            ``gam, phi, h`` as in :meth:`PlanarModel.rider_cog_jacobian`.
+
+        Returns
+        -------
+        numpy.ndarray
+            dG/dq (..., 2, 3).
         """
         return PlanarModel(self.params, self._equations).rider_cog_jacobian(*args)
 
     def rider_cog_velocity(self, *args):
-        """v_G of the unflexed geometry (see :meth:`rider_cog_jacobian`)."""
+        """v_G of the unflexed geometry (see :meth:`rider_cog_jacobian`).
+
+        Parameters
+        ----------
+        *args : array_like
+            ``gam, phi, xd, gd, pd, h, hd`` as in :meth:`PlanarModel.rider_cog_velocity`.
+
+        Returns
+        -------
+        numpy.ndarray
+            v_G (..., 2) [m/s].
+        """
         return PlanarModel(self.params, self._equations).rider_cog_velocity(*args)
 
 

@@ -61,7 +61,7 @@ _LEGS = ("TR", "TL", "LR", "LL")
 class AdmissibleRange:
     """The h the rider's recorded body allows.
 
-    Attributes
+    Parameters
     ----------
     low_m, high_m : float
         The range [m].
@@ -74,7 +74,13 @@ class AdmissibleRange:
     frames: int
 
     def to_json(self) -> list[float]:
-        """``[low, high]`` [m]."""
+        """The range as JSON.
+
+        Returns
+        -------
+        list of float
+            ``[low, high]`` [m].
+        """
         return [float(self.low_m), float(self.high_m)]
 
 

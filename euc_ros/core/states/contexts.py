@@ -31,7 +31,19 @@ ANALYSIS_RATE_HZ = 10.0
 
 @dataclass
 class Recording:
-    """One recording prepared for the analysis: its valid samples as a model context."""
+    """One recording prepared for the analysis: its valid samples as a model context.
+
+    Parameters
+    ----------
+    name : str
+        Recording name.
+    ctx : ModelContext
+        The valid (and kept, after decimation) samples, with the effects' hooks in ``ctx.extras``.
+    block : numpy.ndarray of int (m,)
+        Block index of each sample (for the paired test and single-run folds).
+    index : numpy.ndarray of int (m,), optional
+        Index in the recording of each sample.
+    """
 
     name: str
     ctx: ModelContext
@@ -48,6 +60,18 @@ def hinge_path(st: RiderStates, l0: float) -> np.ndarray:
     """Ankle hinge A = C - l0 z_E (n, 3), z_E = Rz(psi) Rx(theta) Ry(gamma) e_z the EUC body's z axis.
 
     Computed block by block: elementwise, so the same numbers as the whole at once.
+
+    Parameters
+    ----------
+    st : RiderStates
+        The states (``C`` [m], ``gamma``, ``psi``, ``theta`` [rad]).
+    l0 : float
+        Distance from the wheel centre to the ankle hinge [m].
+
+    Returns
+    -------
+    numpy.ndarray (n, 3)
+        A [m], in the world frame.
     """
     n = st.C.shape[0]
     out = np.empty((n, 3))
@@ -136,6 +160,11 @@ def forget_shift_caches(recs: Sequence[Recording]) -> None:
     """Let the time-shift hooks of prepared recordings drop what they keep (:func:`_phi_shift_fn`: 8 numbers a sample).
 
     For example once the analysis no longer fits a time offset; a hook called again makes it again.
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+        Recordings of :func:`prepare`; those without a time-shift hook are left as they are.
     """
     for rec in recs:
         forget = getattr(rec.ctx.extras.get("phi_shift"), "forget", None)
@@ -151,6 +180,18 @@ def decimation_step(dt: float, analysis_rate_hz: float | None) -> int:
     residual's signal is over-sampled at 120-360 Hz and a sub-sample at :data:`ANALYSIS_RATE_HZ` keeps it
     (the fits and held-out errors on the sub-sample are unbiased; measured against every sample in
     ``test_decimation.py``), while the fits' cost falls with the number of samples.
+
+    Parameters
+    ----------
+    dt : float
+        Sample spacing [s].
+    analysis_rate_hz : float or None
+        Wanted rate [Hz]; None or 0 keeps every sample.
+
+    Returns
+    -------
+    int
+        The step k, ``>= 1`` (1 also when ``dt`` is not a finite positive number).
     """
     if not analysis_rate_hz or not np.isfinite(dt) or dt <= 0:
         return 1
@@ -200,6 +241,24 @@ def prepare(states: Sequence[RiderStates], params: EucParams, *, block_s: float 
 
     Each context's full-rate signals (``extras['full']``, :class:`FullSignals`) are read from its states when
     needed (the contexts keep their states: the time-shift hook works on them).
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The reconstructed recordings.
+    params : EucParams
+        Model parameters the contexts carry.
+    block_s : float
+        Length of the paired test's blocks [s].
+    floor : FloorFit, optional
+        The floor; one that is not flat adds the slope hooks.
+    analysis_rate_hz : float, optional
+        Analysis rate [Hz].
+
+    Returns
+    -------
+    list of Recording
+        One per recording, in order.
     """
     out = []
     for st in states:
@@ -244,6 +303,15 @@ class FullSignals(Mapping):
     centre), ``phi_dot``, ``gamma_dot``, and ``index`` (the analysed samples), ``window``, ``polyorder`` (the
     states' filter). A reference to the states, not copies of eight of their arrays: those are read a few
     times per analysis, while the contexts live through it.
+
+    Parameters
+    ----------
+    st : RiderStates
+        The recording's states.
+    index : numpy.ndarray of int (m,)
+        Indices of the analysed samples.
+    window : int
+        The states' filter window [samples].
     """
 
     _KEYS = ("t", "v", "s", "psi", "X", "Y", "phi_dot", "gamma_dot", "index", "window", "polyorder")

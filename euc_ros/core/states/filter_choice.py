@@ -59,7 +59,7 @@ def raw_signals(series, session, phi_definition: str = "hinge") -> dict[str, np.
 class FilterChoice:
     """The filter :func:`choose_filter` chose, with the per-rate choices behind it.
 
-    Attributes
+    Parameters
     ----------
     choice : WindowChoice
         The filter used (``window_s``, ``polyorder``, its diagnostics and ``probe``).
@@ -85,6 +85,11 @@ class FilterChoice:
         """``choice.to_json()`` plus ``rate_hz`` (the rate it was chosen at) and, for several rates, ``per_rate``.
 
         ``per_rate``: each rate's own choice (window and order).
+
+        Returns
+        -------
+        dict
+            The JSON form.
         """
         out = dict(self.choice.to_json())
         rate = next((r for r, c in self.per_rate.items() if c is self.choice), None)
@@ -167,8 +172,30 @@ def data_filtered(series: list, session, phi_definition: str,
                   sliding: dict | None = None) -> tuple[list, list | None, float]:
     """The recordings' states with the Savitzky-Golay filter chosen from their own spectra, and its probe filter.
 
-    Returns the states, the probe filter (None without one) and the probe's distortion ratio (``sliding``: as
-    :func:`choose_filter`).
+    Parameters
+    ----------
+    series : list of MocapSeries
+        The recordings (Z-up).
+    session : Session
+        The session.
+    phi_definition : {"hinge", "eq3"}
+        Which rider pitch the states use.
+    sliding : dict, optional
+        As :func:`choose_filter`.
+
+    Returns
+    -------
+    chosen : list of RiderStates
+        The states with the chosen filter, one per recording.
+    probe : list of RiderStates or None
+        The states with the probe filter (None without one).
+    probe_ratio : float
+        The probe's predicted distortion over the chosen filter's (NaN without a probe).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``phi_definition`` when it is unknown.
     """
     choice = choose_filter(series, session, phi_definition=phi_definition, sliding=sliding)
 
@@ -187,6 +214,28 @@ def data_filters(series: list, session, phi_definition: str, sliding: dict | Non
     ``(make_chosen, make_probe or None, probe_ratio)``, each ``make_*()`` the recordings' states with that
     filter (the same states). A caller that reduces the chosen filter's states before asking for the probe's
     never holds both (each evaluates the geometry anew).
+
+    Parameters
+    ----------
+    series : list of MocapSeries
+        The recordings (Z-up).
+    session : Session
+        The session.
+    phi_definition : {"hinge", "eq3"}
+        Which rider pitch the states use.
+    sliding : dict, optional
+        As :func:`choose_filter`.
+
+    Returns
+    -------
+    tuple
+        ``(make_chosen, make_probe, probe_ratio)``: callables returning lists of RiderStates (``make_probe``
+        None without a probe) and the probe's distortion ratio (NaN without one).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``phi_definition`` when it is unknown.
     """
     choice = choose_filter(series, session, phi_definition=phi_definition, sliding=sliding)
 

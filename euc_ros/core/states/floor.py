@@ -53,7 +53,31 @@ RADIUS_SIGMAS = 3.0
 
 @dataclass
 class FloorFit:
-    """The floor under a ride (every length in m, angles in rad)."""
+    """The floor under a ride (every length in m, angles in rad).
+
+    Parameters
+    ----------
+    samples : int
+        Contact points fitted.
+    extent_m : float
+        Horizontal length of the contact path, end to end of its span [m].
+    plane : tuple of float
+        ``(b0, bx, by)`` of the plane ``z = b0 + bx x + by y`` [m, -, -].
+    offset_m : float
+        Median contact height over ``cos(theta)`` [m] (0 on the calibrated floor at the nominal radius).
+    slope_rad : float
+        Steepest slope of the plane [rad].
+    slope_along_travel_rad : float
+        Mean slope along the direction of travel [rad], positive uphill.
+    rise_m : float
+        Height the plane rises over the path [m].
+    deviation_m : float
+        Largest smooth deviation from the plane (bump, step) [m].
+    scatter_m : float
+        Robust standard deviation of what is left (noise) [m].
+    flat : bool
+        No slope and no deviation beyond the scatter.
+    """
 
     samples: int
     extent_m: float                 # horizontal length of the contact path (end to end of its span)
@@ -82,7 +106,22 @@ class FloorFit:
 
 
 def contact_heights(C: np.ndarray, theta: np.ndarray, radius: float) -> np.ndarray:
-    """Height of the wheel's contact point [m]: ``C_z - R cos(theta)`` (theta: the wheel's tilt)."""
+    """The height of the wheel's contact point: ``C_z - R cos(theta)`` (theta: the wheel's tilt).
+
+    Parameters
+    ----------
+    C : array_like (n, 3)
+        Wheel centre [m], Z-up mocap world.
+    theta : array_like (n,)
+        Wheel tilt [rad].
+    radius : float
+        Wheel radius R [m].
+
+    Returns
+    -------
+    numpy.ndarray (n,)
+        Contact height [m].
+    """
     return np.asarray(C, float)[:, 2] - float(radius) * np.cos(np.asarray(theta, float))
 
 
@@ -136,6 +175,12 @@ def fit_floor(C: np.ndarray, theta: np.ndarray, valid: np.ndarray, radius: float
         Nominal wheel radius [m].
     segments : ndarray (n,) of int, optional
         Run index of each sample (the path is continuous within a run only).
+
+    Returns
+    -------
+    FloorFit or None
+        None with fewer than :data:`MIN_SAMPLES` valid contact points or a path shorter than
+        :data:`MIN_EXTENT_M`.
     """
     C = np.asarray(C, float)
     seg = np.zeros(len(C), int) if segments is None else np.asarray(segments)
@@ -207,6 +252,24 @@ def rolling_radius_from_floor(fit: FloorFit | None, radius: float, tolerance: fl
     ``d`` above z = 0 everywhere means a rolling radius ``R + d``. A floor that slopes or is uneven
     explains any offset as well, so it is reported as the floor, never as a radius (NaN). An offset
     within ``tolerance`` or :data:`RADIUS_SIGMAS` scatters is measured but not significant.
+
+    Parameters
+    ----------
+    fit : FloorFit or None
+        The floor (None: no fit).
+    radius : float
+        Nominal wheel radius [m].
+    tolerance : float
+        Offset below which the radius is not significant [m].
+
+    Returns
+    -------
+    radius : float
+        The rolling radius [m], NaN without a fit or on a floor that is not flat.
+    significant : bool
+        The offset exceeds ``tolerance`` and :data:`RADIUS_SIGMAS` scatters.
+    reason : str
+        What the floor showed, in words.
     """
     if fit is None:
         return float("nan"), False, "path too short for a floor fit"
@@ -228,6 +291,27 @@ def slope_along_path(C: np.ndarray, theta: np.ndarray, psi: np.ndarray, valid: n
     path: the deviation (running median over :data:`DEVIATION_WINDOW_M` of path) resampled on a 1 cm
     grid of path length and differentiated by a Savitzky-Golay filter over the same length (so a
     wheel at rest keeps the slope of where it stands). One run per call; NaN where invalid.
+
+    Parameters
+    ----------
+    C : array_like (n, 3)
+        Wheel centre [m], Z-up mocap world.
+    theta : array_like (n,)
+        Wheel tilt [rad].
+    psi : array_like (n,)
+        Heading (yaw) [rad].
+    valid : array_like of bool (n,)
+        Samples to use.
+    radius : float
+        Nominal wheel radius [m].
+    fit : FloorFit
+        The floor fit of the ride.
+
+    Returns
+    -------
+    numpy.ndarray (n,)
+        Slope [rad], positive uphill; the plane's alone when the run is shorter than :data:`MIN_SAMPLES`
+        samples or twice :data:`DEVIATION_WINDOW_M` of path.
     """
     from scipy.signal import savgol_filter
 
@@ -267,7 +351,20 @@ RADIUS_TOL_M = 0.005
 
 
 def floor_from_states(states: Sequence[RiderStates], radius: float):
-    """The floor fit (:func:`euc_ros.core.states.floor.fit_floor`) of the contact path of every run."""
+    """The floor fit (:func:`euc_ros.core.states.floor.fit_floor`) of the contact path of every run.
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The runs (``C``, ``theta``, ``valid``).
+    radius : float
+        Nominal wheel radius [m].
+
+    Returns
+    -------
+    FloorFit or None
+        None without states or when :func:`fit_floor` finds the path too short.
+    """
     if not states:
         return None
     C = np.concatenate([st.C for st in states])

@@ -43,6 +43,17 @@ GEOMETRY_KEYS = ("psi", "theta", "gamma", "phi_eq3", "phi_hinge", "C", "G", "has
 def block_geometry(series, session, max_gap: int, *, block: int | None = None) -> tuple[dict, int, int]:
     """Bridged per-frame geometry of a whole recording (segments CoG), evaluated block by block.
 
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording (Z-up).
+    session : Session
+        The session (bodies, EUC geometry, segments).
+    max_gap : int
+        Longest run of untracked frames of a body bridged [frames] (0: none).
+    block : int, optional
+        Frames per block; default :data:`~euc_ros.core.mocap.blocks.READ_FRAMES`.
+
     Returns
     -------
     geo : dict of ndarray
@@ -127,6 +138,11 @@ def to_moving_frame(v, psi, theta) -> np.ndarray:
         World (Z-up) vectors [m].
     psi, theta : array_like (...)
         Yaw and tilt [rad].
+
+    Returns
+    -------
+    numpy.ndarray (..., 3)
+        The vectors in the moving frame [m].
     """
     v = np.asarray(v, dtype=float)
     cp, sp = np.cos(psi), np.sin(psi)

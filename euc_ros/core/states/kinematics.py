@@ -39,7 +39,7 @@ PHI_DEFINITIONS = ("hinge", "eq3")
 class RiderStates:
     """States of the planar model over a recording, with their derivatives (SI units, radians).
 
-    Attributes
+    Parameters
     ----------
     name : str
         Recording name.
@@ -53,7 +53,7 @@ class RiderStates:
     gamma, gamma_dot, gamma_ddot : ndarray (n,)
         EUC body pitch (smoothed) and its derivatives [rad, rad/s, rad/s^2].
     phi, phi_dot, phi_ddot : ndarray (n,)
-        Rider pitch of the chosen definition (smoothed) and its derivatives.
+        Rider pitch of the chosen definition (smoothed) and its derivatives [rad, rad/s, rad/s^2].
     phi_eq3, phi_hinge : ndarray (n,)
         Both rider pitch definitions, unsmoothed [rad].
     psi, theta : ndarray (n,)
@@ -79,6 +79,8 @@ class RiderStates:
         Savitzky-Golay window [samples] and order used.
     dt : float
         Sample spacing [s].
+    meta : dict
+        Notes of the reconstruction (e.g. the skeleton's ``cog_faults``).
     """
 
     name: str
@@ -121,6 +123,11 @@ class RiderStates:
         ----------
         mask : ndarray of bool, optional
             Samples to keep (default: all, including invalid ones as NaN).
+
+        Returns
+        -------
+        tuple of numpy.ndarray
+            The seven arrays [rad, rad, rad/s, rad/s, m/s^2, rad/s^2, rad/s^2], ``mask`` applied.
         """
         arrs = (self.gamma, self.phi, self.gamma_dot, self.phi_dot, self.x_ddot, self.gamma_ddot, self.phi_ddot)
         return arrs if mask is None else tuple(a[mask] for a in arrs)
@@ -211,6 +218,27 @@ def iter_states_filters(series, session, filters, *, phi_definition: str = "hing
     first is asked for. ``shared``: the states of the filters but the last share the geometry's arrays they
     keep (G, the pitch angles, the heading...) instead of copies, for a caller that only reads them. ``lean``:
     as for :func:`reconstruct_states`.
+
+    Parameters
+    ----------
+    series, session, phi_definition, max_gap, cog_method, skeleton, lean
+        As for :func:`reconstruct_states` (validated alike).
+    filters : sequence of (float, int)
+        ``(window_s, polyorder)`` of each filter.
+    shared : bool
+        The states of the filters but the last share the geometry's arrays.
+
+    Yields
+    ------
+    RiderStates
+        The states of each filter, in order.
+
+    Raises
+    ------
+    InputError
+        If the recording lacks the EUC body or a rider segment of non-zero mass altogether.
+    ConfigError
+        For an unknown ``phi_definition`` or ``cog_method``, or bad filter settings.
     """
     filters = [(float(w), int(p)) for w, p in filters]
     if not filters:

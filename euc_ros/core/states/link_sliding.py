@@ -190,6 +190,20 @@ def sliding_or_none(series_list, session, usable: list | None = None) -> dict | 
     """:func:`estimate_sliding` with the session's default chain.
 
     None when the chain has no link between the recorded bodies.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        Recordings of one session (Z-up).
+    session : Session
+        The session.
+    usable : list of ndarray, optional
+        Per recording, :func:`usable_poses` (default: made here).
+
+    Returns
+    -------
+    dict or None
+        :func:`estimate_sliding`'s result, or None when it raises a ConfigError.
     """
     try:
         return estimate_sliding(series_list, session, usable=usable)
@@ -201,6 +215,16 @@ def usable_poses(series) -> np.ndarray:
     """(b, n) bool: pose finite, quaternion of non-zero norm, tracked (the chain's usable frames).
 
     Body by body (the temporaries are one body's, never a copy of the recording's quaternions).
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording.
+
+    Returns
+    -------
+    numpy.ndarray of bool (b, n)
+        Per body and frame.
     """
     b, n = series.quat.shape[0], series.quat.shape[1]
     out = np.empty((b, n), dtype=bool)
@@ -218,6 +242,24 @@ def link_deviation(series, a: str, b: str, vector: np.ndarray, usable=None):
     Unusable frames give the values of a zero pivot and an identity rotation (they are masked out by
     the caller). Computed frame by frame in one compiled loop
     (:func:`~euc_ros.core.states.geometry_compiled.link_vectors`: the quaternions, no rotation matrices).
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording (Z-up).
+    a, b : str
+        The link's bodies: ``a`` is the reference whose frame the vector is expressed in.
+    vector : array_like (3,)
+        Link vector subtracted [m], in ``a``'s frame.
+    usable : numpy.ndarray of bool (b, n), optional
+        :func:`usable_poses` of ``series`` (default: made here).
+
+    Returns
+    -------
+    deviation : numpy.ndarray (n, 3)
+        The deviation [m] (``-vector`` throughout when a body is not in the recording).
+    both : numpy.ndarray of bool (n,)
+        Frames where both bodies are usable.
     """
     n = series.n_frames
     if a not in series.bodies or b not in series.bodies:
@@ -243,7 +285,26 @@ def _surrogate(rng: np.random.Generator, n: int, rate_hz: float, spectrum) -> np
 
 
 def add_sliding(series, sliding: dict, rng: np.random.Generator):
-    """A copy of ``series`` with independent surrogate sliding added to every rider body's pivot."""
+    """A copy of ``series`` with independent surrogate sliding added to every rider body's pivot.
+
+    Each body's sliding is a Gaussian series of the measured spectrum and RMS, drawn in the body's frame and
+    rotated into the world.
+
+    Parameters
+    ----------
+    series : MocapSeries
+        The recording (Z-up).
+    sliding : dict
+        :func:`estimate_sliding`'s result (``bodies``, ``rms_m`` [m], ``spectrum``); bodies with an RMS of 0
+        or not recorded are left as they are.
+    rng : numpy.random.Generator
+        Source of the surrogate series.
+
+    Returns
+    -------
+    MocapSeries
+        The copy, its positions changed.
+    """
     pos = series.position.copy()
     n = series.n_frames
     for nm, rms in zip(sliding["bodies"], sliding["rms_m"]):

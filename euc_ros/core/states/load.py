@@ -204,6 +204,16 @@ def samples_used(st) -> dict:
 
     ``frames`` (its frame span, dropped frames included), ``samples_used`` (valid states),
     ``samples_used_fraction``, ``bridged_frames`` (frames with a body bridged across a short gap).
+
+    Parameters
+    ----------
+    st : RiderStates
+        The recording's states.
+
+    Returns
+    -------
+    dict
+        The four counts.
     """
     frames = int(st.frame[-1] - st.frame[0] + 1) if st.n else 0
     used = int(st.valid.sum())
@@ -213,12 +223,34 @@ def samples_used(st) -> dict:
 
 
 def usage_table(states) -> list[dict]:
-    """Per recording: name plus :func:`samples_used`."""
+    """Per recording: name plus :func:`samples_used`.
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states (``meta["samples"]`` when :func:`load_states` kept it).
+
+    Returns
+    -------
+    list of dict
+        One row per recording: ``recording`` and the counts of :func:`samples_used`.
+    """
     return [{"recording": st.name, **st.meta.get("samples", samples_used(st))} for st in states]
 
 
 def cog_faults(states) -> dict:
-    """The CoG method and the rider body-frames it excluded from G (swaps, flips), JSON-ready."""
+    """The CoG method and the rider body-frames it excluded from G (swaps, flips), JSON-ready.
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states.
+
+    Returns
+    -------
+    dict
+        ``cog_method``, ``excluded_body_frames`` (total), ``per_recording`` and ``per_body`` counts.
+    """
     per_body: dict[str, int] = {}
     for st in states:
         for nm, c in st.meta.get("cog_fault_bodies", {}).items():
@@ -239,6 +271,16 @@ def collect_warnings(states) -> list[str]:
     Besides the warnings of the reading, every exclusion that changes G is said with its count: a rider
     body the fitted skeleton excluded in more than :data:`EXCLUDED_WARN_SHARE` of the frames, and bodies
     the skeleton's chain does not know (their poses are used as measured, without swap or flip checks).
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states.
+
+    Returns
+    -------
+    list of str
+        The warnings, the recordings left out (``skipped``) first.
     """
     out = [f"{name}: skipped: {why}" for st in states for name, why in st.meta.get("skipped", [])]
     out += [f"{st.name}: {w}" for st in states for w in st.meta.get("warnings", [])]

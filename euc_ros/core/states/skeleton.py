@@ -74,7 +74,7 @@ _CHUNK = 512
 class SkeletonFitConfig:
     """Weights and fault thresholds of the chain fit (SI units).
 
-    Attributes
+    Parameters
     ----------
     pos_sigma_m : float
         Expected sliding of a pivot per axis [m] (weight ``1 / pos_sigma_m^2``).
@@ -90,6 +90,12 @@ class SkeletonFitConfig:
         A link is bad beyond its median deviation plus this many robust standard deviations.
     fault_floor_m : float
         Smallest fault threshold of a link [m].
+
+    Raises
+    ------
+    ConfigError
+        Naming the field: a sigma, ``fault_sigmas`` or ``fault_floor_m`` not finite and > 0, ``iterations``
+        below 1, or a negative segment weight.
     """
 
     pos_sigma_m: float = 0.005
@@ -175,7 +181,7 @@ def _project_so3(m: np.ndarray) -> np.ndarray:
 class SkeletonModel:
     """A session's chain: bodies, links, their fixed vectors and fault thresholds.
 
-    Attributes
+    Parameters
     ----------
     bodies : tuple of str
         Rider bodies of the chain (the session's segment bodies, session order).
@@ -190,8 +196,9 @@ class SkeletonModel:
     threshold_m : ndarray (k,)
         Fault threshold of each link [m].
     frames : int
-        Frames the estimate used.
+        Frames the estimate used (the most of any link).
     config : SkeletonFitConfig
+        The fit's weights and fault thresholds.
     """
 
     bodies: tuple[str, ...]
@@ -216,8 +223,16 @@ class SkeletonModel:
         session : Session
             Segment bodies and the EUC body.
         config : SkeletonFitConfig, optional
+            Weights and fault thresholds (default: :class:`SkeletonFitConfig`'s).
         links : sequence of (str, str)
             Candidate links; those whose bodies are not in the session are dropped.
+        max_frames : int, optional
+            Frames used from the start of each recording (default: all).
+
+        Returns
+        -------
+        SkeletonModel
+            The chain of the links seen.
 
         Raises
         ------
@@ -236,7 +251,39 @@ class SkeletonModel:
     @classmethod
     def from_poses(cls, positions, quats, tracked, bodies, session, *, config=None, links=DEFAULT_LINKS,
                    max_frames=None, other_bodies=None) -> "SkeletonModel":
-        """As :meth:`estimate`, from arrays: lists of (b, n, 3) positions, (b, n, 4) quaternions, (b, n) tracked."""
+        """As :meth:`estimate`, from arrays: lists of (b, n, 3) positions, (b, n, 4) quaternions, (b, n) tracked.
+
+        Parameters
+        ----------
+        positions : list of array_like (b, n, 3)
+            Per recording, the bodies' pivots [m] (Z-up).
+        quats : list of array_like (b, n, 4)
+            Per recording, the bodies' orientations (quaternions).
+        tracked : list of (array_like of bool (b, n) or None) or None
+            Per recording, the tracked flags (None: every pose counts when finite).
+        bodies : sequence of str
+            Body names of the arrays' first axis.
+        session : Session
+            Segment bodies and the EUC body.
+        config : SkeletonFitConfig, optional
+            Weights and fault thresholds (default: :class:`SkeletonFitConfig`'s).
+        links : sequence of (str, str)
+            Candidate links; those whose bodies are not in the session are dropped.
+        max_frames : int, optional
+            Frames used from the start of each recording (default: all).
+        other_bodies : list of sequence of str, optional
+            Per recording, its body names (default: ``bodies`` for every one).
+
+        Returns
+        -------
+        SkeletonModel
+            The chain of the links seen.
+
+        Raises
+        ------
+        ConfigError
+            Naming ``cog_method``: no link between the session's bodies, or none seen with both bodies usable.
+        """
         config = config or SkeletonFitConfig()
         names, _, _ = session.segment_arrays()
         euc = session.euc.body
@@ -283,7 +330,13 @@ class SkeletonModel:
         return cls(tuple(names), euc, used, vec, rel, thr, n_frames, config)
 
     def to_dict(self) -> dict:
-        """JSON-friendly summary: links with their lengths and thresholds."""
+        """A JSON-friendly summary: links with their lengths and thresholds.
+
+        Returns
+        -------
+        dict
+            ``links`` (``from``, ``to``, ``vector_m``, ``length_m``, ``fault_threshold_m`` [m] each) and ``frames``.
+        """
         return {"links": [{"from": a, "to": b, "vector_m": [float(x) for x in v], "length_m": float(np.linalg.norm(v)),
                            "fault_threshold_m": float(t)}
                           for (a, b), v, t in zip(self.links, self.vectors, self.threshold_m)],
@@ -317,7 +370,24 @@ def _gather(model: SkeletonModel, position, quat, tracked, bodies):
 
 
 def link_deviations(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.ndarray) -> np.ndarray:
-    """``e_ab = |R_a^T (p_b - p_a) - u_ab|`` (k, n) [m] for chain arrays; NaN where a body is unusable."""
+    """The links' deviations ``e_ab = |R_a^T (p_b - p_a) - u_ab|`` for chain arrays.
+
+    Parameters
+    ----------
+    model : SkeletonModel
+        The chain.
+    P : numpy.ndarray (m+1, n, 3)
+        Pivots [m], rider bodies then E.
+    R : numpy.ndarray (m+1, n, 3, 3)
+        Rotations, the same order.
+    ok : numpy.ndarray of bool (m+1, n)
+        Usable poses.
+
+    Returns
+    -------
+    numpy.ndarray (k, n)
+        Per link and frame [m]; NaN where a body is unusable.
+    """
     chain = list(model.bodies) + [model.euc_body]
     e = np.full((len(model.links), P.shape[1]), np.nan)
     for k, (a, b) in enumerate(model.links):
@@ -332,6 +402,20 @@ def detect_faults(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.nda
     """Bodies (m, n) whose pose the chain cannot follow in a frame (swap: wrong pivot; flip: wrong orientation).
 
     See the module docstring. Unusable bodies are not faults (they are untracked).
+
+    Parameters
+    ----------
+    model : SkeletonModel
+        The chain.
+    P, R, ok : numpy.ndarray
+        Chain arrays (rider bodies then E): pivots (m+1, n, 3) [m], rotations (m+1, n, 3, 3), usable (m+1, n).
+    threshold_m : array_like (k,), optional
+        Fault threshold of each link [m] (default: the model's).
+
+    Returns
+    -------
+    numpy.ndarray of bool (m, n)
+        Faulty rider bodies per frame.
     """
     thr = model.threshold_m if threshold_m is None else np.asarray(threshold_m, float)
     e = link_deviations(model, P, R, ok)
@@ -382,10 +466,18 @@ def fit_chain(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.ndarray
     Parameters
     ----------
     model : SkeletonModel
+        The chain (its links and fit weights).
     P, R, ok : ndarray
         Chain arrays (rider bodies then E): pivots (m+1, n, 3), rotations (m+1, n, 3, 3), usable (m+1, n).
     exclude : ndarray (m, n) of bool, optional
         Measurements given zero weight (faults); the chain predicts those bodies.
+
+    Returns
+    -------
+    P_fit : numpy.ndarray (m, n, 3)
+        Fitted pivots [m].
+    R_fit : numpy.ndarray (m, n, 3, 3)
+        Fitted rotations.
     """
     cfg = model.config
     chain = list(model.bodies) + [model.euc_body]
@@ -550,7 +642,28 @@ class OnlineSkeleton:
     def calibrate(self, position, quat, tracked, bodies) -> tuple[SkeletonModel, np.ndarray | None]:
         """Take one frame into the calibration (while it lasts).
 
-        Returns the model and the fault thresholds to use for this frame (``None``: the model's own).
+        Parameters
+        ----------
+        position : array_like (b, 3)
+            The bodies' pivots [m] (Z-up).
+        quat : array_like (b, 4)
+            The bodies' orientations (quaternions).
+        tracked : array_like of bool (b,) or None
+            Tracked flags (None: all tracked).
+        bodies : sequence of str
+            Body names; a change of the set starts the calibration afresh.
+
+        Returns
+        -------
+        model : SkeletonModel
+            The model to fit this frame with.
+        threshold_m : numpy.ndarray (k,) or None
+            The fault thresholds to use for this frame [m] (None: the model's own).
+
+        Raises
+        ------
+        ConfigError
+            Naming ``cog_method`` when no link can be estimated from the frames seen.
         """
         if self.model is not None and not self._buf:
             return self.model, None
@@ -570,7 +683,24 @@ class OnlineSkeleton:
         return model, np.full(len(model.links), self.calibration_floor_m)
 
     def update(self, position, quat, tracked, bodies) -> dict[str, np.ndarray]:
-        """Fit one frame ((b, 3), (b, 4), (b,)) and return :func:`skeleton_cog`'s dict."""
+        """Fit one frame and count its faulty bodies in :attr:`fault_counts`.
+
+        Parameters
+        ----------
+        position : array_like (b, 3)
+            The bodies' pivots [m] (Z-up).
+        quat : array_like (b, 4)
+            The bodies' orientations (quaternions).
+        tracked : array_like of bool (b,) or None
+            Tracked flags (None: all tracked).
+        bodies : sequence of str
+            Body names.
+
+        Returns
+        -------
+        dict
+            :func:`skeleton_cog`'s dict of the frame.
+        """
         model, thr = self.calibrate(position, quat, tracked, bodies)
         out = skeleton_cog(position, quat, tracked, self.session, bodies, model, threshold_m=thr)
         for nm, f in zip(model.bodies, np.asarray(out["faults"]).reshape(len(model.bodies))):

@@ -91,7 +91,23 @@ def unwrap_turns(psi_wrapped, turns_before: int = 0, last_wrapped: float | None 
     (whole array) and the streaming (one sample, ``turns_before`` and ``last_wrapped`` carried)
     results are bitwise equal. NaN samples stay NaN and do not break the count.
 
-    Returns ``(psi_unwrapped, turns_after, last_wrapped_after)``.
+    Parameters
+    ----------
+    psi_wrapped : float or array_like (n,)
+        Wrapped angle [rad].
+    turns_before : int
+        Turns ``m`` carried from the samples before.
+    last_wrapped : float, optional
+        The last finite wrapped sample before [rad] (None: the first sample starts the count).
+
+    Returns
+    -------
+    psi_unwrapped : numpy.ndarray (n,)
+        The unwrapped angle [rad] (at least one-dimensional).
+    turns_after : int
+        ``m`` of the last finite sample (``turns_before`` when none is finite).
+    last_wrapped_after : float or None
+        The last finite wrapped sample [rad] (``last_wrapped`` when none is finite).
     """
     p = np.atleast_1d(np.asarray(psi_wrapped, dtype=float))
     out = np.full(p.shape, np.nan)
@@ -177,7 +193,19 @@ def split_pieces(position, quat, tracked, session, bodies, *, geo: dict | None =
 
 @dataclass
 class SplitStates:
-    """States composed from the smoothed pieces (arrays, or floats on the streaming path)."""
+    """States composed from the smoothed pieces (arrays, or floats on the streaming path).
+
+    Parameters
+    ----------
+    gamma, gamma_dot, gamma_ddot : numpy.ndarray
+        EUC body pitch and its rates [rad, rad/s, rad/s^2].
+    phi, phi_dot, phi_ddot : numpy.ndarray
+        Rider pitch about the ankle hinge and its rates [rad, rad/s, rad/s^2].
+    x_dot, x_ddot : numpy.ndarray
+        Longitudinal speed and acceleration of the wheel centre [m/s, m/s^2].
+    psi : numpy.ndarray
+        Heading, unwrapped [rad].
+    """
 
     gamma: np.ndarray
     gamma_dot: np.ndarray
@@ -191,7 +219,18 @@ class SplitStates:
 
 
 def compose(d: dict) -> SplitStates:
-    """States from ``d[group] = (y, y_dot, y_ddot)``, each ``(..., k)`` with the columns of :data:`GROUPS`."""
+    """States from ``d[group] = (y, y_dot, y_ddot)``, each ``(..., k)`` with the columns of :data:`GROUPS`.
+
+    Parameters
+    ----------
+    d : dict of tuple of numpy.ndarray
+        Per group of :data:`GROUPS`, the smoothed pieces and their first and second derivatives (SI, rad).
+
+    Returns
+    -------
+    SplitStates
+        The composed states, of shape ``(...)``.
+    """
     P, S, U, Y, L = (d[g] for g in ("pos", "seg", "euc", "yaw", "lat"))
     rx = [P[j][..., 2] + S[j][..., 0] + U[j][..., 2] for j in range(3)]
     rz = [P[j][..., 3] + S[j][..., 1] + U[j][..., 3] for j in range(3)]
@@ -221,12 +260,45 @@ def _smoothing(smoothing: dict | None) -> dict:
 
 
 def split_weights(dt: float, lag: int, smoothing: dict | None = None, tol: float = SPLIT_TOL) -> dict[str, np.ndarray]:
-    """FIR weights (3, window) of each group (:func:`~euc_ros.core.filters.causal.kalman_weights`)."""
+    """FIR weights (3, window) of each group (:func:`~euc_ros.core.filters.causal.kalman_weights`).
+
+    Parameters
+    ----------
+    dt : float
+        Frame period [s].
+    lag : int
+        Output delay [frames].
+    smoothing : dict, optional
+        Smoothing times [s] of some groups (default :data:`SPLIT_SMOOTHING`).
+    tol : float
+        Truncation of the impulse responses.
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        Per group, the weights of the value and its first and second derivatives.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``smoothing`` for a group not in :data:`GROUPS`, or bad filter settings.
+    """
     return {g: kalman_weights(dt, lag, smoothing_s=t, tol=tol) for g, t in _smoothing(smoothing).items()}
 
 
 def group_columns(pieces: dict) -> dict[str, np.ndarray]:
-    """Stack the pieces of each group: ``(..., k)`` arrays, ``psi`` unwrapped by whole turns."""
+    """Stack the pieces of each group: ``(..., k)`` arrays, ``psi`` unwrapped by whole turns.
+
+    Parameters
+    ----------
+    pieces : dict of array_like
+        :func:`split_pieces` (every name of :data:`GROUPS`).
+
+    Returns
+    -------
+    dict of numpy.ndarray
+        Per group, its pieces as columns, in the order of :data:`GROUPS`.
+    """
     out = {}
     for g, names in GROUPS.items():
         cols = []
@@ -281,6 +353,17 @@ class StreamingSplit:
     frame's states are composed once every group has given its output for it. Equal to
     :func:`split_derivatives` to round-off.
 
+    Parameters
+    ----------
+    dt : float
+        Frame period [s].
+    lag_s : float
+        Output delay [s] (rounded to frames).
+    smoothing : dict, optional
+        Smoothing times [s] of some groups (default :data:`SPLIT_SMOOTHING`).
+    max_gap : int
+        Longest run of missing frames bridged.
+
     Attributes
     ----------
     lag : int
@@ -311,7 +394,18 @@ class StreamingSplit:
     def push(self, pieces: dict, frame: int | None = None) -> list[tuple[int, SplitStates, bool]]:
         """Add one frame's pieces (floats, :func:`split_pieces` of one frame; NaN: missing).
 
-        Returns a list of ``(frame, states, filled)``: usually zero or one, more after a bridged gap.
+        Parameters
+        ----------
+        pieces : dict of float
+            One frame's pieces (every name of :data:`GROUPS`); any NaN makes the frame missing.
+        frame : int, optional
+            Its frame number (default: the frame after the previous push).
+
+        Returns
+        -------
+        list of tuple
+            ``(frame, states, filled)`` (int, :class:`SplitStates` of floats, bool): usually zero or one, more
+            after a bridged gap.
         """
         row = {}
         for g, names in GROUPS.items():

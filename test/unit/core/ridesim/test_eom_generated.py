@@ -1,5 +1,6 @@
 """The printed truth equations (eom_generated.py) are the sympy derivation's, as text and as numbers."""
 # covers: euc_ros/core/ridesim/eom_codegen.py
+# covers: euc_ros/core/ridesim/eom_derivation.py
 from __future__ import annotations
 
 import numpy as np

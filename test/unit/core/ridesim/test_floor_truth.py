@@ -1,12 +1,13 @@
 """Floors in a level lab: the simulator's floor dynamics, and the analysis' floor geometry.
 
-Two derivations meet here. The simulator's :func:`~euc_ros.core.ridesim.truth_model._derive_floor`
+Two derivations meet here. The simulator's :func:`~euc_ros.core.ridesim.eom_derivation.derive_floor`
 is Lagrange's equations (sympy) of a wheel centre moving along a curve with tangent angle a(s) and
 angles measured from gravity's vertical. The residual analysis'
 :class:`~euc_ros.core.model.effects.FloorGeometry` is Newton's law projected on the path by
 hand, written with the measured signals (horizontal x_ddot, vertical C_zdd). A third, older derivation
-(:func:`_derive`: a level floor with gravity tilted) must agree with the first on a constant slope,
-once the angles are measured from the floor's normal instead of the vertical.
+(:func:`~euc_ros.core.ridesim.eom_derivation.derive_planar`: a level floor with gravity tilted) must agree
+with the first on a constant slope, once the angles are measured from the floor's normal instead of the
+vertical.
 """
 # covers: euc_ros/core/ridesim/floors.py
 from __future__ import annotations

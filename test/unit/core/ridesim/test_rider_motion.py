@@ -1,7 +1,7 @@
 """Pedals that flex and arms that swing (:mod:`euc_ros.core.ridesim.rider_motion`): the truth checked
 against derivations written here by hand.
 
-* pedals: the 4-DoF Lagrange equations (sympy, :func:`~euc_ros.core.ridesim.truth_model._derive_pedal`)
+* pedals: the 4-DoF Lagrange equations (sympy, :func:`~euc_ros.core.ridesim.eom_derivation.derive_pedal`)
   reduce to the rigid model at u = u_dot = 0; without inputs and damping they conserve the energy
   T + V + k u^2 / 2 written here from the point velocities; in a simulated ride the pedal force equals
   the rider's load along the EUC's axis, m (a_G + g e_z) . e_ax, with a_G from the recorded CoG track;
