@@ -37,11 +37,15 @@ DOCUMENTED: tuple[str, ...] = (
     "euc_ros.core.io", "euc_ros.core.model", "euc_ros.core.mocap", "euc_ros.core.online",
     "euc_ros.core.unicycle", "euc_ros.core.ridesim", "euc_ros.core.identify",
     "euc_ros.core.openworld", "euc_ros.core.worldsim", "euc_ros.core.states", "euc_ros.core.filters",
+    "euc_ros.core.residual",
 )
 
 #: Modules of DOCUMENTED packages whose sections are still to write, with why (the list only shrinks: a module
 #: that passes must leave it).
 PENDING = {
+    "euc_ros.core.residual.families": "the basis functions, filters, wheel phases and Families' methods: the module is "
+                                      "at 759 of 800 lines and their sections take ~165 (test_sizes.py); it needs "
+                                      "a split first",
 }
 
 #: Objects exempt from the check, with why.

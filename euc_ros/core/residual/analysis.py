@@ -189,6 +189,27 @@ def prepare_setup(states: Sequence[RiderStates], params: EucParams, *, n_folds: 
 
     With ``h_held`` every recording carries it (:data:`~euc_ros.core.model.extended.HELD_H`) and it is the start
     of every fit; the discovery is then not linearised at the geometric h (h does not move).
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        Reconstructed recordings.
+    params : EucParams
+        Nominal parameters.
+    n_folds : int or None
+        Segments per run of the folds (None: enough for :data:`~.folds.MIN_FOLDS` folds).
+    use_geometry : bool
+        Measure the floor from the wheel's contact path.
+    analysis_rate_hz : float or None
+        Sub-sampling rate of the prepared recordings [Hz]; None: every sample.
+    say : callable
+        Progress lines.
+    h_held : float, optional
+        h held fixed in every fit [m]; None: fitted.
+
+    Returns
+    -------
+    Setup
     """
     # geometry first: the contact path measures the floor (plane, smooth deviation, scatter)
     floor = floor_from_states(states, params.R) if use_geometry else None
@@ -223,6 +244,20 @@ def free_h_reference(setup: Setup, base: Stage, say: Callable[[str], None]) -> S
     effect or a discovered term is evidence only when it explains more than freeing h does, so the start's
     held-out residual is the base model's with h fitted freely on the same samples and folds; its model and
     parameters stay the held ones (every fit from it holds h).
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings (h held) and folds.
+    base : Stage
+        The base model with h held.
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    Stage
+        ``base``'s model and parameters with the held-out residual of h freed.
     """
     free = []
     for rec in setup.recs:
@@ -238,7 +273,21 @@ def free_h_reference(setup: Setup, base: Stage, say: Callable[[str], None]) -> S
 
 
 def screen_candidates(candidates: Sequence[Candidate], setup: Setup, say: Callable[[str], None]) -> Screening:
-    """Step 2: which candidates can show in the residual at all (a force in span(b_d, b_h) cannot)."""
+    """Step 2: which candidates can show in the residual at all (a force in span(b_d, b_h) cannot).
+
+    Parameters
+    ----------
+    candidates : sequence of Candidate
+        The library.
+    setup : Setup
+        The prepared recordings and the base fit (its h).
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    Screening
+    """
     visible = {c.name: detectability(c, setup.recs, setup.base_fit.h) for c in candidates}
     detectable = [c for c in candidates if visible[c.name] > DETECTABILITY_TOL]
     for c in candidates:
@@ -248,7 +297,17 @@ def screen_candidates(candidates: Sequence[Candidate], setup: Setup, say: Callab
 
 
 def base_stage(setup: Setup) -> Stage:
-    """The paper's model alone, held out: where the selection starts and what every cut is measured against."""
+    """The paper's model alone, held out: where the selection starts and what every cut is measured against.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings, folds and base fit.
+
+    Returns
+    -------
+    Stage
+    """
     model = Model()
     return Stage(model, held_out(model, setup.recs, setup.h0, setup.folds, start=setup.base_fit.x), setup.base_fit.x)
 
@@ -258,6 +317,22 @@ def floor_geometry_step(setup: Setup, stage: Stage, journal: Journal, say: Calla
 
     Known from geometry, it goes in before any dynamic candidate; the dynamic ground_slope (a mocap frame
     tilted against gravity) then has nothing left to explain on this floor.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings and the measured floor.
+    stage : Stage
+        The base stage.
+    journal : Journal
+        Gets the step and the ``ground_slope`` row when the floor goes in.
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    Stage
+        ``stage`` without a floor or on a flat one; else the model with the floor's geometry.
     """
     floor = setup.floor
     if floor is None or floor.flat:
@@ -284,6 +359,28 @@ def radius_step(setup: Setup, candidates: Sequence[Candidate], stage: Stage, use
     Only a flat floor measures the rolling radius, which the residual cannot separate from h (quasi-static
     riding): a significant offset of a flat floor is a wheel_radius_error found by geometry; a sloped or
     uneven floor is reported, never read as a radius.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings, the measured floor and the nominal wheel radius.
+    candidates : sequence of Candidate
+        The library (the radius goes in only when it holds ``wheel_radius_error``).
+    stage : Stage
+        Where the selection ended.
+    use_geometry : bool
+        Whether the floor was measured (for the record's reason).
+    journal : Journal
+        Gets the step when the radius goes in.
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    geometry : dict
+        The rolling radius measured and nominal [m], its scatter, the floor and whether it was used.
+    stage : Stage
+        ``stage``, or with the measured radius error (:class:`MeasuredWheelRadius`).
     """
     floor, R = setup.floor, setup.params.R
     r_meas, r_significant, r_reason = rolling_radius_from_floor(floor, R, RADIUS_TOL_M)
@@ -318,6 +415,23 @@ def discovery_alternative(setup: Setup, stage: Stage, finder: Discovery, rules: 
     basis mimics library effects (speed at the contact is viscous friction), so a near-equal fit is a tie,
     not a better explanation. A tie (the named not significantly better either) is reported: the
     alternative is listed with the h it implies.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings and folds.
+    stage : Stage
+        The named effects selected.
+    finder : Discovery
+        The discovery.
+    rules : Selector
+        The significance level and minimum gain.
+    journal : Journal
+        Gets the warning and the step (dropped or tied).
+
+    Returns
+    -------
+    Alternative
     """
     root = Model([c for c in stage.model.effects if getattr(c, "geometric", False)])
     root_fit = fit_model(root, setup.recs, setup.h0)
@@ -368,7 +482,23 @@ def named_equal_to_discovery(stage: Stage, last: LastStep | None, sel_ho: HeldOu
     The discovery showed structure at alpha (one test: the terms were chosen within the folds); a named
     effect that cuts the residual as much (its own test at alpha now that structure is shown, not
     Bonferroni over the library) and that the discovered terms do not beat significantly is the physical
-    explanation of it. Returns ``(trial, p that the terms explain more, the trials tied with it)`` or None.
+    explanation of it.
+
+    Parameters
+    ----------
+    stage : Stage
+        The model the discovery started from.
+    last : LastStep or None
+        The last selection step (considered only when it started from ``stage``'s model).
+    sel_ho : HeldOut
+        The discovered terms' held-out residual.
+    rules : Selector
+        The significance level and minimum gain.
+
+    Returns
+    -------
+    tuple of (Trial, float, list of Trial) or None
+        ``(trial, p that the terms explain more, the trials tied with it)``; None when no named effect does.
     """
     if last is None or last.model is not stage.model:
         return None
@@ -389,7 +519,29 @@ def named_equal_to_discovery(stage: Stage, last: LastStep | None, sel_ho: HeldOu
 
 def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None, finder: Discovery,
                    rules: Selector, journal: Journal, say: Callable[[str], None]) -> DiscoveryOutcome:
-    """Step 6b: structure left above what the named effects explain (held out, consistent across runs)."""
+    """Step 6b: structure left above what the named effects explain (held out, consistent across runs).
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings, folds and geometric h.
+    alternative : Alternative
+        Where the discovered alternative left the named stage.
+    last : LastStep or None
+        The last selection step.
+    finder : Discovery
+        The discovery.
+    rules : Selector
+        The significance level and minimum gain.
+    journal : Journal
+        Gets the step and warnings.
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    DiscoveryOutcome
+    """
     stage = alternative.stage
     disc = finder.discover(stage.model, stage.x, setup.recs, setup.folds, setup.h0, stage.heldout, setup.h_geo)
     info = disc.to_json()
@@ -446,7 +598,29 @@ def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None
 def conclude(setup: Setup, base: Stage, found: DiscoveryOutcome, geometry: dict,
              noise_floor_of: Callable[[Model, np.ndarray], float] | None, rules: Selector,
              journal: Journal) -> ResidualResult:
-    """Step 7: the noise floor, the final fit, the h range of the tied models, and the result."""
+    """Step 7: the noise floor, the final fit, the h range of the tied models, and the result.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings, folds and base fit.
+    base : Stage
+        The base model held out.
+    found : DiscoveryOutcome
+        The discovery step's outcome.
+    geometry : dict
+        The rolling-radius record (:func:`radius_step`).
+    noise_floor_of : callable or None
+        ``(model, x) -> RMS [N m]``; its failure is a warning.
+    rules : Selector
+        The significance level and minimum gain.
+    journal : Journal
+        What the steps reported.
+
+    Returns
+    -------
+    ResidualResult
+    """
     current, named = found.stage, found.named
     noise = float("nan")
     if noise_floor_of is not None:
@@ -500,7 +674,13 @@ def conclude(setup: Setup, base: Stage, found: DiscoveryOutcome, geometry: dict,
 
 
 class MeasuredWheelRadius(Candidate):
-    """wheel_radius_error with its parameter measured (wheel-centre height), not fitted."""
+    """wheel_radius_error with its parameter measured (wheel-centre height), not fitted.
+
+    Parameters
+    ----------
+    delta : float
+        The rolling radius measured minus the nominal one [m].
+    """
 
     name = "wheel_radius_error"
     params = ()

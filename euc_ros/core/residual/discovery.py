@@ -76,7 +76,7 @@ DISCOVERY_H_STEP_M = 1e-3
 class DiscoveryRecord:
     """What one discovery found: the discovered model (or none), its held-out residuals and its JSON record.
 
-    Attributes
+    Parameters
     ----------
     model : Model or None
         The current model plus the discovered effect (None when no number of groups beats none).
@@ -208,7 +208,7 @@ def group_scales(BT: np.ndarray, slices: list[slice]) -> np.ndarray:
 class Linearisation:
     """The current model's residual linearised at one h: residual, sensitivities to a force and to h.
 
-    Attributes
+    Parameters
     ----------
     h_lin : float or None
         The h linearised at (None: the current model's own fit, and each fold's own h).
@@ -264,7 +264,7 @@ def _sensitivities(problem: DiscoveryProblem, lin: Linearisation, rows) -> RowSe
 class GroupChoice:
     """The groups one linearisation chose: their number by held-out error, then fitted on all rows.
 
-    Attributes
+    Parameters
     ----------
     rmse : dict of int to float
         Held-out RMSE [N m] with k groups chosen within the folds.
@@ -273,6 +273,7 @@ class GroupChoice:
     complete : dict of int to ndarray
         The held-out residuals with k groups (every fold).
     chosen : list of Group or None
+        The chosen groups, their columns that add a direction (None: none).
     c : ndarray or None
         Their coefficients on the linearised residual.
     dh : float
@@ -396,12 +397,16 @@ def select(problem: DiscoveryProblem, h_lin: float | None, most: int | None = No
 class Refit:
     """A choice of groups fitted jointly with h and every parameter, and its held-out residual.
 
-    Attributes
+    Parameters
     ----------
     model : Model
+        The current model plus the discovered effect.
     x : ndarray
+        Its parameters fitted on all samples.
     heldout : HeldOut
+        Its held-out residual (:func:`structure_heldout`, or a plain refit per fold).
     choice : GroupChoice
+        The choice fitted.
     h_lin : float
         The h the choice was linearised at.
     k : int
@@ -538,8 +543,23 @@ def admissible_subset(problem: DiscoveryProblem, best: Refit | None, first: Grou
     carry the joint fit's h out of the rider's geometric window
     (:func:`~euc_ros.core.residual.selection.admissibility`) while the groups before it on the search path
     explain the structure with an h inside it: those are refitted, one group fewer at a time, and the first
-    admissible one is the discovered model (its held-out error is judged as any other's). ``best`` when it is
-    admissible, has one group, or no smaller set is admissible.
+    admissible one is the discovered model (its held-out error is judged as any other's).
+
+    Parameters
+    ----------
+    problem : DiscoveryProblem
+    best : Refit or None
+        The discovered model.
+    first : GroupChoice
+        The choice linearised at the current model's own fit (its smaller sets are chosen there too).
+    h_geometric : float
+        The segments' geometric h [m] (NaN: h is not compared with it).
+
+    Returns
+    -------
+    Refit or None
+        ``best`` when it is None or admissible, has one group, or no smaller set is admissible; else the
+        largest admissible smaller set.
     """
     if best is None or admissibility(best.model, best.x, h_geometric) is None:
         return best

@@ -99,19 +99,23 @@ GRID_POINTS = 41
 class Family:
     """One family of basis functions with one argument (a group before its point).
 
-    Attributes
+    Parameters
     ----------
     kind : str
-        ``lab``, ``wheel``, ``speed``, ``drift`` or ``dyn``.
+        ``lab``, ``wheel``, ``speed``, ``drift``, ``dyn``, ``osc`` or ``custom``.
     option : tuple
-        The kind's options (lab: coordinate ``X``/``Y`` and modifier ``1``/``speed``/``sign``; speed:
-        ``odd``/``even``; dyn: the state).
+        The kind's options (lab: coordinate ``X``/``Y`` and modifier ``1``/``speed``/``sign``; wheel:
+        ``aligned`` or none; speed: ``odd``/``even``; dyn, osc: the state; custom: the argument).
     family, argument, argument_unit : str
         Names for the report.
     function : str
         The force's form, e.g. ``f(X) cos(psi)``.
     per_unit : str
         Unit the reported function is per (``1``: a force; ``m/s``: a force per unit speed).
+    basis : callable, optional
+        A custom family's ``basis(x, level) -> (n, m)`` (:meth:`custom`).
+    levels : int
+        A custom family's complexity levels.
     """
 
     kind: str

@@ -39,7 +39,15 @@ SAMPLES_PER_BLOCK = 1.0
 
 @dataclass
 class Fold:
-    """One train/test split as sample masks per recording (``train[i]``, ``test[i]``: bool over rec i)."""
+    """One train/test split as sample masks per recording.
+
+    Parameters
+    ----------
+    train, test : list of ndarray
+        Per recording i, bool over its samples: trained on (``train[i]``), held out (``test[i]``).
+    name : str
+        The held-out segment, ``<recording>[<segment>]``.
+    """
 
     train: list[np.ndarray]
     test: list[np.ndarray]
@@ -65,6 +73,20 @@ def folds_of(recs: Sequence[Recording], n_segments: int = 3, guard_s: float = 0.
     ``guard_s`` on either side of the held-out segment: the derivative filter and coloured noise
     correlate neighbouring samples). So every sample is held out once, and each fold trains on
     ``1 - 1/(runs x segments)`` of the data (leave-one-run-out trained on ``1 - 1/runs``).
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+        The recordings, their samples grouped into blocks (:func:`with_blocks`).
+    n_segments : int
+        Segments per run (fewer when a run has fewer blocks).
+    guard_s : float
+        Half-width of the guard band left out of the training samples around a held-out segment [s].
+
+    Returns
+    -------
+    list of Fold
+        One per segment of each run with blocks.
     """
     folds = []
     for i, rec in enumerate(recs):
@@ -92,6 +114,24 @@ def residual_block_length(recs: Sequence[Recording], residuals: Sequence[np.ndar
     autocorrelation time (``dt (1 + 2 sum rho_k)`` up to the first zero crossing: ``m dt`` for an m-sample
     moving average), at least ``min_s`` (one filter window), at most ``max_fraction`` of the shortest
     recording.
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+        The recordings (their sample times).
+    residuals : sequence of ndarray
+        Each recording's residual (n_i,) [N m].
+    min_s : float
+        Shortest block [s].
+    trend_s : float
+        Window of the slow part removed [s].
+    max_fraction : float
+        Longest block as a fraction of the shortest recording's duration.
+
+    Returns
+    -------
+    float
+        The block length [s] (``min_s`` when no recording has 16 samples or a nonzero residual).
     """
     lags = []
     for rec, r in zip(recs, residuals):
@@ -121,7 +161,20 @@ def residual_block_length(recs: Sequence[Recording], residuals: Sequence[np.ndar
 
 
 def with_blocks(recs: Sequence[Recording], block_s: float) -> list[Recording]:
-    """The recordings with their samples grouped into blocks of ``block_s`` seconds."""
+    """The recordings with their samples grouped into blocks of ``block_s`` seconds.
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+        The recordings.
+    block_s : float
+        Block length [s].
+
+    Returns
+    -------
+    list of Recording
+        The same contexts, ``block`` the index of each sample's block from the recording's first sample.
+    """
     out = []
     for rec in recs:
         t = rec.ctx.t

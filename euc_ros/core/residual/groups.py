@@ -38,7 +38,18 @@ def _where(point: int) -> str:
 class Group:
     """One discovered group: family ``family`` (index into ``Families.families``) at ``level``, at ``point``.
 
-    ``keep``: the columns fitted (:func:`~euc_ros.core.residual.families.independent_columns`; None: all).
+    Parameters
+    ----------
+    family : int
+        Index of the family in ``Families.families``.
+    level : int
+        Its complexity level (from 0).
+    point : int
+        Index of the point of application in :data:`~euc_ros.core.residual.families.POINTS`.
+    keep : tuple of int, optional
+        The group's columns fitted (:func:`~euc_ros.core.residual.search.independent_columns`; None: all).
+    phases : tuple of float, optional
+        The aligned wheel family's phase offset per recording [rad] (None for any other group).
     """
 
     family: int
@@ -50,7 +61,11 @@ class Group:
     def mix(self) -> np.ndarray | None:
         """For the aligned wheel family with its phase offsets, the matrix from its raw columns to the group's.
 
-        That matrix is :func:`~euc_ros.core.residual.families.wheel_phase_mix`; for any other group None.
+        Returns
+        -------
+        ndarray or None
+            :func:`~euc_ros.core.residual.families.wheel_phase_mix` of :attr:`phases` (2 K n_runs, 2 K), K the
+            level's harmonics; None for any other group.
         """
         return None if self.phases is None else wheel_phase_mix(np.asarray(self.phases, float), self.level + 1)
 
@@ -58,6 +73,16 @@ class Group:
         """Indices of the fitted columns among the group's columns.
 
         The group's columns: the family's at this level, or their phase-aligned combinations.
+
+        Parameters
+        ----------
+        basis : Families
+            The basis the group is of.
+
+        Returns
+        -------
+        ndarray of int
+            :attr:`keep`, or every column.
         """
         if self.keep is not None:
             return np.array(self.keep, int)
@@ -65,13 +90,38 @@ class Group:
         return np.arange(M.shape[1] if M is not None else basis.width(self.family, self.level))
 
     def of(self, basis: Families, C: np.ndarray) -> np.ndarray:
-        """The group's fitted columns from the family's raw columns ``C`` (..., raw)."""
+        """The group's fitted columns from the family's raw columns.
+
+        Parameters
+        ----------
+        basis : Families
+            The basis the group is of.
+        C : ndarray (..., raw)
+            The family's raw columns at the group's level.
+
+        Returns
+        -------
+        ndarray (..., fitted)
+            Phase-aligned (:meth:`mix`) when the group has phases, then the fitted columns taken.
+        """
         M = self.mix()
         return (C if M is None else C @ M)[..., self.columns(basis)]
 
 
 def is_aligned(basis: Families, g: Group) -> bool:
-    """True for a group of the wheel family with a phase offset per recording."""
+    """Whether ``g`` is a group of the wheel family with a phase offset per recording.
+
+    Parameters
+    ----------
+    basis : Families
+        The basis the group is of.
+    g : Group
+        The group.
+
+    Returns
+    -------
+    bool
+    """
     fam = basis.families[g.family]
     return fam.kind == "wheel" and bool(fam.option)
 
@@ -85,14 +135,39 @@ def _json(a):
 
 
 def point_gains(ctx, force_map_i: np.ndarray) -> np.ndarray:
-    """Residual change per unit force at each point (n, len(POINTS)): ``force_map . dQ`` of a unit force."""
+    """Residual change per unit force at each point: ``force_map . dQ`` of a unit force.
+
+    Parameters
+    ----------
+    ctx : ModelContext
+        One recording's samples and parameters.
+    force_map_i : ndarray (n, 3)
+        Its residual's change per unit generalized force along x, gamma and phi (:func:`force_map`).
+
+    Returns
+    -------
+    ndarray (n, len(POINTS))
+        Per point, [N m] per unit force [N] (per unit torque [N m] on the rider's pitch).
+    """
     jx, jz = jacobian_G(ctx, ctx.p())
     return np.stack([force_map_i[:, 0], np.sum(force_map_i * jx, axis=1), np.sum(force_map_i * jz, axis=1),
                      force_map_i[:, 2]], axis=1)
 
 
 class DiscoveredEffect(Candidate):
-    """Discovered groups of family columns, fitted like a named candidate (one free coefficient per column)."""
+    """Discovered groups of family columns, fitted like a named candidate (one free coefficient per column).
+
+    Parameters
+    ----------
+    basis : Families
+        The basis the groups are of.
+    groups : sequence of Group
+        The groups.
+    scales : sequence of float
+        Each coefficient's typical magnitude (its ``ParamInfo.scale``), the groups' columns one after the other.
+    start : array_like, optional
+        The coefficients' start (default zeros).
+    """
 
     name = "discovered"
 
@@ -112,7 +187,18 @@ class DiscoveredEffect(Candidate):
         self.params = tuple(params)
 
     def unit(self, g: Group) -> str:
-        """Unit of the group's function: the point's force or torque per unit of the family's factor."""
+        """Unit of the group's function: the point's force or torque per unit of the family's factor.
+
+        Parameters
+        ----------
+        g : Group
+            One of the groups.
+
+        Returns
+        -------
+        str
+            ``N``, ``N m``, or either per the family's ``per_unit`` (e.g. ``N/(m/s)``).
+        """
         per = self.basis.families[g.family].per_unit
         pu = POINT_UNITS[g.point]
         return pu if per == "1" else f"{pu}/({per})"
@@ -249,7 +335,18 @@ class DiscoveredEffect(Candidate):
 
 
 def candidate_groups(basis: Families) -> list[Group]:
-    """Every (family, level, point) group: the candidates of the selection."""
+    """Every (family, level, point) group: the candidates of the selection.
+
+    Parameters
+    ----------
+    basis : Families
+        The basis.
+
+    Returns
+    -------
+    list of Group
+        Point by point, family by family, level by level.
+    """
     return [Group(f, lv, p) for p in range(len(POINTS)) for f in range(len(basis.families))
             for lv in range(n_levels(basis.families[f]))]
 
@@ -260,6 +357,22 @@ def group_sensitivities(basis: Families, ctx, force_map_i: np.ndarray, groups: S
     ``force_map_i`` (n, 3): the residual's change per unit extra generalized force along each coordinate
     (the residual is linear in an extra force), so a column's sensitivity is the point's gain times the
     family's function.
+
+    Parameters
+    ----------
+    basis : Families
+        The basis.
+    ctx : ModelContext
+        One recording's samples and parameters.
+    force_map_i : ndarray (n, 3)
+        Its force map (:func:`force_map`).
+    groups : sequence of Group
+        The groups.
+
+    Returns
+    -------
+    ndarray (n, sum m)
+        The groups' raw columns times their point's gain [N m per unit coefficient].
     """
     cols = basis.columns(ctx)
     gains = point_gains(ctx, force_map_i)
@@ -293,6 +406,16 @@ class RowSensitivities:
 
         Its columns at the rows are taken anew each time, not kept: a copy of every column at the rows would stand
         beside the selection's own.
+
+        Parameters
+        ----------
+        j : int
+            Index of the group.
+
+        Returns
+        -------
+        ndarray (rows, width)
+            The recordings' rows one after the other.
         """
         g = self.groups[j]
         key = (g.family, g.level)
@@ -305,6 +428,20 @@ def force_map(model: Model, recs: Sequence[Recording], x: np.ndarray) -> list[np
 
     The residual is linear in an extra force (``-R m11 (w . dQ) / D``), so three evaluations give the sensitivity of any
     force.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    recs : sequence of Recording
+        The recordings.
+    x : ndarray
+        The model's parameters ``[h, theta...]``.
+
+    Returns
+    -------
+    list of ndarray
+        Per recording (n_i, 3): [N m] per unit generalized force (N along x, N m along gamma and phi).
     """
     out = []
     for r in recs:
@@ -324,7 +461,7 @@ def force_map(model: Model, recs: Sequence[Recording], x: np.ndarray) -> list[np
 class DiscoveryProblem:
     """What every step of one discovery works on: the current model held out, the basis and its groups.
 
-    Attributes
+    Parameters
     ----------
     current : Model
         The model whose residual is searched.
@@ -333,11 +470,15 @@ class DiscoveryProblem:
     current_ho : HeldOut
         Its held-out residual (its per-fold parameters start every fold's linearisation).
     recs : sequence of Recording
+        The recordings, with their blocks.
     folds : sequence of Fold
+        The held-out folds.
     h0 : float
         Start of the joint fits [m].
     basis : Families
+        The families' basis over the recordings.
     search : GroupSearch
+        The search over the groups.
     groups : list of Group
         Every (family, level, point) group (:func:`candidate_groups`).
     slices : list of slice
@@ -433,14 +574,36 @@ class Layout:
         self.slices, self.phases, self.mixes = slices, phases, mixes
 
     def rows(self, S: RowSensitivities) -> np.ndarray:
-        """The turned columns of the rows of ``S`` as rows (transposed): (columns, rows)."""
+        """The turned columns of the rows of ``S`` as rows (transposed).
+
+        Parameters
+        ----------
+        S : RowSensitivities
+            The groups' raw columns on some rows.
+
+        Returns
+        -------
+        ndarray (columns, rows)
+        """
         out = np.empty((int(self.slices[-1].stop) if self.slices else 0, S.n))
         for j, to in enumerate(self.slices):
             out[to] = (S.block(j) @ self.mixes[j]).T if j in self.mixes else S.block(j).T
         return out
 
     def columns(self, S: RowSensitivities, cols) -> np.ndarray:
-        """Only the turned columns ``cols`` of the rows of ``S``: (rows, len(cols))."""
+        """Only the turned columns ``cols`` of the rows of ``S``.
+
+        Parameters
+        ----------
+        S : RowSensitivities
+            The groups' raw columns on some rows.
+        cols : array_like of int
+            Indices of turned columns (over all groups, :attr:`slices`).
+
+        Returns
+        -------
+        ndarray (rows, len(cols))
+        """
         out = np.empty((S.n, len(cols)))
         cols = np.asarray(cols, int)
         for j, to in enumerate(self.slices):

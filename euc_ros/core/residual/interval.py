@@ -46,7 +46,7 @@ EDGE_M = 1e-6
 class FinalInterval:
     """Intervals of the final model.
 
-    Attributes
+    Parameters
     ----------
     h_m : float
         The final model's h [m].
@@ -66,6 +66,8 @@ class FinalInterval:
         The same model's h on states filtered with the window chosen from the data (NaN: not measured)
         [m]; the interval covers it with the same half-width widened by ``filter_floor_m``, the bound on
         that filter's own distortion (:func:`filter_refit`).
+    filter_floor_m : float
+        That bound [m] (0: not measured).
     """
 
     h_m: float
@@ -93,11 +95,27 @@ class FinalInterval:
         return lo, hi
 
     def widened(self, extra_low_m: float, extra_high_m: float) -> "FinalInterval":
-        """The same intervals with h's widened by ``extra_low_m`` below and ``extra_high_m`` above [m]."""
+        """The same intervals with h's widened below and above.
+
+        Parameters
+        ----------
+        extra_low_m, extra_high_m : float
+            The widening below and above [m] (negative values count as 0; ``inf``: unbounded on that side).
+
+        Returns
+        -------
+        FinalInterval
+        """
         return replace(self, extra_low_m=max(float(extra_low_m), 0.0), extra_high_m=max(float(extra_high_m), 0.0))
 
     def widened_by(self) -> list[str]:
-        """What h's interval holds beyond its own statistics, in words."""
+        """What h's interval holds beyond its own statistics, in words.
+
+        Returns
+        -------
+        list of str
+            One phrase per term (the base model's widening, the data filter's h, the tied h); empty: none.
+        """
         out = []
         if math.isinf(self.extra_low_m) or math.isinf(self.extra_high_m):
             out.append("the base model's h, which the data do not bound")
@@ -112,7 +130,13 @@ class FinalInterval:
         return out
 
     def to_json(self) -> dict:
-        """The JSON keys ``h_after_ci95_m``, ``effect_parameters_ci95`` and ``h_after_uncertainty``."""
+        """The JSON keys ``h_after_ci95_m``, ``effect_parameters_ci95`` and ``h_after_uncertainty``.
+
+        Returns
+        -------
+        dict
+            Those keys, a value that is not finite as None.
+        """
         def f(v):
             return float(v) if math.isfinite(v) else None
 
@@ -130,6 +154,22 @@ def sandwich_covariance(model: Model, recs: Sequence[Recording], x: np.ndarray) 
 
     Parameters without a finite sensitivity get NaN variances. With fewer blocks than parameters + 2
     the covariance is all NaN (no degrees of freedom left).
+
+    Parameters
+    ----------
+    model : Model
+        The fitted model.
+    recs : sequence of Recording
+        The recordings it is fitted on, with their blocks.
+    x : ndarray (p,)
+        The fitted parameters ``[h, theta...]``.
+
+    Returns
+    -------
+    cov : ndarray (p, p)
+        The covariance of ``x`` (h [m^2]).
+    n_blocks : int
+        Blocks with a usable sample, over all recordings.
     """
     x = np.asarray(x, float)
     r, masks, J = model_jacobian(model, recs, x)
@@ -235,6 +275,34 @@ def filter_refit(interval: FinalInterval, model: Model, x: np.ndarray, states, p
     and the interval reaches that far beyond. Either states may be given as a function that makes them
     (:func:`~euc_ros.core.states.filter_choice.data_filters`): then each is made when needed and let go once
     prepared, so the two filters' states never exist together.
+
+    Parameters
+    ----------
+    interval : FinalInterval
+        The final model's intervals.
+    model : Model
+        The final model.
+    x : ndarray
+        Its fit ``[h, theta...]`` (the refits' start).
+    states : list of RiderStates or callable
+        The recordings filtered with the window chosen from the data, or a function that makes them.
+    params : EucParams
+        The session's nominal parameters.
+    probe_states : list of RiderStates or callable, optional
+        The recordings filtered with the companion filter, or a function that makes them.
+    probe_ratio : float
+        The companion filter's distortion over the chosen one's (the bound needs it above 1).
+    floor : FloorFit, optional
+        The floor measured from the contact path, as in the analysis.
+    analysis_rate_hz : float or None
+        Sub-sampling rate of the prepared recordings [Hz]; None: every sample.
+    block_s : float
+        Block length of the paired test [s].
+
+    Returns
+    -------
+    FinalInterval
+        ``interval`` with ``filter_h_m`` and ``filter_floor_m``.
     """
     def refit(sts) -> float:
         # states made here live as long as their contexts (dropped after the fit)
@@ -255,6 +323,17 @@ def base_widening(base_uncertainty: dict) -> tuple[float, float]:
     Those are the terms the fit's statistics do not hold (errors in variables, sliding, the filter's
     distortion, few blocks); the final model is fitted on the same states, so its interval is widened alike.
     An end of the base interval the data do not bound (None) is an infinite widening on that side.
+
+    Parameters
+    ----------
+    base_uncertainty : dict
+        identify's JSON of the base model: ``h_ci95_m`` and ``uncertainty.bootstrap_ci95_m``.
+
+    Returns
+    -------
+    tuple of float
+        ``(below, above)`` [m], each >= 0; ``inf`` on a side the data do not bound, ``(0, 0)`` when either
+        interval is missing.
     """
     ci = base_uncertainty.get("h_ci95_m") or [None, None]
     boot = (base_uncertainty.get("uncertainty") or {}).get("bootstrap_ci95_m") or [None, None]

@@ -13,6 +13,18 @@ OUTCOME_MARKERS = ("none", "discovered", "unexplained")
 def library_effects(effect: str) -> list[str]:
     """The library effects of an ``effect`` string, in order.
 
+    Parameters
+    ----------
+    effect : str
+        The ``effect`` of the residual JSON: names joined by ``+``.
+
+    Returns
+    -------
+    list of str
+        Its names that are not :data:`OUTCOME_MARKERS`.
+
+    Examples
+    --------
     >>> library_effects("ground_slope+unexplained")
     ['ground_slope']
     >>> library_effects("rolling_resistance+discovered")
@@ -24,5 +36,16 @@ def library_effects(effect: str) -> list[str]:
 
 
 def has_discovered(effect: str) -> bool:
-    """Whether ``effect`` holds the discovery's terms."""
+    """Whether ``effect`` holds the discovery's terms.
+
+    Parameters
+    ----------
+    effect : str
+        The ``effect`` of the residual JSON: names joined by ``+``.
+
+    Returns
+    -------
+    bool
+        True when one of its parts is ``discovered``.
+    """
     return "discovered" in (n.strip() for n in str(effect).split("+"))

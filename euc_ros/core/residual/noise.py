@@ -43,6 +43,31 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
     ``noisy``: the re-noised recordings' states, made by the caller (the residual's floor takes the
     first SIMEX replicate, :func:`euc_ros.core.identify.simex.first_replicate`); without them the
     recordings are re-noised here (:func:`~euc_ros.core.mocap.noise.renoised`, ``seed``) and reconstructed.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    states : sequence of RiderStates
+        Their reconstructed states.
+    session : Session
+        Their session (for the reconstruction of the re-noised recordings).
+    residual_of : callable
+        ``residual_of(states_list) -> list of (residual, mask)``: per recording, the fixed model's residual
+        [N m] and its usable samples (bool) over all samples.
+    seed : int
+        Seed of the noise drawn here (unused with ``noisy``).
+    window_s : float, optional
+        Savitzky-Golay window of the reconstruction [s] (default the reconstruction's).
+    polyorder : int, optional
+        Its polynomial order (default the reconstruction's).
+    noisy : sequence of RiderStates, optional
+        The re-noised recordings' states.
+
+    Returns
+    -------
+    float
+        The RMS of the residual's change over the samples usable in both [N m]; NaN when there is none.
     """
     if noisy is None:
         rng = np.random.default_rng(seed)
@@ -77,6 +102,29 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
     (:func:`euc_ros.core.identify.simex.first_replicate`, ``seed`` default its seed); with ``share`` (a
     :class:`~euc_ros.core.identify.simex.SimexShare` later given to ``eiv_bias``) that replicate's h is
     kept so SIMEX does not reconstruct it again.
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    states : sequence of RiderStates
+        Their reconstructed states (the filter, phi definition and CoG method of the re-noised ones).
+    session : Session
+        Their session.
+    params : EucParams
+        The session's parameters.
+    seed : int, optional
+        Seed of the noise draws (default SIMEX's, :data:`~euc_ros.core.identify.simex.SIMEX_SEED`).
+    analysis_rate_hz : float or None
+        Sub-sampling rate of the prepared recordings (:func:`~euc_ros.core.states.contexts.prepare`); None:
+        every sample.
+    share : SimexShare, optional
+        Where the replicate's h is kept for SIMEX.
+
+    Returns
+    -------
+    callable
+        ``noise_floor_of(model, x) -> float``: the noise floor [N m] of the model with parameters ``x``.
     """
     floor = floor_from_states(states, params.R)
     st0 = states[0]

@@ -89,7 +89,13 @@ class ResidualOptions:
     families: Sequence | None = None
 
     def discovery(self):
-        """The ``discovery`` argument of :func:`~euc_ros.core.residual.analysis.analyze` these options ask for."""
+        """The ``discovery`` argument of :func:`~euc_ros.core.residual.analysis.analyze` these options ask for.
+
+        Returns
+        -------
+        GroupSparseDiscovery or bool
+            A discovery over :attr:`families` when they are given, else :attr:`discover`.
+        """
         if self.discover and self.families:
             return GroupSparseDiscovery(families=tuple(self.families))
         return self.discover
@@ -105,9 +111,16 @@ class ResidualOptions:
 class ResidualRun(AnalysisRun):
     """A residual analysis' :class:`~euc_ros.core.identify.pipeline.AnalysisRun` with its result.
 
-    Attributes
+    Parameters
     ----------
-    result : ResidualResult
+    data : dict
+        The residual JSON (the command's ``--json``).
+    states : list of RiderStates
+        The recordings' reconstructed states.
+    params : EucParams
+        The session's nominal parameters.
+    result : ResidualResult or None
+        The analysis' result.
     """
 
     result: ResidualResult | None = None

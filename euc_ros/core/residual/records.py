@@ -23,7 +23,7 @@ from euc_ros.core.states.floor import FloorFit
 class Setup:
     """What every step works on: the prepared recordings, their folds and blocks, the base model's fit.
 
-    Attributes
+    Parameters
     ----------
     params : EucParams
         Nominal parameters.
@@ -32,6 +32,7 @@ class Setup:
     recs : list of Recording
         The recordings prepared for the analysis, with the blocks of the paired test.
     folds : list of Fold
+        The held-out folds (:func:`~.folds.folds_of`).
     n_segments : int
         Segments per run of the folds.
     block_s : float
@@ -57,7 +58,15 @@ class Setup:
 
 @dataclass(frozen=True)
 class Screening:
-    """Each candidate's detectability (its force's projection on w, relative) and the detectable ones."""
+    """Each candidate's detectability (its force's projection on w, relative) and the detectable ones.
+
+    Parameters
+    ----------
+    visible : dict of str to float
+        Candidate name -> the visible fraction of its generalized force (:func:`~.selection.detectability`).
+    detectable : list of Candidate
+        The candidates visible above :data:`~.selection.DETECTABILITY_TOL`.
+    """
 
     visible: dict[str, float]
     detectable: list[Candidate]
@@ -65,7 +74,17 @@ class Screening:
 
 @dataclass(frozen=True, eq=False)
 class Stage:
-    """Where the selection stands: a model, its held-out residual and its fitted parameters."""
+    """Where the selection stands: a model, its held-out residual and its fitted parameters.
+
+    Parameters
+    ----------
+    model : Model
+        The model (the base model and its effects).
+    heldout : HeldOut
+        Its held-out residual over the folds.
+    x : ndarray
+        Its parameters ``[h, theta...]`` fitted on all samples (h [m]).
+    """
 
     model: Model
     heldout: HeldOut
@@ -74,7 +93,26 @@ class Stage:
 
 @dataclass(frozen=True, eq=False)
 class Trial:
-    """One candidate added to the current model: fitted, held out, tested against the current model."""
+    """One candidate added to the current model: fitted, held out, tested against the current model.
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The candidate tried.
+    model : Model
+        The current model with the candidate added.
+    heldout : HeldOut
+        That model's held-out residual.
+    p_value : float
+        One-sided p-value that it cuts the current model's held-out residual
+        (:func:`~.significance.paired_block_test`, not adjusted).
+    fit : Fit
+        That model fitted on all samples.
+    inadmissible : str or None
+        Why the fitted model cannot be selected (:func:`~.selection.admissibility`); None: admissible.
+    refused : tuple of dict
+        The fitted parameters outside their plausible range (:func:`~.selection.plausibility`); empty: plausible.
+    """
 
     candidate: Candidate
     model: Model
@@ -90,14 +128,33 @@ class Trial:
         return self.inadmissible is None and not self.refused
 
     def tied_record(self, why: str = "selected") -> dict:
-        """The JSON record of a tied candidate (``why``: ``selected``, ``held-out`` or ``confounded``)."""
+        """The JSON record of a tied candidate.
+
+        Parameters
+        ----------
+        why : str
+            Why it is listed: ``selected``, ``held-out`` or ``confounded``.
+
+        Returns
+        -------
+        dict
+            ``effect``, ``h_m`` [m], ``rmse_after_nm`` (held out) [N m], ``effect_parameters`` and ``tie``.
+        """
         return {"effect": self.candidate.name, "h_m": self.fit.h, "rmse_after_nm": self.heldout.rmse,
                 "effect_parameters": self.model.report(self.fit.x), "tie": why}
 
 
 @dataclass(frozen=True, eq=False)
 class LastStep:
-    """The last selection step: the model it started from and its trials (the named alternatives to discovery)."""
+    """The last selection step: the model it started from and its trials (the named alternatives to discovery).
+
+    Parameters
+    ----------
+    model : Model
+        The model the step started from.
+    trials : tuple of Trial
+        Each remaining candidate added to it.
+    """
 
     model: Model
     trials: tuple[Trial, ...]
@@ -105,7 +162,15 @@ class LastStep:
 
 @dataclass(frozen=True)
 class Selection:
-    """Where the greedy selection of named effects ended, and its last step."""
+    """Where the greedy selection of named effects ended, and its last step.
+
+    Parameters
+    ----------
+    stage : Stage
+        The stage reached.
+    last : LastStep or None
+        The last step tried (None when no step was tried).
+    """
 
     stage: Stage
     last: LastStep | None
@@ -113,7 +178,15 @@ class Selection:
 
 @dataclass(frozen=True)
 class Alternative:
-    """After the discovered alternative to the named effects: the stage, and the alternative's JSON record."""
+    """After the discovered alternative to the named effects: the stage, and the alternative's JSON record.
+
+    Parameters
+    ----------
+    stage : Stage
+        The named stage, or the geometric effects alone when the alternative explains significantly more.
+    record : dict
+        The alternative's JSON record (empty when there was none to compare).
+    """
 
     stage: Stage
     record: dict
@@ -123,7 +196,7 @@ class Alternative:
 class DiscoveryOutcome:
     """After the discovery step: the final stage, the named one before discovered terms, what was found.
 
-    Attributes
+    Parameters
     ----------
     stage : Stage
         The final model (with the discovered terms when they were accepted).
@@ -147,7 +220,20 @@ class DiscoveryOutcome:
 
 @dataclass(frozen=True)
 class Journal:
-    """What the steps report as they go: per-candidate rows, the selection steps (JSON records), warnings."""
+    """What the steps report as they go: per-candidate rows, the selection steps (JSON records), warnings.
+
+    Parameters
+    ----------
+    rows : dict of str to CandidateResult
+        Candidate name -> its row of the candidate table.
+    steps : list of dict
+        The selection steps' JSON records, in order.
+    warnings : list of str
+        Warnings for the result.
+    refused : list of dict
+        The refused names: the records of :func:`~.selection.plausibility` with the trial's ``rmse_after_nm``,
+        ``h_m``, ``model`` and ``text``.
+    """
 
     rows: dict[str, CandidateResult] = field(default_factory=dict)
     steps: list[dict] = field(default_factory=list)

@@ -17,7 +17,32 @@ from euc_ros.core.states.floor import FloorFit
 
 @dataclass
 class CandidateResult:
-    """One row of the candidate table."""
+    """One row of the candidate table.
+
+    Parameters
+    ----------
+    effect : str
+        The candidate's name.
+    detectable : bool
+        Whether its generalized force shows in the residual at all (:func:`~.selection.detectability`).
+    visibility : float
+        The visible fraction of its generalized force (0 to 1).
+    rmse_after_nm : float
+        Held-out RMSE with it added to the model of its step [N m] (the base model's when undetectable).
+    p_value : float
+        One-sided p-value of the paired block test against the model of its step (1 when undetectable, 0 for
+        the floor's geometry).
+    parameters : dict
+        The fitted model's reported parameters (:meth:`Model.report <euc_ros.core.model.extended.Model.report>`).
+    h_m : float
+        The fitted h [m].
+    inadmissible : str or None
+        Why the fitted model cannot be selected (:func:`~.selection.admissibility`).
+    p_adjusted : float or None
+        The p-value adjusted over the step's candidates (max-T, :func:`~.significance.max_t_adjusted`).
+    refused : str or None
+        The line of its parameters outside their plausible range (:func:`~.selection.refusal`).
+    """
 
     effect: str
     detectable: bool
@@ -31,7 +56,14 @@ class CandidateResult:
     refused: str | None = None
 
     def to_dict(self) -> dict:
-        """JSON row."""
+        """The candidate's JSON row.
+
+        Returns
+        -------
+        dict
+            The fields under their JSON keys (``effect_parameters`` for ``parameters``); ``inadmissible`` and
+            ``refused`` only when set.
+        """
         d = {"effect": self.effect, "rmse_after_nm": self.rmse_after_nm, "p_value": self.p_value,
              "p_adjusted": self.p_adjusted,
              "detectable": self.detectable, "visibility": self.visibility, "effect_parameters": self.parameters,
@@ -45,7 +77,77 @@ class CandidateResult:
 
 @dataclass
 class ResidualResult:
-    """Outcome of :func:`analyze`."""
+    """Outcome of :func:`~.analysis.analyze`.
+
+    Parameters
+    ----------
+    h_base : float
+        The base model's h fitted on all samples [m].
+    rmse_train_base : float
+        Its RMSE on those samples [N m].
+    rmse_before : float
+        The base model's held-out RMSE [N m].
+    rmse_after : float
+        The final model's held-out RMSE [N m].
+    effect : str
+        The final model's effects joined by ``+`` (``none`` without one), with ``discovered`` or
+        ``unexplained`` (:mod:`.names`).
+    effect_parameters : dict
+        The final model's reported parameters.
+    h_after : float
+        The final model's h [m].
+    final_x : ndarray
+        The final model's parameters ``[h, theta...]``.
+    selected : list of str
+        The final model's effects.
+    candidates : list of CandidateResult
+        The candidate table.
+    steps : list of dict
+        The selection steps' JSON records.
+    alpha : float
+        The significance level.
+    min_gain : float
+        The minimum relative cut of the held-out RMSE.
+    folds : int
+        Number of held-out folds.
+    fold_kind : str
+        How the folds and blocks were cut (text).
+    base_heldout, final_heldout : HeldOut
+        The base and the final model's held-out residuals.
+    final_model : Model
+        The final model.
+    geometry : dict
+        The floor and rolling-radius record (:func:`~.analysis.radius_step`).
+    warnings : list of str
+        The analysis' warnings.
+    h_range : tuple of float
+        Smallest and largest h of the final model and the models tied with a selected one [m].
+    tied : list of dict
+        The tied models' records (:meth:`~.records.Trial.tied_record`) of the steps that selected an effect.
+    residual_significant : bool
+        The residual shows structure: the discovery's test below ``alpha``, the named model's held-out RMSE
+        above :data:`~.analysis.NOISE_FLOOR_FACTOR` noise floors, or a refused name left nothing named.
+    unexplained : bool
+        Significant with no discovered terms accepted.
+    discovered : list of dict
+        The accepted discovered terms.
+    discovery : dict
+        The discovery's JSON record.
+    noise_floor_nm : float
+        The residual's noise floor [N m] (NaN: not measured).
+    residual_after_above_noise : bool or None
+        The final held-out RMSE above :data:`~.analysis.NOISE_FLOOR_FACTOR` noise floors (None: no floor).
+    floor_fit : FloorFit or None
+        The floor measured from the contact path.
+    block_s : float
+        Block length of the paired test [s].
+    refused : list of dict
+        The refused names (:attr:`~.records.Journal.refused`).
+    ties : list of dict
+        Per step with more than one tied model: ``effects``, ``h_m``, ``tie`` and ``step_model``.
+    final_interval : FinalInterval or None
+        The final model's intervals.
+    """
 
     h_base: float
     rmse_train_base: float
@@ -82,7 +184,12 @@ class ResidualResult:
     final_interval: FinalInterval | None = None
 
     def to_json(self) -> dict:
-        """JSON per docs/residual.md, JSON (plus the analysis settings and steps)."""
+        """The result's JSON document (docs/residual.md, JSON), with the analysis settings and steps.
+
+        Returns
+        -------
+        dict
+        """
         rows = sorted(self.candidates, key=lambda c: (not c.detectable, c.rmse_after_nm))
         table = [c.to_dict() for c in rows]
         if not any(c["effect"] == "none" for c in table):

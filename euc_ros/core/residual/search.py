@@ -205,6 +205,18 @@ def independent_columns(A: np.ndarray, tol: float = MIN_NEW_DIRECTION) -> np.nda
     before it) is at least ``tol`` times the first. A chosen group's columns that add no direction on these recordings
     (a spline piece the data hardly visit, a filter collinear with its neighbours) are left out of the fit, so no
     coefficient is fitted along a direction the selection did not see.
+
+    Parameters
+    ----------
+    A : ndarray (n, m)
+        The columns (any scale; a column of zeros is never kept).
+    tol : float
+        Smallest ``|R_kk|`` kept, relative to the first pivot's.
+
+    Returns
+    -------
+    ndarray of int
+        The kept columns' indices, ascending (empty when every column is zero).
     """
     A = np.asarray(A, float)
     nrm = np.sqrt(np.einsum("ij,ij->j", A, A))
@@ -237,11 +249,21 @@ def independent_columns(A: np.ndarray, tol: float = MIN_NEW_DIRECTION) -> np.nda
 def fewest_within_one_se(errors: dict[int, np.ndarray], blocks: np.ndarray) -> int:
     """The smallest k whose held-out mean square is within one standard error of the best one's.
 
-    ``errors[k]``: the held-out residuals of the model with k groups, on the same samples in the same
-    order; ``blocks``: each sample's block. The standard error is that of the paired difference of the
-    mean squares, from the block sums (the blocks are nearly independent): the one-standard-error rule of
-    cross-validation, so a further group must improve the held-out error by more than its own sampling
-    uncertainty.
+    The standard error is that of the paired difference of the mean squares, from the block sums (the blocks
+    are nearly independent): the one-standard-error rule of cross-validation, so a further group must improve
+    the held-out error by more than its own sampling uncertainty.
+
+    Parameters
+    ----------
+    errors : dict of int to ndarray
+        ``errors[k]``: the held-out residuals of the model with k groups, on the same samples in the same order.
+    blocks : ndarray of int
+        Each sample's block.
+
+    Returns
+    -------
+    int
+        That k (the best one's when none fewer is within one standard error).
     """
     ks = sorted(errors)
     mse = {k: float(np.mean(errors[k] ** 2)) for k in ks}

@@ -50,7 +50,19 @@ AT_BOUND_FRACTION = 1e-3
 
 @dataclass
 class Fit:
-    """A model fitted on some recordings."""
+    """A model fitted on some recordings.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    x : ndarray
+        Its fitted parameters ``[h, theta...]`` (h [m]).
+    rmse : float
+        The residual's RMS over the usable samples [N m].
+    n : int
+        Usable samples.
+    """
 
     model: Model
     x: np.ndarray
@@ -74,6 +86,29 @@ def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndar
 
     Several starting points (multi-modal parameters such as a period) are tried and the best is kept,
     unless one ``start`` is given (e.g. the fit on all data, as the start of a fold's fit).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    recs : sequence of Recording
+        The recordings fitted.
+    h0 : float
+        Starting h [m] when ``fixed`` is None.
+    fixed : ndarray, optional
+        A previous fit (h and the effects before the new ones), the head of every start.
+    start : ndarray, optional
+        The one starting point (instead of the model's starts).
+
+    Returns
+    -------
+    Fit
+        The best fit over the starts (clipped inside the bounds).
+
+    Raises
+    ------
+    RuntimeError
+        When the fit fails from every start.
     """
     lo, hi = model.bounds()
     best = None
@@ -100,7 +135,20 @@ BASE_H_GRID = np.linspace(0.1, 1.2, 45)
 
 
 def fit_base_h(recs: Sequence[Recording], h_grid=BASE_H_GRID) -> float:
-    """Grid-then-refine estimate of h with the base model (a good start for every joint fit)."""
+    """Grid-then-refine estimate of h with the base model (a good start for every joint fit).
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+        The recordings.
+    h_grid : array_like
+        The coarse grid [m], ascending; the refinement is bounded by the best point's neighbours.
+
+    Returns
+    -------
+    float
+        h [m] of least squared residual.
+    """
     base = Model()
     sse = [float(np.sum(_stack_residual(base, recs, np.array([h])) ** 2)) for h in h_grid]
     k = int(np.argmin(sse))
@@ -116,6 +164,20 @@ def detectability(candidate: Candidate, recs: Sequence[Recording], h: float) -> 
     The generalized-force equivalent of a unit-scale parameter change is compared with its
     projection on ``w = [R, 1, 1]`` (which annihilates b_d and b_d): 0 means it lies in
     span(b_d, b_h) and cannot show in the residual.
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The candidate, at its first start plus one scale of each parameter.
+    recs : sequence of Recording
+        The recordings.
+    h : float
+        The CoG height it is evaluated at [m].
+
+    Returns
+    -------
+    float
+        The visible fraction, 0 to 1 (0 when the candidate adds no force).
     """
     model = Model([candidate])
     num = den = 0.0
@@ -159,6 +221,26 @@ def model_jacobian(model: Model, recs: Sequence[Recording], x: np.ndarray, res0=
     """Per recording: residual at ``x``, its usable mask and d(residual)/dx by forward differences.
 
     Steps of 1e-4 of each parameter's typical scale, inward at a bound.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    recs : sequence of Recording
+        The recordings.
+    x : ndarray (p,)
+        The parameters ``[h, theta...]``.
+    res0 : list of tuple, optional
+        Per recording, ``model.residual`` at ``x`` (residual, mask), when already computed.
+
+    Returns
+    -------
+    residuals : list of ndarray
+        Per recording, the residual at ``x`` (n_i,) [N m].
+    masks : list of ndarray
+        Per recording, its usable samples (bool, n_i).
+    jacobians : list of ndarray
+        Per recording, d(residual)/dx (n_i, p).
     """
     res0 = res0 or [model.residual(r, x) for r in recs]
     lo, hi = model.bounds()
@@ -183,6 +265,26 @@ def held_out(model: Model, recs: Sequence[Recording], h0: float, folds=None,
     the model evaluated at those parameters. The fold optima lie close to the full one (each fold drops a
     small part of the data), where one step of Gauss-Newton is the standard approximate leave-out fit;
     ``test_heldout.py`` compares it with refitting every fold from scratch.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    recs : sequence of Recording
+        The recordings, with their blocks.
+    h0 : float
+        Starting h of the fit on all data [m] (without ``start``).
+    folds : list of Fold, optional
+        The folds (default :func:`~.folds.folds_of` with its defaults).
+    fixed : ndarray, optional
+        A previous fit, the head of the starts of the fit on all data (without ``start``).
+    start : ndarray, optional
+        The fit on all data.
+
+    Returns
+    -------
+    HeldOut
+        The held-out residual over all folds.
     """
     folds = folds or folds_of(recs)
     if start is None:
@@ -222,6 +324,20 @@ def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None
 
     A parameter on its physical bound explains nothing, an h outside :data:`H_PLAUSIBLE` or further than
     :data:`H_MAX_GEOMETRIC_DEV_M` from the segments' geometric h is not this rider.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    x : ndarray
+        Its fitted parameters ``[h, theta...]``.
+    h_geometric : float
+        The segments' geometric h [m] (NaN: not compared).
+
+    Returns
+    -------
+    str or None
+        The reason, in words; None when admissible.
     """
     lo, hi = model.bounds()
     span = hi - lo
@@ -246,7 +362,7 @@ def admissibility(model: Model, x: np.ndarray, h_geometric: float) -> str | None
 class Confounding:
     """How far two fitted extensions of one model can be told apart on these recordings.
 
-    Attributes
+    Parameters
     ----------
     cosine : float
         Cosine between the two fitted contributions to the residual, each with the current model's
@@ -270,6 +386,26 @@ def contribution(base: Model, x_base: np.ndarray, extended: Model, x_ext: np.nda
 
     ``x_ext``'s own first entries are replaced by ``x_base`` (h and the base effects held at the base fit);
     returns ``(r_base - r_extended, usable mask)`` over all recordings.
+
+    Parameters
+    ----------
+    base : Model
+        The current model.
+    x_base : ndarray
+        Its fitted parameters.
+    extended : Model
+        ``base`` with one effect added.
+    x_ext : ndarray
+        Its fitted parameters (only the added effect's are used).
+    recs : sequence of Recording
+        The recordings.
+
+    Returns
+    -------
+    d : ndarray
+        ``r_base - r_extended`` over all recordings' samples [N m].
+    ok : ndarray of bool
+        Where both residuals are usable.
     """
     x = np.concatenate([np.asarray(x_base, float), np.asarray(x_ext, float)[np.asarray(x_base).size:]])
     d, ok = [], []
@@ -290,6 +426,26 @@ def confounding(base: Model, x_base: np.ndarray, first: tuple[Model, np.ndarray]
     the residual once ``first`` is fitted [N m]; one block of the paired test counts as one independent
     sample (its length follows the residual's correlation), so the chi-square is per block. ``level`` is
     the test's one-sided level (the paired block test's :data:`~.significance.AMBIGUITY_ALPHA`).
+
+    Parameters
+    ----------
+    base : Model
+        The current model.
+    x_base : ndarray
+        Its fitted parameters.
+    first, second : tuple of (Model, ndarray)
+        The two extended models with their fitted parameters.
+    recs : sequence of Recording
+        The recordings, with the blocks of the paired test.
+    sigma : float
+        RMS of the residual with ``first`` fitted [N m].
+    level : float
+        One-sided level of the test.
+
+    Returns
+    -------
+    Confounding
+        NaN measures and not tied when a contribution vanishes or ``sigma`` is not positive.
     """
     d1, m1 = contribution(base, x_base, *first, recs)
     d2, m2 = contribution(base, x_base, *second, recs)
@@ -314,14 +470,37 @@ def plausibility(model: Model, x: np.ndarray) -> list[dict]:
 
     A model with one of them is not named as the explanation, whatever its fit: a quadratic drag at the
     tyre contact fits as the rider's aero_drag with a drag area 2-3 times a standing rider's, a name no
-    rider's physics supports. Returns the records of :meth:`Candidate.implausible` (empty: plausible).
+    rider's physics supports.
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    x : ndarray
+        Its fitted parameters ``[h, theta...]``.
+
+    Returns
+    -------
+    list of dict
+        The records of :meth:`Candidate.implausible` (empty: plausible).
     """
     _, thetas = model.split(x)
     return [r for c, th in zip(model.effects, thetas) for r in c.implausible(th)]
 
 
 def refusal(records: list[dict]) -> str | None:
-    """One line for refused names: ``refused aero_drag: cda_m2=1.36 outside plausible [0.2, 1]`` (None: none)."""
+    """One line for refused names: ``refused aero_drag: cda_m2=1.36 outside plausible [0.2, 1]``.
+
+    Parameters
+    ----------
+    records : list of dict
+        Records of :meth:`Candidate.implausible`.
+
+    Returns
+    -------
+    str or None
+        The records joined by ``;`` (None: no record).
+    """
     if not records:
         return None
     return "; ".join(f"refused {r['effect']}: {r['parameter']}={r['value']:.4g} outside plausible "
@@ -330,7 +509,21 @@ def refusal(records: list[dict]) -> str | None:
 
 
 def implausibility(candidate: Candidate, theta) -> float:
-    """Size of a candidate's reported-scale parameters in units of their typical magnitude."""
+    """Size of a candidate's reported-scale parameters in units of their typical magnitude.
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The candidate.
+    theta : array_like
+        Its parameters (n_params,).
+
+    Returns
+    -------
+    float
+        The norm of the reported parameters over their scales (a periodic h's amplitude over its scale; 0
+        without a reported parameter).
+    """
     th = np.asarray(theta, float)
     scales = np.array([q.scale for q in candidate.params], float)
     keep = np.array([q.reported for q in candidate.params], bool)
@@ -341,7 +534,21 @@ def implausibility(candidate: Candidate, theta) -> float:
 
 @dataclass
 class HeldOut:
-    """Held-out residuals of a model over all folds, with their blocks (unique over recordings)."""
+    """Held-out residuals of a model over all folds, with their blocks (unique over recordings).
+
+    Parameters
+    ----------
+    model : Model
+        The model.
+    residual : ndarray
+        The held-out residuals of every fold, fold after fold [N m].
+    block : ndarray of int
+        Each residual's block, numbered across the recordings (:func:`block_offsets`).
+    params : list of ndarray
+        Each fold's fitted parameters ``[h, theta...]``.
+    index : ndarray of int, optional
+        Each residual's sample over the recordings in order.
+    """
 
     model: Model
     residual: np.ndarray
@@ -351,7 +558,18 @@ class HeldOut:
     index: np.ndarray | None = None
 
     def restricted(self, keep: np.ndarray) -> "HeldOut":
-        """The residuals at the positions ``keep``."""
+        """The residuals at the positions ``keep``.
+
+        Parameters
+        ----------
+        keep : ndarray
+            Positions in :attr:`residual` (indices or a bool mask).
+
+        Returns
+        -------
+        HeldOut
+            The same model and fold parameters.
+        """
         return HeldOut(self.model, self.residual[keep], self.block[keep], self.params,
                        None if self.index is None else self.index[keep])
 
@@ -364,8 +582,16 @@ class HeldOut:
 def common_samples(a: HeldOut, b: HeldOut) -> tuple[HeldOut, HeldOut] | None:
     """Two held-out residuals on the samples both have (a time offset drops samples at the runs' ends).
 
-    Returns ``(a, b)`` restricted to their common samples in the same order, or None when they cannot be
-    paired (different lengths and no sample index).
+    Parameters
+    ----------
+    a, b : HeldOut
+        The two held-out residuals.
+
+    Returns
+    -------
+    tuple of HeldOut or None
+        ``(a, b)`` restricted to their common samples in the same order, or None when they cannot be paired
+        (different lengths and no sample index).
     """
     if a.index is not None and b.index is not None and not (
             a.index.shape == b.index.shape and np.array_equal(a.index, b.index)):

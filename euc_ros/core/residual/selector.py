@@ -153,6 +153,19 @@ def try_candidate(candidate: Candidate, stage: Stage, setup: Setup) -> Trial:
     """``candidate`` added to the model of ``stage``: fitted, held out, tested and checked for admissibility.
 
     Fitted with the current parameters fixed as the start; tested against the current model.
+
+    Parameters
+    ----------
+    candidate : Candidate
+        The candidate.
+    stage : Stage
+        The current model, its held-out residual and fit.
+    setup : Setup
+        The prepared recordings, folds, start h and geometric h.
+
+    Returns
+    -------
+    Trial
     """
     model = Model(stage.model.effects + [candidate])
     full = fit_model(model, setup.recs, setup.h0, fixed=stage.x)
@@ -170,6 +183,28 @@ def selection_step(setup: Setup, stage: Stage, trials: list[Trial], screening: S
     parameters no rider has, so it is no explanation, and what it would cut is left to the discovery).
     The selected trial is reported as tied (``tied``, ``ambiguous_with``) with every usable trial the
     data cannot tell from it (:func:`tied_trials`).
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings and folds.
+    stage : Stage
+        The current model.
+    trials : list of Trial
+        Each remaining candidate added to it (:func:`try_candidate`).
+    screening : Screening
+        Each candidate's detectability.
+    rules : Selector
+        The significance level and the minimum gain.
+    journal : Journal
+        Gets the candidates' rows, the step's record, warnings and refused names.
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    Trial or None
+        The selected trial; None when no usable trial passes.
     """
     # family-wise over this step's candidates: max-T over sign flips of whole blocks (the candidates' test
     # statistics are strongly correlated, so this asks less of each than Bonferroni's alpha / candidates)
@@ -237,6 +272,25 @@ def tied_trials(setup: Setup, stage: Stage, best: Trial, trials: Sequence[Trial]
     even when one held-out realisation happens to prefer one (a rider's pitch-inertia error and a mass
     error, whose h differ by 8 cm). Also trials that did not pass the family-wise test against the
     current model on their own; each must cut the held-out RMSE by the minimum gain.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings.
+    stage : Stage
+        The current model.
+    best : Trial
+        The selected trial.
+    trials : sequence of Trial
+        The step's trials.
+    rules : Selector
+        The minimum gain.
+
+    Returns
+    -------
+    list of tuple of (Trial, str, dict)
+        ``(trial, why, measures)``: why ``selected`` (``best``), ``held-out`` or ``confounded``; the measures
+        ``p_value_best_better`` and, when confounded, ``cosine`` and ``chi2``.
     """
     out: list[tuple[Trial, str, dict]] = [(best, "selected", {})]
     for t in trials:

@@ -90,6 +90,24 @@ def fit_with_free(free: np.ndarray, B: np.ndarray, r: np.ndarray, n_eff: float |
     ``free`` is projected out; ``c`` has the prior on the scale ``norms`` (default the columns' norms before the
     projection: a column nearly along ``free`` keeps a short remainder, whose coefficient the prior holds small instead
     of letting it grow as the remainder shrinks).
+
+    Parameters
+    ----------
+    free : ndarray (n,)
+        The column fitted without a prior (h's sensitivity).
+    B : ndarray (n, m)
+        The columns with the prior.
+    r : ndarray (n,)
+        Data.
+    n_eff : float, optional
+        Effective number of independent samples (default n: no tempering).
+    norms : ndarray (m,), optional
+        The columns' scales the prior is set on.
+
+    Returns
+    -------
+    ndarray (m + 1,)
+        ``[a, c...]`` (``a`` 0 when ``free`` is zero).
     """
     norms = np.linalg.norm(np.asarray(B, float), axis=0) if norms is None else np.asarray(norms, float)
     f = np.asarray(free, float)

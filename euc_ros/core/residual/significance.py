@@ -29,6 +29,18 @@ def paired_block_test(base: HeldOut, cand: HeldOut) -> float:
     per block the log ratio of the mean squared residuals, tested with a one-sided t-test for a mean
     above 0. The log ratio weighs every block alike, so a few loud blocks cannot dominate, and is
     symmetric under exchange of the two models.
+
+    Parameters
+    ----------
+    base : HeldOut
+        The reference model's held-out residual; its blocks are the units.
+    cand : HeldOut
+        The candidate's, on the same blocks (a block it lacks is left out).
+
+    Returns
+    -------
+    float
+        The p-value; 1 with fewer than 3 usable blocks or log ratios all 0.
     """
     d = _block_log_ratios(base, [cand])[0]
     d = d[np.isfinite(d)]
@@ -69,6 +81,22 @@ def max_t_adjusted(base: HeldOut, cands: Sequence[HeldOut], n_flips: int = MAX_T
     alpha / (number of candidates) holds under any dependence and so is conservative for correlated tests.
     Exact over all 2^blocks flips when they are at most ``n_flips``, otherwise ``n_flips`` random ones
     (fixed ``seed``, the identity included).
+
+    Parameters
+    ----------
+    base : HeldOut
+        The current model's held-out residual; its blocks are the units.
+    cands : sequence of HeldOut
+        Each candidate's held-out residual.
+    n_flips : int
+        Most sign flips.
+    seed : int
+        Seed of the random flips.
+
+    Returns
+    -------
+    ndarray (len(cands),)
+        The adjusted p-values; 1 for a candidate with fewer than 3 usable blocks or log ratios all 0.
     """
     if not cands:
         return np.zeros(0)
