@@ -31,6 +31,7 @@ from euc_ros.core.model.terms import EucParams
 from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, prepare
 from euc_ros.core.states.floor import floor_from_states
 from euc_ros.core.states.kinematics import RiderStates, reconstruct_states
+from euc_ros.core.states.link_sliding import MIN_SLIDING_M, add_sliding
 from euc_ros.core.states.settings import ReconstructionSettings
 
 
@@ -91,8 +92,8 @@ def noise_floor(series_list: Sequence, states: Sequence, session, residual_of, *
 
 
 def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], session, params: EucParams, *,
-                     seed: int | None = None, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, share=None
-                     ) -> Callable[[Model, np.ndarray], float]:
+                     seed: int | None = None, analysis_rate_hz: float | None = ANALYSIS_RATE_HZ, share=None,
+                     sliding: dict | None = None) -> Callable[[Model, np.ndarray], float]:
     """``noise_floor_of`` for :func:`analyze` from the recordings' own pose noise.
 
     The noise is propagated through the reconstruction, the derivative filter and the given model
@@ -102,6 +103,15 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
     (:func:`euc_ros.core.identify.simex.first_replicate`, ``seed`` default its seed); with ``share`` (a
     :class:`~euc_ros.core.identify.simex.SimexShare` later given to ``eiv_bias``) that replicate's h is
     kept so SIMEX does not reconstruct it again.
+
+    With ``sliding`` (the soft-tissue sliding the rigid links show,
+    :func:`~euc_ros.core.states.link_sliding.estimate_sliding`) above
+    :data:`~euc_ros.core.states.link_sliding.MIN_SLIDING_M`, the recordings are also reconstructed once with
+    an independent surrogate of that sliding added (its per-body RMS and spectrum,
+    :func:`~euc_ros.core.states.link_sliding.add_sliding`), and the floor is the quadrature sum of the two
+    changes: the residual a recording's own sliding leaves is at its noise floor, not missing physics.
+    The returned callable keeps the parts of its last floor in its ``parts`` dict [N m]: ``pose_noise``
+    and ``sliding``.
 
     Parameters
     ----------
@@ -120,6 +130,8 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
         every sample.
     share : SimexShare, optional
         Where the replicate's h is kept for SIMEX.
+    sliding : dict, optional
+        The sliding the rigid links show (:func:`~euc_ros.core.states.link_sliding.estimate_sliding`).
 
     Returns
     -------
@@ -145,14 +157,64 @@ def make_noise_floor(series_list: Sequence, states: Sequence[RiderStates], sessi
             return noise_floor(series_list, states, session, residual_of, seed=0 if seed is None else seed,
                                window_s=window_s, polyorder=st0.polyorder, noisy=noisy)
 
+        white = None
         if window_s is not None:
             # the replicate's states go to the floor, then (dropped) to SIMEX's h: never beside its fit
             rec = ReconstructionSettings(window_s=window_s, polyorder=st0.polyorder, phi_definition=st0.phi_definition,
                                          cog_method=getattr(st0, "cog_method", "segments"))
-            out = first_replicate(series_list, session, params, reconstruction=rec,
-                                  seed=SIMEX_SEED if seed is None else seed, share=share, use=floor_of)
-            if out is not None:
-                return out
-        return floor_of(None)
+            white = first_replicate(series_list, session, params, reconstruction=rec,
+                                    seed=SIMEX_SEED if seed is None else seed, share=share, use=floor_of)
+        white = floor_of(None) if white is None else white
+        slid = sliding_floor(series_list, states, session, residual_of, sliding, seed=SLIDING_SEED if seed is None
+                             else seed, window_s=window_s) if window_s is not None else 0.0
+        of.parts = {"pose_noise": float(white), "sliding": float(slid)}
+        return float(np.hypot(white, slid))
 
+    of.parts = {}
     return of
+
+
+#: Seed of the surrogate sliding the floor adds (another stream than SIMEX's and the sliding bias').
+SLIDING_SEED = 7
+
+
+def sliding_floor(series_list: Sequence, states: Sequence[RiderStates], session, residual_of, sliding: dict | None, *,
+                  seed: int, window_s: float) -> float:
+    """RMS [N m] of the residual's change when the recordings' own soft-tissue sliding is added once more.
+
+    Every rider body slides on its own, by a Gaussian surrogate of the measured spectrum and RMS
+    (:func:`~euc_ros.core.states.link_sliding.add_sliding`). Sliding the bodies share (every body moving with
+    the rider's acceleration) is seen little by the links and moves the CoG more: on sliding that follows the
+    segments' accelerations in full, this part is about a third of the sliding's true contribution
+    (test_noise.py measures it).
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    states : sequence of RiderStates
+        Their states (the filter and CoG method of the slid reconstructions).
+    session : Session
+        Their session.
+    residual_of : callable
+        ``residual_of(states_list) -> list of (residual, mask)`` of the fixed model.
+    sliding : dict or None
+        The sliding the links show (:func:`~euc_ros.core.states.link_sliding.estimate_sliding`).
+    seed : int
+        Seed of the surrogate.
+    window_s : float
+        The states' filter window [s].
+
+    Returns
+    -------
+    float
+        0 without sliding above :data:`~euc_ros.core.states.link_sliding.MIN_SLIDING_M`.
+    """
+    if not sliding or sliding.get("spectrum") is None or float(sliding.get("rms_max_m") or 0.0) < MIN_SLIDING_M:
+        return 0.0
+    st0 = states[0]
+    rec = ReconstructionSettings(window_s=window_s, polyorder=st0.polyorder, phi_definition=st0.phi_definition,
+                                 cog_method=getattr(st0, "cog_method", "segments"))
+    rng = np.random.default_rng(seed)
+    slid = [rec.reconstruct(add_sliding(s, sliding, rng), session) for s in series_list]
+    return noise_floor(series_list, states, session, residual_of, noisy=slid)

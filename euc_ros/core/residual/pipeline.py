@@ -277,8 +277,8 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     del usable
     # the recordings' pose-noise estimate is made once for the interval's SIMEX and the noise floor
     simex = SimexShare()
-    noise_of = make_noise_floor(series, states, session, params, share=simex, analysis_rate_hz=rate_hz) \
-        if all(s is not None for s in series) else None
+    noise_of = make_noise_floor(series, states, session, params, share=simex, analysis_rate_hz=rate_hz,
+                                sliding=links) if all(s is not None for s in series) else None
     # how well the data determine the base model's h (identify's); unbounded: h held in every fit (.held)
     iv = IntervalOptions(sliding_prior=sliding_prior(sliding_prior_mm), with_budget=bool(tolerances),
                          tolerances=tolerances or None)
@@ -302,6 +302,7 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
                                  probe_ratio=ratio, floor=result.floor_fit, block_s=result.block_s)
         data.update(final.to_json())
     data["uncertainty"] = base["uncertainty"]
+    data["noise_floor_parts_nm"] = dict(noise_of.parts) if noise_of is not None and noise_of.parts else None
     if tolerances:   # what the stated tolerances of nominal values do to the base model's h
         data["uncertainty_budget"] = base.get("uncertainty_budget")
         data["h_range_for_tolerances_m"] = base.get("h_range_m")
