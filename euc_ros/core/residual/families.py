@@ -27,10 +27,11 @@ family              argument                        columns (level = complexity)
                                                     order, level 2): a force obeying its own linear
                                                     dynamics driven by a state
 ``oscillator``      x_dot, phi_dot, gamma_dot       a resonance of the state without its ends (no mass, no
-(not in the         (:data:`OSCILLATORS`)           acceleration: :func:`payload_band`), with the derivatives
-default)                                            in ``ln w``, one resonance frequency per level
-                                                    (:data:`RESONANCE_HZ`, damping :data:`RESONANCE_DAMPING`):
-                                                    a payload on a spring carried by the rider or the EUC
+(not in the         (:data:`OSCILLATORS`)           acceleration: :func:`~.basis_filters.payload_band`),
+default)                                            with the derivatives in ``ln w``, one resonance
+                                                    frequency per level (:data:`RESONANCE_HZ`, damping
+                                                    :data:`~.basis_filters.RESONANCE_DAMPING`): a payload
+                                                    on a spring carried by the rider or the EUC
 a user's family     one of :data:`ARGUMENTS`        the user's ``basis(x, level) -> (n, m)``
                                                     (:meth:`Family.custom`)
 ==================  ==============================  =========================================================
@@ -45,6 +46,9 @@ lab Y) are dropped (:class:`Families`).
 The spline knots, ranges and recording names are fixed from the analysed recordings (the argument's
 observed range, not the residual), so every fold and every re-prepared copy of the recordings shares them;
 outside the range the argument is clipped (constant extrapolation).
+
+The filters that make the dynamics and oscillator columns, and the states' smoothing they pass through, are in
+:mod:`.basis_filters`; the phases of the ``aligned`` wheel family in :mod:`.wheel_phase` (both importable from here).
 """
 from __future__ import annotations
 
@@ -59,6 +63,16 @@ from scipy.interpolate import BSpline
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.memory import release_free_memory
+from euc_ros.core.residual.basis_filters import RESONANCE_DAMPING as RESONANCE_DAMPING
+from euc_ros.core.residual.basis_filters import RESONANCE_STEP as RESONANCE_STEP
+from euc_ros.core.residual.basis_filters import low_pass, resonator_columns, savgol_kernel
+from euc_ros.core.residual.basis_filters import payload_band as payload_band
+from euc_ros.core.residual.basis_filters import resonate as resonate
+from euc_ros.core.residual.wheel_phase import PHASE_GRID as PHASE_GRID
+from euc_ros.core.residual.wheel_phase import PHASE_SWEEPS as PHASE_SWEEPS
+from euc_ros.core.residual.wheel_phase import align_wheel_phases as align_wheel_phases
+from euc_ros.core.residual.wheel_phase import phase_rotations as phase_rotations
+from euc_ros.core.residual.wheel_phase import wheel_phase_mix as wheel_phase_mix
 
 #: (coordinate, point) of the forces' directions and points of application.
 POINTS = (("x", "contact"), ("x", "rider CoG"), ("z", "rider CoG"), ("pitch", "rider"))
@@ -73,10 +87,6 @@ TIME_CONSTANTS_S = (0.1, 0.3, 1.0, 3.0)
 #: reaction of a resonance between two of them (damping 0.05-0.2) carried at a random speed is explained by
 #: its nearer level's columns to 0.78-0.90 of its variance (5 draws; ``test_families.py`` asks 0.7).
 RESONANCE_HZ = tuple(float(f) for f in np.geomspace(0.5, 4.0, 15))
-#: Relative step of the frequency derivative's central difference.
-RESONANCE_STEP = 0.03
-#: Damping ratio of the oscillator family's resonators.
-RESONANCE_DAMPING = 0.1
 #: Most wheel-angle harmonics.
 MAX_HARMONICS = 4
 #: Spline levels of the speed: (degree, interior knots at quantiles of the observed argument).
@@ -227,7 +237,16 @@ ARGUMENTS = {
 
 
 def n_levels(fam: Family) -> int:
-    """Complexity levels of a family."""
+    """Complexity levels of a family.
+
+    Parameters
+    ----------
+    fam : Family
+
+    Returns
+    -------
+    int
+    """
     if fam.kind == "custom":
         return fam.levels
     return {"lab": len(LAB_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
@@ -235,75 +254,45 @@ def n_levels(fam: Family) -> int:
 
 
 def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np.ndarray) -> np.ndarray:
-    """B-spline basis (n, len(interior) + degree + 1) on [lo, hi], ``x`` clipped to it (partition of unity)."""
+    """B-spline basis on [lo, hi], ``x`` clipped to it (partition of unity).
+
+    Parameters
+    ----------
+    x : ndarray (n,)
+    lo, hi : float
+        The range (the outer knots, repeated), in ``x``'s unit.
+    degree : int
+    interior : array_like (k,)
+        Interior knots, ascending, inside the range.
+
+    Returns
+    -------
+    ndarray (n, k + degree + 1)
+    """
     t = np.concatenate([np.full(degree + 1, lo), np.asarray(interior, float), np.full(degree + 1, hi)])
     xc = np.clip(np.asarray(x, float), lo, hi)
     return BSpline.design_matrix(xc, t, degree).toarray()
 
 
 def uniform_knots(lo: float, hi: float, spacing: float | None) -> np.ndarray:
-    """Interior knots every ``spacing`` on [lo, hi]; none for ``spacing`` None or an empty range.
+    """Interior knots about every ``spacing`` on [lo, hi]: the range in equal pieces no longer than it.
 
-    About every ``spacing``: the range divided into equal pieces no longer than it.
+    Parameters
+    ----------
+    lo, hi : float
+        The range.
+    spacing : float or None
+        Longest piece, in the range's unit.
+
+    Returns
+    -------
+    ndarray
+        The knots, ascending; none for ``spacing`` None or an empty range.
     """
     if spacing is None or not hi > lo:
         return np.zeros(0)
     pieces = max(int(np.ceil((hi - lo) / spacing)), 1)
     return np.linspace(lo, hi, pieces + 1)[1:-1]
-
-
-def low_pass(u: np.ndarray, tau: float, dt: float) -> np.ndarray:
-    """Causal first-order low-pass ``1 / (tau s + 1)`` of ``u`` sampled every ``dt``.
-
-    Exact for a signal held over each step; started in its steady state at the first sample.
-    """
-    a = float(np.exp(-dt / tau))
-    b, den = [1.0 - a], [1.0, -a]
-    y, _ = signal.lfilter(b, den, u, zi=signal.lfilter_zi(b, den) * u[0])
-    return y
-
-
-def resonate(u: np.ndarray, f_hz: float, dt: float, zeta: float = RESONANCE_DAMPING) -> np.ndarray:
-    """``u`` through the resonator ``w^2 / (s^2 + 2 zeta w s + w^2)`` and ``w s / (...)`` (``w = 2 pi f_hz``): (n, 2).
-
-    The bilinear transform of the two transfer functions, sampled every ``dt``, started in the steady state of
-    the first sample (the first column equal to it, the second zero).
-    """
-    w = 2.0 * np.pi * float(f_hz)
-    den = [1.0, 2.0 * zeta * w, w * w]
-    out = np.empty((u.size, 2))
-    for j, num in enumerate(([w * w], [w, 0.0])):
-        b, a = signal.bilinear(num, den, fs=1.0 / dt)
-        out[:, j], _ = signal.lfilter(b, a, u, zi=signal.lfilter_zi(b, a) * u[0])
-    return out
-
-
-def payload_band(u: np.ndarray, f_hz: float, dt: float, zeta: float = RESONANCE_DAMPING) -> np.ndarray:
-    """A resonance of the carrier's velocity ``u`` without its ends: (n, 2).
-
-    ``w s^2 / ((s + w) D)`` and ``s^3 / ((s + w) D)`` of ``u``, ``D = s^2 + 2 zeta w s + w^2``: in quadrature at
-    the resonance, of the order ``s^2`` at low frequency (no mass: the carried mass at rest on its spring is a
-    force in phase with the carrier's acceleration, which the residual is linear in) and no faster than a
-    velocity above it (no acceleration either). Bilinear transform, started in the steady state of the first
-    sample.
-    """
-    w = 2.0 * np.pi * float(f_hz)
-    den = np.polymul([1.0, w], [1.0, 2.0 * zeta * w, w * w])
-    out = np.empty((u.size, 2))
-    for j, num in enumerate(([w, 0.0, 0.0], [1.0, 0.0, 0.0, 0.0])):
-        b, a = signal.bilinear(num, den, fs=1.0 / dt)
-        out[:, j], _ = signal.lfilter(b, a, u, zi=signal.lfilter_zi(b, a) * u[0])
-    return out
-
-
-def resonator_columns(u: np.ndarray, f_hz: float, dt: float) -> np.ndarray:
-    """The oscillator family's columns at one resonance frequency (n, 4).
-
-    :func:`payload_band` at ``f_hz`` and its central difference in ``ln f`` (steps of :data:`RESONANCE_STEP`): a
-    resonance near ``f_hz`` is a combination of the four.
-    """
-    a, b = (payload_band(u, f_hz * m, dt) for m in (1.0 + RESONANCE_STEP, 1.0 / (1.0 + RESONANCE_STEP)))
-    return np.concatenate([payload_band(u, f_hz, dt), a - b], axis=1)
 
 
 def _signals(ctx) -> dict:
@@ -325,11 +314,6 @@ def _signals(ctx) -> dict:
             "Y": np.asarray(ctx.extras.get("lab_y", np.zeros_like(t)), float),
             "phi_dot": np.asarray(ctx.phi_dot, float), "gamma_dot": np.asarray(ctx.gamma_dot, float),
             "R": float(np.mean(ctx.params.R)), "name": ctx.extras.get("recording", "")}
-
-
-def savgol_kernel(window: int, polyorder: int) -> np.ndarray:
-    """The Savitzky-Golay smoothing weights (value at the window's centre) of ``window`` samples."""
-    return signal.savgol_coeffs(int(window), int(polyorder), deriv=0, use="dot")
 
 
 class _Scaled:
@@ -462,7 +446,18 @@ class Families:
             release_free_memory()       # the full-rate columns' temporaries
 
     def width(self, f: int, level: int) -> int:
-        """Columns of family ``f`` at ``level``."""
+        """Columns of family ``f`` at ``level``.
+
+        Parameters
+        ----------
+        f : int
+            Index into :attr:`families`.
+        level : int
+
+        Returns
+        -------
+        int
+        """
         kind = self.families[f].kind
         if kind == "custom":
             return int(np.shape(self.families[f].basis(np.linspace(-1.0, 1.0, 7), level))[1])
@@ -551,6 +546,17 @@ class Families:
         """(family index, level) -> its columns (n, m) on ``ctx``: every one, or those of ``keys``.
 
         Cached per context arrays; a context asked for some keys keeps only those until it is asked for more.
+
+        Parameters
+        ----------
+        ctx : ModelContext
+            One recording's samples (its ``extras`` as for the constructor).
+        keys : iterable of tuple of int, optional
+            (family index, level) pairs.
+
+        Returns
+        -------
+        dict of tuple of int to ndarray
         """
         arrays = _arrays(ctx)
         key = _arrays_key(ctx)
@@ -589,9 +595,12 @@ class Families:
         return out if keys is None else {k: out[k] for k in want}
 
     def retain(self, keys) -> None:
-        """Keep only the cached columns of ``keys`` ((family index, level) pairs).
+        """Keep only the cached columns of ``keys``; any other is made again when asked for.
 
-        ``keys``: what a fitted model of these families still asks for; any other is made again when asked for.
+        Parameters
+        ----------
+        keys : iterable of tuple of int
+            (family index, level) pairs: what a fitted model of these families still asks for.
         """
         keep = set(keys)
         for ctx_key, (arrays, cols) in list(self._cache.items()):
@@ -603,9 +612,21 @@ class Families:
     def curve(self, f: int, level: int) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """The family's function on a grid over its argument's observed range.
 
-        Returns ``(grid, Phi, curves)``: ``Phi`` (curves, grid, m) maps the group's coefficients to the
-        function's values (the force along the family's direction per unit of ``per_unit``); ``curves``
-        names the rows (the recordings of a drift, else one empty name).
+        Parameters
+        ----------
+        f : int
+            Index into :attr:`families`.
+        level : int
+
+        Returns
+        -------
+        grid : ndarray (g,)
+            The argument's values (:data:`GRID_POINTS`; a step response's time for dyn and osc).
+        Phi : ndarray (curves, g, m)
+            Maps the group's coefficients to the function's values (the force along the family's direction
+            per unit of ``per_unit``).
+        curves : list of str
+            Names of the rows (the recordings of a drift or an aligned wheel family, else one empty name).
         """
         fam = self.families[f]
         g = GRID_POINTS
@@ -655,100 +676,6 @@ class Families:
         e = np.exp(-grid[:, None] / taus)
         cols = [1.0 - e] + ([1.0 - (1.0 + grid[:, None] / taus) * e] if level >= 1 else [])
         return grid, np.concatenate(cols, axis=1)[None], [""]
-
-
-#: Grid of a recording's wheel phase offset (then refined on a grid of a tenth of its step) [rad].
-PHASE_GRID = 72
-#: Sweeps of the coordinate-wise search of the phase offsets.
-PHASE_SWEEPS = 2
-
-
-def phase_rotations(deltas: np.ndarray, harmonics: int) -> np.ndarray:
-    """Per offset ``d`` (m,), the (2 K, 2 K) block turning the wheel's Fourier columns by ``d``: (m, 2 K, 2 K).
-
-    The block takes ``sin(k theta), cos(k theta)`` (k = 1..K, in that order) to
-    ``sin(k (theta + d)), cos(k (theta + d))``.
-    """
-    d = np.atleast_1d(np.asarray(deltas, float))
-    K = int(harmonics)
-    k = np.arange(K)
-    ang = np.outer(d, k + 1.0)
-    c, s = np.cos(ang), np.sin(ang)
-    R = np.zeros((d.size, 2 * K, 2 * K))
-    R[:, k, k] = c                  # sin(k(theta+d)) = sin(k theta) cos(k d) + cos(k theta) sin(k d)
-    R[:, K + k, k] = s
-    R[:, k, K + k] = -s             # cos(k(theta+d)) = cos(k theta) cos(k d) - sin(k theta) sin(k d)
-    R[:, K + k, K + k] = c
-    return R
-
-
-def wheel_phase_mix(deltas: np.ndarray, harmonics: int) -> np.ndarray:
-    """Matrix (2 K n_runs, 2 K) turning the ``aligned`` wheel family's per-recording Fourier columns into one function.
-
-    One function of the wheel angle with a phase offset per recording: ``f(theta + delta_r)``.
-
-    The raw columns of recording r are ``sin(k theta), cos(k theta)`` (k = 1..K, in that order) and zero on
-    the others, so the group's columns are the raw ones times the stacked blocks of :func:`phase_rotations`.
-    """
-    return phase_rotations(deltas, harmonics).reshape(-1, 2 * int(harmonics))
-
-
-def align_wheel_phases(B: np.ndarray, r: np.ndarray, harmonics: int, n_runs: int) -> np.ndarray:
-    """Phase offsets of the ``aligned`` wheel family that let one function of the wheel angle explain ``r`` best.
-
-    One offset per recording (n_runs,); least squares on ``B`` (n, 2 K n_runs), the family's raw columns as they act on
-    ``r``.
-
-    A tyre's angle when a recording starts is not measured, so a function shared by the recordings is out of
-    phase between them, and one free function per recording fits half-runs and predicts nothing. The first
-    recording with data is the reference (offset 0). With several harmonics the fit is multimodal in the
-    offsets, so each recording is first aligned with the reference alone (a global search on a grid of
-    :data:`PHASE_GRID` offsets, the two recordings' columns only), then all are refined together, one at a
-    time near their offsets (:data:`PHASE_SWEEPS` sweeps on a grid a tenth of the step).
-    """
-    B = np.asarray(B, float)
-    r = np.asarray(r, float)
-    K = int(harmonics)
-    w = 2 * K
-    G = B.T @ B
-    g = B.T @ r
-    live = [q for q in range(n_runs) if np.any(np.diag(G)[q * w:(q + 1) * w] > 0)]
-    deltas = np.zeros(n_runs)
-    if len(live) < 2:
-        return deltas
-    ridge = 1e-12 * max(float(np.trace(G)), 1e-300) * np.eye(w)
-
-    def blk(u, v):
-        return G[u * w:(u + 1) * w, v * w:(v + 1) * w]
-
-    def scores(runs: list[int], q: int, grid: np.ndarray) -> np.ndarray:
-        # M^T G M and M^T g with the other runs' rotations fixed and run q's over the grid
-        others = [u for u in runs if u != q]
-        Ro = {u: phase_rotations(deltas[u], K)[0] for u in others}
-        C = sum(Ro[u].T @ blk(u, v) @ Ro[v] for u in others for v in others)
-        P = sum(blk(q, v) @ Ro[v] for v in others)
-        c0 = sum(Ro[u].T @ g[u * w:(u + 1) * w] for u in others)
-        Rq = phase_rotations(grid, K)                                  # (m, w, w)
-        RqT = Rq.transpose(0, 2, 1)
-        A = C + RqT @ P + (RqT @ P).transpose(0, 2, 1) + RqT @ blk(q, q) @ Rq + ridge
-        b = c0 + RqT @ g[q * w:(q + 1) * w]
-        return np.einsum("mi,mi->m", b, np.linalg.solve(A, b[..., None])[..., 0])
-
-    step = 2.0 * np.pi / PHASE_GRID
-    coarse = np.arange(PHASE_GRID) * step
-    ref = live[0]
-
-    def refine(runs, q, around):
-        fine = around + np.linspace(-step, step, 21)
-        return float(np.mod(fine[int(np.argmax(scores(runs, q, fine)))], 2.0 * np.pi))
-
-    for q in live[1:]:
-        pair = [ref, q]
-        deltas[q] = refine(pair, q, coarse[int(np.argmax(scores(pair, q, coarse)))])
-    for _ in range(PHASE_SWEEPS):
-        for q in live[1:]:
-            deltas[q] = refine(live, q, deltas[q])
-    return deltas
 
 
 def _inside(C: np.ndarray, K: np.ndarray) -> bool:

@@ -15,17 +15,11 @@ from scipy import stats
 
 from euc_ros.core.model.candidate import Candidate, ParamInfo, jacobian_G
 from euc_ros.core.model.extended import Model
-from euc_ros.core.residual.families import (
-    POINT_UNITS,
-    POINTS,
-    Families,
-    align_wheel_phases,
-    n_levels,
-    wheel_phase_mix,
-)
+from euc_ros.core.residual.families import POINT_UNITS, POINTS, Families, n_levels
 from euc_ros.core.residual.folds import SAMPLES_PER_BLOCK
 from euc_ros.core.residual.search import GroupSearch
 from euc_ros.core.residual.selection import HeldOut, block_offsets
+from euc_ros.core.residual.wheel_phase import align_wheel_phases, wheel_phase_mix
 from euc_ros.core.states.contexts import Recording
 
 
@@ -64,7 +58,7 @@ class Group:
         Returns
         -------
         ndarray or None
-            :func:`~euc_ros.core.residual.families.wheel_phase_mix` of :attr:`phases` (2 K n_runs, 2 K), K the
+            :func:`~euc_ros.core.residual.wheel_phase.wheel_phase_mix` of :attr:`phases` (2 K n_runs, 2 K), K the
             level's harmonics; None for any other group.
         """
         return None if self.phases is None else wheel_phase_mix(np.asarray(self.phases, float), self.level + 1)
