@@ -74,6 +74,7 @@ from euc_ros.core.residual.selection import (
     held_out,
 )
 from euc_ros.core.residual.selector import ForwardSelector, Selector
+from euc_ros.core.residual.session_reference import session_reference
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
 from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, Recording, forget_shift_caches, prepare
 from euc_ros.core.states.floor import RADIUS_TOL_M, floor_from_states, rolling_radius_from_floor
@@ -159,7 +160,12 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     base = base_stage(setup)
     stage = floor_geometry_step(setup, base, journal, say)
     reference = free_h_reference(setup, base, say) if h_held is not None and stage is base else None
+    # the references stand in for the stage they judge: a final model that is one is that stage
+    stand_in = {id(reference): base} if reference is not None else {}
     stage = reference or stage
+    if getattr(rules, "session", None) is not None:
+        judged, stage = stage, session_reference(setup, stage, rules.session, say)
+        stand_in.setdefault(id(stage), stand_in.get(id(judged), judged))
     remaining = [c for c in screening.detectable if c.name not in {e.name for e in stage.model.effects}]
     selection = rules.select(setup, stage, remaining, screening, journal, say)
     for c in candidates:
@@ -176,9 +182,9 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     if finder is not None:
         say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, finder, rules, journal, say)
-    if reference is not None:   # nothing beat freeing h: the final model is the base model with h held
-        found = dataclasses.replace(found, stage=base if found.stage is reference else found.stage,
-                                    named=base if found.named is reference else found.named)
+    # nothing beat a reference: the final model is the stage it judged (with h held where it is)
+    found = dataclasses.replace(found, stage=stand_in.get(id(found.stage), found.stage),
+                                named=stand_in.get(id(found.named), found.named))
     return conclude(setup, base, found, geometry, noise_floor_of, rules, journal)
 
 

@@ -38,6 +38,7 @@ from euc_ros.core.residual.interval import FinalInterval, base_widening, filter_
 from euc_ros.core.residual.noise import make_noise_floor
 from euc_ros.core.residual.result import ResidualResult
 from euc_ros.core.residual.selector import DEFAULT_ALPHA, DEFAULT_MIN_GAIN, ForwardSelector
+from euc_ros.core.residual.session_reference import session_tolerances
 from euc_ros.core.session import load_session
 from euc_ros.core.states.contexts import analysis_rate
 from euc_ros.core.states.filter_choice import data_filters
@@ -221,6 +222,27 @@ def residual_filter(states: Sequence, settings: ReconstructionSettings) -> tuple
     return settings, chosen
 
 
+def options_candidates(options: ResidualOptions, offset: dict | None) -> list:
+    """The library candidates of ``options``, the time offset's plausible range bounded by its measurement.
+
+    Parameters
+    ----------
+    options : ResidualOptions
+        The library and the plausible ranges the user set.
+    offset : dict or None
+        The rider-to-EUC time offset measured from the ankles on the pedals (``plausible_ms``), or None.
+
+    Returns
+    -------
+    list of Candidate
+        :func:`~euc_ros.core.model.effects.make_candidates` with those ranges (a range the user set wins).
+    """
+    ranges = dict(options.plausible or {})
+    if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
+        ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
+    return make_candidates(options.candidates, ranges)
+
+
 def trace_residual(session_path, recordings: Sequence, settings: ReconstructionSettings | None = None, *,
                    options: ResidualOptions | None = None, tolerances: dict | None = None,
                    sliding_prior_mm: float | None = None, progress: Callable[[Sequence], Iterable] | None = None,
@@ -268,10 +290,7 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     # mocap_time_offset (unless the user set its range)
     usable = [usable_poses(s) for s in series] if all(s is not None for s in series) else None
     offset = measure_time_offset(series, session, usable) if usable is not None else None
-    ranges = dict(options.plausible or {})
-    if offset is not None and "mocap_time_offset.dt_ms" not in ranges:
-        ranges["mocap_time_offset.dt_ms"] = tuple(offset["plausible_ms"])
-    cands = make_candidates(options.candidates, ranges)
+    cands = options_candidates(options, offset)
     # what the rigid links show, measured once (the interval's sliding terms, the filter choice)
     links = sliding_or_none(series, session, usable) if usable is not None else None
     del usable
@@ -285,8 +304,9 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     ident = identify_h(states, session, params, reconstruction=settings, models=("3dof",), uncertainty=iv,
                        measured=Measured(simex_share=simex, link_sliding=links))
     base, held = ident.uncertainty, ident.held
+    session_free = session_tolerances(held.h_m if held is not None else base.get("h_m") or 0.0, tolerances)
     result = analyze(states, params, candidates=cands,
-                     selector=ForwardSelector(options.alpha, options.min_gain, options.max_effects),
+                     selector=ForwardSelector(options.alpha, options.min_gain, options.max_effects, session_free),
                      discovery=options.discovery(), use_geometry=options.use_geometry, noise_floor_of=noise_of,
                      analysis_rate_hz=rate_hz, progress=say, h_held=None if held is None else held.h_m)
     data = result.to_json()

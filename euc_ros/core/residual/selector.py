@@ -116,9 +116,15 @@ class ForwardSelector(Selector):
         Minimum relative cut of the held-out RMSE for a selection.
     max_effects : int
         Most named effects in the model.
+    session : Candidate, optional
+        What the session's stated tolerances can mimic
+        (:func:`~euc_ros.core.residual.session_reference.session_tolerances`): the selection starts from the
+        residual it leaves, so a name must explain more than the session's uncertainty can
+        (:func:`~euc_ros.core.residual.session_reference.session_reference`). None: from the base model's.
     """
 
     max_effects: int = DEFAULT_MAX_EFFECTS
+    session: Candidate | None = None
 
     def select(self, setup: Setup, stage: Stage, remaining: list[Candidate], screening: Screening,
                journal: Journal, say: Callable[[str], None]) -> Selection:
