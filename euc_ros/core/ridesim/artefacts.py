@@ -71,6 +71,12 @@ class SoftTissueArtefacts:
         Bodies that slide and may swap or flip (default: every body except ``euc_body``).
     euc_body : str
         The EUC's rigid body: hard shell, gets only the coloured noise.
+    joint_mm_per_deg : float
+        Scale of the joint-angle artefact (:data:`JOINT_GAIN_MM_PER_DEG` times this; 0: none). Each rider
+        body's pivot moves by its gain [mm/deg] times the change of its angle to the EUC (the sum of the
+        joint angles between it and the pedals; the rider's lean for a rider who pitches as one), in a
+        direction fixed per body and run: the artefact modes of the field are linear in the joint angles.
+        Added to the band-limited sliding.
 
     Raises
     ------
@@ -93,9 +99,10 @@ class SoftTissueArtefacts:
     flip_frames: tuple[int, int] = (1, 5)
     bodies: tuple[str, ...] | None = None
     euc_body: str = "E"
+    joint_mm_per_deg: float = 0.0
 
     def __post_init__(self) -> None:
-        for k in ("slide_rms_m", "slide_rot_rms_deg", "noise_pos_rms_m", "noise_rot_rms_deg"):
+        for k in ("slide_rms_m", "slide_rot_rms_deg", "noise_pos_rms_m", "noise_rot_rms_deg", "joint_mm_per_deg"):
             v = getattr(self, k)
             if not (math.isfinite(v) and v >= 0):
                 raise ConfigError(f"must be a finite number >= 0, got {v}", key=k)
@@ -176,6 +183,36 @@ def _body_acceleration(pos: np.ndarray, rot: np.ndarray, dt: float) -> np.ndarra
     return np.einsum("bnji,bnj->bni", rot, acc)
 
 
+#: Joint-angle artefact per body [mm of pivot displacement per deg of joint-angle change]: of the order the
+#: reviews report for skin-mounted clusters (thigh 10-30 mm over 40-60 deg of hip and knee flexion, the
+#: shank about half of it: Leardini et al. 2005, Gait Posture 21:212-225; Peters et al. 2010, Gait Posture
+#: 31:1-8; trunk and pelvis clusters a few to 10 mm; the upper arm's in humeral rotation of the thigh's
+#: order: Cutti et al. 2005, Med Biol Eng Comput 43:549-556); the head's cap barely slides.
+JOINT_GAIN_MM_PER_DEG = {"H": 0.05, "CHR": 0.25, "CHL": 0.25, "UAR": 0.35, "UAL": 0.35, "LAR": 0.15,
+                         "LAL": 0.15, "HR": 0.3, "HL": 0.3, "TR": 0.4, "TL": 0.4, "LR": 0.2, "LL": 0.2}
+
+
+def _joint_angle_sliding(rot: np.ndarray, names: list, euc_body: str, scale: float,
+                         rng: np.random.Generator) -> np.ndarray:
+    """Body-frame pivot displacement (b, n, 3) [m] linear in each body's angle to the EUC.
+
+    The angle is the rotation vector of ``R_euc^T R_body`` minus its median over the run; the
+    displacement is the gain times a fixed random rotation of it (``|d| = gain |angle change|``). One
+    rotation per body is drawn for every body of :data:`JOINT_GAIN_MM_PER_DEG` (a fixed number of draws).
+    """
+    b, n = rot.shape[:2]
+    out = np.zeros((b, n, 3))
+    turns = Rotation.random(len(JOINT_GAIN_MM_PER_DEG), random_state=rng).as_matrix()
+    for k, (body, gain) in enumerate(JOINT_GAIN_MM_PER_DEG.items()):
+        if body not in names or euc_body not in names:
+            continue
+        i, j = names.index(body), names.index(euc_body)
+        rel = Rotation.from_matrix(np.einsum("nji,njk->nik", rot[j], rot[i])).as_rotvec()
+        change = rel - np.median(rel, axis=0)
+        out[i] = (change @ turns[k].T) * (scale * gain * 1e-3 * 180.0 / math.pi)
+    return out
+
+
 def apply_artefacts(clean: MocapSeries, artefacts: SoftTissueArtefacts,
                     rng: np.random.Generator) -> tuple[MocapSeries, list[ArtefactEvent]]:
     """A copy of ``clean`` with soft-tissue sliding, coloured noise, swaps and flips.
@@ -221,6 +258,8 @@ def apply_artefacts(clean: MocapSeries, artefacts: SoftTissueArtefacts,
     rand = _unit_rms(_band_limited(white_pos, dt, a.band_hz, axis=1))
     slide = _unit_rms(math.sqrt(a.accel_share) * acc + math.sqrt(1.0 - a.accel_share) * rand) * a.slide_rms_m
     slide_rv = _unit_rms(_band_limited(white_rot, dt, a.band_hz, axis=1)) * math.radians(a.slide_rot_rms_deg)
+    if a.joint_mm_per_deg > 0:
+        slide = slide + _joint_angle_sliding(rot, names, a.euc_body, a.joint_mm_per_deg, rng)
     slide[~sel] = 0.0
     slide_rv[~sel] = 0.0
     pos = clean.position + np.einsum("bnij,bnj->bni", rot, slide) + noise_pos * a.noise_pos_rms_m
@@ -261,11 +300,16 @@ def apply_artefacts(clean: MocapSeries, artefacts: SoftTissueArtefacts,
 
 
 def perturb_session(session: Session, rng: np.random.Generator, *,
-                    offset_error_m: tuple[float, float] = (0.01, 0.03)) -> Session:
-    """Copy of ``session`` with every segment's CoM offset moved by a random vector.
+                    offset_error_m: tuple[float, float] = (0.01, 0.03), fraction_sd: float = 0.0,
+                    mass_error_kg: float = 0.0) -> Session:
+    """Copy of ``session`` as a lab estimates it: CoM offsets, and optionally mass fractions and masses, off.
 
     Each offset moves in a uniformly random direction by a length drawn uniformly from
-    ``offset_error_m`` [m]. Mass fractions and the EUC are unchanged.
+    ``offset_error_m`` [m]. With ``fraction_sd``, every segment's mass fraction is scaled by
+    ``1 + N(0, fraction_sd)`` and all are rescaled to their former sum (the tables differ by about 10 % per
+    segment: de Leva 1996 against Dempster's and Zatsiorsky's data); with ``mass_error_kg``, the rider's and
+    the EUC's body and wheel masses move by a uniform error within it (a scale's tolerance). The draws come
+    in this order, the offsets first, so that the offsets are those of a call without the others.
 
     Parameters
     ----------
@@ -275,6 +319,10 @@ def perturb_session(session: Session, rng: np.random.Generator, *,
         Source of the directions and lengths.
     offset_error_m : tuple of float
         Range (low, high) of the move [m].
+    fraction_sd : float
+        Relative standard deviation of each mass fraction (0: unchanged).
+    mass_error_kg : float
+        Half-width of the masses' uniform error [kg] (0: unchanged).
 
     Returns
     -------
@@ -284,16 +332,28 @@ def perturb_session(session: Session, rng: np.random.Generator, *,
     Raises
     ------
     ConfigError
-        When the range is not ``0 <= low <= high``.
+        When the range is not ``0 <= low <= high``, or ``fraction_sd`` or ``mass_error_kg`` is negative.
     """
     lo, hi = offset_error_m
     if not 0 <= lo <= hi:
         raise ConfigError(f"need 0 <= low <= high, got {offset_error_m}", key="offset_error_m")
+    for key, v in (("fraction_sd", fraction_sd), ("mass_error_kg", mass_error_kg)):
+        if not (math.isfinite(v) and v >= 0):
+            raise ConfigError(f"must be a finite number >= 0, got {v}", key=key)
     names = list(session.rider.segments)
     d = rng.normal(0.0, 1.0, (len(names), 3))
     d *= (rng.uniform(lo, hi, len(names)) / np.linalg.norm(d, axis=1))[:, None]
+    fractions = np.array([session.rider.segments[nm].mass_fraction for nm in names])
+    if fraction_sd > 0:
+        moved = fractions * np.clip(1.0 + rng.normal(0.0, fraction_sd, len(names)), 0.1, None)
+        fractions = moved * (fractions.sum() / moved.sum()) if moved.sum() > 0 else fractions
     segs = {}
-    for nm, dv in zip(names, d):
+    for nm, dv, f in zip(names, d, fractions):
         s = session.rider.segments[nm]
-        segs[nm] = Segment(s.mass_fraction, tuple(float(v) for v in np.asarray(s.com_offset) + dv))
-    return replace(session, rider=replace(session.rider, segments=segs))
+        segs[nm] = Segment(float(f), tuple(float(v) for v in np.asarray(s.com_offset) + dv))
+    rider, euc = replace(session.rider, segments=segs), session.euc
+    if mass_error_kg > 0:
+        dm = rng.uniform(-mass_error_kg, mass_error_kg, 3)
+        rider = replace(rider, mass=rider.mass + float(dm[0]))
+        euc = replace(euc, body_mass=euc.body_mass + float(dm[1]), wheel_mass=max(0.1, euc.wheel_mass + float(dm[2])))
+    return replace(session, rider=rider, euc=euc)

@@ -158,3 +158,54 @@ def test_bad_settings():
         SoftTissueArtefacts(band_hz=(3.0, 0.3))
     with pytest.raises(ConfigError, match="accel_share"):
         SoftTissueArtefacts(accel_share=1.5)
+
+
+def test_joint_angle_sliding_is_the_gain_times_the_angle_change():
+    """A thigh that swings 6 deg against a still shank and EUC: its pivot moves by the gain (0.4 mm/deg,
+    scaled by joint_mm_per_deg) times the angle's change from its median, in a fixed direction; the still
+    bodies do not move (their angles to the EUC do not change)."""
+    from euc_ros.core.mocap.series import MocapSeries
+    from euc_ros.core.ridesim.artefacts import JOINT_GAIN_MM_PER_DEG
+
+    n, rate = 600, 120.0
+    t = np.arange(n) / rate
+    theta = np.deg2rad(6.0) * np.sin(2 * np.pi * 0.4 * t)
+    quat = np.zeros((3, n, 4))
+    quat[:, :, 3] = 1.0
+    quat[0] = Rotation.from_rotvec(np.outer(theta, [0.0, 1.0, 0.0])).as_quat()
+    pos = np.zeros((3, n, 3))
+    pos[:, :, 2] = [[0.9], [0.5], [0.3]]
+    clean = MocapSeries(t=t, frame=np.arange(n), bodies=["TR", "LR", "E"], position=pos, quat=quat,
+                        tracked=np.ones((3, n), bool), mean_marker_error=np.zeros((3, n)), name="swing", meta={})
+    art = SoftTissueArtefacts(slide_rms_m=0.0, slide_rot_rms_deg=0.0, noise_pos_rms_m=0.0, noise_rot_rms_deg=0.0,
+                              joint_mm_per_deg=2.0)
+    out, _ = apply_artefacts(clean, art, np.random.default_rng(3))
+    moved = np.linalg.norm(out.position - pos, axis=-1)
+    change_deg = np.rad2deg(np.abs(theta - np.median(theta)))
+    np.testing.assert_allclose(moved[0], 2.0 * JOINT_GAIN_MM_PER_DEG["TR"] * 1e-3 * change_deg, atol=1e-12)
+    np.testing.assert_array_equal(moved[1:], 0.0)
+    # in the thigh's own frame (where the skin slides) the direction is one, and its opposite
+    d = np.einsum("nji,nj->ni", Rotation.from_quat(quat[0]).as_matrix(), out.position[0] - pos[0])
+    big = moved[0] > 0.5 * moved[0].max()
+    directions = d[big] / moved[0][big, None]
+    assert np.ptp(np.abs(directions), axis=0).max() < 1e-9
+
+
+def test_perturbed_session_fractions_and_masses():
+    s = default_session("z")
+    rng_draws = [perturb_session(s, np.random.default_rng(k), fraction_sd=0.1, mass_error_kg=0.5) for k in range(200)]
+    base = perturb_session(s, np.random.default_rng(0))
+    _, fr, off = s.segment_arrays()
+    _, fr0, off0 = rng_draws[0].segment_arrays()
+    np.testing.assert_allclose(off0, base.segment_arrays()[2])       # the offsets drawn first, as without the rest
+    rel = []
+    for p in rng_draws:
+        _, f2, _ = p.segment_arrays()
+        assert f2.sum() == pytest.approx(fr.sum(), rel=1e-12)
+        rel.append(f2[fr > 0] / fr[fr > 0] - 1)
+        assert abs(p.rider.mass - s.rider.mass) <= 0.5 and abs(p.euc.body_mass - s.euc.body_mass) <= 0.5
+    # the relative moves scatter by the stated 0.1, less the rescaling's share (about 1/sqrt(segments)):
+    # their standard deviation over 200 sessions lies within 0.07-0.11
+    assert 0.07 < float(np.std(np.concatenate(rel))) < 0.11
+    with pytest.raises(ConfigError, match="fraction_sd"):
+        perturb_session(s, np.random.default_rng(0), fraction_sd=-0.1)
