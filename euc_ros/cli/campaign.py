@@ -77,6 +77,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                    help=f"length of each of a ride's runs [s] [{OW_DURATION_S:g}]")
     w.add_argument("--rate", type=float, default=None, metavar="HZ", help=f"frame rate [Hz] [{OW_RATE_HZ:g}]")
     w.add_argument("--rtol", type=float, default=None, help=f"integrator relative tolerance [{OW_RTOL:g}]")
+    w.add_argument("--design", choices=("classic", "lab"), default=None,
+                   help="how the rides are recorded and described: classic (band-limited sliding, the generator's "
+                        "session) or lab (acceleration-driven, joint-angle or mixed sliding, a perturbed session) "
+                        "[lab for held-out, classic otherwise]")
     w.add_argument("--table", default=None, metavar="MD", help="Markdown report [OUT/open_world.md]")
     w.add_argument("--figure", default=None, metavar="PNG", help="its figure [OUT/open_world.png]")
     w.add_argument("--reuse", action="append", default=[], metavar="RESULTS.csv",
@@ -119,7 +123,7 @@ def tasks_from_args(args) -> list[cmp.Task]:
 
         specs = study.tasks(args.seeds, args.per_family, args.families or study.FAMILIES,
                             duration=args.duration or study.DURATION_S, rate_hz=args.rate or study.RATE_HZ,
-                            rtol=args.rtol or study.RTOL)
+                            rtol=args.rtol or study.RTOL, design=args.design)
         return [cmp.Task(name, "open_world", seed=seed, simulate=opts) for name, seed, opts in specs]
     if args.mode == "sessions":
         folders = []
@@ -244,7 +248,7 @@ def _open_world_outputs(args, rows: list[dict], out: Path, where: str, wall_s: f
     summ = summarize(rows)
     seeds = SEED_SETS[args.seeds][:args.per_family]
     opts = {"--families": ",".join(args.families) if args.families else None, "--duration": args.duration,
-            "--rate": args.rate, "--rtol": args.rtol, "--workers": args.workers}
+            "--rate": args.rate, "--rtol": args.rtol, "--design": args.design, "--workers": args.workers}
     command = (f"euc-ros campaign open-world --seeds {args.seeds} --per-family {args.per_family} --out {args.out}"
                + "".join(f" {k} {v}" for k, v in opts.items() if v is not None) + (" --serial" if args.serial else ""))
     meta = {"command": command, "seed_set": args.seeds, "per_family": args.per_family,

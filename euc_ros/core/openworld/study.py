@@ -48,6 +48,7 @@ import numpy as np
 
 from euc_ros.core.errors import ConfigError, describe_error
 from euc_ros.core.openworld.judge import judge, judge_interval
+from euc_ros.core.openworld.lab_design import DESIGNS
 from euc_ros.core.worldsim import forces as F
 from euc_ros.core.worldsim.open_world_seeds import FAMILIES, SEED_SETS
 
@@ -85,7 +86,7 @@ COLUMNS = ("task", "family", "seed", "status", "error", "seconds", "ride_seed", 
            "rmse_before_nm", "before_predicted_nm", "rmse_after_nm", "ratio_measured", "effect", "library_names",
            "right_names", "right_name", "false_name", "discovered_terms", "discovered", "discovered_families",
            "family_match", "explained", "h_true_m", "h_after_m", "h_after_lo_m", "h_after_hi_m", "width_mm",
-           "covered", "noise_floor_nm")
+           "covered", "noise_floor_nm", "artefact_model", "joint_scale", "session")
 
 
 # --------------------------------------------------------------------------------------------------
@@ -116,7 +117,7 @@ def ride_rng(seed: int, family: str) -> np.random.Generator:
     return np.random.default_rng([int(seed), FAMILIES.index(family), STREAM])
 
 
-def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float) -> dict:
+def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float, design=None) -> dict:
     """Write a ride with the paper's pose noise and soft-tissue sliding of ``artefact_mm`` (RMS, 3-D).
 
     The generator's writer adds the white pose noise; the sliding
@@ -137,6 +138,8 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
         Seed of the noise and the sliding.
     artefact_mm : float
         RMS 3-D pivot sliding of every rider body [mm] (0: none).
+    design : LabDesign, optional
+        The artefact model (:mod:`~euc_ros.core.openworld.lab_design`; default the classic one above).
 
     Returns
     -------
@@ -156,10 +159,13 @@ def write_recording(ride, out: Path, name: str, *, seed: int, artefact_mm: float
         raise ConfigError(f"must be a finite number >= 0 mm, got {artefact_mm}", key="artefact_mm")
     cap = Capture(world_up="y", noise_pos_mm=NOISE_POS_MM, noise_rot_deg=NOISE_ROT_DEG, take_name=name)
     paths = write_ride(ride, out, cap, seed=seed, name=name)
-    if artefact_mm > 0:
+    band = artefact_mm if design is None or design.band_sliding else 0.0
+    joint = 0.0 if design is None else design.joint_scale
+    if band > 0 or joint > 0:
         series = read_motive_csv(paths["csv"], world_up="y")
-        art = SoftTissueArtefacts(slide_rms_m=1e-3 * artefact_mm, slide_rot_rms_deg=ARTEFACT_DEG_PER_MM * artefact_mm,
-                                  noise_pos_rms_m=0.0, noise_rot_rms_deg=0.0)
+        art = SoftTissueArtefacts(slide_rms_m=1e-3 * band, slide_rot_rms_deg=ARTEFACT_DEG_PER_MM * band,
+                                  noise_pos_rms_m=0.0, noise_rot_rms_deg=0.0, joint_mm_per_deg=joint,
+                                  accel_share=0.5 if design is None else design.accel_share)
         slid, _ = apply_artefacts(series, art, np.random.default_rng([int(seed), STREAM, 1]))
         write_motive_csv(slid, paths["csv"], world_up="y", take_name=name, decimals=6)
     return paths
@@ -242,11 +248,18 @@ def _runs(seed: int, family: str, spec, n: int, rate_hz: float, rtol: float, for
     return out
 
 
-def _write_runs(rides: list, out: Path, seed: int, artefact_mm: float) -> dict:
+def _write_runs(rides: list, out: Path, seed: int, artefact_mm: float, design=None) -> dict:
     paths = [write_recording(r, out / f"run_{k + 1:02d}", f"run_{k + 1:02d}", seed=int(seed) * 100 + k,
-                             artefact_mm=artefact_mm) for k, r in enumerate(rides)]
-    return {"session": paths[0]["session"], "csvs": [p["csv"] for p in paths], "truths": [p["truth"] for p in paths],
-            "csv": paths[0]["csv"], "truth": paths[0]["truth"]}
+                             artefact_mm=artefact_mm, design=design) for k, r in enumerate(rides)]
+    session = paths[0]["session"]
+    if design is not None and design.perturbed:
+        from euc_ros.core.openworld.lab_design import analysed_session
+        from euc_ros.core.session import load_session, save_session
+
+        session = out / "session_lab.yaml"
+        save_session(analysed_session(load_session(paths[0]["session"]), design), session)
+    return {"session": session, "session_true": paths[0]["session"], "csvs": [p["csv"] for p in paths],
+            "truths": [p["truth"] for p in paths], "csv": paths[0]["csv"], "truth": paths[0]["truth"]}
 
 
 def lawless_ride(seed: int, out, sliding_mm: float, *, duration: float = DURATION_S, rate_hz: float = RATE_HZ,
@@ -284,7 +297,8 @@ def _seen_rms(rides: list, rate_hz: float) -> float:
 
 
 def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate_hz: float = RATE_HZ,
-              rtol: float = RTOL, floor_fn=floor_rmse, refine: int = REFINE, runs: int = RUNS) -> dict:
+              rtol: float = RTOL, floor_fn=floor_rmse, refine: int = REFINE, runs: int = RUNS,
+              design: str = "classic") -> dict:
     """Simulate and write one study ride (module docstring); return its files and truth.
 
     Parameters
@@ -302,30 +316,35 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
         Corrections of the amplitude along the first run with the law (module docstring, step 4).
     runs : int
         Runs of the rider over the same floor (:data:`RUNS`).
+    design : str
+        How the lab records and describes the ride (:mod:`~euc_ros.core.openworld.lab_design`).
 
     Returns
     -------
     dict
-        ``session``, ``csvs``, ``truths`` (paths; ``csv`` and ``truth`` the first run's), ``ride`` (the first
+        ``session`` (the analysed one), ``session_true``, ``csvs``, ``truths`` (paths; ``csv`` and ``truth``
+        the first run's), ``design`` (:class:`~euc_ros.core.openworld.lab_design.LabDesign`), ``ride`` (the first
         analysed :class:`Ride`), ``rides``, ``law`` (:class:`ForceLaw` or None), ``artefact_mm``,
         ``ratio_target``, ``floor_nm``, ``calibration``, ``effect_truth_nm`` (RMS over the runs of the law's
         residual contribution as the analysis' filter passes it, :func:`seen_effect`).
     """
+    from euc_ros.core.openworld.lab_design import draw_design
     from euc_ros.core.worldsim.simulate import simulate, simulate_ride
 
     out = Path(out)
     rng = ride_rng(seed, family)
+    lab = draw_design(design, seed, FAMILIES.index(family), STREAM)
     artefact_mm = float(rng.uniform(*ARTEFACT_MM))
     ratio = float(rng.uniform(*F.RATIO_RANGE))
     ride0 = simulate_ride(int(seed), rate_hz, duration=duration, rtol=rtol)
     spec, p = ride0.spec, ride0.spec.plant
     rides0 = [ride0] + _runs(seed, family, spec, runs, rate_hz, rtol)
     info = {"artefact_mm": artefact_mm, "ratio_target": None, "floor_nm": None, "calibration": None, "law": None,
-            "effect_truth_nm": 0.0}
+            "effect_truth_nm": 0.0, "design": lab}
     if family == "none":
-        paths = _write_runs(rides0, out / "ride", seed, artefact_mm)
+        paths = _write_runs(rides0, out / "ride", seed, artefact_mm, lab)
         return {**paths, "ride": ride0, "rides": rides0, **info}
-    p0 = _write_runs(rides0, out / "floor", seed, artefact_mm)
+    p0 = _write_runs(rides0, out / "floor", seed, artefact_mm, lab)
     floor = float(floor_fn(p0["session"], p0["csvs"]))
     x0 = ride0.stats["x_offset_m"]
     track = (x0 + float(np.min(ride0.truth["x"])), x0 + float(np.max(ride0.truth["x"])))
@@ -358,7 +377,7 @@ def make_ride(seed: int, family: str, out, *, duration: float = DURATION_S, rate
                           f"(last: {rejected[-1]['error']})", key="seed")
     cal["rejected_laws"] = rejected
     ride.spec.info["requested_seed"] = int(seed)
-    paths = _write_runs(rides, out / "ride", seed, artefact_mm)
+    paths = _write_runs(rides, out / "ride", seed, artefact_mm, lab)
     info.update(ratio_target=ratio, floor_nm=floor, calibration=cal, law=law,
                 effect_truth_nm=_seen_rms(rides, rate_hz))
     return {**paths, "ride": ride, "rides": rides, **info}
@@ -394,10 +413,12 @@ def run_task(task) -> dict:
     try:
         with tempfile.TemporaryDirectory(prefix="euc_openworld_") as tmp:
             r = make_ride(task.seed, family, Path(tmp), duration=float(o.get("duration_s", DURATION_S)),
-                          rate_hz=float(o.get("rate_hz", RATE_HZ)), rtol=float(o.get("rtol", RTOL)))
+                          rate_hz=float(o.get("rate_hz", RATE_HZ)), rtol=float(o.get("rtol", RTOL)),
+                          design=o.get("design", "classic"))
             data = trace_residual(str(r["session"]), [str(c) for c in r["csvs"]]).data
         ride, law = r["ride"], r["law"]
         row.update(judge(data, family, law))
+        row.update(r["design"].describe())
         row.update(ride_seed=ride.spec.info.get("seed"), artefact_mm=r["artefact_mm"], ratio_target=r["ratio_target"],
                    floor_nm=r["floor_nm"], effect_truth_nm=r["effect_truth_nm"], h_true_m=float(ride.h),
                    h_after_m=float(data["h_after_m"]))
@@ -418,7 +439,7 @@ def run_task(task) -> dict:
 
 
 def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float = DURATION_S,
-          rate_hz: float = RATE_HZ, rtol: float = RTOL) -> list[tuple[str, int, dict]]:
+          rate_hz: float = RATE_HZ, rtol: float = RTOL, design: str | None = None) -> list[tuple[str, int, dict]]:
     """One task per family and seed.
 
     The first ``per_family`` seeds of ``seed_set`` (``tuning``, ``report``), as ``(name, seed, options)`` (a
@@ -438,6 +459,9 @@ def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float 
         Sample rate [Hz].
     rtol : float
         Integrator tolerance (0-1).
+    design : str, optional
+        How the rides are recorded and described (:data:`~euc_ros.core.openworld.lab_design.DESIGNS`; default
+        ``lab`` for the held-out seeds, ``classic`` for the others).
 
     Returns
     -------
@@ -462,7 +486,10 @@ def tasks(seed_set: str, per_family: int, families=FAMILIES, *, duration: float 
     if not (duration > 0 and rate_hz > 0 and 0 < rtol < 1):
         raise ConfigError(f"need duration > 0, rate > 0 and 0 < rtol < 1, got {duration}, {rate_hz}, {rtol}",
                           key="--duration")
-    opts = {"duration_s": duration, "rate_hz": rate_hz, "rtol": rtol}
+    design = design or ("lab" if seed_set == "held-out" else "classic")
+    if design not in DESIGNS:
+        raise ConfigError(f"must be one of {DESIGNS}, got {design!r}", key="--design")
+    opts = {"duration_s": duration, "rate_hz": rate_hz, "rtol": rtol, "design": design}
     return [(f"{fam}_{s:06d}", int(s), {"family": fam, **opts}) for fam in families for s in seeds[:per_family]]
 
 

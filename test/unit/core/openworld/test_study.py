@@ -63,11 +63,14 @@ def test_tasks_take_the_first_seeds_of_the_set_per_family():
     got = st.tasks("report", 2, ("none", "drift"), duration=8.0)
     assert [(name, seed) for name, seed, _ in got] == [("none_001000", 1000), ("none_001001", 1001),
                                                        ("drift_001000", 1000), ("drift_001001", 1001)]
-    assert got[-1][2] == {"family": "drift", "duration_s": 8.0, "rate_hz": st.RATE_HZ, "rtol": st.RTOL}
+    assert got[-1][2] == {"family": "drift", "duration_s": 8.0, "rate_hz": st.RATE_HZ, "rtol": st.RTOL,
+                          "design": "classic"}
+    assert st.tasks("held-out", 1, ("none",))[0][2]["design"] == "lab"          # the next table is a lab's
     for kwargs, key in (({"seed_set": "mine", "per_family": 1}, "--seeds"),
                         ({"seed_set": "tuning", "per_family": 0}, "--per-family"),
                         ({"seed_set": "tuning", "per_family": 1, "families": ("wind",)}, "--families"),
-                        ({"seed_set": "tuning", "per_family": 1, "rtol": 2.0}, "--duration")):
+                        ({"seed_set": "tuning", "per_family": 1, "rtol": 2.0}, "--duration"),
+                        ({"seed_set": "tuning", "per_family": 1, "design": "field"}, "--design")):
         with pytest.raises(ConfigError, match=key):
             st.tasks(**kwargs)
 
