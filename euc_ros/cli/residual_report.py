@@ -42,7 +42,7 @@ def format_summary(data: dict) -> str:
                      f"{d['rmse_after_nm']:.3f} N m")
     nf = data.get("noise_floor_nm")
     lines.append(f"residual after: {'above' if data.get('residual_significant') else 'at'} its noise floor"
-                 + (f" (pose noise propagated: {nf:.3f} N m)" if nf is not None else "")
+                 + (f" ({nf:.3f} N m: {floor_parts(data)})" if nf is not None else "")
                  + ("; UNEXPLAINED: nothing named or discovered explains it" if data.get("unexplained") else ""))
     geo = data.get("geometry") or {}
     floor = geo.get("floor")
@@ -175,7 +175,7 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
         out.append(f"h range over the models the data cannot tell apart: **[{lo:.3f}, {hi:.3f}] m** ("
                    + ", ".join(f"{t['effect']}: {t['h_m']:.3f} m" for t in data.get("tied_models", [])) + ").")
     out.append(f"Residual after the model: {'above' if data.get('residual_significant') else 'at'} its noise floor"
-               + (f" ({data['noise_floor_nm']:.3f} N m, the recordings' pose noise propagated)"
+               + (f" ({data['noise_floor_nm']:.3f} N m: {floor_parts(data)})"
                   if data.get("noise_floor_nm") is not None else "")
                + ("; **unexplained**: nothing named or discovered explains it." if data.get("unexplained") else "."))
     if data.get("discovered"):
@@ -210,3 +210,11 @@ def markdown_report(data: dict, figures: list[Path], base: Path) -> str:
             "the `torque_estimator` parameters `effects` and `effect_parameters`.", ""]
     return "\n".join(out)
 
+
+def floor_parts(data: dict) -> str:
+    """What the noise floor holds, in words: the pose noise and the measured sliding, each propagated."""
+    parts = data.get("noise_floor_parts_nm") or {}
+    if not parts.get("sliding"):
+        return "the recordings' pose noise propagated"
+    return (f"pose noise {parts['pose_noise']:.3f} and the links' measured soft-tissue sliding "
+            f"{parts['sliding']:.3f} N m, propagated")
