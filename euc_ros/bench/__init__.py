@@ -25,6 +25,8 @@ ridesim        ride simulator real-time factor, compiled and reference (the comp
 campaign       a campaign of simulated-seed tasks (ride + identify) on a local Dask cluster of 2
                worker processes, in tasks per wall-minute, its speed-up, the cluster's start-up,
                rows identical (the same tasks run serially in one process)
+skeleton       live skeleton CoG (``cog_method: skeleton``) per frame at 14 bodies, compiled
+               and numpy reference (the per-segment CoG of the same frames)
 play           replay timing of ``euc-ros play`` per message, at rates 1 and 2 (a bare wait
                loop on the same schedule)
 fuzz           NatNet packets and Motive CSV files: inputs, crashes, hangs, rejection classes
@@ -36,5 +38,5 @@ soak           10 minutes at 360 Hz x 14 bodies through the whole pipeline (the 
 """
 
 #: Benchmarks in the order they run (module names under euc_ros.bench).
-BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "ridesim", "campaign", "recording", "latency", "play",
-              "fuzz", "live_sweep", "soak")
+BENCHMARKS = ("csv_parse", "throughput", "growth", "unicycle", "ridesim", "campaign", "skeleton", "recording",
+              "latency", "play", "fuzz", "live_sweep", "soak")

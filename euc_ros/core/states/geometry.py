@@ -199,9 +199,14 @@ def frame_geometry(position, quat, tracked, session, bodies, *, cog_method: str 
         raise InputError(f"{len(bodies)} body names for position {position.shape} and quat {quat.shape}",
                          key="bodies")
     shape = position.shape[1:-1]
-    if shape == () and cog_method == "segments" and position.shape == (len(bodies), 3) \
-            and quat.shape == (len(bodies), 4):
-        return _one_frame_geometry(position, quat, tracked, session, bodies)
+    if shape == () and position.shape == (len(bodies), 3) and quat.shape == (len(bodies), 4):
+        if cog_method == "segments":
+            return _one_frame_geometry(position, quat, tracked, session, bodies)
+        if skeleton is not None:
+            G, has_rider, n_faults, extra = _skeleton_geometry_cog(position, quat, tracked, session, bodies, skeleton,
+                                                                   fault_threshold_m)
+            return {**_one_frame_geometry(position, quat, tracked, session, bodies, cog=(G, has_rider)),
+                    "n_faults": n_faults, **extra}
     tracked = None if tracked is None else np.asarray(tracked, dtype=bool)
     has_euc, E, C, A, psi, theta, gamma = _euc_geometry(position, quat, tracked, session, bodies)
     G, has_rider = _segments_cog(position, quat, tracked, session, bodies)
@@ -286,8 +291,9 @@ def _skeleton_geometry_cog(position: np.ndarray, quat: np.ndarray, tracked, sess
     return sk["G"], sk["has_rider"], sk["n_faults"], extra
 
 
-def _one_frame_geometry(position: np.ndarray, quat: np.ndarray, tracked, session, bodies: list) -> dict:
-    """:func:`frame_geometry` of one frame with ``segments`` G, in scalar arithmetic.
+def _one_frame_geometry(position: np.ndarray, quat: np.ndarray, tracked, session, bodies: list,
+                        cog: tuple | None = None) -> dict:
+    """:func:`frame_geometry` of one frame with ``segments`` G (or ``cog``: G, has_rider), in scalar arithmetic.
 
     The same formulas as the vectorized path (tested equal to round-off): a live node calls this
     per frame, where ~40 numpy calls on 3-vectors cost ~10x the arithmetic.
@@ -327,7 +333,10 @@ def _one_frame_geometry(position: np.ndarray, quat: np.ndarray, tracked, session
     idx, frac, off, total, complete = _segment_table(session, tuple(bodies))
     has_rider = complete
     gx = gy = gz = nan
-    if complete:
+    if cog is not None:
+        has_rider = bool(cog[1])
+        gx, gy, gz = (float(v) for v in np.asarray(cog[0], dtype=float).reshape(3))
+    elif complete:
         pos_k, quat_k = position[idx], quat[idx]
         ok = np.isfinite(pos_k).all(-1) & np.isfinite(quat_k).all(-1)
         if tracked is not None:

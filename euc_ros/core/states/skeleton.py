@@ -24,10 +24,11 @@ Fit
       + sum_ab |p_a + R_a u_ab - p_b|^2 / s_j^2                               (joints)
 
     with ``s_p, s_r`` the expected sliding per axis and ``s_j`` the joint's play (small: the chain is
-    nearly rigid). Gauss-Newton on the rotation increments, batched over frames (one dense
-    ``6 m x 6 m`` normal matrix per frame, ``m`` rider bodies, solved with :func:`numpy.linalg.solve`;
-    Python loops only over links and iterations). A frame is fitted on its own, so the live version
-    has no lag. G and phi come from the fitted chain: ``G = sum f_i (p_i + R_i o_i)``.
+    nearly rigid). Gauss-Newton on the rotation increments (one dense ``6 m x 6 m`` normal matrix per
+    frame, ``m`` rider bodies), compiled (:mod:`~euc_ros.core.states.skeleton_compiled`: one loop over the
+    frames, closed-form rotations, a Cholesky solve); :func:`fit_chain` is the numpy reference, batched over
+    frames. A frame is fitted on its own, so the live version has no lag. G and phi come from the fitted
+    chain: ``G = sum f_i (p_i + R_i o_i)``.
 Faults
     A marker swap or a 180 deg flip makes a body's links jump by far more than any sliding
     (:func:`detect_faults`). Per frame and link, ``e_ab = |R_a^T (p_b - p_a) - u_ab|``; a link is bad
@@ -550,7 +551,7 @@ def fit_chain(model: SkeletonModel, P: np.ndarray, R: np.ndarray, ok: np.ndarray
 
 
 def skeleton_cog(position, quat, tracked, session, bodies, model: SkeletonModel,
-                 threshold_m: np.ndarray | None = None) -> dict[str, np.ndarray]:
+                 threshold_m: np.ndarray | None = None, method: str = "compiled") -> dict[str, np.ndarray]:
     """Rider CoG from the fitted chain, for one or many frames.
 
     Parameters
@@ -563,6 +564,11 @@ def skeleton_cog(position, quat, tracked, session, bodies, model: SkeletonModel,
         The session's chain (:meth:`SkeletonModel.estimate`).
     threshold_m : ndarray (k,), optional
         Fault thresholds overriding the model's (the live estimator's calibration).
+    method : {"compiled", "reference"}
+        ``compiled`` (default): every frame in one compiled loop
+        (:func:`~euc_ros.core.states.skeleton_compiled.chain_cog`); ``reference``: :func:`detect_faults` and
+        :func:`fit_chain` in numpy. The same fit; they agree to round-off amplified by the normal matrix's
+        conditioning.
 
     Returns
     -------
@@ -570,7 +576,18 @@ def skeleton_cog(position, quat, tracked, session, bodies, model: SkeletonModel,
         ``G`` (..., 3) [m]; ``has_rider`` (...) every body of non-zero mass tracked (faulty ones
         included: the chain predicts them); ``faults`` (m, ...) bool (bodies excluded);
         ``n_faults`` (...) int; ``P_fit`` (m, ..., 3) and ``R_fit`` (m, ..., 3, 3) the fitted chain.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``method`` when it is neither.
     """
+    if method == "compiled":
+        from euc_ros.core.states.skeleton_compiled import compiled_skeleton_cog  # numba: loaded on first use
+
+        return compiled_skeleton_cog(position, quat, tracked, session, bodies, model, threshold_m)
+    if method != "reference":
+        raise ConfigError(f"must be 'compiled' or 'reference', got {method!r}", key="method")
     P, R, ok, shape = _gather(model, position, quat, tracked, bodies)
     m = len(model.bodies)
     faults = detect_faults(model, P, R, ok, threshold_m)
@@ -593,6 +610,69 @@ def skeleton_cog(position, quat, tracked, session, bodies, model: SkeletonModel,
     return {"G": G.reshape(shape + (3,)), "has_rider": has_rider.reshape(shape),
             "faults": faults.reshape((m,) + shape), "n_faults": faults.sum(0).reshape(shape),
             "P_fit": Pf.reshape((m,) + shape + (3,)), "R_fit": Rf.reshape((m,) + shape + (3, 3))}
+
+
+def _masked_median(x: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Per row, the median (:func:`numpy.median`'s value) of ``x`` (k, c, n) over the frames where ``mask`` (k, n)."""
+    cnt = mask.sum(axis=1)
+    out = np.full(x.shape[:2], np.nan)
+    for c in np.unique(cnt[cnt > 0]):           # rows of one count share their order statistics
+        rows = np.flatnonzero(cnt == c)
+        lo, hi = (c - 1) // 2, c // 2
+        xr = x[rows] if c == x.shape[2] else np.where(mask[rows, None, :], x[rows], np.inf)
+        part = np.partition(xr, (lo, hi), axis=-1)
+        out[rows] = (part[..., lo] + part[..., hi]) / 2
+    return out
+
+
+class _CalibrationFrames:
+    """The live calibration's link samples, frame by frame, and the model they give.
+
+    :meth:`SkeletonModel.from_poses` of the frames so far (the same samples, medians and thresholds), with each
+    frame's link samples made once, when it arrives, and the medians of all links at once.
+    """
+
+    def __init__(self, bodies: list, capacity: int, session) -> None:
+        names, _, _ = session.segment_arrays()
+        known = set(names) | {session.euc.body}
+        used = [(a, b) for a, b in DEFAULT_LINKS if a in known and b in known and a != b]
+        if not used:
+            raise ConfigError("no chain link between the session's bodies", key="cog_method")
+        self.links = tuple((a, b) for a, b in used if a in bodies and b in bodies)
+        self.ia = [bodies.index(a) for a, _ in self.links]
+        self.ib = [bodies.index(b) for _, b in self.links]
+        self.bodies, self.names, self.euc, self.n = bodies, tuple(names), session.euc.body, 0
+        self.v = np.zeros((len(self.links), 3, capacity))           # R_a^T (p_b - p_a)
+        self.rel = np.zeros((len(self.links), 9, capacity))         # R_a^T R_b
+        self.both = np.zeros((len(self.links), capacity), bool)
+
+    def add(self, position, quat, tracked) -> None:
+        """Append one frame: ``position`` (b, 3) [m], ``quat`` (b, 4), ``tracked`` (b,) or None."""
+        P = np.asarray(position, float)
+        R, ok = _rotmats(np.asarray(quat, float))
+        ok = ok & np.all(np.isfinite(P), -1) & (True if tracked is None else np.asarray(tracked, bool))
+        P = np.where(ok[:, None], P, 0.0)
+        Ra = R[self.ia]
+        self.v[:, :, self.n] = np.einsum("kji,kj->ki", Ra, P[self.ib] - P[self.ia])
+        self.rel[:, :, self.n] = np.einsum("kji,kjl->kil", Ra, R[self.ib]).reshape(-1, 9)
+        self.both[:, self.n] = ok[self.ia] & ok[self.ib]
+        self.n += 1
+
+    def model(self, config: SkeletonFitConfig) -> SkeletonModel:
+        """The chain of the frames so far (:meth:`SkeletonModel.from_poses`'s, its errors alike)."""
+        n = self.n
+        keep = self.both[:, :n].any(axis=1)
+        if not keep.any():
+            raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
+        both, v = self.both[keep, :n], self.v[keep, :, :n]
+        vk = _masked_median(v, both)
+        rel = _project_so3(_masked_median(self.rel[keep, :, :n], both).reshape(-1, 3, 3))
+        e = np.linalg.norm(v - vk[:, :, None], axis=1)[:, None, :]
+        med = _masked_median(e, both)
+        mad = _masked_median(np.abs(e - med[:, :, None]), both)
+        thr = np.maximum(config.fault_floor_m, (med + config.fault_sigmas * 1.4826 * mad)[:, 0])
+        links = tuple(lk for lk, k in zip(self.links, keep) if k)
+        return SkeletonModel(self.names, self.euc, links, vk, rel, thr, int(both.sum(axis=1).max()), config)
 
 
 class OnlineSkeleton:
@@ -626,14 +706,14 @@ class OnlineSkeleton:
         self.calibration_frames = int(calibration_frames)
         self.calibration_floor_m = float(calibration_floor_m)
         self.model = model
-        self._buf: list[tuple[np.ndarray, np.ndarray, np.ndarray | None, list]] = []
+        self._cal: _CalibrationFrames | None = None
         #: Body-frames excluded so far, per body.
         self.fault_counts: dict[str, int] = {}
 
     @property
     def calibrated(self) -> bool:
         """True once the link vectors are frozen."""
-        return self.model is not None and not self._buf
+        return self.model is not None and self._cal is None
 
     def reset(self) -> None:
         """Forget the fault counts (the calibration is kept: the rider is the same)."""
@@ -665,20 +745,16 @@ class OnlineSkeleton:
         ConfigError
             Naming ``cog_method`` when no link can be estimated from the frames seen.
         """
-        if self.model is not None and not self._buf:
+        if self.model is not None and self._cal is None:
             return self.model, None
         bodies = list(bodies)
-        if self._buf and self._buf[-1][3] != bodies:
-            self._buf = []                      # the body set changed: calibrate afresh
-        trk = np.ones(len(bodies), bool) if tracked is None else np.asarray(tracked, bool)
-        self._buf.append((np.asarray(position, float), np.asarray(quat, float), trk, bodies))
-        P = np.stack([b[0] for b in self._buf], axis=1)
-        Q = np.stack([b[1] for b in self._buf], axis=1)
-        T = np.stack([b[2] for b in self._buf], axis=1)
-        model = SkeletonModel.from_poses([P], [Q], [T], bodies, self.session, config=self.config)
+        if self._cal is None or self._cal.bodies != bodies:
+            self._cal = _CalibrationFrames(bodies, self.calibration_frames, self.session)   # afresh: new body set
+        self._cal.add(position, quat, tracked)
+        model = self._cal.model(self.config)
         self.model = model
-        if len(self._buf) >= self.calibration_frames:
-            self._buf = []
+        if self._cal.n >= self.calibration_frames:
+            self._cal = None
             return model, None
         return model, np.full(len(model.links), self.calibration_floor_m)
 
