@@ -2,7 +2,7 @@
 
 Work: a campaign of simulated-seed tasks (``seed_tasks``: a deceleration ride of one 10 s run with default
 noise and true h 0.61 m, written as a session and its Motive CSV, then ``euc-ros identify`` on it), 120
-tasks (quick: 24). The figure is the campaign's rate on a ``dask.distributed`` ``LocalCluster`` of 2 worker
+tasks (quick: 8). The figure is the campaign's rate on a ``dask.distributed`` ``LocalCluster`` of 2 worker
 processes of one thread each (``run_campaign(tasks, client=...)``), in tasks per wall-minute. **Floor:** the
 same tasks run serially in one process (``run_campaign(tasks, serial=True)``). The speed-up is the serial
 wall time over the cluster's. The cluster's start-up (``LocalCluster`` until both workers are connected) is
@@ -35,7 +35,7 @@ from euc_ros.bench.throughput import ONE_CORE_ENV
 #: Worker processes of the local cluster (one thread each).
 WORKERS = 2
 #: Tasks of the campaign: full and --quick (multiples of WORKERS).
-TASKS = {False: 120, True: 24}
+TASKS = {False: 120, True: 8}
 #: Runs of each side: full and --quick.
 REPEATS = {False: 3, True: 1}
 #: Recorded length of each task's ride [s].

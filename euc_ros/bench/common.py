@@ -356,7 +356,8 @@ class BenchContext:
     Attributes
     ----------
     quick : bool
-        Short variants (``--quick``: the whole run under 2 minutes).
+        Short variants (``--quick``): each benchmark on less data (shorter recordings and streams, fewer
+        repeats, rides, cells and inputs) against the same floor; indicative figures.
     cache_dir : Path
         Generated recordings, reused between runs.
     tmp_dir : Path

@@ -454,8 +454,8 @@ def fuzz(kind: str, n_inputs: int, *, time_budget_s: float = 60.0, seed: int = 0
 # ---------------------------------------------------------------------------------------------------------------------
 
 #: Inputs and time budgets [s] per target: full and --quick.
-INPUTS = {False: {"natnet": 500_000, "csv": 200_000}, True: {"natnet": 20_000, "csv": 5_000}}
-BUDGET_S = {False: {"natnet": 120.0, "csv": 180.0}, True: {"natnet": 10.0, "csv": 10.0}}
+INPUTS = {False: {"natnet": 500_000, "csv": 200_000}, True: {"natnet": 10_000, "csv": 2_000}}
+BUDGET_S = {False: {"natnet": 120.0, "csv": 180.0}, True: {"natnet": 5.0, "csv": 5.0}}
 
 
 def run(ctx) -> dict:

@@ -2,7 +2,7 @@
 
 The target is that time and peak memory grow linearly with the recording, and that the peak memory
 stay within 1.5x of the recording's own arrays. This benchmark runs both commands on recordings of
-1, 10 and 60 minutes (``--quick``: 1 and 3 minutes) of the same session and states:
+1, 10 and 60 minutes (``--quick``: 0.5 and 1.5 minutes) of the same session and states:
 
 Recordings
     One simulated figure-eight ride (:func:`euc_ros.bench.data.ride_recording`: 120 Hz, 14 rigid
@@ -63,7 +63,7 @@ from euc_ros.bench.data import ride_recording
 from euc_ros.core.io.recordings import load_recording
 
 #: Recording lengths [min]: full and --quick.
-LENGTHS_MIN = {False: (1, 10, 60), True: (1, 3)}
+LENGTHS_MIN = {False: (1, 10, 60), True: (0.5, 1.5)}
 #: Length of the simulated base recording [s]: full and --quick.
 BASE_S = {False: 600.0, True: 60.0}
 #: Length of the warm-up recording [s].

@@ -48,7 +48,7 @@ from euc_ros.sched import REALTIME_ENV
 #: Seconds at the start of a stream excluded from the percentiles (discovery, caches).
 WARMUP_S = 1.0
 #: Recording lengths [s]: full and --quick.
-DURATION_S = {False: 60.0, True: 10.0}
+DURATION_S = {False: 60.0, True: 5.0}
 #: Target: end-to-end p99 at most this multiple of the floor's.
 TARGET_RATIO = 2.0
 HOPS = ("mocap_ingest", "rider_state", "torque_estimator")

@@ -1,14 +1,15 @@
 """Benchmark: the live pipeline at every OptiTrack rate and body count, against the bare relay floor.
 
-For every frame rate of :data:`RATES_HZ` and body count of :data:`BODIES` a simulated figure-eight
-ride captured at that rate (:func:`live_recording`: the EUC and 13 rider segments, plus static-offset
-copies of them as further rigid bodies, e.g. props or a second rider the pipeline does not use) is
-replayed in real time by ``mocap_ingest`` into ``rider_state`` and ``torque_estimator`` (composed in
-one ``pipeline_container`` process, linked in-process: :mod:`euc_ros.nodes.container`; three
-processes with ``composed=False``), with ``monitor`` and the ``recorder`` (every pipeline topic into
-an MCAP bag) as separate processes and the latency probe of :mod:`euc_ros.bench.latency`. The floor
-is the bare relay chain of :mod:`euc_ros.bench.relay` (source, two relay hops, each a plain rclpy
-node on rclpy's SingleThreadedExecutor) at the same rate and body count, measured right after.
+For every frame rate of :data:`RATES_HZ` and body count of :data:`BODIES` (``--quick``: the two cells
+of :data:`CELLS`, 5 s each) a simulated figure-eight ride captured at that rate (:func:`live_recording`:
+the EUC and 13 rider segments, plus static-offset copies of them as further rigid bodies, e.g. props or
+a second rider the pipeline does not use) is replayed in real time by ``mocap_ingest`` into
+``rider_state`` and ``torque_estimator`` (composed in one ``pipeline_container`` process, linked
+in-process: :mod:`euc_ros.nodes.container`; three processes with ``composed=False``), with ``monitor``
+and the ``recorder`` (every pipeline topic into an MCAP bag) as separate processes and the latency
+probe of :mod:`euc_ros.bench.latency`. The floor is the bare relay chain of :mod:`euc_ros.bench.relay`
+(source, two relay hops, each a plain rclpy node on rclpy's SingleThreadedExecutor) at the same rate
+and body count, measured right after.
 
 Per cell: hop and end-to-end p50/p99 (filter lag excluded, as in :mod:`~euc_ros.bench.latency`), the
 CPU use of each process over the stream (1 = one core; ``/proc/<pid>/stat`` sampled every 0.2 s,
@@ -36,11 +37,14 @@ from euc_ros.bench.recording import bag_counts
 from euc_ros.core.session import default_session, save_session
 from euc_ros.ros.launcher import NodeSpec
 
-#: Frame rates [Hz] and body counts of the sweep: full and --quick.
-RATES_HZ = {False: (120, 240, 360, 500), True: (120, 360)}
-BODIES = {False: (14, 28, 56), True: (14, 56)}
+#: Frame rates [Hz] and body counts of the full sweep (every pair is a cell).
+RATES_HZ = (120, 240, 360, 500)
+BODIES = (14, 28, 56)
+#: Cells (rate [Hz], bodies) of the sweep: full (every rate with every body count) and --quick (its lightest
+#: cell and a heavy one; 360 Hz x 14 bodies is the soak's).
+CELLS = {False: tuple((r, n) for r in RATES_HZ for n in BODIES), True: ((120, 14), (360, 56))}
 #: Stream length per cell [s]: full and --quick.
-CELL_S = {False: 60.0, True: 8.0}
+CELL_S = {False: 60.0, True: 5.0}
 #: Target: end-to-end p99 at most this multiple of the floor's.
 TARGET_RATIO = 1.5
 #: Seed and cache version of the recordings.
@@ -174,16 +178,16 @@ def cell_figure(cell: dict, label: str):
 
 def run(ctx: BenchContext) -> dict:
     """The rate x body sweep (see the module docstring)."""
+    recs = {(rate, n): live_recording(ctx.cache_dir, rate, n, CELL_S[ctx.quick], log=ctx.log)
+            for rate, n in CELLS[ctx.quick]}
     t_start = time.monotonic()
     cells = []
     figures = []
-    for rate in RATES_HZ[ctx.quick]:
-        for n in BODIES[ctx.quick]:
-            rec = live_recording(ctx.cache_dir, rate, n, CELL_S[ctx.quick], log=ctx.log)
-            ctx.log(f"  pipeline at {rate} Hz with {n} bodies, {CELL_S[ctx.quick]:g} s")
-            cell = measure_cell(rec, ctx.tmp_dir / "live_sweep" / f"{rate}_{n}", log=ctx.log, realtime=ctx.realtime)
-            cells.append(cell)
-            figures.append(cell_figure(cell, f"{rate} Hz x {n} bodies: end-to-end p99"))
+    for (rate, n), rec in recs.items():
+        ctx.log(f"  pipeline at {rate} Hz with {n} bodies, {CELL_S[ctx.quick]:g} s")
+        cell = measure_cell(rec, ctx.tmp_dir / "live_sweep" / f"{rate}_{n}", log=ctx.log, realtime=ctx.realtime)
+        cells.append(cell)
+        figures.append(cell_figure(cell, f"{rate} Hz x {n} bodies: end-to-end p99"))
     return {"name": "live_sweep", "title": "Live pipeline at every rate and body count (with recorder and monitor)",
             "figures": figures, "details": {"cells": cells, "cell_s": CELL_S[ctx.quick], "machine_cores": _cores()},
             "wall_s": time.monotonic() - t_start}

@@ -33,7 +33,7 @@ from euc_ros.core.io.bags import BagWriter, posestamped_cdr
 from euc_ros.sched import set_realtime
 
 #: Messages per played bag: full and --quick.
-N_MESSAGES = {False: 1000, True: 200}
+N_MESSAGES = {False: 1000, True: 100}
 #: Rate factors played.
 RATES = (1.0, 2.0)
 #: The replay's per-message contract [s].

@@ -47,7 +47,9 @@ LADDER = {False: (480, 1920, 3840, 5760, 7680, 9600), True: (480, 5760)}
 #: Frame rates of the best-effort ladder [frames/s] (x18 messages): full and --quick.
 BEST_EFFORT_LADDER = {False: (5760, 7680, 9600), True: (5760,)}
 #: Publishing time per step [s]: full and --quick.
-STEP_S = {False: 5.0, True: 2.5}
+STEP_S = {False: 5.0, True: 1.0}
+#: Frames of the mix written by the floor and published by the publisher alone: full and --quick.
+FLOOR_FRAMES = {False: 60000, True: 10000}
 #: Bisection steps between the last lossless and the first lossy rate: full and --quick.
 BISECT = {False: 2, True: 0}
 #: A step whose publisher reached less than this fraction of the asked rate ends the ladder.
@@ -312,7 +314,7 @@ def run(ctx: BenchContext) -> dict:
     # the same mix from best-effort publishers (a mocap driver's QoS): no heartbeats or
     # acknowledgements, less publisher CPU per message; nothing lost can be repaired
     be_steps = _ladder(ctx, out, BEST_EFFORT_LADDER[ctx.quick], 0, "best_effort")
-    n_floor = 20000 if ctx.quick else 60000   # 360k / 1.08M messages: long enough to time
+    n_floor = FLOOR_FRAMES[ctx.quick]   # 180k / 1.08M messages: long enough to time
     floor = ctx.isolated("euc_ros.bench.recording:measure_rosbags", n_frames=n_floor, out=str(out / "floor_bag"))
     fig, best = _lossless_figure("recorder, lossless", steps, floor, "")
     figures = [fig]
@@ -332,7 +334,7 @@ def run(ctx: BenchContext) -> dict:
                                    f"publishers): one core's capacity"))
     # What offering the rate costs: a publisher's CPU per message with the recorder matched (the
     # busiest lossless step) and alone (no subscriber: Fast DDS keeps the sample, delivers nothing).
-    alone = measure_publisher_alone(20000 if ctx.quick else 60000, out)
+    alone = measure_publisher_alone(FLOOR_FRAMES[ctx.quick], out)
     for b in (best, be_best):
         if b and b["publisher_us_per_msg"]:
             figures.append(figure(f"publisher CPU per message, recorder matched ({b['qos']})",

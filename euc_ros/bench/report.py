@@ -3,6 +3,11 @@ from __future__ import annotations
 
 import math
 
+#: Under the title of a quick run: what its figures are worth.
+QUICK_NOTE = ("Quick run (`--quick`): shorter recordings and streams, fewer repeats, rides, cells and inputs than "
+              "the full run; each figure is measured against its floor the same way, on less data, so the numbers "
+              "are indicative (the full run's are the ones to quote).")
+
 
 def _num(v, unit: str = "") -> str:
     if v is None or (isinstance(v, float) and not math.isfinite(v)):
@@ -29,6 +34,8 @@ def to_markdown(result: dict) -> str:
     la0, la1 = result.get("load_average_start"), result.get("load_average_end")
     lines.append(f"Taken {result.get('started_utc', '?')} in {result.get('wall_s', 0):.0f} s; load average "
                  f"(1/5/15 min) {la0} at the start, {la1} at the end.")
+    if result.get("quick"):
+        lines += ["", QUICK_NOTE]
     lines += ["", "Ratio = cost relative to the floor measured in the same run (value / floor for times, "
               "floor / value for rates): 1 is as cheap as the floor.", ""]
     lines.append("| benchmark | figure | value | floor | ratio | target | met |")
@@ -52,4 +59,8 @@ def to_markdown(result: dict) -> str:
     for b in result["benchmarks"]:
         for label, mb in (b.get("peak_rss_mb") or {}).items():
             lines.append(f"| {b['name']} | {label} | {_num(mb)} |")
+    lines += ["", "Wall time per benchmark (total: with the recordings a first run generates; measuring: "
+              "without them):", "", "| benchmark | total [s] | measuring [s] |", "|---|---|---|"]
+    for b in result["benchmarks"]:
+        lines.append(f"| {b['name']} | {_num(b.get('total_s'))} | {_num(b.get('wall_s'))} |")
     return "\n".join(lines) + "\n"

@@ -1,7 +1,7 @@
 """Benchmark: real-time factor of the ride simulator per core (recorded seconds per CPU second).
 
 Whole ride: :func:`~euc_ros.core.ridesim.simulate.simulate_ride` of the deceleration maneuver (7 s
-recorded and 2 s settling per run, default noise, 6 runs; --quick: 2) with the compiled method
+recorded and 2 s settling per run, default noise, 6 runs; --quick: 1) with the compiled method
 (the default): integration, sampling of the truth, 3-D placement of the skeleton and mocap synthesis.
 Floor: the compiled integration of the same runs alone (balanced initial state and DOP853 with dense
 output, :func:`~euc_ros.core.ridesim.simulate.integrate_run`): the physics with nothing around it.
@@ -18,7 +18,7 @@ import time
 from euc_ros.bench.common import BenchContext, figure, pinned_to_one_core
 
 #: Runs per ride: full and --quick.
-RUNS = {False: 6, True: 2}
+RUNS = {False: 6, True: 1}
 #: Timed repeats of each measurement.
 REPEATS = 3
 MANEUVER = "deceleration"

@@ -31,7 +31,7 @@ from euc_ros.lockstep import run_steer
 from euc_ros.ros.launcher import NodeSpec
 
 #: Simulated time [s] in process and over topics: full and --quick.
-IN_PROCESS_S = {False: 600.0, True: 100.0}
+IN_PROCESS_S = {False: 600.0, True: 30.0}
 LOCKSTEP_S = {False: 20.0, True: 5.0}
 DT = 0.01
 

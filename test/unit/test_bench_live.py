@@ -7,6 +7,7 @@ import pytest
 
 pytest.importorskip("euc_msgs.msg", reason="the euc_msgs interfaces are not built (./run setup)")
 
+from euc_ros.bench import live_sweep  # noqa: E402
 from euc_ros.bench.common import cpu_fraction, cpu_seconds  # noqa: E402
 from euc_ros.bench.live_sweep import extra_bodies  # noqa: E402
 from euc_ros.core.mocap.frame import Frame  # noqa: E402
@@ -54,3 +55,11 @@ def test_cpu_fraction_interpolates_and_refuses_intervals_outside_the_samples():
     import os
 
     assert cpu_seconds(os.getpid()) > 0 and cpu_seconds(2**22 + 12345) is None
+
+
+def test_the_full_sweep_is_every_rate_with_every_body_count_and_the_quick_one_a_part_of_it():
+    full, quick = live_sweep.CELLS[False], live_sweep.CELLS[True]
+    assert sorted(full) == sorted({(r, n) for r in live_sweep.RATES_HZ for n in live_sweep.BODIES})
+    assert len(full) == len(live_sweep.RATES_HZ) * len(live_sweep.BODIES)
+    assert set(quick) < set(full) and len(set(quick)) == len(quick)
+    assert live_sweep.CELL_S[True] < live_sweep.CELL_S[False]

@@ -254,7 +254,7 @@ def budget(series_list, states, session, params, h: float, *, reconstruction: Re
         ``{"sensitivity": {key: {"dh_dp": [m per unit], "unit", "nominal", "tolerance", "dh_m", "u_m"}},
         "h_range_m": [lo, hi], "tolerances": {key: tolerance}}``
     """
-    tolerances = tolerances or dict(DEFAULT_TOLERANCES)
+    tolerances = {**DEFAULT_TOLERANCES, **(tolerances or {})}     # a partial dict: the rest at their defaults
 
     def h_of(st, p):
         return fit_h(st, p, models=("3dof",)).pooled["3dof"].h_m

@@ -74,10 +74,10 @@ class LabDesign:
         Returns
         -------
         dict
-            ``artefact_model``, ``joint_scale``, ``session`` (``true`` or ``perturbed``).
+            ``artefact_model``, ``joint_scale``, ``session`` (``generator`` or ``perturbed``).
         """
         return {"artefact_model": self.model, "joint_scale": self.joint_scale,
-                "session": "perturbed" if self.perturbed else "true"}
+                "session": "perturbed" if self.perturbed else "generator"}
 
 
 def draw_design(design: str, seed: int, family_index: int, stream: int) -> LabDesign:

@@ -548,8 +548,9 @@ def read_rows(path) -> list[dict]:
     with open(path, newline="", encoding="utf-8") as f:
         rows = [{k: value(v) for k, v in r.items()} for r in csv.DictReader(f)]
     for r in rows:   # names and JSON texts stay text
-        for k in ("task", "family", "status", "error", "effect", "unit"):
-            r[k] = None if r[k] is None else str(r[k])
+        for k in ("task", "family", "status", "error", "effect", "unit", "artefact_model", "session"):
+            if k in r:         # a results.csv of another version may lack a column
+                r[k] = None if r[k] is None else str(r[k])
         for k in ("point", "law"):
             r[k] = None if r[k] is None else json.dumps(r[k])
     return rows

@@ -163,9 +163,10 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     # the references stand in for the stage they judge: a final model that is one is that stage
     stand_in = {id(reference): base} if reference is not None else {}
     stage = reference or stage
-    if getattr(rules, "session", None) is not None:
-        judged, stage = stage, session_reference(setup, stage, rules.session, say)
-        stand_in.setdefault(id(stage), stand_in.get(id(judged), judged))
+    # the session reference stands in for the stage it judged as the final model, but its residual is the one
+    # the noise floor judges: what the session's tolerances explain is not missing physics
+    judged, stage = stage, session_start(setup, stage, rules, journal, say)
+    session_stand_in = {id(stage): stand_in.get(id(judged), judged)} if stage is not judged else {}
     remaining = [c for c in screening.detectable if c.name not in {e.name for e in stage.model.effects}]
     selection = rules.select(setup, stage, remaining, screening, journal, say)
     for c in candidates:
@@ -183,7 +184,8 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, finder, rules, journal, say)
     # nothing beat a reference: the final model is the stage it judged (with h held where it is)
-    found = dataclasses.replace(found, stage=stand_in.get(id(found.stage), found.stage),
+    final = {**stand_in, **session_stand_in}
+    found = dataclasses.replace(found, stage=final.get(id(found.stage), found.stage),
                                 named=stand_in.get(id(found.named), found.named))
     return conclude(setup, base, found, geometry, noise_floor_of, rules, journal)
 
@@ -239,6 +241,43 @@ def prepare_setup(states: Sequence[RiderStates], params: EucParams, *, n_folds: 
     say(f"held-out: {len(folds)} folds ({n_segments} segments per run), blocks of {block_s:.2f} s")
     say(f"base model: h = {base_fit.h:.3f} m, RMSE {base_fit.rmse:.3f} N m (training)")
     return Setup(params, floor, recs, folds, n_segments, block_s, h_geo, h0, base_fit)
+
+
+def session_start(setup: Setup, stage: Stage, rules: Selector, journal: Journal, say: Callable[[str], None]
+                  ) -> Stage:
+    """Where the selection starts when the rules carry the session's tolerances: what they can mimic.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings and folds.
+    stage : Stage
+        The stage judged (the base model, h freed, or the floor's geometry).
+    rules : Selector
+        The selection's rules; their ``session`` (if any) is the nuisance model
+        (:func:`~euc_ros.core.residual.session_reference.session_tolerances`).
+    journal : Journal
+        Gets a warning when the session's tolerance alone explains the residual by the minimum gain.
+    say : callable
+        Progress lines.
+
+    Returns
+    -------
+    Stage
+        :func:`~euc_ros.core.residual.session_reference.session_reference`'s stage, or ``stage``.
+    """
+    nuisance = getattr(rules, "session", None)
+    if nuisance is None:
+        return stage
+    ref = session_reference(setup, stage, nuisance, say)
+    if ref is not stage and rules.cuts(ref.heldout, stage.heldout):
+        journal.warnings.append(
+            f"the session's CoM tolerance alone explains the residual down to {ref.heldout.rmse:.3f} N m "
+            f"(from {stage.heldout.rmse:.3f}), and a named effect must explain more: a constant torque of "
+            "that size (a slope, a rolling resistance on rides in one direction) cannot be told from a CoM "
+            "offset error; ride both ways, or measure the CoM offsets and give their tolerance "
+            "(--tolerance rider.segments.com_offset=...)")
+    return ref
 
 
 def free_h_reference(setup: Setup, base: Stage, say: Callable[[str], None]) -> Stage:
@@ -639,7 +678,9 @@ def conclude(setup: Setup, base: Stage, found: DiscoveryOutcome, geometry: dict,
     refused_left = any(s_.get("refused") and s_.get("selected") is None for s_ in journal.steps) \
         and not named.model.effects
     residual_significant = bool(found.p_value < rules.alpha or above_noise or refused_left)
-    still_above = math.isfinite(noise) and current.heldout.rmse > NOISE_FLOOR_FACTOR * noise
+    # the model is the judged one (a reference stands in for it): the residual it leaves is the reference's
+    left = named.heldout if named.model is current.model else current.heldout
+    still_above = math.isfinite(noise) and left.rmse > NOISE_FLOOR_FACTOR * noise
     # explained when the discovered terms were accepted (their formula is the explanation offered); what
     # they leave above the noise floor is reported as residual_after_above_noise
     unexplained = bool(residual_significant and not found.rows)
