@@ -71,12 +71,13 @@ from euc_ros.core.residual.selection import (
     detectability,
     fit_base_h,
     fit_model,
+    h_freed,
     held_out,
 )
 from euc_ros.core.residual.selector import ForwardSelector, Selector
 from euc_ros.core.residual.session_reference import session_reference
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
-from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, Recording, forget_shift_caches, prepare
+from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, forget_shift_caches, prepare
 from euc_ros.core.states.floor import RADIUS_TOL_M, floor_from_states, rolling_radius_from_floor
 from euc_ros.core.states.kinematics import DEFAULT_SG_POLYORDER, DEFAULT_WINDOW_S, RiderStates
 
@@ -304,11 +305,7 @@ def free_h_reference(setup: Setup, base: Stage, say: Callable[[str], None]) -> S
     Stage
         ``base``'s model and parameters with the held-out residual of h freed.
     """
-    free = []
-    for rec in setup.recs:
-        ctx = rec.ctx.copy()
-        ctx.extras = {k: v for k, v in ctx.extras.items() if k != HELD_H}
-        free.append(Recording(rec.name, ctx, rec.block, rec.index))
+    free = h_freed(setup.recs)
     h_free = fit_base_h(free)
     fit = fit_model(Model(), free, h_free)
     ho = held_out(Model(), free, h_free, setup.folds, start=fit.x)

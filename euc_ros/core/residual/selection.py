@@ -17,7 +17,7 @@ import numpy as np
 from scipy import optimize, stats
 
 from euc_ros.core.model.candidate import Candidate
-from euc_ros.core.model.extended import Model
+from euc_ros.core.model.extended import HELD_H, Model
 from euc_ros.core.model.terms import bias_terms, consistency_weights, gravity_forces, mass_matrix
 from euc_ros.core.residual.folds import folds_of
 from euc_ros.core.states.contexts import Recording
@@ -132,6 +132,26 @@ def fit_model(model: Model, recs: Sequence[Recording], h0: float, fixed: np.ndar
 
 #: Coarse grid of :func:`fit_base_h` [m].
 BASE_H_GRID = np.linspace(0.1, 1.2, 45)
+
+
+def h_freed(recs: Sequence[Recording]) -> list[Recording]:
+    """The recordings with h free again: copies without a held h (:data:`~euc_ros.core.model.extended.HELD_H`).
+
+    Parameters
+    ----------
+    recs : sequence of Recording
+        The prepared recordings (their arrays are shared, never modified).
+
+    Returns
+    -------
+    list of Recording
+    """
+    out = []
+    for rec in recs:
+        ctx = rec.ctx.copy()
+        ctx.extras = {k: v for k, v in ctx.extras.items() if k != HELD_H}
+        out.append(Recording(rec.name, ctx, rec.block, rec.index))
+    return out
 
 
 def fit_base_h(recs: Sequence[Recording], h_grid=BASE_H_GRID) -> float:

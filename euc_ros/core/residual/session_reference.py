@@ -27,10 +27,9 @@ import numpy as np
 
 from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, absolute_tolerance
 from euc_ros.core.model.candidate import Candidate, ModelContext, ParamInfo
-from euc_ros.core.model.extended import HELD_H, Model
+from euc_ros.core.model.extended import Model
 from euc_ros.core.residual.records import Setup, Stage
-from euc_ros.core.residual.selection import fit_model, held_out
-from euc_ros.core.states.contexts import Recording
+from euc_ros.core.residual.selection import fit_model, h_freed, held_out
 
 #: The budget key of the segments' CoM offsets (its tolerance bounds the pitch offset).
 COM_OFFSET = "rider.segments.com_offset"
@@ -114,11 +113,7 @@ def session_reference(setup: Setup, stage: Stage, nuisance: SessionTolerances, s
         ``stage``'s model and parameters with the nuisance model's held-out residual, or ``stage`` itself when
         the nuisance does not cut it.
     """
-    free = []
-    for rec in setup.recs:
-        ctx = rec.ctx.copy()
-        ctx.extras = {k: v for k, v in ctx.extras.items() if k != HELD_H}
-        free.append(Recording(rec.name, ctx, rec.block, rec.index))
+    free = h_freed(setup.recs)
     model = Model(list(stage.model.effects) + [nuisance])
     start = np.concatenate([stage.x, np.zeros(nuisance.n_params)])
     fit = fit_model(model, free, setup.h0, fixed=start)

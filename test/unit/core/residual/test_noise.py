@@ -53,6 +53,23 @@ def test_sign_flips_of_quaternions_are_not_noise():
     assert pose_noise(dataclasses.replace(s))[0][0] < 1e-7
 
 
+def residual_change(states_a, states_b, params, x) -> float:
+    """RMS [N m] of the base model's residual (parameters ``x``) of ``states_a`` minus that of ``states_b``, the
+    same recordings with and without what is measured, over the samples both have."""
+    from euc_ros.core.model.extended import Model
+    from euc_ros.core.states.contexts import prepare
+
+    diffs = []
+    for sa, sb, ra, rb in zip(states_a, states_b, prepare(states_a, params), prepare(states_b, params)):
+        a, b = np.full(len(sa.t), np.nan), np.full(len(sb.t), np.nan)
+        va, ma = Model().residual(ra, x)
+        vb, mb = Model().residual(rb, x)
+        a[ra.index[ma]], b[rb.index[mb]] = va[ma], vb[mb]
+        d = a - b
+        diffs.append(d[np.isfinite(d)])
+    return float(np.sqrt(np.mean(np.concatenate(diffs) ** 2)))
+
+
 def test_the_noise_floor_is_the_noise_contribution_of_a_simulated_ride():
     """Known answer from the simulator: the residual of the noisy recording minus that of the same
     recording without noise (``mocap_clean``) is the noise's contribution. One re-noised realisation
@@ -71,15 +88,7 @@ def test_the_noise_floor_is_the_noise_contribution_of_a_simulated_ride():
     noisy = [reconstruct_states(r.mocap, ride.session) for r in ride.runs]
     clean = [reconstruct_states(r.mocap_clean, ride.session) for r in ride.runs]
     x = np.array([fit_base_h(prepare(noisy, p))])
-    diffs = []
-    for sn, sc, rn, rc in zip(noisy, clean, prepare(noisy, p), prepare(clean, p)):
-        a, b = np.full(len(sn.t), np.nan), np.full(len(sc.t), np.nan)
-        ra, ma = Model().residual(rn, x)
-        rb, mb = Model().residual(rc, x)
-        a[rn.index[ma]], b[rc.index[mb]] = ra[ma], rb[mb]
-        d = a - b
-        diffs.append(d[np.isfinite(d)])
-    truth = float(np.sqrt(np.mean(np.concatenate(diffs) ** 2)))
+    truth = residual_change(noisy, clean, p, x)
     estimate = make_noise_floor([r.mocap for r in ride.runs], noisy, ride.session, p)(Model(), x)
     assert abs(estimate / truth - 1) < 3 * 0.09, (estimate, truth)
 
@@ -120,15 +129,7 @@ def test_the_sliding_floor_is_the_sliding_contribution_of_a_simulated_ride(seed)
     st_slid = [reconstruct_states(s, ride.session) for s in slid]
     st_plain = [reconstruct_states(r.mocap, ride.session) for r in ride.runs]
     x = np.array([fit_base_h(prepare(st_slid, p))])
-    diffs = []
-    for sa, sb, ra, rb in zip(st_slid, st_plain, prepare(st_slid, p), prepare(st_plain, p)):
-        a, b = np.full(len(sa.t), np.nan), np.full(len(sb.t), np.nan)
-        va, ma = Model().residual(ra, x)
-        vb, mb = Model().residual(rb, x)
-        a[ra.index[ma]], b[rb.index[mb]] = va[ma], vb[mb]
-        d = a - b
-        diffs.append(d[np.isfinite(d)])
-    truth = float(np.sqrt(np.mean(np.concatenate(diffs) ** 2)))
+    truth = residual_change(st_slid, st_plain, p, x)
     floor_of = make_noise_floor(slid, st_slid, ride.session, p, sliding=estimate_sliding(slid, ride.session))
     total = floor_of(Model(), x)
     parts = floor_of.parts
