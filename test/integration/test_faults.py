@@ -175,6 +175,18 @@ class Listener:
         self.node.destroy_node()
 
 
+def _restart_report(listen: Listener, kill_ns: int, restart_ns: int) -> str:
+    """What arrived after a restart, by arrival and by stamp: tells a silent node from late or old frames."""
+    def count(rows, after_ns, column):
+        return sum(r[column] > after_ns for r in list(rows))
+    newest = max((t[1] for t in list(listen.torques)), default=0)
+    states, torques = count(listen.states, restart_ns, 0), count(listen.torques, restart_ns, 0)
+    stamped = count(listen.torques, kill_ns, 1)
+    return (f"after the restart: {states} states and {torques} torques arrived, {stamped} torques stamped after "
+            f"the kill; newest torque stamp "
+            f"{(newest - kill_ns) * 1e-9:+.2f} s from the kill\n")
+
+
 @pytest.mark.ros
 @pytest.mark.integration
 @pytest.mark.parametrize("victim", ["rider_state", "torque_estimator"])
@@ -194,9 +206,11 @@ def test_node_killed_and_restarted_mid_stream(ros_context, ride, victim):
             first.shutdown()
         assert first.exit_codes[victim] == -signal.SIGKILL
         time.sleep(1.0)
+        restart_ns = time.time_ns()
         with Launcher([spec[victim]], stream=log) as second:
             # count by stamp: torques of frames captured before the kill may still arrive (queued downstream)
-            assert wait_for(lambda: sum(t[1] > kill_ns for t in list(listen.torques)) >= 120, 40.0), log.getvalue()
+            assert wait_for(lambda: sum(t[1] > kill_ns for t in list(listen.torques)) >= 120, 40.0), \
+                _restart_report(listen, kill_ns, restart_ns) + log.getvalue()
             assert stream.procs["mocap_ingest"].poll() is None, "the stream must run until the end of the test"
         assert second.exit_codes[victim] == 0, log.getvalue()
 
