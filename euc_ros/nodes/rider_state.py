@@ -123,6 +123,9 @@ class RiderStateNode(Node):
         self.config = cfg = declare_params(self, SPECS)
         self.session, self.hardware_id = required_session(self.NAME, cfg)
         rate = cfg["rate_hz"] or self.session.rate_hz
+        if cfg["cog_method"] == "skeleton":    # compile (or load) the chain fit now, not on the first frame
+            from euc_ros.core.states.skeleton_compiled import warm_up
+            self.get_logger().info(f"skeleton chain fit ready in {warm_up():.1f} s")
         # the filters are built once the rate is measured (the frames meanwhile are held, not lost)
         self._build(rate)
         self.rate_gate = NodeRateGate(self, rate, self._build, lambda item: self._process(*item),

@@ -23,6 +23,7 @@ The results equal the numpy reference's up to round-off amplified by the normal 
 from __future__ import annotations
 
 import math
+import time
 
 import numba
 import numpy as np
@@ -430,6 +431,31 @@ def compiled_skeleton_cog(position, quat, tracked, session, bodies, model, thres
     return {"G": G.reshape(shape + (3,)), "has_rider": has_rider.reshape(shape),
             "faults": faults.reshape((b,) + shape), "n_faults": faults.sum(0).reshape(shape),
             "P_fit": Pf.reshape((b,) + shape + (3,)), "R_fit": Rf.reshape((b,) + shape + (3, 3))}
+
+
+def warm_up() -> float:
+    """Seconds taken to make :func:`chain_cog` ready: compiled, or loaded from numba's cache.
+
+    The call :func:`compiled_skeleton_cog` makes, on a two-body chain of one frame, with the same array types
+    and layouts, so a live node pays the compilation before its first frame instead of stalling on it.
+
+    Returns
+    -------
+    float
+        Wall time of the call [s].
+    """
+    t0 = time.perf_counter()
+    P = np.zeros((2, 1, 3))
+    P[1, 0, 2] = 0.5
+    Q = np.zeros((2, 1, 4))
+    Q[:, 0, 3] = 1.0
+    T = np.ones((2, 1), bool)
+    links = (np.array([0], np.int64), np.array([1], np.int64), np.ascontiguousarray([[0.0, 0.0, -0.5]]),
+             np.ascontiguousarray(np.eye(3)[None]), np.array([0.05]))
+    weights = (np.ones(1), 1.0e4, 1.0e2, 1.0e4, 2)
+    segments = (np.array([0], np.int64), np.array([1.0]), np.zeros((1, 3)), 1.0, True)
+    chain_cog(P, Q, T, np.array([0, 1], np.int64), links, weights, segments)
+    return time.perf_counter() - t0
 
 
 #: Per model, session and body list, the compiled kernel's index arrays (:func:`_kernel_plan`).

@@ -30,7 +30,7 @@ from euc_ros.core.errors import ConfigError
 from euc_ros.core.ridesim.artefacts import SoftTissueArtefacts, apply_artefacts
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.states.skeleton import OnlineSkeleton, SkeletonModel, skeleton_cog
-from euc_ros.core.states.skeleton_compiled import SERIES_BELOW, rot_exp, rot_log
+from euc_ros.core.states.skeleton_compiled import SERIES_BELOW, chain_cog, rot_exp, rot_log, warm_up
 
 EPS = np.finfo(float).eps
 #: ~30 chained operations on quantities of size <= pi
@@ -130,3 +130,16 @@ def test_live_calibration_model_is_from_poses_of_the_frames_so_far(ride):
         np.testing.assert_allclose(live.model.rel_rot, ref.rel_rot, rtol=0, atol=8 * EPS)
         np.testing.assert_allclose(live.model.threshold_m, ref.threshold_m, rtol=0, atol=scale)
     assert live.calibrated
+
+
+def test_warm_up_compiles_the_signature_of_the_live_and_batch_calls(ride):
+    """After :func:`warm_up` neither a live frame nor a batch adds a compiled signature: the node pays the
+    compilation at its start, not on its first frame."""
+    s, session, _ = ride
+    assert warm_up() >= 0.0
+    signatures = list(chain_cog.signatures)
+    assert signatures, "warm_up compiled nothing"
+    model = SkeletonModel.estimate(s, session)
+    OnlineSkeleton(session, model=model).update(s.position[:, 0], s.quat[:, 0], s.tracked[:, 0], s.bodies)
+    skeleton_cog(s.position, s.quat, s.tracked, session, s.bodies, model)
+    assert list(chain_cog.signatures) == signatures
