@@ -15,7 +15,8 @@ Per cell: hop and end-to-end p50/p99 (filter lag excluded, as in :mod:`~euc_ros.
 CPU use of each process over the stream (1 = one core; ``/proc/<pid>/stat`` sampled every 0.2 s,
 first second excluded), frames dropped (lost in transport, without a state, states without a
 torque) and the frames the recorder's bag holds. Target per cell: 0 dropped and end-to-end p99 at
-most :data:`TARGET_RATIO` x the floor's. The headline case (360 Hz x 14 bodies for 10 minutes) is
+most :data:`TARGET_RATIO` x the floor's. The cells of :data:`SKELETON_CELLS` run again with the rider's CoG
+from the fitted chain (``cog_method: skeleton``). The headline case (360 Hz x 14 bodies for 10 minutes) is
 :mod:`euc_ros.bench.soak`.
 """
 from __future__ import annotations
@@ -43,6 +44,9 @@ BODIES = (14, 28, 56)
 #: Cells (rate [Hz], bodies) of the sweep: full (every rate with every body count) and --quick (its lightest
 #: cell and a heavy one; 360 Hz x 14 bodies is the soak's).
 CELLS = {False: tuple((r, n) for r in RATES_HZ for n in BODIES), True: ((120, 14), (360, 56))}
+#: Cells run with the rider's CoG from the fitted chain (``cog_method: skeleton``, every frame fitted on its own),
+#: in both variants: the rate and body count a lab with a 360 Hz system records.
+SKELETON_CELLS = ((360, 14),)
 #: Stream length per cell [s]: full and --quick.
 CELL_S = {False: 60.0, True: 5.0}
 #: Target: end-to-end p99 at most this multiple of the floor's.
@@ -106,13 +110,13 @@ def stream_cpu(sampler, probe: dict, warmup_s: float = 1.0) -> dict[str, float]:
 
 
 def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool = True, composed: bool = True,
-                 log=None, realtime: int | None = None) -> dict:
+                 log=None, realtime: int | None = None, cog_method: str = "segments") -> dict:
     """Pipeline (and floor) on one recording: :func:`euc_ros.bench.latency.analyze` per chain, CPU and bag.
 
     ``composed``: ingest, rider_state and torque_estimator in one ``pipeline_container`` process
     (:mod:`euc_ros.nodes.container`, linked in-process); otherwise three processes. ``realtime``:
     SCHED_FIFO priority of the estimation chain and the probe (the monitor and recorder stay at normal
-    priority), and of every process of the floor.
+    priority), and of every process of the floor. ``cog_method``: rider_state's (``segments`` or ``skeleton``).
     """
     from euc_ros.core.io.motive_csv import read_motive_csv
 
@@ -124,6 +128,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     probe_out, bag = out_dir / "pipeline_probe.npz", out_dir / "bag"
     shutil.rmtree(bag, ignore_errors=True)
     session = str(rec["session"])
+    rider = {"session_file": session, "cog_method": cog_method}
     env = rt_env(realtime)
     specs = [
         probe_spec(probe_out, realtime),
@@ -132,12 +137,12 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
     ingest = {"csv_path": str(rec["csv"]), "rate_factor": 1.0, "exit_when_done": True,
               "wait_subscribers": 3 + int(record), "start_delay": 1.0, "linger": 2.0}
     if composed:
-        specs.append(NodeSpec("pipeline_container", parameters={"session_file": session, "h": 0.61, **ingest},
+        specs.append(NodeSpec("pipeline_container", parameters={**rider, "h": 0.61, **ingest},
                               env=env))
     else:
         specs += [
             NodeSpec("torque_estimator", parameters={"session_file": session, "h": 0.61}, required=False, env=env),
-            NodeSpec("rider_state", parameters={"session_file": session}, required=False, env=env),
+            NodeSpec("rider_state", parameters=rider, required=False, env=env),
             NodeSpec("mocap_ingest", parameters=ingest, env=env),
         ]
     if record:
@@ -152,7 +157,7 @@ def measure_cell(rec: dict, out_dir: Path, *, record: bool = True, floor: bool =
         pipe["bag_counts"] = counts
         pipe["bag_frames"] = counts.get("/mocap/frame", 0)
     out = {"rate_hz": rate, "bodies": n_bodies, "duration_s": duration, "composed": composed, "realtime": realtime,
-           "pipeline": pipe}
+           "cog_method": cog_method, "pipeline": pipe}
     if floor:
         if log:
             log(f"    floor: bare relay chain, {n_frames} frames at {rate:g} Hz, {n_bodies} bodies")
@@ -178,16 +183,19 @@ def cell_figure(cell: dict, label: str):
 
 def run(ctx: BenchContext) -> dict:
     """The rate x body sweep (see the module docstring)."""
+    plan = [(rate, n, "segments") for rate, n in CELLS[ctx.quick]] + [(r, n, "skeleton") for r, n in SKELETON_CELLS]
     recs = {(rate, n): live_recording(ctx.cache_dir, rate, n, CELL_S[ctx.quick], log=ctx.log)
-            for rate, n in CELLS[ctx.quick]}
+            for rate, n, _ in plan}
     t_start = time.monotonic()
     cells = []
     figures = []
-    for (rate, n), rec in recs.items():
-        ctx.log(f"  pipeline at {rate} Hz with {n} bodies, {CELL_S[ctx.quick]:g} s")
-        cell = measure_cell(rec, ctx.tmp_dir / "live_sweep" / f"{rate}_{n}", log=ctx.log, realtime=ctx.realtime)
+    for rate, n, cog in plan:
+        skeleton = ", rider CoG from the fitted chain" if cog == "skeleton" else ""
+        ctx.log(f"  pipeline at {rate} Hz with {n} bodies{skeleton}, {CELL_S[ctx.quick]:g} s")
+        cell = measure_cell(recs[rate, n], ctx.tmp_dir / "live_sweep" / f"{rate}_{n}_{cog}", log=ctx.log,
+                            realtime=ctx.realtime, cog_method=cog)
         cells.append(cell)
-        figures.append(cell_figure(cell, f"{rate} Hz x {n} bodies: end-to-end p99"))
+        figures.append(cell_figure(cell, f"{rate} Hz x {n} bodies{skeleton}: end-to-end p99"))
     return {"name": "live_sweep", "title": "Live pipeline at every rate and body count (with recorder and monitor)",
             "figures": figures, "details": {"cells": cells, "cell_s": CELL_S[ctx.quick], "machine_cores": _cores()},
             "wall_s": time.monotonic() - t_start}
@@ -197,14 +205,15 @@ def _cores() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 0)
 
 
-if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S [PRIO]  # noqa: E501
+if __name__ == "__main__":   # pragma: no cover - a manual single cell: python -m euc_ros.bench.live_sweep RATE BODIES S [PRIO [COG]]  # noqa: E501
     import json
     import tempfile
 
     r, b, s = float(sys.argv[1]), int(sys.argv[2]), float(sys.argv[3])
     prio = int(sys.argv[4]) if len(sys.argv) > 4 else None      # optional SCHED_FIFO priority
+    cog = sys.argv[5] if len(sys.argv) > 5 else "segments"    # optional rider CoG method
     cache = Path.home() / ".cache" / "euc_ros" / "bench"
     rec = live_recording(cache, r, b, s, log=print)
     with tempfile.TemporaryDirectory() as d:
-        cell = measure_cell(rec, Path(d), log=print, realtime=prio)
+        cell = measure_cell(rec, Path(d), log=print, realtime=prio, cog_method=cog)
     print(json.dumps({k: v for k, v in cell.items()}, indent=1, default=str))

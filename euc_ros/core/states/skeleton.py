@@ -629,8 +629,12 @@ class _CalibrationFrames:
     """The live calibration's link samples, frame by frame, and the model they give.
 
     :meth:`SkeletonModel.from_poses` of the frames so far (the same samples, medians and thresholds), with each
-    frame's link samples made once, when it arrives, and the medians of all links at once.
+    frame's link samples made once, when it arrives, and the medians of all links at once. A model costs time in
+    proportion to the frames: it is rebuilt (:meth:`due`) on each of the first :attr:`EVERY_UNTIL` frames, then
+    when the frames have grown by ``1 / GROWTH`` since the last one, so the cost per frame stays bounded at any rate.
     """
+
+    EVERY_UNTIL, GROWTH = 32, 16
 
     def __init__(self, bodies: list, capacity: int, session) -> None:
         names, _, _ = session.segment_arrays()
@@ -641,7 +645,7 @@ class _CalibrationFrames:
         self.links = tuple((a, b) for a, b in used if a in bodies and b in bodies)
         self.ia = [bodies.index(a) for a, _ in self.links]
         self.ib = [bodies.index(b) for _, b in self.links]
-        self.bodies, self.names, self.euc, self.n = bodies, tuple(names), session.euc.body, 0
+        self.bodies, self.names, self.euc, self.n, self.built = bodies, tuple(names), session.euc.body, 0, 0
         self.v = np.zeros((len(self.links), 3, capacity))           # R_a^T (p_b - p_a)
         self.rel = np.zeros((len(self.links), 9, capacity))         # R_a^T R_b
         self.both = np.zeros((len(self.links), capacity), bool)
@@ -658,9 +662,13 @@ class _CalibrationFrames:
         self.both[:, self.n] = ok[self.ia] & ok[self.ib]
         self.n += 1
 
+    def due(self) -> bool:
+        """Whether the frames so far call for a new model (see the class)."""
+        return self.n <= self.EVERY_UNTIL or self.n - self.built >= self.n // self.GROWTH
+
     def model(self, config: SkeletonFitConfig) -> SkeletonModel:
         """The chain of the frames so far (:meth:`SkeletonModel.from_poses`'s, its errors alike)."""
-        n = self.n
+        n = self.built = self.n
         keep = self.both[:, :n].any(axis=1)
         if not keep.any():
             raise ConfigError("no chain link has a frame with both of its bodies tracked", key="cog_method")
@@ -678,8 +686,9 @@ class _CalibrationFrames:
 class OnlineSkeleton:
     """Live chain fit: lengths from the first ``calibration_frames`` frames, then frozen; no lag.
 
-    Until the calibration is complete, each frame uses the median over the frames seen so far and
-    the fault threshold ``calibration_floor_m`` (no robust scale yet); afterwards the session model
+    Until the calibration is complete, each frame uses the medians over the frames seen so far (refreshed as
+    :class:`_CalibrationFrames` says) and the fault threshold ``calibration_floor_m`` (no robust scale yet);
+    afterwards the session model
     estimated from the calibration frames (or the ``model`` given) is used unchanged.
 
     Parameters
@@ -751,9 +760,11 @@ class OnlineSkeleton:
         if self._cal is None or self._cal.bodies != bodies:
             self._cal = _CalibrationFrames(bodies, self.calibration_frames, self.session)   # afresh: new body set
         self._cal.add(position, quat, tracked)
-        model = self._cal.model(self.config)
-        self.model = model
-        if self._cal.n >= self.calibration_frames:
+        last = self._cal.n >= self.calibration_frames
+        if last or self.model is None or self._cal.due():
+            self.model = self._cal.model(self.config)
+        model = self.model
+        if last:
             self._cal = None
             return model, None
         return model, np.full(len(model.links), self.calibration_floor_m)

@@ -111,18 +111,25 @@ def test_unknown_method():
 
 
 def test_live_calibration_model_is_from_poses_of_the_frames_so_far(ride):
-    """After every calibration frame the live model is :meth:`SkeletonModel.from_poses` of the frames so far (the
-    same samples and order statistics; gaps in one body make the links' sample counts differ). The samples are
-    sums of 3 products of numbers <= |v|, so they agree to 8 eps |v|."""
+    """After every calibration frame the live model is :meth:`SkeletonModel.from_poses` of the frames up to its last
+    refresh: every frame of the first 32, then whenever the frames grew by 1/16, and the last (the same samples and
+    order statistics; gaps in one body make the links' sample counts differ). The samples are sums of 3 products of
+    numbers <= |v|, so they agree to 8 eps |v|."""
     s, session, _ = ride
     tracked = s.tracked.copy()
     tracked[s.bodies.index("UAL"), 10:25] = False
-    live = OnlineSkeleton(session, calibration_frames=60)
-    for k in range(60):
+    n_cal = 120
+    live = OnlineSkeleton(session, calibration_frames=n_cal)
+    built, refreshes = 0, []
+    for k in range(n_cal):
         live.calibrate(s.position[:, k], s.quat[:, k], tracked[:, k], s.bodies)
-        if k % 7 and k != 59:
+        n = k + 1
+        if n <= 32 or n - built >= n // 16 or n == n_cal:     # the refresh rule, written out
+            built = n
+            refreshes.append(n)
+        if k % 7 and k != n_cal - 1:
             continue
-        ref = SkeletonModel.from_poses([s.position[:, :k + 1]], [s.quat[:, :k + 1]], [tracked[:, :k + 1]], s.bodies,
+        ref = SkeletonModel.from_poses([s.position[:, :built]], [s.quat[:, :built]], [tracked[:, :built]], s.bodies,
                                        session)
         assert live.model.links == ref.links and live.model.frames == ref.frames
         scale = 8 * EPS * np.abs(ref.vectors).max()
@@ -130,6 +137,7 @@ def test_live_calibration_model_is_from_poses_of_the_frames_so_far(ride):
         np.testing.assert_allclose(live.model.rel_rot, ref.rel_rot, rtol=0, atol=8 * EPS)
         np.testing.assert_allclose(live.model.threshold_m, ref.threshold_m, rtol=0, atol=scale)
     assert live.calibrated
+    assert len(refreshes) < 0.6 * n_cal and refreshes[-1] == n_cal    # bounded: not a model per frame
 
 
 def test_warm_up_compiles_the_signature_of_the_live_and_batch_calls(ride):
