@@ -405,6 +405,8 @@ def load_session(path: str | Path) -> Session:
 def save_session(session: Session, path: str | Path) -> None:
     """Write a session file that :func:`load_session` reads back unchanged.
 
+    Values made with numpy (``numpy.float64`` and the like) are written as the plain numbers they hold.
+
     Parameters
     ----------
     session : Session
@@ -412,7 +414,14 @@ def save_session(session: Session, path: str | Path) -> None:
     path : str or Path
         File to write (overwritten).
     """
-    Path(path).write_text(yaml.safe_dump(session.to_dict(), sort_keys=False), encoding="utf-8")
+    def plain(v):
+        if isinstance(v, dict):
+            return {k: plain(x) for k, x in v.items()}
+        if isinstance(v, (list, tuple)):
+            return [plain(x) for x in v]
+        return v.item() if isinstance(v, np.generic) else v
+
+    Path(path).write_text(yaml.safe_dump(plain(session.to_dict()), sort_keys=False), encoding="utf-8")
 
 
 #: The default rider: the EUC paper's rider mass (Table 3) [kg], and the height [m] and sex that select

@@ -304,7 +304,7 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
     ident = identify_h(states, session, params, reconstruction=settings, models=("3dof",), uncertainty=iv,
                        measured=Measured(simex_share=simex, link_sliding=links))
     base, held = ident.uncertainty, ident.held
-    session_free = session_tolerances(held.h_m if held is not None else base.get("h_m") or 0.0, tolerances)
+    session_free = session_tolerances(held.h_m if held is not None else ident.h, tolerances)
     result = analyze(states, params, candidates=cands,
                      selector=ForwardSelector(options.alpha, options.min_gain, options.max_effects, session_free),
                      discovery=options.discovery(), use_geometry=options.use_geometry, noise_floor_of=noise_of,

@@ -195,3 +195,18 @@ def test_the_documented_ranges_are_the_code_s():
     assert set(rows) == set(PLAUSIBLE)
     for leaf, r in PLAUSIBLE.items():
         assert rows[leaf] == (r.lo, r.hi, r.unit, r.typical, [name for _, name in r.slips]), leaf
+
+
+def test_a_session_with_numpy_values_is_saved_as_plain_numbers(tmp_path):
+    import dataclasses
+
+    import numpy as np
+
+    s = default_session("y")
+    name, seg = next(iter(s.rider.segments.items()))
+    moved = dataclasses.replace(s, rider=dataclasses.replace(s.rider, segments={
+        **s.rider.segments, name: dataclasses.replace(seg, com_offset=tuple(np.add(seg.com_offset, 0.006)))}))
+    save_session(moved, tmp_path / "s.yaml")
+    back = load_session(tmp_path / "s.yaml")
+    assert back.rider.segments[name].com_offset == pytest.approx(np.add(seg.com_offset, 0.006), abs=0)
+    assert "numpy" not in (tmp_path / "s.yaml").read_text()

@@ -83,3 +83,31 @@ def test_the_reference_takes_up_a_pitch_offset_and_no_slope_is_named(ride):
     judged = analyze(offset, p, discovery=False, selector=ForwardSelector(session=session_tolerances(ride.config.h)))
     assert plain.effect != "none", plain.effect               # the base residual names what the offset does
     assert judged.effect == "none", judged.effect
+
+
+def test_the_library_pipeline_judges_against_the_session_reference(tmp_path):
+    """``trace_residual`` (the command's, the API's and the studies' pipeline) starts the selection from the session
+    reference by default. On a lawless ride of the independent generator, a session whose segment CoM offsets are
+    all 6 mm off forward (a pitch offset of about 0.4 deg, within the default 1 cm tolerance) gives the verdict of
+    the generator's own session, with the warning that says why; the reference takes up the offsets' residual to
+    what a constant pitch offset leaves of it, the lean's share (``phi`` of a few tenths of a radian at most: 10 %
+    is a generous bound, the first test's second-order term)."""
+    from euc_ros.core.openworld.study import lawless_ride
+    from euc_ros.core.residual.pipeline import trace_residual
+    from euc_ros.core.session import load_session, save_session
+
+    r = lawless_ride(int(np.random.default_rng(2212).integers(0, 100)), tmp_path, 0.5)
+    session = load_session(r["session"])
+    segs = session.rider.segments
+    off = dataclasses.replace(session, rider=dataclasses.replace(session.rider, segments={
+        name: dataclasses.replace(seg, com_offset=tuple(np.add(seg.com_offset, (0.006, 0.0, 0.0))))
+        for name, seg in segs.items()}))
+    save_session(off, tmp_path / "session_off.yaml")
+    csvs = [str(c) for c in r["csvs"]]
+    true, data = (trace_residual(str(path), csvs).data for path in (r["session"], tmp_path / "session_off.yaml"))
+    assert data["effect"] == true["effect"], (data["selection_steps"][0], true["selection_steps"][0])
+    warnings = data["analysis_warnings"]
+    assert any("session's CoM tolerance alone explains" in w for w in warnings), warnings
+    reference, base_true = data["selection_steps"][0]["rmse_nm"], true["selection_steps"][0]["rmse_nm"]
+    excess = data["rmse_before_nm"] - base_true
+    assert abs(reference - base_true) <= 0.1 * excess, (reference, base_true, data["rmse_before_nm"])
