@@ -15,6 +15,7 @@ the filter's response from its own coefficients.
 """
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Mapping, NamedTuple, Sequence
 
@@ -63,7 +64,16 @@ def savgol_kernel(window: int, polyorder: int, deriv: int, dt: float) -> np.ndar
     sample units); with ``V = QR`` the coefficients are ``a = R^-1 Q^T y`` and the ``d``-th time
     derivative at the centre is ``d! a_d / (c dt)^d``.
     """
-    window, polyorder = int(window), int(polyorder)
+    return _savgol_kernel(int(window), int(polyorder), int(deriv), float(dt)).copy()
+
+
+@functools.lru_cache(maxsize=512)
+def _savgol_kernel(window: int, polyorder: int, deriv: int, dt: float) -> np.ndarray:
+    """:func:`savgol_kernel`, kept (read-only).
+
+    The candidates of :func:`choose_window` are the same for every recording of a rate, and each is asked for its
+    response and its weights.
+    """
     if window % 2 != 1 or window <= polyorder:
         raise ConfigError(f"window must be odd and > polyorder, got {window} and {polyorder}", key="window")
     c = (window - 1) // 2
@@ -71,7 +81,9 @@ def savgol_kernel(window: int, polyorder: int, deriv: int, dt: float) -> np.ndar
     V = np.vander(u, polyorder + 1, increasing=True)
     q, r = np.linalg.qr(V)
     coef = np.linalg.solve(r, q.T)                      # (p + 1, window): a = coef @ y
-    return float(np.prod(np.arange(1, deriv + 1))) * coef[deriv] / (c * dt) ** deriv
+    out = float(np.prod(np.arange(1, deriv + 1))) * coef[deriv] / (c * dt) ** deriv
+    out.setflags(write=False)
+    return out
 
 
 def savgol_response(window: int, polyorder: int, deriv: int, dt: float, freqs) -> np.ndarray:
@@ -105,11 +117,14 @@ def savgol_response(window: int, polyorder: int, deriv: int, dt: float, freqs) -
     ConfigError
         Naming ``window`` when it is even or not longer than ``polyorder``.
     """
-    w = savgol_kernel(window, polyorder, deriv, dt)
+    f = np.asarray(freqs, dtype=float)
+    return _response(_savgol_kernel(int(window), int(polyorder), int(deriv), float(dt)), dt, f, _dft_length(f, dt))
+
+
+def _response(w: np.ndarray, dt: float, f: np.ndarray, n: int | None) -> np.ndarray:
+    """:func:`savgol_response` of the weights ``w`` at ``f``, ``n`` its :func:`_dft_length` (None: off the grid)."""
     c = (w.size - 1) // 2
     j = np.arange(-c, c + 1)
-    f = np.asarray(freqs, dtype=float)
-    n = _dft_length(f, dt)
     if n is not None:
         a = np.bincount(j % n, weights=w, minlength=n)
         return np.conj(np.fft.rfft(a))
@@ -486,13 +501,14 @@ def _responses(dt: float, f: np.ndarray, orders: Sequence[int], max_window_s: fl
     cands = _candidate_windows(dt, orders, max_window_s)
     w2 = (2 * np.pi * f) ** 2
     e2, h2, k2 = [], [], []
+    n = _dft_length(f, dt)                     # the same grid for every candidate
     for W, p in cands:
-        H2 = savgol_response(W, p, 2, dt, f)
+        k = _savgol_kernel(int(W), int(p), 2, float(dt))
+        H2 = _response(k, dt, f, n)
         with np.errstate(divide="ignore", invalid="ignore"):
             e2.append(np.where(f > 0, np.abs(H2 / (-(w2)) - 1.0) ** 2, 0.0))
         if coloured:
             h2.append(np.abs(H2) ** 2)
-        k = savgol_kernel(W, p, 2, dt)
         k2.append(float(k @ k))
     return _Responses(np.array([c[0] for c in cands]), np.array([c[1] for c in cands]), np.array(e2),
                       np.array(h2) if coloured else None, np.array(k2))

@@ -48,6 +48,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.filters.overlap_add import oaconvolve_many
 
 
 def _correlate1d():
@@ -55,13 +56,6 @@ def _correlate1d():
     from scipy.ndimage import correlate1d
 
     return correlate1d
-
-
-def _oaconvolve():
-    """scipy.signal.oaconvolve, imported on first use."""
-    from scipy.signal import oaconvolve
-
-    return oaconvolve
 
 
 #: Stretches at least this many windows long are filtered by overlap-add FFT convolution, the value and both
@@ -211,10 +205,22 @@ def _stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
     """Centre and edge coefficients of :func:`_filter_stretch`.
 
     An array (3, w, w), row 0 the centre, rows 1 to half the first half samples', the rest the last half's.
-    Made from cached factors on each call (the same numbers as :func:`savgol_coefficients`) and not kept:
-    3 w^2 numbers (0.7 MB at w = 171).
+    Made from cached factors (the same numbers as :func:`savgol_coefficients`); the last
+    :data:`STRETCH_COEFFICIENTS_KEPT` are kept, read-only (3 w^2 numbers each, 0.7 MB at w = 171): a
+    reconstruction filters several signals with one filter, and the analyses reconstruct again with the same few.
     """
-    return _assemble(*_stretch_factors(int(w), int(polyorder)), float(dt))
+    return _kept_stretch_coefficients(int(w), int(polyorder), float(dt))
+
+
+#: Filters whose :func:`_stretch_coefficients` are kept.
+STRETCH_COEFFICIENTS_KEPT = 4
+
+
+@functools.lru_cache(maxsize=STRETCH_COEFFICIENTS_KEPT)
+def _kept_stretch_coefficients(w: int, polyorder: int, dt: float) -> np.ndarray:
+    out = _assemble(*_stretch_factors(w, polyorder), dt)
+    out.setflags(write=False)
+    return out
 
 
 def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None) -> np.ndarray:
@@ -235,13 +241,12 @@ def _filter_stretch(seg: np.ndarray, w: int, polyorder: int, dt: float, out=None
     ref = np.array(seg[length // 2])
     if length >= FFT_MIN_WINDOWS * w:
         # correlation with c is convolution with c reversed: output i is the full convolution's i + half; one
-        # column and one derivative at a time, the column's offset removed as it is taken (each transform is
-        # its own: the same numbers as all at once, one transform's temporaries)
+        # column at a time, the column's offset removed as it is taken, its transform shared by the three
+        # derivatives (each result scipy's oaconvolve's: oaconvolve_many), one derivative's result at a time
         kernel = centre[:, ::-1]
         for j in range(1 if seg.ndim == 1 else seg.shape[1]):
             col = (seg - ref if seg.ndim == 1 else seg[:, j] - ref[j])[None]
-            for d in range(3):
-                full = _oaconvolve()(col, kernel[d:d + 1], mode="full", axes=1)
+            for d, full in enumerate(oaconvolve_many(col, [kernel[d:d + 1] for d in range(3)], axes=1)):
                 target = out[d] if seg.ndim == 1 else out[d][:, j]
                 target[half:length - half] = full[0, 2 * half:length]
                 del full

@@ -32,9 +32,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.polynomial import legendre
-from scipy import signal
 
 from euc_ros.core.errors import ConfigError, InputError
+from euc_ros.core.filters.overlap_add import oaconvolve_many
+from euc_ros.core.robust import median
 
 #: Largest variance inflation of the second derivative for a sample to be usable (the full window: 1). At 4 its
 #: standard deviation is at most twice the full window's: the noise of a centred window 4^(-1/5) = 0.76 times as
@@ -72,12 +73,16 @@ class MaskedDerivatives:
     recorded: np.ndarray
 
 
-def _correlate(x: np.ndarray, kernel: np.ndarray) -> np.ndarray:
-    """``out[i] = sum_j kernel[j] x[i + j - h]`` along axis 0 (zero outside), for (n,) or (n, k) ``x``."""
-    h = (kernel.size - 1) // 2
-    k = kernel[::-1].reshape((-1,) + (1,) * (x.ndim - 1))
-    full = signal.oaconvolve(x, k, mode="full", axes=0)
-    return full[h:h + x.shape[0]]
+def _correlate(x: np.ndarray, kernels):
+    """``out[i] = sum_j kernel[j] x[i + j - h]`` along axis 0 (zero outside) per kernel, for (n,) or (n, k) ``x``.
+
+    The kernels have one odd length; a generator of the results, in order, each from scipy's ``oaconvolve``
+    with ``x``'s transform made once (:func:`~euc_ros.core.filters.overlap_add.oaconvolve_many`).
+    """
+    h = (kernels[0].size - 1) // 2
+    ks = [kernel[::-1].reshape((-1,) + (1,) * (x.ndim - 1)) for kernel in kernels]
+    for full in oaconvolve_many(x, ks, axes=0):
+        yield full[h:h + x.shape[0]]
 
 
 def _fit_rows(n: int, h: int, rows: np.ndarray, ends: str) -> tuple[np.ndarray, np.ndarray]:
@@ -166,19 +171,110 @@ def masked_savgol(y, window: int, polyorder: int, dt: float, *, max_inflation: f
     y2 = y.reshape(n, -1)
     rec = np.all(np.isfinite(y2), axis=1)
     h = (window - 1) // 2
-    centre, u_at = _fit_rows(n, h, rows, ends)
-    fit_at, which = np.unique(centre, return_inverse=True)
-    coef, Ginv, ok, ref = _solve_centres(y2, rec, fit_at, window, polyorder)
-    P = legendre.legvander(np.arange(-h, h + 1) / h, polyorder).T     # (p + 1, window)
-    g2 = _basis_at(np.zeros(1), polyorder, 2)[0]
-    var_full = float(g2 @ np.linalg.solve(P @ P.T, g2))
-    out, var2 = _evaluate(coef[which], Ginv[which], ok[which], u_at, polyorder, h * dt)
+    plan = _plan(rec, rows, window, polyorder, ends)
+    coef, ref = _solve_centres(y2, rec, plan)
+    out = _evaluate(coef[plan.which], plan, polyorder, h * dt)
     out[0] = out[0] + ref
-    infl = var2 / var_full
-    usable = ok[which] & (infl <= max_inflation)
+    infl = plan.var2 / plan.var_full
+    usable = plan.ok[plan.which] & (infl <= max_inflation)
     shape = (rows.size,) + y.shape[1:]
     return MaskedDerivatives(out[0].reshape(shape), out[1].reshape(shape), out[2].reshape(shape), infl, usable,
                              rec[rows])
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """What the fits of :func:`masked_savgol` depend on besides the samples' values: the recorded mask's part.
+
+    The wanted rows' window centres and offsets, the rows the windows cover, the normal matrices ``G`` (and which
+    are determined), the basis vectors of the evaluation and the variance factors. Recordings analysed again with
+    other values on the same samples (SIMEX's re-noised replicates, another filter's probe of the same window) share
+    it (:func:`_plan` keeps the last few).
+    """
+
+    which: np.ndarray               # (rows,): the fit (of ``at``) each wanted row evaluates
+    u_at: np.ndarray                # (rows,): each row's offset from its centre [1/h]
+    src: np.ndarray                 # the rows the windows cover, run after run
+    at: np.ndarray                  # (m,): the centres' places among ``src``
+    rec: np.ndarray                 # recorded, of the ``src`` rows
+    ok: np.ndarray                  # (m,): determined fits
+    G_ok: np.ndarray                # the determined fits' normal matrices
+    P: np.ndarray                   # (p + 1, window): the Legendre basis over the window
+    centred: np.ndarray             # (rows,): rows evaluated at their centre
+    basis: tuple                    # per derivative: (centre vector (p + 1,), off-centre rows' (o, p + 1) or None)
+    var2: np.ndarray                # (rows,): P''(u)^T G^-1 P''(u), inf where undetermined
+    var_full: float                 # the same for the full window at its centre
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the plan's arrays."""
+        arrays = [self.which, self.u_at, self.src, self.at, self.rec, self.ok, self.G_ok, self.P, self.centred,
+                  self.var2] + [b for pair in self.basis for b in pair if b is not None]
+        return int(sum(a.nbytes for a in arrays))
+
+
+#: Plans kept by :func:`_plan` (each a few of the wanted rows' small matrices) and the largest kept [bytes].
+_PLANS: dict = {}
+PLANS_KEPT = 8
+PLAN_MAX_BYTES = 8 << 20
+
+
+def _plan(rec: np.ndarray, rows: np.ndarray, window: int, polyorder: int, ends: str) -> _Plan:
+    """The :class:`_Plan` of a recorded mask and wanted rows (the last :data:`PLANS_KEPT` small ones kept).
+
+    The key is the mask and the rows themselves (their bytes), so a kept plan is used only for the same samples.
+    """
+    key = (rec.size, window, polyorder, ends, np.packbits(rec).tobytes(), rows.tobytes())
+    plan = _PLANS.get(key)
+    if plan is not None:
+        return plan
+    plan = _make_plan(rec, rows, window, polyorder, ends)
+    if plan.nbytes <= PLAN_MAX_BYTES:
+        for a in [plan.which, plan.u_at, plan.src, plan.at, plan.rec, plan.ok, plan.G_ok, plan.P, plan.centred,
+                  plan.var2] + [b for pair in plan.basis for b in pair if b is not None]:
+            a.setflags(write=False)       # shared by the fits that use it
+        while len(_PLANS) >= PLANS_KEPT:
+            _PLANS.pop(next(iter(_PLANS)))
+        _PLANS[key] = plan
+    return plan
+
+
+def _make_plan(rec: np.ndarray, rows: np.ndarray, window: int, polyorder: int, ends: str) -> _Plan:
+    """The :class:`_Plan` of :func:`_plan`, made."""
+    n, q, h = rec.size, polyorder + 1, (window - 1) // 2
+    centre, u_at = _fit_rows(n, h, rows, ends)
+    fit_at, which = np.unique(centre, return_inverse=True)
+    P = legendre.legvander(np.arange(-h, h + 1) / h, polyorder).T     # (p + 1, window)
+    if fit_at.size == 0:
+        src, at, G, ok = np.zeros(0, np.int64), fit_at, np.zeros((0, q, q)), np.zeros(0, bool)
+    else:
+        src, at = _window_runs(fit_at, h, n)          # only the rows the windows cover, run after run
+        m = rec[src].astype(float)
+        G = np.empty((at.size, q, q))
+        pairs = [(a, b) for a in range(q) for b in range(a, q)]
+        for (a, b), corr in zip(pairs, _correlate(m, [P[a] * P[b] for a, b in pairs])):
+            G[:, a, b] = G[:, b, a] = corr[at]
+        with np.errstate(all="ignore"):
+            cond = np.linalg.cond(G)
+            count = np.convolve(np.pad(m, h), np.ones(window), mode="valid")          # recorded samples per window
+            ok = np.isfinite(cond) & (cond < 1e12) & (count[at] >= q)
+    Ginv = np.full((at.size, q, q), np.nan)
+    if ok.any():
+        Ginv[ok] = np.linalg.inv(G[ok])
+    g2 = _basis_at(np.zeros(1), polyorder, 2)[0]
+    var_full = float(g2 @ np.linalg.solve(P @ P.T, g2))
+    centred = u_at == 0
+    off = ~centred
+    basis = tuple((_basis_at(np.zeros(1), polyorder, d)[0], _basis_at(u_at[off], polyorder, d) if off.any() else None)
+                  for d in (0, 1, 2))
+    Ginv, ok_w = Ginv[which], ok[which]
+    var2 = np.full(which.size, np.inf)
+    c_ok, o_ok = centred & ok_w, off & ok_w
+    var2[c_ok] = np.einsum("i,nij,j->n", g2, Ginv[c_ok], g2)
+    if o_ok.any():
+        v = _basis_at(u_at[o_ok], polyorder, 2)
+        var2[o_ok] = np.einsum("ni,nij,nj->n", v, Ginv[o_ok], v)
+    return _Plan(which, u_at, src, at, rec[src], ok, G[ok], P, centred, basis, var2, var_full)
 
 
 def _window_runs(centres: np.ndarray, h: int, n: int) -> tuple[np.ndarray, np.ndarray]:
@@ -199,60 +295,40 @@ def _window_runs(centres: np.ndarray, h: int, n: int) -> tuple[np.ndarray, np.nd
     return src, centres - a[run] + start[run]
 
 
-def _solve_centres(y2: np.ndarray, rec: np.ndarray, at: np.ndarray, window: int, polyorder: int):
-    """The fits of the windows centred at the samples ``at``: coefficients, ``G^-1`` and where determined.
+def _solve_centres(y2: np.ndarray, rec: np.ndarray, plan: _Plan):
+    """The coefficients (m, p + 1, k) of the fits of ``plan``'s centres, NaN where undetermined, and ``ref`` (k,).
 
-    Returns ``coef`` (m, p + 1, k) and ``Ginv`` (m, p + 1, p + 1), NaN where undetermined, ``ok`` (m,) and
-    ``ref`` (k,): the fits are those of the samples less ``ref``, their median.
+    The fits are those of the samples less ``ref``, their median.
     """
-    q = polyorder + 1
-    h = (window - 1) // 2
-    # the samples less a constant (it cancels in the derivatives: round-off at the motion's scale)
-    ref = np.nanmedian(y2[rec], axis=0) if rec.any() else np.zeros(y2.shape[1])
-    if at.size == 0:
-        return np.zeros((0, q, y2.shape[1])), np.zeros((0, q, q)), np.zeros(0, bool), ref
-    src, at = _window_runs(at, h, y2.shape[0])         # only the rows the windows cover, run after run
-    rec = rec[src]
-    m = rec.astype(float)
-    ym = np.where(rec[:, None], y2[src] - ref, 0.0)
-    P = legendre.legvander(np.arange(-h, h + 1) / h, polyorder).T
-    G = np.empty((at.size, q, q))
-    for a in range(q):
-        for b in range(a, q):
-            G[:, a, b] = G[:, b, a] = _correlate(m, P[a] * P[b])[at]
-    B = np.stack([_correlate(ym, P[a])[at] for a in range(q)], axis=1)   # (m, p + 1, k)
-    with np.errstate(all="ignore"):
-        cond = np.linalg.cond(G)
-        count = np.convolve(np.pad(m, h), np.ones(window), mode="valid")          # recorded samples per window
-        ok = np.isfinite(cond) & (cond < 1e12) & (count[at] >= q)
-    coef = np.full((at.size, q, y2.shape[1]), np.nan)
-    Ginv = np.full((at.size, q, q), np.nan)
-    if ok.any():
-        coef[ok] = np.linalg.solve(G[ok], B[ok])
-        Ginv[ok] = np.linalg.inv(G[ok])
-    return coef, Ginv, ok, ref
+    q = plan.P.shape[0]
+    # the samples less a constant (it cancels in the derivatives: round-off at the motion's scale): their median,
+    # numpy's (from 600 rows on nanmedian takes each column's np.median, which robust.median gives bit for bit
+    # with less of the selection; the recorded rows have no NaN)
+    kept = y2[rec]
+    ref = (median(kept, axis=0) if kept.shape[0] >= 600 else np.nanmedian(kept, axis=0)) if rec.any() \
+        else np.zeros(y2.shape[1])
+    del kept
+    if plan.at.size == 0:
+        return np.zeros((0, q, y2.shape[1])), ref
+    ym = np.where(plan.rec[:, None], y2[plan.src] - ref, 0.0)
+    B = np.stack([corr[plan.at] for corr in _correlate(ym, list(plan.P))], axis=1)   # (m, p + 1, k)
+    coef = np.full((plan.at.size, q, y2.shape[1]), np.nan)
+    if plan.ok.any():
+        coef[plan.ok] = np.linalg.solve(plan.G_ok, B[plan.ok])
+    return coef, ref
 
 
-def _evaluate(coef: np.ndarray, Ginv: np.ndarray, ok: np.ndarray, u: np.ndarray, polyorder: int, scale: float):
-    """Value and derivatives of each fit at its offset ``u``, and the variance factor of its second derivative.
+def _evaluate(coef: np.ndarray, plan: _Plan, polyorder: int, scale: float) -> list:
+    """Value and derivatives of each fit at its offset: ``[y, y_dot, y_ddot]``, each (m, k).
 
-    ``scale`` is ``h dt`` [s]. Returns ``[y, y_dot, y_ddot]`` (each (m, k)) and ``P''(u)^T G^-1 P''(u)`` (m,),
-    inf where the fit is undetermined. The centred fits (``u = 0``) share one evaluation vector.
+    ``scale`` is ``h dt`` [s]. The centred fits (``u = 0``) share one evaluation vector.
     """
-    centred = u == 0
+    centred = plan.centred
     off = ~centred
     m, k = coef.shape[0], coef.shape[2]
     out = [np.empty((m, k)) for _ in range(3)]
-    for d in (0, 1, 2):
-        g = _basis_at(np.zeros(1), polyorder, d)[0]
+    for d, (g, g_off) in enumerate(plan.basis):
         out[d][centred] = np.einsum("k,nkc->nc", g, coef[centred]) / scale ** d
-        if off.any():
-            out[d][off] = np.einsum("nk,nkc->nc", _basis_at(u[off], polyorder, d), coef[off]) / scale ** d
-    var2 = np.full(m, np.inf)
-    c_ok, o_ok = centred & ok, off & ok
-    g2 = _basis_at(np.zeros(1), polyorder, 2)[0]
-    var2[c_ok] = np.einsum("i,nij,j->n", g2, Ginv[c_ok], g2)
-    if o_ok.any():
-        v = _basis_at(u[o_ok], polyorder, 2)
-        var2[o_ok] = np.einsum("ni,nij,nj->n", v, Ginv[o_ok], v)
-    return out, var2
+        if g_off is not None:
+            out[d][off] = np.einsum("nk,nkc->nc", g_off, coef[off]) / scale ** d
+    return out

@@ -333,3 +333,12 @@ def test_predicted_scatter_of_the_score_is_its_scatter_over_noise_draws():
     assert checked.size >= 10
     ratio = observed[checked] / predicted[checked]
     assert lo <= np.exp(np.mean(np.log(ratio))) <= hi, (ratio, lo, hi)
+
+
+def test_a_kept_kernel_is_not_changed_through_what_savgol_kernel_returns():
+    # the candidates' kernels are kept between choices; the array a caller gets is its own
+    first = savgol_kernel(31, 4, 2, 0.01)
+    expected = first.copy()
+    first[:] = 0.0
+    again = savgol_kernel(31, 4, 2, 0.01)
+    assert np.array_equal(again, expected) and again.flags.writeable

@@ -171,3 +171,44 @@ def test_the_fits_of_chosen_rows_are_those_of_every_row(ends):
     np.testing.assert_allclose(part.inflation[use], full.inflation[sparse][use], rtol=1e5 * w * np.finfo(float).eps)
     one = masked_savgol(y, w, p, DT, rows=[n - 3], ends=ends)          # its window runs past the last row
     np.testing.assert_allclose(one.inflation, full.inflation[[n - 3]], rtol=1e5 * w * np.finfo(float).eps)
+
+
+def test_the_kept_plan_of_a_mask_gives_the_fits_made_without_it():
+    # the mask's part of the fits (normal matrices, basis, variance factors) is kept per mask and rows; fits of
+    # other values on the same samples, made with the kept part, must be those made from nothing, number for
+    # number, and another mask with the same rows must not take it
+    from euc_ros.core.filters import masked_savgol as ms
+
+    rng = np.random.default_rng(5)
+    n, w, p = 3000, 61, 4
+    t = np.arange(n) * DT
+    keep = rng.uniform(size=n) > 0.02
+    keep[700:730] = False
+    rows = np.flatnonzero(keep)[::7]
+    fields = ("y", "y_dot", "y_ddot", "inflation", "usable", "recorded")
+
+    def fresh(y):
+        ms._PLANS.clear()
+        return ms.masked_savgol(y, w, p, DT, rows=rows)
+
+    first = np.where(keep[:, None], np.column_stack([np.sin(t), t ** 2]), np.nan)
+    second = np.where(keep[:, None], np.column_stack([np.cos(2 * t), np.exp(-t)]) + rng.normal(0, 1e-3, (n, 2)),
+                      np.nan)
+    made = fresh(second)
+    ms.masked_savgol(first, w, p, DT, rows=rows)             # keeps the plan of this mask and these rows
+    assert len(ms._PLANS) == 1
+    kept = ms.masked_savgol(second, w, p, DT, rows=rows)
+    for f in fields:
+        assert np.array_equal(getattr(kept, f), getattr(made, f), equal_nan=True), f
+    kept.y[:] = 0.0                                           # the results are the caller's, not the plan's
+    again = ms.masked_savgol(second, w, p, DT, rows=rows)
+    assert np.array_equal(again.y, made.y, equal_nan=True)
+    other = keep.copy()
+    other[1500:1540] = False                                  # another gap, the same rows
+    third = np.where(other[:, None], second, np.nan)
+    shared = ms.masked_savgol(third, w, p, DT, rows=rows)
+    alone = fresh(third)
+    assert len(ms._PLANS) == 1
+    for f in fields:
+        assert np.array_equal(getattr(shared, f), getattr(alone, f), equal_nan=True), f
+    assert not np.array_equal(shared.inflation, made.inflation, equal_nan=True)   # the gap changed the fits
