@@ -6,7 +6,6 @@
 """
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -159,7 +158,7 @@ class ModelContext:
         EucParams
             ``params`` with ``overrides`` applied.
         """
-        return dataclasses.replace(self.params, **self.overrides) if self.overrides else self.params
+        return self.params.with_values(self.overrides) if self.overrides else self.params
 
     def add_force(self, dQ: np.ndarray) -> None:
         """Accumulate a generalized force (n, 3).
@@ -179,7 +178,10 @@ class ModelContext:
         ModelContext
             The copy, with ``overrides`` copied, ``extra_Q`` and ``mask`` None.
         """
-        return dataclasses.replace(self, overrides=dict(self.overrides), extra_Q=None, mask=None)
+        new = object.__new__(type(self))          # the fields shared as dataclasses.replace shares them, faster
+        new.__dict__.update(self.__dict__)
+        new.overrides, new.extra_Q, new.mask = dict(self.overrides), None, None
+        return new
 
 
 def jacobian_G(ctx: ModelContext, p: EucParams) -> tuple[np.ndarray, np.ndarray]:
@@ -198,9 +200,12 @@ def jacobian_G(ctx: ModelContext, p: EucParams) -> tuple[np.ndarray, np.ndarray]
         dG_x/dq and dG_z/dq (n, 3) with q = (x, gamma, phi) [1, m/rad, m/rad].
     """
     n = ctx.gamma.shape[0]
-    h = np.broadcast_to(np.asarray(p.h, float), (n,))
-    jx = np.stack([np.ones(n), -p.l0 * np.cos(ctx.gamma), h * np.cos(ctx.phi)], axis=1)
-    jz = np.stack([np.zeros(n), p.l0 * np.sin(ctx.gamma), -h * np.sin(ctx.phi)], axis=1)
+    h = np.asarray(p.h, float)
+    if h.ndim:
+        h = np.broadcast_to(h, (n,))
+    jx, jz = np.empty((n, 3)), np.empty((n, 3))          # the columns side by side (as np.stack puts them)
+    jx[:, 0], jx[:, 1], jx[:, 2] = 1.0, -p.l0 * np.cos(ctx.gamma), h * np.cos(ctx.phi)
+    jz[:, 0], jz[:, 1], jz[:, 2] = 0.0, p.l0 * np.sin(ctx.gamma), -h * np.sin(ctx.phi)
     return jx, jz
 
 

@@ -128,8 +128,9 @@ class AeroDrag(Candidate):
         """
         p = ctx.p()
         jx, jz = jacobian_G(ctx, p)
-        qd = np.stack([ctx.x_dot, ctx.gamma_dot, ctx.phi_dot], axis=1)
-        vx, vz = np.sum(jx * qd, axis=1), np.sum(jz * qd, axis=1)
+        qd = np.empty(jx.shape)
+        qd[:, 0], qd[:, 1], qd[:, 2] = ctx.x_dot, ctx.gamma_dot, ctx.phi_dot
+        vx, vz = np.add.reduce(jx * qd, axis=1), np.add.reduce(jz * qd, axis=1)       # np.sum's reduction
         speed = np.hypot(vx, vz)
         k = 0.5 * AIR_DENSITY * theta[0]
         return jx * (-k * speed * vx)[:, None] + jz * (-k * speed * vz)[:, None]
@@ -531,8 +532,10 @@ class FloorGeometry(Candidate):
 
 
 def _x_force(F: np.ndarray) -> np.ndarray:
-    z = np.zeros_like(F)
-    return np.stack([F, z, z], axis=1)
+    F = np.asarray(F)
+    out = np.zeros(F.shape[:1] + (3,) + F.shape[1:], F.dtype)
+    out[:, 0] = F
+    return out
 
 
 #: The library, by spec name (docs/residual.md, JSON).

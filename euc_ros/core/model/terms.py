@@ -111,7 +111,31 @@ class EucParams:
         EucParams
             The copy.
         """
-        return replace(self, h=h)
+        return self.with_values({"h": h})
+
+    def with_values(self, changes: dict[str, Any]) -> "EucParams":
+        """A copy with the fields of ``changes`` replaced (the residual analysis' inner loop).
+
+        The same object ``dataclasses.replace`` makes (every field not changed is the same object), without its
+        per-field ``__init__``; a name that is not a field raises as ``dataclasses.replace`` does.
+
+        Parameters
+        ----------
+        changes : dict of str to Any
+            New values by field name (scalars or arrays) [SI].
+
+        Returns
+        -------
+        EucParams
+            The copy.
+        """
+        if not _FIELD_NAMES.issuperset(changes):
+            return replace(self, **changes)
+        new = object.__new__(type(self))
+        state = new.__dict__
+        state.update(self.__dict__)
+        state.update(changes)
+        return new
 
     def reduced(self) -> "EucParams":
         """The parameters of the reduced 2-DoF model (Section 3.2): ``J0 = h0 = l0 = 0``.
@@ -141,6 +165,10 @@ class EucParams:
             v = getattr(self, f.name)
             out[f.name] = float(v) if np.ndim(v) == 0 else np.asarray(v).tolist()
         return out
+
+
+#: The field names of :class:`EucParams` (what :meth:`EucParams.with_values` may change).
+_FIELD_NAMES = frozenset(f.name for f in fields(EucParams))
 
 
 def _split(q) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

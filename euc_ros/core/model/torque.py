@@ -209,29 +209,44 @@ def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
     For flat arrays of one length and parameters that are scalars or per-sample arrays of that length (an
     effect that moves h or g sample by sample); None otherwise (numpy's broadcasting then does it).
     """
+    global _LOOP
     args = (g, ph, gd, pd, xdd, gdd, pdd)
     n = g.shape[0] if g.ndim == 1 else -1
     if n < _COMPILED_MIN or any(a.shape != (n,) for a in args):
         return None
-    shapes = [np.shape(v) for v in (p.R, p.m, p.h, p.l0, p.m0, p.h0, p.J0, p.J, p.g, p.m_eq)]
-    if not all(sh in ((), (n,)) for sh in shapes):
-        return None
-    extra = np.zeros((0, 3))
+    values = (p.R, p.m, p.h, p.l0, p.m0, p.h0, p.J0, p.J, p.g, p.m_eq)
+    scalar = all(isinstance(v, float) for v in values)          # floats and numpy float64: shape ()
+    if not scalar:
+        shapes = [v.shape if isinstance(v, np.ndarray) else np.shape(v) for v in values]
+        if not all(sh in ((), (n,)) for sh in shapes):
+            return None
+        scalar = all(sh == () for sh in shapes)
+    extra = _NO_EXTRA
     if extra_Q is not None:
         extra = np.asarray(extra_Q, dtype=float)
         if extra.shape != (n, 3):
             return None
-    from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
+    if _LOOP is None:
+        from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
+        _LOOP = torque_difference_loop
 
     # the constants formed as the numpy expression forms them (the same roundings, sample by sample when a
     # parameter is per sample): one column, or one per sample
     R, mh, k, m11, m22, m33 = _difference_constants(p)
     consts = (R, R * m11, -k, mh, m22, -mh * p.l0, m33, -mh, mh * p.l0, k * p.g, mh * p.g, k)
-    S = np.empty((len(consts), 1 if all(sh == () for sh in shapes) else n))
-    for row, c in zip(S, consts):
-        row[...] = c
-    return torque_difference_loop(*(np.ascontiguousarray(a) for a in args), S, np.ascontiguousarray(extra),
-                                  np.empty(n))
+    if scalar:
+        S = np.array(consts, dtype=float).reshape(len(consts), 1)
+    else:
+        S = np.empty((len(consts), n))
+        for i, c in enumerate(consts):
+            S[i] = c
+    return _LOOP(*(np.ascontiguousarray(a) for a in args), S, np.ascontiguousarray(extra), np.empty(n))
+
+
+#: The compiled loop, imported on first use (numba).
+_LOOP = None
+#: No extra generalized force: the compiled loop's empty (0, 3) input.
+_NO_EXTRA = np.zeros((0, 3))
 
 
 def rider_torque(gamma, phi, gamma_dot, phi_dot, x_ddot, gamma_ddot, phi_ddot, p: EucParams, extra_Q=None):

@@ -395,7 +395,22 @@ class RowSensitivities:
                        for ctx, Li, rows in parts]
         self.n = int(sum(g.shape[0] for _, g, _ in self._parts))
 
-    def block(self, j: int) -> np.ndarray:
+    def taken(self, key: tuple[int, int]) -> list[np.ndarray]:
+        """The raw columns of one family level at the rows, per recording (what :meth:`block` multiplies).
+
+        Parameters
+        ----------
+        key : tuple of int
+            (family index, level).
+
+        Returns
+        -------
+        list of ndarray
+            Per recording, its columns at its rows (rows_i, width).
+        """
+        return [c[key].take(rows, axis=0) for c, _, rows in self._parts]
+
+    def block(self, j: int, taken: list[np.ndarray] | None = None) -> np.ndarray:
         """Group ``j``'s sensitivities on the rows (rows, its width).
 
         Its columns at the rows are taken anew each time, not kept: a copy of every column at the rows would stand
@@ -405,6 +420,9 @@ class RowSensitivities:
         ----------
         j : int
             Index of the group.
+        taken : list of ndarray, optional
+            :meth:`taken` of the group's family level, when the caller has it (the groups of one family level
+            at the other points share it).
 
         Returns
         -------
@@ -412,8 +430,9 @@ class RowSensitivities:
             The recordings' rows one after the other.
         """
         g = self.groups[j]
-        key = (g.family, g.level)
-        out = [gains[:, g.point, None] * c[key].take(rows, axis=0) for c, gains, rows in self._parts]
+        if taken is None:
+            taken = self.taken((g.family, g.level))
+        out = [gains[:, g.point, None] * t for t, (_, gains, _) in zip(taken, self._parts)]
         return out[0] if len(out) == 1 else np.concatenate(out)
 
 
@@ -580,8 +599,14 @@ class Layout:
         ndarray (columns, rows)
         """
         out = np.empty((int(self.slices[-1].stop) if self.slices else 0, S.n))
-        for j, to in enumerate(self.slices):
-            out[to] = (S.block(j) @ self.mixes[j]).T if j in self.mixes else S.block(j).T
+        by_key: dict[tuple[int, int], list[int]] = {}
+        for j, g in enumerate(S.groups[:len(self.slices)]):
+            by_key.setdefault((g.family, g.level), []).append(j)
+        for key, js in by_key.items():           # a family level's columns taken once for its points
+            taken = S.taken(key)
+            for j in js:
+                B = S.block(j, taken)
+                out[self.slices[j]] = (B @ self.mixes[j]).T if j in self.mixes else B.T
         return out
 
     def columns(self, S: RowSensitivities, cols) -> np.ndarray:
@@ -600,11 +625,16 @@ class Layout:
         """
         out = np.empty((S.n, len(cols)))
         cols = np.asarray(cols, int)
-        for j, to in enumerate(self.slices):
-            at = np.flatnonzero((cols >= to.start) & (cols < to.stop))
-            if at.size:
-                local = cols[at] - to.start
-                out[:, at] = S.block(j) @ self.mixes[j][:, local] if j in self.mixes else S.block(j)[:, local]
+        starts = np.array([to.start for to in self.slices], int)
+        stops = np.array([to.stop for to in self.slices], int)
+        # each column's group: the last whose slice starts at or before it (a group of no columns is skipped)
+        owner = np.searchsorted(starts, cols, side="right") - 1
+        inside = (owner >= 0) & (cols < stops[np.clip(owner, 0, None)]) if starts.size else np.zeros(cols.size, bool)
+        for j in np.unique(owner[inside]).tolist():
+            to = self.slices[j]
+            at = np.flatnonzero(inside & (owner == j))
+            local = cols[at] - to.start
+            out[:, at] = S.block(j) @ self.mixes[j][:, local] if j in self.mixes else S.block(j)[:, local]
         return out
 
 

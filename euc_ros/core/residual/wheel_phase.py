@@ -106,16 +106,30 @@ def align_wheel_phases(B: np.ndarray, r: np.ndarray, harmonics: int, n_runs: int
     def blk(u, v):
         return G[u * w:(u + 1) * w, v * w:(v + 1) * w]
 
+    # every product below is a function of the offsets it is made of: kept by their bits, so a scan that holds
+    # the other recordings' offsets recomputes none of their products (the same operations on the same operands)
+    memo: dict = {}
+
+    def kept(key, make, *args):
+        if key not in memo:
+            memo[key] = make(*args)
+        return memo[key]
+
+    def outer(u, v, Ru, Rv):
+        return Ru.T @ blk(u, v) @ Rv
+
     def scores(runs: list[int], q: int, grid: np.ndarray) -> np.ndarray:
         # M^T G M and M^T g with the other runs' rotations fixed and run q's over the grid
         others = [u for u in runs if u != q]
-        Ro = {u: phase_rotations(deltas[u], K)[0] for u in others}
-        C = sum(Ro[u].T @ blk(u, v) @ Ro[v] for u in others for v in others)
-        P = sum(blk(q, v) @ Ro[v] for v in others)
-        c0 = sum(Ro[u].T @ g[u * w:(u + 1) * w] for u in others)
-        Rq = phase_rotations(grid, K)                                  # (m, w, w)
+        d = {u: deltas[u].tobytes() for u in others}
+        Ro = {u: kept(("R", d[u]), phase_rotations, deltas[u], K)[0] for u in others}
+        C = sum(kept(("C", u, v, d[u], d[v]), outer, u, v, Ro[u], Ro[v]) for u in others for v in others)
+        P = sum(kept(("P", q, v, d[v]), np.matmul, blk(q, v), Ro[v]) for v in others)
+        c0 = sum(kept(("c", u, d[u]), np.matmul, Ro[u].T, g[u * w:(u + 1) * w]) for u in others)
+        Rq = kept(("Rq", grid.tobytes()), phase_rotations, grid, K)                 # (m, w, w)
         RqT = Rq.transpose(0, 2, 1)
-        A = C + RqT @ P + (RqT @ P).transpose(0, 2, 1) + RqT @ blk(q, q) @ Rq + ridge
+        RP = RqT @ P
+        A = C + RP + RP.transpose(0, 2, 1) + RqT @ blk(q, q) @ Rq + ridge
         b = c0 + RqT @ g[q * w:(q + 1) * w]
         return np.einsum("mi,mi->m", b, np.linalg.solve(A, b[..., None])[..., 0])
 
