@@ -671,9 +671,11 @@ def conclude(setup: Setup, base: Stage, found: DiscoveryOutcome, geometry: dict,
         except Exception as exc:  # noqa: BLE001 - a floor we cannot measure is reported, not fatal
             journal.warnings.append(f"noise floor not measured: {exc}")
     above_noise = math.isfinite(noise) and named.heldout.rmse > NOISE_FLOOR_FACTOR * noise
-    # a refused name passed the family-wise test in a step that then named nothing: structure is there
+    # a refused name passed the family-wise test in a step that then named nothing: structure is there, unless the
+    # residual is below its noise floor (then it is at the floor: what the name cut is within what noise makes)
+    below_floor = math.isfinite(noise) and named.heldout.rmse <= noise
     refused_left = any(s_.get("refused") and s_.get("selected") is None for s_ in journal.steps) \
-        and not named.model.effects
+        and not named.model.effects and not below_floor
     residual_significant = bool(found.p_value < rules.alpha or above_noise or refused_left)
     # the model is the judged one (a reference stands in for it): the residual it leaves is the reference's
     left = named.heldout if named.model is current.model else current.heldout
