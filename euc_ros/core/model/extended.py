@@ -106,19 +106,6 @@ def m11(p: EucParams):
 #: The fields of ``R m11`` (:func:`m11`).
 _M11_FIELDS = ("R", "m", "m0", "mw", "Jw")
 
-#: The last nominal parameters and their ``R m11`` (:func:`_nominal_r_m11`).
-_NOMINAL: tuple = (None, None)
-
-
-def _nominal_r_m11(p: EucParams):
-    """``R m11`` of the nominal parameters ``p`` (kept for the last ``p``: every residual of a recording asks)."""
-    global _NOMINAL
-    last, value = _NOMINAL
-    if last is not p:
-        value = p.R * m11(p)
-        _NOMINAL = (p, value)
-    return value
-
 
 @dataclass
 class Model:
@@ -304,7 +291,7 @@ class Model:
         # NOMINAL R m11, so a parameter change (R, m) cannot shrink the residual by rescaling the equations.
         # For the base model and every effect that keeps R and m this is exactly M_d1 - M_d2.
         p_nom = rec.ctx.params
-        nominal = _nominal_r_m11(p_nom)
+        nominal = p_nom.R * m11(p_nom)
         if all(getattr(p_mod, f) is getattr(p_nom, f) for f in _M11_FIELDS) and np.ndim(nominal) == 0 \
                 and np.isfinite(nominal) and nominal != 0:
             r = diff            # the same R m11 over itself: the ratio is exactly 1

@@ -209,7 +209,6 @@ def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
     For flat arrays of one length and parameters that are scalars or per-sample arrays of that length (an
     effect that moves h or g sample by sample); None otherwise (numpy's broadcasting then does it).
     """
-    global _LOOP
     args = (g, ph, gd, pd, xdd, gdd, pdd)
     n = g.shape[0] if g.ndim == 1 else -1
     if n < _COMPILED_MIN or any(a.shape != (n,) for a in args):
@@ -226,9 +225,7 @@ def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
         extra = np.asarray(extra_Q, dtype=float)
         if extra.shape != (n, 3):
             return None
-    if _LOOP is None:
-        from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
-        _LOOP = torque_difference_loop
+    from euc_ros.core.model.torque_compiled import torque_difference_loop  # numba: on first use only
 
     # the constants formed as the numpy expression forms them (the same roundings, sample by sample when a
     # parameter is per sample): one column, or one per sample
@@ -240,11 +237,9 @@ def _compiled_difference(g, ph, gd, pd, xdd, gdd, pdd, p: EucParams, extra_Q):
         S = np.empty((len(consts), n))
         for i, c in enumerate(consts):
             S[i] = c
-    return _LOOP(*(np.ascontiguousarray(a) for a in args), S, np.ascontiguousarray(extra), np.empty(n))
+    return torque_difference_loop(*(np.ascontiguousarray(a) for a in args), S, np.ascontiguousarray(extra), np.empty(n))
 
 
-#: The compiled loop, imported on first use (numba).
-_LOOP = None
 #: No extra generalized force: the compiled loop's empty (0, 3) input.
 _NO_EXTRA = np.zeros((0, 3))
 

@@ -688,8 +688,7 @@ class OnlineSkeleton:
 
     Until the calibration is complete, each frame uses the medians over the frames seen so far (refreshed as
     :class:`_CalibrationFrames` says) and the fault threshold ``calibration_floor_m`` (no robust scale yet);
-    afterwards the session model
-    estimated from the calibration frames (or the ``model`` given) is used unchanged.
+    afterwards the session model estimated from the calibration frames (or the ``model`` given) is used unchanged.
 
     Parameters
     ----------
