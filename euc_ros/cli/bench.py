@@ -37,7 +37,7 @@ from euc_ros.core.errors import ConfigError
 
 HELP = "benchmarks against their floors (latency, throughput, parse, recorder, simulation, replay, fuzz)"
 QUICK_HELP = ("short variants: each benchmark on less data against the same floor, so the figures are indicative. "
-              "About 4 minutes on a 2-core machine, not less: the run starts 28 fresh interpreters (their imports, "
+              "About 5 minutes on a 2-core machine, not less: the run starts 28 fresh interpreters (their imports, "
               "and for identify and residual an untimed warm-up run, 3-6 s, that keeps the one-time costs out "
               "of the figures) and 16 sets of ROS processes (start-up, discovery and shut-down, about 7 s each, around "
               "streams of 1-10 s), and less data does not shorten those. The first run also generates its "
