@@ -56,21 +56,26 @@ def identified(session, csvs) -> dict:
     d = run.data
     u = d.get("uncertainty") or {}
     diag = d.get("diagnostics") or {}
+    data_h = (d.get("h_combined") or d.get("h_held") or {}).get("h_from_data_m", d["h_m"])
     return {"h_m": d["h_m"], "h_ci95_m": d["h_ci95_m"], "identifiable": d["identifiable"],
-            "h_fit_m": diag.get("h_at_chosen_filter_m", d["h_m"]),
+            "h_fit_m": diag.get("h_at_chosen_filter_m", data_h),
             "h_geometric_m": geometric_h(run.states, run.params),
             "filter": [d.get("filter", {}).get("window_s"), d.get("filter", {}).get("polyorder")],
             "terms": {k: u.get(k) for k in TERMS}}
 
 
-def ride_row(seed: int, out: Path) -> dict:
-    """Simulate, write and identify one ride (with the true and with a perturbed session)."""
+def ride_row(seed: int, out: Path, fraction_sd: float = 0.0) -> dict:
+    """Simulate, write and identify one ride (with the true and with a perturbed session).
+
+    ``fraction_sd``: the perturbed session's mass fractions also scaled by ``1 + N(0, fraction_sd)`` each.
+    """
     t0 = time.perf_counter()
     rng = np.random.default_rng([seed, STREAM])
     sliding_mm = float(rng.uniform(*SLIDING_MM))
     paths = S.lawless_ride(seed, out / f"seed{seed}", sliding_mm)
     perturbed = out / f"seed{seed}" / "session_perturbed.yaml"
-    save_session(perturb_session(load_session(paths["session"]), rng, offset_error_m=SESSION_ERROR_M), perturbed)
+    save_session(perturb_session(load_session(paths["session"]), rng, offset_error_m=SESSION_ERROR_M,
+                                 fraction_sd=fraction_sd), perturbed)
     row = {"seed": seed, "sliding_mm": sliding_mm, "h_true_m": paths["h_true_m"]}
     for label, session in (("true_session", paths["session"]), ("perturbed_session", perturbed)):
         try:
@@ -145,13 +150,16 @@ def main(argv=None) -> int:
     p.add_argument("--seeds", type=seed_range, default=seed_range("100:118"),
                    help="worldsim seeds, A:B or a comma list (tuning seeds while developing) [100:118]")
     p.add_argument("--out", type=Path, required=True, help="folder for the rides and rows.jsonl")
+    p.add_argument("--fraction-sd", type=float, default=0.0,
+                   help="also scale each mass fraction of the perturbed session by 1 + N(0, this) (tables differ "
+                        "by about 0.1 per segment)")
     p.add_argument("--report", default=None, help="write the Markdown summary here ('-': standard output)")
     args = p.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
     rows = []
     with open(args.out / "rows.jsonl", "w", encoding="utf-8") as fh:
         for seed in args.seeds:
-            rows.append(ride_row(seed, args.out))
+            rows.append(ride_row(seed, args.out, args.fraction_sd))
             fh.write(json.dumps(rows[-1]) + "\n")
             fh.flush()
             print(f"seed {seed}: {rows[-1]['seconds']} s", file=sys.stderr, flush=True)

@@ -27,8 +27,11 @@ def format_uncertainty(ident: HIdentification) -> str:
 
     unc = ident.uncertainty
     u = unc["uncertainty"]
-    h = ident.h
+    comb = ident.combined
+    h = comb.h_data_m if comb is not None else ident.h        # the data's h (the headline is the combination)
     ci = ci_text(unc["h_ci95_m"])
+    data_label = "from the data: " if comb is not None else ""
+    to_use = "" if comb is not None else "; the one to use"
     bias = u.get("eiv_bias_m")
     floor = u.get("filter_floor_m")
     step = u.get("distortion_correction_m")
@@ -45,8 +48,8 @@ def format_uncertainty(ident: HIdentification) -> str:
         diag = unc["diagnostics"]
         removed = [f"noise bias {1e3 * bias:+.1f} mm" if bias is not None else "",
                    f"filter distortion {-1e3 * step:+.1f} mm" if step is not None else ""]
-        lines = [f"h = {h:.3f} m, 95 % interval {ci} m (corrected for the pose noise and the filter's distortion; "
-                 "the one to use)",
+        lines = [f"{data_label}h = {h:.3f} m, 95 % interval {ci} m (corrected for the pose noise and the filter's "
+                 f"distortion{to_use})",
                  f"  {blocks}" + (f", {' and '.join(r for r in removed if r)} removed" if any(removed) else "")
                  + f"; curve sharpness {sharp}",
                  f"  diagnostic, not for use: h at the chosen filter, uncorrected = "
@@ -55,11 +58,13 @@ def format_uncertainty(ident: HIdentification) -> str:
     else:
         how = (blocks + (f", noise bias {1e3 * bias:+.1f} mm included" if bias is not None else "")
                + (f", filter distortion +-{1e3 * floor:.3f} mm" if floor is not None else ""))
-        lines = [f"h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
+        lines = [f"{data_label}h = {h:.3f} m, 95 % interval {ci} m ({how}); curve sharpness {sharp}"]
         if u.get("h_corrected_not_headline") and u.get("h_corrected_m") is not None:
             lines.append(f"  not used: h extrapolated to no filter distortion = {u['h_corrected_m']:.3f} m; the "
                          "noise is coloured (soft-tissue sliding), so the probe filter's change of h is not the "
                          "distortion's alone")
+    if comb is not None:        # the headline first: the one to use
+        lines.insert(0, comb.console_line())
     ex = u.get("excitation")
     if ex and unc["identifiable"] and ex.get("accel_rms_mps2") is not None:
         need = ex.get("accel_rms_needed_mps2")

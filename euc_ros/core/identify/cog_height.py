@@ -33,7 +33,7 @@ from euc_ros.core.identify.fit import (
     fit_h,
     pooled_fit,
 )
-from euc_ros.core.identify.held import HeldH, held_h
+from euc_ros.core.identify.held import HeldH, geometric_mass_sensitivity, held_h
 from euc_ros.core.identify.interval import (
     MIN_BLOCKS,
     Systematics,
@@ -45,6 +45,7 @@ from euc_ros.core.identify.interval import (
     turning_rms,
 )
 from euc_ros.core.identify.options import FULL_INTERVAL, H_BOUNDS, IntervalOptions, Measured
+from euc_ros.core.identify.session_prior import Combined, with_geometric
 from euc_ros.core.identify.simex import eiv_bias, eiv_biases
 from euc_ros.core.identify.sliding import sliding_bias
 from euc_ros.core.identify.sliding_prior import SlidingPrior, prior_spread, rms_from_sliding
@@ -98,6 +99,9 @@ class HIdentification:
     held : HeldH or None
         Set when the data do not bound the 3-DoF h (:mod:`.held`): :attr:`h` and :attr:`interval` are then the
         segments' geometric h and its Type B interval (the JSON's ``h_held`` says so and why).
+    combined : Combined or None
+        Set when the data's 3-DoF h is combined with the segments' geometric h (:mod:`.session_prior`):
+        :attr:`h` and :attr:`interval` are the combination's (the JSON's ``h_combined`` holds both measurements).
     """
 
     h: float
@@ -111,6 +115,7 @@ class HIdentification:
     h_at_filter: float = float("nan")
     interval_at_filter: tuple[float, float] = (float("nan"), float("nan"))
     held: HeldH | None = None
+    combined: Combined | None = None
 
     def to_dict(self) -> dict:
         """The JSON document: the fits headed by :attr:`model`, then the uncertainty (when computed).
@@ -132,6 +137,9 @@ class HIdentification:
         if self.held is not None:   # h_m is the held h; h_ci95_m and h_std_m are its own
             data.update(h_m=json_float(self.h), h_ci95_m=[json_float(v) for v in self.interval],
                         h_std_m=json_float(self.held.std_m), h_held=self.held.to_json())
+        if self.combined is not None:   # h_m is the combination of the data's h and the geometric h
+            data.update(h_m=json_float(self.h), h_ci95_m=[json_float(v) for v in self.interval],
+                        h_std_m=json_float(self.combined.std_m), h_combined=self.combined.to_json())
         return data
 
     def to_json(self) -> str:
@@ -230,12 +238,18 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
         h, ci_fit = float(unc["h_m"]), _pair(unc["diagnostics"]["h_at_chosen_filter_ci95_m"])
     # where the data do not bound the 3-DoF h, the headline is the segments' geometric h (.held)
     need = (unc.get("uncertainty") or {}).get("excitation", {}).get("speed_change_accel_rms_needed_mps2")
+    series = [st.meta.get("series") for st in states]
+    s_mass = geometric_mass_sensitivity(series, session) if all(s is not None for s in series) else None
     held = held_h(states, params, h, ci, tolerances=uncertainty.tolerances, sharpness=float(pooled3.sharpness),
-                  accel_needed_mps2=need) if head == "3dof" else None
+                  accel_needed_mps2=need, mass_sensitivity=s_mass) if head == "3dof" else None
     if held is not None:
         h, ci = held.h_m, held.ci95_m
+    combined = with_geometric(states, params, h, ci, tolerances=uncertainty.tolerances, mass_sensitivity=s_mass,
+                              bounds=uncertainty.h_bounds) if held is None and head == "3dof" else None
+    if combined is not None:                 # the data's h with the segments' geometric h (.session_prior)
+        h, ci = combined.h_m, combined.ci95_m
     return HIdentification(h, ci, bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,
-                           unc, corrected, h_fit, ci_fit, held)
+                           unc, corrected, h_fit, ci_fit, held, combined)
 
 
 def _fixed_filter(reconstruction: ReconstructionSettings, choice) -> ReconstructionSettings:

@@ -36,14 +36,18 @@ from typing import Sequence
 
 import numpy as np
 
-from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, absolute_tolerance
+from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, LOWER_LIMBS, absolute_tolerance
 from euc_ros.core.identify.interval import MAX_RIDE_ACCEL_RMS_MPS2, MIN_SHARPNESS
+from euc_ros.core.mocap.blocks import pose_block
+from euc_ros.core.rotations import rotation_matrices
 from euc_ros.core.states.contexts import hinge_path
 
 #: Normal quantile of the held h's 95 % interval.
 Z95 = 1.959964
 #: The tolerances (identify's budget keys) the geometric h rests on.
-GEOMETRIC_TOLERANCE_KEYS = ("rider.segments.com_offset", "euc.l0")
+GEOMETRIC_TOLERANCE_KEYS = ("rider.segments.com_offset", "euc.l0", "rider.segments.mass_fraction")
+#: Most frames per recording the mass-fraction sensitivity is taken over (evenly spaced).
+SENSITIVITY_FRAMES = 2000
 #: What the held value is, for the JSON and the console.
 SOURCE = "the segments' geometric h: median |G - A| of the rider CoG over the ankle hinge, valid samples"
 
@@ -71,7 +75,71 @@ def geometric_h(states: Sequence, params) -> float:
     return float(np.median(v)) if v.size else float("nan")
 
 
-def geometric_h_uncertainty(tolerances: dict | None, *, l0: float) -> float:
+def geometric_mass_sensitivity(series_list: Sequence, session) -> float:
+    """dh_g / d(share of the body mass moved from the legs to the upper body) [m per unit of body mass].
+
+    The session's mass fractions come from anthropometric tables, which differ by about 10 % per segment
+    (de Leva 1996 against Dempster's and Zatsiorsky's data). Moving a share ``d`` of the body mass from the legs
+    (:data:`~euc_ros.core.identify.budget.LOWER_LIMBS`) to the upper body, each side's fractions scaled alike,
+    moves the rider CoG by ``d (G_upper - G_legs)`` (each side's fraction-weighted CoM); to first order the
+    geometric h moves by that along ``(G - A) / |G - A|``. The median over evenly spaced frames with every
+    weighted segment and the EUC (at most :data:`SENSITIVITY_FRAMES` per recording).
+
+    Parameters
+    ----------
+    series_list : sequence of MocapSeries
+        The recordings.
+    session : Session
+        Mass fractions, CoM offsets, the EUC body and ``l0``.
+
+    Returns
+    -------
+    float
+        NaN when one side has no mass or no frame has every needed body.
+    """
+    names, fractions, offsets = session.segment_arrays()
+    weighted = [(n, f, o) for n, f, o in zip(names, fractions, offsets) if f > 0]
+    legs = [w for w in weighted if w[0] in LOWER_LIMBS]
+    upper = [w for w in weighted if w[0] not in LOWER_LIMBS]
+    if not legs or not upper:
+        return float("nan")
+    vals = []
+    for series in series_list:
+        bodies = list(series.bodies)
+        needed = [n for n, _, _ in weighted] + [session.euc.body]
+        if any(b not in bodies for b in needed):
+            continue
+        n = int(series.n_frames)
+        step = max(1, n // SENSITIVITY_FRAMES)
+        pos, quat, trk = pose_block(series, 0, n)
+        pos, quat, trk = pos[:, ::step], quat[:, ::step], trk[:, ::step]
+        idx = [bodies.index(b) for b in needed]
+        ok = np.ones(pos.shape[1], bool)
+        for i in idx:
+            ok &= trk[i] & np.isfinite(pos[i]).all(-1) & np.isfinite(quat[i]).all(-1)
+        if not ok.any():
+            continue
+        c_legs, c_upper = (_side_com(group, bodies, pos[:, ok], quat[:, ok]) for group in (legs, upper))
+        w_l, w_u = sum(f for _, f, _ in legs), sum(f for _, f, _ in upper)
+        G = (w_l * c_legs + w_u * c_upper) / (w_l + w_u)
+        e = bodies.index(session.euc.body)
+        R_E = rotation_matrices(quat[e, ok])
+        A = pos[e, ok] + R_E @ np.asarray(session.euc.pivot_to_wheel_center, float) - session.euc.l0 * R_E[:, :, 2]
+        d = G - A
+        vals.append(np.einsum("ij,ij->i", d / np.linalg.norm(d, axis=1, keepdims=True), c_upper - c_legs))
+    v = np.concatenate(vals) if vals else np.zeros(0)
+    v = v[np.isfinite(v)]
+    return float(np.median(v)) if v.size else float("nan")
+
+
+def _side_com(group, bodies: list, pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
+    """The fraction-weighted CoM (m, 3) of ``group``'s segments ``(name, fraction, offset)``."""
+    w = np.array([f for _, f, _ in group])
+    coms = [pos[bodies.index(b)] + rotation_matrices(quat[bodies.index(b)]) @ np.asarray(o, float) for b, _, o in group]
+    return np.tensordot(w / w.sum(), np.stack(coms), axes=1)
+
+
+def geometric_h_uncertainty(tolerances: dict | None, *, l0: float, mass_sensitivity: float | None = None) -> float:
     """Standard uncertainty of the geometric h from the tolerances of the values it rests on [m] (Type B).
 
     Parameters
@@ -81,6 +149,9 @@ def geometric_h_uncertainty(tolerances: dict | None, *, l0: float) -> float:
         user's ``--tolerance``); the keys of :data:`GEOMETRIC_TOLERANCE_KEYS` are used.
     l0 : float
         The session's l0 [m] (a tolerance given in per cent is of it).
+    mass_sensitivity : float, optional
+        :func:`geometric_mass_sensitivity` [m per unit of body mass]; with it the mass fractions' tolerance
+        (``rider.segments.mass_fraction``) adds its term (None or NaN: not known, left out).
 
     Returns
     -------
@@ -94,15 +165,19 @@ def geometric_h_uncertainty(tolerances: dict | None, *, l0: float) -> float:
     at most ``|d|``; changing l0 by ``e`` moves A by ``e |z_E| = |e|``. By the triangle inequality each
     sample's ``|G - A|`` moves by at most ``|d| + |e|``, and so does the median. For a rider standing on the
     pedals the bodies' z axes and z_E lie close to G - A, so the bound is nearly reached: both sensitivities
-    are taken as 1. Each tolerance ``+-a`` is read as a rectangular distribution (GUM 4.3.7: standard
-    uncertainty ``a / sqrt(3)``), and the two are independent:
-    ``u = sqrt(a_offset^2 + a_l0^2) / sqrt(3)``.
+    are taken as 1. A share ``a_f`` of the body mass moved between the legs and the upper body moves it by
+    ``s a_f`` (``s`` the measured :func:`geometric_mass_sensitivity`). Each tolerance ``+-a`` is read as a
+    rectangular distribution (GUM 4.3.7: standard uncertainty ``a / sqrt(3)``), and they are independent:
+    ``u = sqrt(a_offset^2 + a_l0^2 + (s a_f)^2) / sqrt(3)``.
     """
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
     a_offset = absolute_tolerance(tol["rider.segments.com_offset"], 0.0)
     a_l0 = absolute_tolerance(tol["euc.l0"], l0)
-    return float(math.hypot(a_offset, a_l0) / math.sqrt(3.0))
+    a_mass = 0.0
+    if mass_sensitivity is not None and math.isfinite(mass_sensitivity):
+        a_mass = abs(mass_sensitivity) * absolute_tolerance(tol["rider.segments.mass_fraction"], 0.0)
+    return float(math.sqrt(a_offset ** 2 + a_l0 ** 2 + a_mass ** 2) / math.sqrt(3.0))
 
 
 def data_bound_h(sharpness: float, accel_needed_mps2: float | None) -> bool:
@@ -172,7 +247,8 @@ class HeldH:
             return float(v) if v is not None and math.isfinite(float(v)) else None
 
         return {"held": True, "h_m": f(self.h_m), "std_m": f(self.std_m), "ci95_m": [f(v) for v in self.ci95_m],
-                "source": SOURCE, "uncertainty": "Type B from the session tolerances (rectangular, sensitivity 1)",
+                "source": SOURCE, "uncertainty": "Type B from the session tolerances (rectangular; sensitivity 1 for "
+                "the CoM offsets and l0, measured for the mass fractions)",
                 "tolerances_m": {k: f(v) for k, v in self.tolerances_m.items()}, "reason": self.reason,
                 "h_from_data_m": f(self.h_from_data_m),
                 "h_from_data_ci95_m": [f(v) for v in self.h_from_data_ci95_m]}
@@ -191,7 +267,8 @@ class HeldH:
 
 
 def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | None = None,
-           sharpness: float = float("nan"), accel_needed_mps2: float | None = None) -> HeldH | None:
+           sharpness: float = float("nan"), accel_needed_mps2: float | None = None,
+           mass_sensitivity: float | None = None) -> HeldH | None:
     """The held h when the data do not bound h (:func:`data_bound_h`), else None.
 
     Parameters
@@ -210,6 +287,8 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
         The pooled 3-DoF RMSE curve's relative rise at h* +- 0.1 m (NaN: not judged).
     accel_needed_mps2 : float, optional
         The RMS acceleration the sharpness criterion needs (:func:`data_bound_h`; None: not judged).
+    mass_sensitivity : float, optional
+        :func:`geometric_mass_sensitivity` (None: the mass fractions' term left out).
 
     Returns
     -------
@@ -225,10 +304,13 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
     used = {k: absolute_tolerance(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS}
+    used["rider.segments.mass_fraction"] *= abs(mass_sensitivity) if mass_sensitivity is not None \
+        and math.isfinite(mass_sensitivity) else float("nan")
     lo, hi = (float("nan") if v is None else float(v) for v in ci95)
     ends = ", ".join("unbounded" if not math.isfinite(v) else f"{v:.3f}" for v in (lo, hi))
     why = (f"the RMSE curve rises only {100 * sharpness:.0f} % at h +- 0.1 m (at least {100 * MIN_SHARPNESS:.0f} % "
            f"needed), and speed changes giving an RMS acceleration of {accel_needed_mps2:.2f} m/s^2, which a ride "
            "gives, would raise it: the ride lacks speed changes")
     reason = f"the data do not bound h: {why} (the data's h, {h_data:.3f} m, 95 % interval [{ends}] m, is not for use)"
-    return HeldH(h_g, geometric_h_uncertainty(tolerances, l0=params.l0), reason, float(h_data), (lo, hi), used)
+    return HeldH(h_g, geometric_h_uncertainty(tolerances, l0=params.l0, mass_sensitivity=mass_sensitivity), reason,
+                 float(h_data), (lo, hi), used)

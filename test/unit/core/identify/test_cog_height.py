@@ -52,9 +52,9 @@ def test_h_with_its_interval_contains_the_truth(ident):
     assert abs(ident.h - DEFAULT_H_M) < 0.03
 
 
-def test_h_is_the_grid_fit_of_the_3dof_model(ride, states, ident):
+def test_the_data_h_is_the_grid_fit_of_the_3dof_model(ride, states, ident):
     params = EucParams.from_session(ride.session)
-    assert ident.h == fit_h(states, params).pooled["3dof"].h_m == ident.fits.pooled["3dof"].h_m
+    assert ident.combined.h_data_m == fit_h(states, params).pooled["3dof"].h_m == ident.fits.pooled["3dof"].h_m
     assert ident.model == "3dof"
 
 

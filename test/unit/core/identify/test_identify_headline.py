@@ -17,6 +17,7 @@ from euc_ros.core.identify import cog_height
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
 from euc_ros.core.identify.options import IntervalOptions
+from euc_ros.core.identify.session_prior import Z975
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.ridesim.writers import write_ride
 from euc_ros.core.states.filter_choice import choose_filter
@@ -85,19 +86,25 @@ def test_diagnostics_hold_the_fit_at_the_chosen_filter(chosen):
                                                            chosen["models"]["3dof"]["per_recording"]))
 
 
-def test_the_headline_is_the_corrected_h(chosen):
-    """h_m = (h - SIMEX bias) + the extrapolation's step to zero distortion, both measured at the chosen filter."""
+def test_the_data_give_the_corrected_h_and_the_headline_combines_it(chosen):
+    """The data's h = (h - SIMEX bias) + the extrapolation's step to zero distortion, both measured at the chosen
+    filter; the headline h_m combines it with the segments' geometric h (h_combined)."""
     u = chosen["uncertainty"]
     fit = chosen["diagnostics"]["h_at_chosen_filter_m"]
-    assert chosen["h_m"] == pytest.approx(fit - u["eiv_bias_m"] + u["distortion_correction_m"], abs=1e-12)
+    comb = chosen["h_combined"]
+    h_data = comb["h_from_data_m"]
+    assert h_data == pytest.approx(fit - u["eiv_bias_m"] + u["distortion_correction_m"], abs=1e-12)
+    lo, hi = comb["h_from_data_ci95_m"]
+    assert lo < h_data < hi
+    assert chosen["h_m"] == comb["h_m"] and chosen["h_ci95_m"] == comb["ci95_m"] and comb["consistent"]
     assert abs(chosen["h_m"] - 0.61) < 0.01
     assert u["method"].startswith("paired block bootstrap")
     # the corrected h is nearer the truth than the fit (noise and distortion both lower h)
-    assert abs(chosen["h_m"] - 0.61) < abs(fit - 0.61)
+    assert abs(h_data - 0.61) < abs(fit - 0.61)
 
 
-def test_with_a_fixed_window_the_headline_is_the_fit(fixed):
-    assert fixed["h_m"] == fixed["models"]["3dof"]["h_m"]
+def test_with_a_fixed_window_the_data_give_the_fit(fixed):
+    assert fixed["h_combined"]["h_from_data_m"] == fixed["models"]["3dof"]["h_m"]
     assert "diagnostics" not in fixed
     assert _top_level_h(fixed) == H_KEYS | {"h_std_formal_m"}     # the formal std of the fit that h_m is
     lo, hi = fixed["h_ci95_m"]
@@ -109,8 +116,12 @@ def test_the_console_gives_one_headline_and_the_fit_as_a_diagnostic(files, tmp_p
     text = capsys.readouterr().out
     js = json.loads((tmp_path / "identify.json").read_text())
     lo, hi = js["h_ci95_m"]
-    assert (f"h = {js['h_m']:.3f} m, 95 % interval [{lo:.3f}, {hi:.3f}] m (corrected for the pose noise and the "
-            "filter's distortion; the one to use)") in text
+    assert f"h = {js['h_m']:.3f} m, 95 % interval [{lo:.3f}, {hi:.3f}] m: the one to use" in text
+    comb = js["h_combined"]
+    dlo, dhi = comb["h_from_data_ci95_m"]
+    assert (f"from the data: h = {comb['h_from_data_m']:.3f} m, 95 % interval [{dlo:.3f}, {dhi:.3f}] m (corrected "
+            "for the pose noise and the filter's distortion)") in text
+    assert text.index("the one to use") < text.index("from the data: h =")      # the headline first
     diag = js["diagnostics"]
     assert f"diagnostic, not for use: h at the chosen filter, uncorrected = {diag['h_at_chosen_filter_m']:.3f} m" \
         in text
@@ -141,9 +152,9 @@ def test_the_library_result_is_the_headline(ride):
     plain = identify_h(states, ride.session,
                        reconstruction=ReconstructionSettings().with_filter(choice.window_s, choice.polyorder),
                        uncertainty=IntervalOptions(with_budget=False, sliding=False))
-    assert not plain.corrected and plain.h == plain.h_at_filter == plain.fits.pooled["3dof"].h_m
+    assert not plain.corrected and plain.combined.h_data_m == plain.h_at_filter == plain.fits.pooled["3dof"].h_m
     assert "h_m" not in plain.uncertainty and "diagnostics" not in plain.uncertainty
-    assert plain.interval == plain.interval_at_filter
+    assert plain.combined.h_data_ci95_m == plain.interval_at_filter       # the data's interval is the fit's
 
 
 def test_identifiable_judges_the_headline_interval(ride, monkeypatch):
@@ -181,4 +192,7 @@ def test_an_unbounded_headline_interval_is_not_identifiable(ride, monkeypatch):
     ident = identify_h(states, ride.session, filter_choice=choice,
                        uncertainty=IntervalOptions(with_budget=False, sliding=False))
     assert ident.identifiable is False and "the data do not bound h" in ident.reason
-    assert ident.to_dict()["h_ci95_m"][1] is None
+    data = ident.to_dict()
+    assert data["h_combined"]["h_from_data_ci95_m"][1] is None       # the data bound h below only ...
+    lo, hi = data["h_ci95_m"]                                         # ... the geometric h bounds it above
+    assert hi == pytest.approx(data["h_combined"]["h_geometric_m"] + Z975 * data["h_combined"]["u_geometric_m"])

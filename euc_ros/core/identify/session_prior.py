@@ -1,0 +1,255 @@
+"""h from the dynamics combined with the segments' geometric h: two measurements of one height.
+
+``identify`` measures h twice. The dynamics give it through the torque balance, with an interval from the
+data (pose noise, soft-tissue sliding, the filter) and from the session's values the dynamics use. The
+rider's segments give it without any dynamics: the median distance of the rider CoG G from the ankle hinge
+(:func:`~.held.geometric_h`), uncertain by the session's tolerances of the CoM offsets and l0 (Type B,
+:func:`~.held.geometric_h_uncertainty`). The headline h combines them as a posterior: the geometric h as a
+normal prior, the dynamics' interval as a split-normal likelihood (each side's standard deviation its
+half-width over 1.96; a side the data do not bound is flat), on a grid over the search range; h is the
+posterior median. Its interval is the intersection of both intervals, each taken at 97.5 % so that the truth
+lies in both with at least 95 % (Bonferroni), whatever their shapes: the dynamics' interval stacks bounds
+(the filter's distortion, the sliding) that are no normal spread, and a product of normals would narrow it
+below what those bounds allow.
+
+Why both. A few millimetres of soft-tissue sliding that follows the rider's lean cannot be told from h by
+the dynamics (h's variance grows 4-14 times when such a mode is freed), so the dynamics' interval is wide;
+the same sliding moves the segments' CoG by a few millimetres, so the geometric h hardly moves. On such a
+ride the combination is the geometric h, checked by the data; on a clean ride the data sharpen it.
+
+The check. The two disagree when their 97.5 % intervals do not meet (the JSON also gives
+``z = (h_d - h_g) / sqrt(s^2 + u_g^2)``, ``s`` the data's side facing ``h_g``): a session whose offsets are off
+by more than their tolerance, or an effect the model lacks pulling the dynamics' h (``euc-ros residual`` looks
+for it). Then the interval is the hull of both 95 % intervals and a warning says why.
+
+Examples
+--------
+>>> c = combine(0.60, (0.58, 0.62), 0.61, 0.005)
+>>> round(c.h_m, 3), c.consistent
+(0.608, True)
+>>> [round(v, 4) for v in c.ci95_m]                   # the geometric h's 97.5 % interval, inside the data's
+[0.5988, 0.6212]
+>>> c = combine(0.60, (0.58, 0.62), 0.70, 0.005)       # they disagree: the hull of both intervals
+>>> c.consistent, [round(v, 3) for v in c.ci95_m]
+(False, [0.58, 0.71])
+>>> c = combine(0.60, (0.50, None), 0.80, 0.005)       # the data bound h below only: the geometric h
+>>> c.consistent, round(c.h_m, 3), c.weight_data
+(True, 0.8, 0.0)
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from euc_ros.core.identify.held import geometric_h, geometric_h_uncertainty
+from euc_ros.core.identify.options import H_BOUNDS
+
+#: Normal quantile of a 95 % interval.
+Z95 = 1.959964
+#: Normal quantile of a 97.5 % interval (two intervals that must both hold the truth: Bonferroni).
+Z975 = 2.241403
+#: Grid step of the posterior [m] (a tenth of a millimetre: the quantiles to well below the intervals' 1 mm).
+GRID_STEP_M = 1e-4
+
+
+def _sd(h: float, end, bounds: tuple[float, float]) -> float:
+    """One side's standard deviation from its 95 % end; infinite where the data do not bound that side."""
+    if end is None or not math.isfinite(float(end)):
+        return math.inf
+    end = float(end)
+    if end <= bounds[0] + 1e-9 or end >= bounds[1] - 1e-9:   # an end at the search range's edge bounds nothing
+        return math.inf
+    return abs(h - end) / Z95
+
+
+@dataclass(frozen=True)
+class Combined:
+    """The dynamics' h combined with the geometric h.
+
+    Parameters
+    ----------
+    h_m : float
+        The headline h [m]: the posterior median.
+    ci95_m : tuple of float
+        Its 95 % interval [m]: both intervals at 97.5 % intersected; the hull of both 95 % intervals when they
+        disagree.
+    h_data_m : float
+        The dynamics' h [m].
+    h_data_ci95_m : tuple of float
+        Its 95 % interval [m] (an unbounded end NaN).
+    h_geometric_m : float
+        The segments' geometric h [m].
+    u_geometric_m : float
+        Its standard uncertainty [m].
+    z : float
+        The disagreement in combined standard deviations (0 where the data do not bound the side).
+    consistent : bool
+        Whether the two 97.5 % intervals meet.
+    weight_data : float
+        The data's share of the posterior's precision (0: the geometric h alone; 1: the data alone), from the
+        side of the data facing the posterior median.
+    """
+
+    h_m: float
+    ci95_m: tuple[float, float]
+    h_data_m: float
+    h_data_ci95_m: tuple[float, float]
+    h_geometric_m: float
+    u_geometric_m: float
+    z: float
+    consistent: bool
+    weight_data: float
+
+    @property
+    def std_m(self) -> float:
+        """The interval's half-width over 1.96 [m]."""
+        return (self.ci95_m[1] - self.ci95_m[0]) / (2 * Z95)
+
+    def to_json(self) -> dict:
+        """The JSON's ``h_combined``: both measurements, the check and the combination.
+
+        Returns
+        -------
+        dict
+            ``h_m``, ``ci95_m``, ``h_from_data_m``, ``h_from_data_ci95_m``, ``h_geometric_m``, ``u_geometric_m``,
+            ``z``, ``consistent``, ``weight_data`` and ``method`` (non-finite numbers None).
+        """
+        def f(v):
+            return float(v) if v is not None and math.isfinite(float(v)) else None
+
+        return {"h_m": f(self.h_m), "ci95_m": [f(v) for v in self.ci95_m], "h_from_data_m": f(self.h_data_m),
+                "h_from_data_ci95_m": [f(v) for v in self.h_data_ci95_m], "h_geometric_m": f(self.h_geometric_m),
+                "u_geometric_m": f(self.u_geometric_m), "z": f(self.z), "consistent": bool(self.consistent),
+                "weight_data": f(self.weight_data),
+                "method": "h: posterior median of the geometric h (normal prior, the session's Type B uncertainty) "
+                          "and the data's interval (split-normal likelihood); interval: both at 97.5 % "
+                          "intersected (Bonferroni), the hull of both 95 % intervals when they disagree"}
+
+    def console_line(self) -> str:
+        """One line: the combined h, where it comes from, and whether the two agree.
+
+        Returns
+        -------
+        str
+        """
+        lo, hi = self.ci95_m
+        dlo, dhi = ("-" if not math.isfinite(v) else f"{v:.3f}" for v in self.h_data_ci95_m)
+        head = (f"h = {self.h_m:.3f} m, 95 % interval [{lo:.3f}, {hi:.3f}] m: the one to use (the data's h "
+                f"{self.h_data_m:.3f} m [{dlo}, {dhi}] combined with the segments' geometric h "
+                f"{self.h_geometric_m:.3f} m, u {1e3 * self.u_geometric_m:.1f} mm from the session tolerances; "
+                f"the data carry {100 * self.weight_data:.0f} % of it)")
+        return head if self.consistent else head + "; " + self.warning()
+
+    def warning(self) -> str:
+        """Why the two disagree, and what to check ("" when they agree).
+
+        Returns
+        -------
+        str
+        """
+        if self.consistent:
+            return ""
+        return (f"the data's h ({self.h_data_m:.3f} m) and the segments' geometric h ({self.h_geometric_m:.3f} m) "
+                f"disagree ({abs(self.z):.1f} combined standard deviations): the session's CoM offsets or l0 may be "
+                "off by more than their tolerance, or an effect the model lacks pulls the data's h (euc-ros "
+                "residual looks for it); the interval spans both")
+
+
+def combine(h_data: float, ci_data, h_geo: float, u_geo: float,
+            bounds: tuple[float, float] = H_BOUNDS) -> Combined:
+    """Combine the dynamics' h and interval with the geometric h and its standard uncertainty.
+
+    Parameters
+    ----------
+    h_data : float
+        The dynamics' h [m].
+    ci_data : pair of float or None
+        Its 95 % interval [m]; an end None, non-finite or at ``bounds`` is a side the data do not bound.
+    h_geo : float
+        The segments' geometric h [m].
+    u_geo : float
+        Its standard uncertainty [m] (> 0).
+    bounds : tuple of float
+        The search range [m]: the grid of the posterior.
+
+    Returns
+    -------
+    Combined
+
+    Raises
+    ------
+    ValueError
+        ``h_geo`` or ``h_data`` not finite, or ``u_geo`` not positive.
+    """
+    if not (math.isfinite(h_geo) and math.isfinite(h_data)):
+        raise ValueError(f"needs finite h, got data {h_data} and geometric {h_geo}")
+    if not u_geo > 0:
+        raise ValueError(f"needs a positive geometric uncertainty, got {u_geo}")
+    lo_end, hi_end = (None, None) if ci_data is None else ci_data
+    s_lo, s_hi = _sd(h_data, lo_end, bounds), _sd(h_data, hi_end, bounds)
+    lo_b, hi_b = float(bounds[0]), float(bounds[1])
+    grid = np.arange(lo_b, hi_b + GRID_STEP_M / 2, GRID_STEP_M)
+    side = np.where(grid < h_data, s_lo, s_hi)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        data_term = np.where(np.isfinite(side), ((grid - h_data) / side) ** 2, 0.0)
+    log_post = -0.5 * (data_term + ((grid - h_geo) / u_geo) ** 2)
+    w = np.exp(log_post - log_post.max())
+    cdf = np.cumsum(w)
+    cdf /= cdf[-1]
+    h = float(np.interp(0.5, cdf, grid))
+    s_toward = s_lo if h_geo < h_data else s_hi
+    z = 0.0 if not math.isfinite(s_toward) else (h_data - h_geo) / math.hypot(s_toward, u_geo)
+    s_at = s_lo if h < h_data else s_hi
+    weight = 0.0 if not math.isfinite(s_at) else (1 / s_at ** 2) / (1 / s_at ** 2 + 1 / u_geo ** 2)
+    # each interval at 97.5 % (Bonferroni): the truth is in both with at least 95 %
+    d_lo = h_data - Z975 * s_lo if math.isfinite(s_lo) else lo_b
+    d_hi = h_data + Z975 * s_hi if math.isfinite(s_hi) else hi_b
+    lo, hi = max(d_lo, h_geo - Z975 * u_geo, lo_b), min(d_hi, h_geo + Z975 * u_geo, hi_b)
+    consistent = lo <= hi
+    if consistent:
+        h = min(max(h, lo), hi)
+        ci = (float(lo), float(hi))
+    else:                      # the hull of both 95 % intervals
+        d_lo95 = h_data - Z95 * s_lo if math.isfinite(s_lo) else lo_b
+        d_hi95 = h_data + Z95 * s_hi if math.isfinite(s_hi) else hi_b
+        ci = (max(lo_b, min(d_lo95, h_geo - Z95 * u_geo)), min(hi_b, max(d_hi95, h_geo + Z95 * u_geo)))
+    data_ci = tuple(float(v) if math.isfinite(s) else float("nan")
+                    for v, s in ((lo_end if lo_end is not None else math.nan, s_lo),
+                                 (hi_end if hi_end is not None else math.nan, s_hi)))
+    return Combined(h, ci, float(h_data), data_ci, float(h_geo), float(u_geo), float(z), bool(consistent),
+                    float(weight))
+
+
+def with_geometric(states, params, h_data: float, ci_data, *, tolerances: dict | None = None,
+                   mass_sensitivity: float | None = None, bounds: tuple[float, float] = H_BOUNDS) -> Combined | None:
+    """:func:`combine` the data's h with the recordings' geometric h and its Type B uncertainty.
+
+    Parameters
+    ----------
+    states : sequence of RiderStates
+        The recordings' states (:func:`~.held.geometric_h`).
+    params : EucParams
+        The session's parameters (``l0``).
+    h_data : float
+        The data's h [m].
+    ci_data : pair of float or None
+        Its 95 % interval [m].
+    tolerances : dict, optional
+        identify's budget tolerances (:func:`~.held.geometric_h_uncertainty`).
+    mass_sensitivity : float, optional
+        :func:`~.held.geometric_mass_sensitivity` (None: the mass fractions' term left out).
+    bounds : tuple of float
+        The search range [m].
+
+    Returns
+    -------
+    Combined or None
+        None when the geometric h or the data's h is not finite.
+    """
+    h_g = geometric_h(states, params)
+    if not (math.isfinite(h_g) and math.isfinite(h_data)):
+        return None
+    u_g = geometric_h_uncertainty(tolerances, l0=params.l0, mass_sensitivity=mass_sensitivity)
+    return combine(h_data, ci_data, h_g, u_g, bounds=bounds)
