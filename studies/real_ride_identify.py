@@ -45,6 +45,10 @@ SLIDING_MM = (2.0, 4.0)
 SESSION_ERROR_M = (0.01, 0.02)
 #: Second key of a ride's random stream (first: the seed).
 STREAM = 777
+#: Seeds developed on (tuning) and the held-out report seeds, fixed before the report's one run (``--seeds
+#: tuning`` / ``--seeds report``). Nothing is chosen on the report seeds' numbers.
+TUNING_SEEDS = range(100, 124)
+REPORT_SEEDS = range(30000, 30050)
 #: The interval's terms recorded per ride (identify's ``uncertainty``).
 TERMS = ("eiv_bias_m", "sliding_bias_m", "sliding_bias_err_m", "filter_floor_m", "sliding_prior_range_m",
          "sliding_rms_max_m", "bootstrap_ci95_m", "distortion_correction_m")
@@ -137,7 +141,9 @@ def markdown(rows: list[dict]) -> str:
 
 
 def seed_range(text: str) -> list[int]:
-    """``"100:118"`` or ``"100,105"``."""
+    """``"100:118"``, ``"100,105"``, ``tuning`` or ``report``."""
+    if text in ("tuning", "report"):
+        return list(TUNING_SEEDS if text == "tuning" else REPORT_SEEDS)
     if ":" in text:
         a, b = text.split(":")
         return list(range(int(a), int(b)))
@@ -148,7 +154,8 @@ def main(argv=None) -> int:
     """Run the rides and write the rows and the summary."""
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=seed_range, default=seed_range("100:118"),
-                   help="worldsim seeds, A:B or a comma list (tuning seeds while developing) [100:118]")
+                   help="worldsim seeds: A:B, a comma list, 'tuning' (100-123) or 'report' (30000-30049, held out: "
+                        "run once) [100:118]")
     p.add_argument("--out", type=Path, required=True, help="folder for the rides and rows.jsonl")
     p.add_argument("--fraction-sd", type=float, default=0.0,
                    help="also scale each mass fraction of the perturbed session by 1 + N(0, this) (tables differ "
