@@ -60,7 +60,7 @@ def identified(session, csvs) -> dict:
     d = run.data
     u = d.get("uncertainty") or {}
     diag = d.get("diagnostics") or {}
-    data_h = (d.get("h_combined") or d.get("h_held") or {}).get("h_from_data_m", d["h_m"])
+    data_h = ((d.get("diagnostics") or {}).get("h_combined") or d.get("h_held") or {}).get("h_from_data_m", d["h_m"])
     return {"h_m": d["h_m"], "h_ci95_m": d["h_ci95_m"], "identifiable": d["identifiable"],
             "h_fit_m": diag.get("h_at_chosen_filter_m", data_h),
             "h_geometric_m": geometric_h(run.states, run.params),

@@ -137,9 +137,10 @@ class HIdentification:
         if self.held is not None:   # h_m is the held h; h_ci95_m and h_std_m are its own
             data.update(h_m=json_float(self.h), h_ci95_m=[json_float(v) for v in self.interval],
                         h_std_m=json_float(self.held.std_m), h_held=self.held.to_json())
-        if self.combined is not None:   # h_m is the combination of the data's h and the geometric h
+        if self.combined is not None:   # h_m combines the data's h and the geometric h: both are diagnostics
             data.update(h_m=json_float(self.h), h_ci95_m=[json_float(v) for v in self.interval],
-                        h_std_m=json_float(self.combined.std_m), h_combined=self.combined.to_json())
+                        h_std_m=json_float(self.combined.std_m))
+            data["diagnostics"] = {**data.get("diagnostics", {}), "h_combined": self.combined.to_json()}
         return data
 
     def to_json(self) -> str:
@@ -244,8 +245,10 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
                   accel_needed_mps2=need, mass_sensitivity=s_mass) if head == "3dof" else None
     if held is not None:
         h, ci = held.h_m, held.ci95_m
+    adm = (unc.get("uncertainty") or {}).get("h_admissible_m") or uncertainty.h_bounds     # inside both
+    bounds = (max(adm[0], uncertainty.h_bounds[0]), min(adm[1], uncertainty.h_bounds[1]))
     combined = with_geometric(states, params, h, ci, tolerances=uncertainty.tolerances, mass_sensitivity=s_mass,
-                              bounds=uncertainty.h_bounds) if held is None and head == "3dof" else None
+                              bounds=bounds) if held is None and head == "3dof" and bounds[0] < bounds[1] else None
     if combined is not None:                 # the data's h with the segments' geometric h (.session_prior)
         h, ci = combined.h_m, combined.ci95_m
     return HIdentification(h, ci, bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,

@@ -41,9 +41,9 @@ def test_the_headline_under_sliding_is_the_fit_with_the_extrapolation_beside_it(
     data = result.data
     choice = result.states[0].meta["filter"]
     assert coloured_noise(choice) and data["filter"]["noise_model"] == "coloured"
-    assert not result.identification.corrected and "diagnostics" not in data
+    assert not result.identification.corrected and set(data["diagnostics"]) == {"h_combined"}
     # the data's h is the fit at the chosen filter
-    assert data["h_combined"]["h_from_data_m"] == result.identification.fits.pooled["3dof"].h_m
+    assert data["diagnostics"]["h_combined"]["h_from_data_m"] == result.identification.fits.pooled["3dof"].h_m
     u = data["uncertainty"]
     assert u["h_corrected_not_headline"] == NOT_HEADLINE and np.isfinite(u["h_corrected_m"])
     lo, hi = data["h_ci95_m"]

@@ -88,10 +88,10 @@ def test_diagnostics_hold_the_fit_at_the_chosen_filter(chosen):
 
 def test_the_data_give_the_corrected_h_and_the_headline_combines_it(chosen):
     """The data's h = (h - SIMEX bias) + the extrapolation's step to zero distortion, both measured at the chosen
-    filter; the headline h_m combines it with the segments' geometric h (h_combined)."""
+    filter; the headline h_m combines it with the segments' geometric h (diagnostics.h_combined)."""
     u = chosen["uncertainty"]
     fit = chosen["diagnostics"]["h_at_chosen_filter_m"]
-    comb = chosen["h_combined"]
+    comb = chosen["diagnostics"]["h_combined"]
     h_data = comb["h_from_data_m"]
     assert h_data == pytest.approx(fit - u["eiv_bias_m"] + u["distortion_correction_m"], abs=1e-12)
     lo, hi = comb["h_from_data_ci95_m"]
@@ -104,8 +104,8 @@ def test_the_data_give_the_corrected_h_and_the_headline_combines_it(chosen):
 
 
 def test_with_a_fixed_window_the_data_give_the_fit(fixed):
-    assert fixed["h_combined"]["h_from_data_m"] == fixed["models"]["3dof"]["h_m"]
-    assert "diagnostics" not in fixed
+    assert fixed["diagnostics"]["h_combined"]["h_from_data_m"] == fixed["models"]["3dof"]["h_m"]
+    assert set(fixed["diagnostics"]) == {"h_combined"}         # no corrected h: the combination's parts only
     assert _top_level_h(fixed) == H_KEYS | {"h_std_formal_m"}     # the formal std of the fit that h_m is
     lo, hi = fixed["h_ci95_m"]
     assert lo < fixed["h_m"] < hi
@@ -117,7 +117,7 @@ def test_the_console_gives_one_headline_and_the_fit_as_a_diagnostic(files, tmp_p
     js = json.loads((tmp_path / "identify.json").read_text())
     lo, hi = js["h_ci95_m"]
     assert f"h = {js['h_m']:.3f} m, 95 % interval [{lo:.3f}, {hi:.3f}] m: the one to use" in text
-    comb = js["h_combined"]
+    comb = js["diagnostics"]["h_combined"]
     dlo, dhi = comb["h_from_data_ci95_m"]
     assert (f"from the data: h = {comb['h_from_data_m']:.3f} m, 95 % interval [{dlo:.3f}, {dhi:.3f}] m (corrected "
             "for the pose noise and the filter's distortion)") in text
@@ -193,6 +193,7 @@ def test_an_unbounded_headline_interval_is_not_identifiable(ride, monkeypatch):
                        uncertainty=IntervalOptions(with_budget=False, sliding=False))
     assert ident.identifiable is False and "the data do not bound h" in ident.reason
     data = ident.to_dict()
-    assert data["h_combined"]["h_from_data_ci95_m"][1] is None       # the data bound h below only ...
-    lo, hi = data["h_ci95_m"]                                         # ... the geometric h bounds it above
-    assert hi == pytest.approx(data["h_combined"]["h_geometric_m"] + Z975 * data["h_combined"]["u_geometric_m"])
+    comb = data["diagnostics"]["h_combined"]
+    assert comb["h_from_data_ci95_m"][1] is None       # the data bound h below only ...
+    lo, hi = data["h_ci95_m"]                           # ... the geometric h bounds it above
+    assert hi == pytest.approx(comb["h_geometric_m"] + Z975 * comb["u_geometric_m"])
