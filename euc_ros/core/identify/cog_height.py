@@ -237,18 +237,16 @@ def identify_h(states: Sequence[RiderStates], session, params: EucParams | None 
     h_fit, ci_fit = h, ci
     if corrected:                            # the headline is the corrected h; the fit is a diagnostic
         h, ci_fit = float(unc["h_m"]), _pair(unc["diagnostics"]["h_at_chosen_filter_ci95_m"])
-    # where the data do not bound the 3-DoF h, the headline is the segments' geometric h (.held)
-    need = (unc.get("uncertainty") or {}).get("excitation", {}).get("speed_change_accel_rms_needed_mps2")
-    series = [st.meta.get("series") for st in states]
-    s_mass = geometric_mass_sensitivity(series, session) if all(s is not None for s in series) else None
+    u = unc.get("uncertainty") or {}
+    need = u.get("excitation", {}).get("speed_change_accel_rms_needed_mps2")
+    s_mass = geometric_mass_sensitivity([st.meta.get("series") for st in states], session)
     held = held_h(states, params, h, ci, tolerances=uncertainty.tolerances, sharpness=float(pooled3.sharpness),
                   accel_needed_mps2=need, mass_sensitivity=s_mass) if head == "3dof" else None
-    if held is not None:
+    if held is not None:                     # the data do not bound the 3-DoF h: the geometric h (.held)
         h, ci = held.h_m, held.ci95_m
-    adm = (unc.get("uncertainty") or {}).get("h_admissible_m") or uncertainty.h_bounds     # inside both
-    bounds = (max(adm[0], uncertainty.h_bounds[0]), min(adm[1], uncertainty.h_bounds[1]))
     combined = with_geometric(states, params, h, ci, tolerances=uncertainty.tolerances, mass_sensitivity=s_mass,
-                              bounds=bounds) if held is None and head == "3dof" and bounds[0] < bounds[1] else None
+                              bounds=uncertainty.h_bounds, admissible=u.get("h_admissible_m")) \
+        if held is None and head == "3dof" else None
     if combined is not None:                 # the data's h with the segments' geometric h (.session_prior)
         h, ci = combined.h_m, combined.ci95_m
     return HIdentification(h, ci, bool(unc["identifiable"]), unc["identifiability_reason"] or "", head, fits,

@@ -87,21 +87,21 @@ def geometric_mass_sensitivity(series_list: Sequence, session) -> float:
 
     Parameters
     ----------
-    series_list : sequence of MocapSeries
-        The recordings.
+    series_list : sequence of MocapSeries or None
+        The recordings (a None: not kept, the sensitivity is not known).
     session : Session
         Mass fractions, CoM offsets, the EUC body and ``l0``.
 
     Returns
     -------
     float
-        NaN when one side has no mass or no frame has every needed body.
+        NaN when a recording is None, one side has no mass or no frame has every needed body.
     """
     names, fractions, offsets = session.segment_arrays()
     weighted = [(n, f, o) for n, f, o in zip(names, fractions, offsets) if f > 0]
     legs = [w for w in weighted if w[0] in LOWER_LIMBS]
     upper = [w for w in weighted if w[0] not in LOWER_LIMBS]
-    if not legs or not upper:
+    if not legs or not upper or any(series is None for series in series_list):
         return float("nan")
     vals = []
     for series in series_list:

@@ -223,7 +223,8 @@ def combine(h_data: float, ci_data, h_geo: float, u_geo: float,
 
 
 def with_geometric(states, params, h_data: float, ci_data, *, tolerances: dict | None = None,
-                   mass_sensitivity: float | None = None, bounds: tuple[float, float] = H_BOUNDS) -> Combined | None:
+                   mass_sensitivity: float | None = None, bounds: tuple[float, float] = H_BOUNDS,
+                   admissible=None) -> Combined | None:
     """:func:`combine` the data's h with the recordings' geometric h and its Type B uncertainty.
 
     Parameters
@@ -242,14 +243,19 @@ def with_geometric(states, params, h_data: float, ci_data, *, tolerances: dict |
         :func:`~.held.geometric_mass_sensitivity` (None: the mass fractions' term left out).
     bounds : tuple of float
         The search range [m].
+    admissible : pair of float, optional
+        The range of h the rider's recorded joints allow [m] (:func:`~euc_ros.core.states.admissible.admissible_h`):
+        the combination stays inside it and ``bounds``.
 
     Returns
     -------
     Combined or None
-        None when the geometric h or the data's h is not finite.
+        None when the geometric h or the data's h is not finite, or the two ranges do not meet.
     """
+    if admissible is not None:
+        bounds = (max(float(admissible[0]), bounds[0]), min(float(admissible[1]), bounds[1]))
     h_g = geometric_h(states, params)
-    if not (math.isfinite(h_g) and math.isfinite(h_data)):
+    if not (math.isfinite(h_g) and math.isfinite(h_data)) or not bounds[0] < bounds[1]:
         return None
     u_g = geometric_h_uncertainty(tolerances, l0=params.l0, mass_sensitivity=mass_sensitivity)
     return combine(h_data, ci_data, h_g, u_g, bounds=bounds)
