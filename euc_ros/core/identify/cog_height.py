@@ -70,10 +70,10 @@ class HIdentification:
     Parameters
     ----------
     h : float
-        The headline h [m], the JSON's ``h_m``: the best estimate, the one to give ``torque_estimator``.
-        With a filter chosen from the data (and the uncertainty computed) it is the pooled 3-DoF h
-        corrected for the pose noise's bias and the filter's distortion (:func:`distortion_corrected`);
-        otherwise the pooled fit of :attr:`model` (NaN without a valid sample).
+        The headline h [m], the JSON's ``h_m``, the one to give ``torque_estimator``: with the uncertainty
+        computed and a 3-DoF head, the data's h combined with the geometric h (:attr:`combined`) or held at it
+        (:attr:`held`). The data's h: the pooled 3-DoF h, corrected (:func:`distortion_corrected`) with a filter
+        chosen from the data; else the pooled fit of :attr:`model` (NaN without a valid sample).
     interval : tuple of float
         The 95 % interval of :attr:`h` [m] (the JSON's ``h_ci95_m``; NaN, NaN when the uncertainty was
         not computed; infinite ends when the data do not bound h).
@@ -100,8 +100,8 @@ class HIdentification:
         Set when the data do not bound the 3-DoF h (:mod:`.held`): :attr:`h` and :attr:`interval` are then the
         segments' geometric h and its Type B interval (the JSON's ``h_held`` says so and why).
     combined : Combined or None
-        Set when the data's 3-DoF h is combined with the segments' geometric h (:mod:`.session_prior`):
-        :attr:`h` and :attr:`interval` are the combination's (the JSON's ``h_combined`` holds both measurements).
+        Set when the data's 3-DoF h is combined with the segments' geometric h (:mod:`.session_prior`), whose
+        :attr:`h` and :attr:`interval` these are (both measurements in the JSON's ``diagnostics.h_combined``).
     """
 
     h: float
