@@ -30,6 +30,7 @@ Examples
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import Sequence
@@ -39,8 +40,8 @@ import numpy as np
 from euc_ros.core.identify.budget import DEFAULT_TOLERANCES, LOWER_LIMBS, absolute_tolerance
 from euc_ros.core.identify.interval import MAX_RIDE_ACCEL_RMS_MPS2, MIN_SHARPNESS
 from euc_ros.core.mocap.blocks import pose_block
-from euc_ros.core.rotations import rotation_matrices
 from euc_ros.core.states.contexts import hinge_path
+from euc_ros.core.states.geometry import frame_geometry
 
 #: Normal quantile of the held h's 95 % interval.
 Z95 = 1.959964
@@ -83,7 +84,8 @@ def geometric_mass_sensitivity(series_list: Sequence, session) -> float:
     (:data:`~euc_ros.core.identify.budget.LOWER_LIMBS`) to the upper body, each side's fractions scaled alike,
     moves the rider CoG by ``d (G_upper - G_legs)`` (each side's fraction-weighted CoM); to first order the
     geometric h moves by that along ``(G - A) / |G - A|``. The median over evenly spaced frames with every
-    weighted segment and the EUC (at most :data:`SENSITIVITY_FRAMES` per recording).
+    weighted segment and the EUC (at most :data:`SENSITIVITY_FRAMES` per recording); G, A and each side's CoM
+    come from :func:`~euc_ros.core.states.geometry.frame_geometry`, the reconstruction's own geometry.
 
     Parameters
     ----------
@@ -97,46 +99,35 @@ def geometric_mass_sensitivity(series_list: Sequence, session) -> float:
     float
         NaN when a recording is None, one side has no mass or no frame has every needed body.
     """
-    names, fractions, offsets = session.segment_arrays()
-    weighted = [(n, f, o) for n, f, o in zip(names, fractions, offsets) if f > 0]
-    legs = [w for w in weighted if w[0] in LOWER_LIMBS]
-    upper = [w for w in weighted if w[0] not in LOWER_LIMBS]
+    segs = session.rider.segments
+    legs = {n for n, g in segs.items() if g.mass_fraction > 0 and n in LOWER_LIMBS}
+    upper = {n for n, g in segs.items() if g.mass_fraction > 0 and n not in LOWER_LIMBS}
     if not legs or not upper or any(series is None for series in series_list):
         return float("nan")
+
+    def only(names):         # the session with the other segments weightless: that side's CoM as G
+        moved = {n: g if n in names else dataclasses.replace(g, mass_fraction=0.0) for n, g in segs.items()}
+        return dataclasses.replace(session, rider=dataclasses.replace(session.rider, segments=moved))
+
+    sides = (only(legs), only(upper))
     vals = []
     for series in series_list:
-        bodies = list(series.bodies)
-        needed = [n for n, _, _ in weighted] + [session.euc.body]
-        if any(b not in bodies for b in needed):
-            continue
-        n = int(series.n_frames)
-        step = max(1, n // SENSITIVITY_FRAMES)
-        pos, quat, trk = pose_block(series, 0, n)
-        pos, quat, trk = pos[:, ::step], quat[:, ::step], trk[:, ::step]
-        idx = [bodies.index(b) for b in needed]
-        ok = np.ones(pos.shape[1], bool)
-        for i in idx:
-            ok &= trk[i] & np.isfinite(pos[i]).all(-1) & np.isfinite(quat[i]).all(-1)
-        if not ok.any():
-            continue
-        c_legs, c_upper = (_side_com(group, bodies, pos[:, ok], quat[:, ok]) for group in (legs, upper))
-        w_l, w_u = sum(f for _, f, _ in legs), sum(f for _, f, _ in upper)
-        G = (w_l * c_legs + w_u * c_upper) / (w_l + w_u)
-        e = bodies.index(session.euc.body)
-        R_E = rotation_matrices(quat[e, ok])
-        A = pos[e, ok] + R_E @ np.asarray(session.euc.pivot_to_wheel_center, float) - session.euc.l0 * R_E[:, :, 2]
-        d = G - A
-        vals.append(np.einsum("ij,ij->i", d / np.linalg.norm(d, axis=1, keepdims=True), c_upper - c_legs))
+        step = max(1, int(series.n_frames) // SENSITIVITY_FRAMES)
+        pos, quat, trk = (a[:, ::step] for a in pose_block(series, 0, int(series.n_frames)))
+        geo = frame_geometry(pos, quat, trk, session, series.bodies)
+        g_legs, g_upper = (frame_geometry(pos, quat, trk, side, series.bodies)["G"] for side in sides)
+        d = geo["G"] - geo["A"]
+        vals.append(np.einsum("ij,ij->i", d / np.linalg.norm(d, axis=1, keepdims=True), g_upper - g_legs))
     v = np.concatenate(vals) if vals else np.zeros(0)
-    v = v[np.isfinite(v)]
+    v = v[np.isfinite(v)]                # frames without every weighted segment or the EUC are NaN
     return float(np.median(v)) if v.size else float("nan")
 
 
-def _side_com(group, bodies: list, pos: np.ndarray, quat: np.ndarray) -> np.ndarray:
-    """The fraction-weighted CoM (m, 3) of ``group``'s segments ``(name, fraction, offset)``."""
-    w = np.array([f for _, f, _ in group])
-    coms = [pos[bodies.index(b)] + rotation_matrices(quat[bodies.index(b)]) @ np.asarray(o, float) for b, _, o in group]
-    return np.tensordot(w / w.sum(), np.stack(coms), axes=1)
+def _mass_term_m(tol: dict, mass_sensitivity: float | None) -> float:
+    """The mass fractions' tolerance as a move of the geometric h [m] (NaN when the sensitivity is not known)."""
+    if mass_sensitivity is None or not math.isfinite(mass_sensitivity):
+        return float("nan")
+    return abs(mass_sensitivity) * absolute_tolerance(tol["rider.segments.mass_fraction"], 0.0)
 
 
 def geometric_h_uncertainty(tolerances: dict | None, *, l0: float, mass_sensitivity: float | None = None) -> float:
@@ -174,9 +165,8 @@ def geometric_h_uncertainty(tolerances: dict | None, *, l0: float, mass_sensitiv
     tol.update(tolerances or {})
     a_offset = absolute_tolerance(tol["rider.segments.com_offset"], 0.0)
     a_l0 = absolute_tolerance(tol["euc.l0"], l0)
-    a_mass = 0.0
-    if mass_sensitivity is not None and math.isfinite(mass_sensitivity):
-        a_mass = abs(mass_sensitivity) * absolute_tolerance(tol["rider.segments.mass_fraction"], 0.0)
+    a_mass = _mass_term_m(tol, mass_sensitivity)
+    a_mass = a_mass if math.isfinite(a_mass) else 0.0
     return float(math.sqrt(a_offset ** 2 + a_l0 ** 2 + a_mass ** 2) / math.sqrt(3.0))
 
 
@@ -304,8 +294,7 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
     used = {k: absolute_tolerance(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS}
-    used["rider.segments.mass_fraction"] *= abs(mass_sensitivity) if mass_sensitivity is not None \
-        and math.isfinite(mass_sensitivity) else float("nan")
+    used["rider.segments.mass_fraction"] = _mass_term_m(tol, mass_sensitivity)
     lo, hi = (float("nan") if v is None else float(v) for v in ci95)
     ends = ", ".join("unbounded" if not math.isfinite(v) else f"{v:.3f}" for v in (lo, hi))
     why = (f"the RMSE curve rises only {100 * sharpness:.0f} % at h +- 0.1 m (at least {100 * MIN_SHARPNESS:.0f} % "

@@ -43,11 +43,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from euc_ros.core.identify.held import geometric_h, geometric_h_uncertainty
+from euc_ros.core.identify.held import Z95, geometric_h, geometric_h_uncertainty
+from euc_ros.core.identify.interval import json_float
 from euc_ros.core.identify.options import H_BOUNDS
 
-#: Normal quantile of a 95 % interval.
-Z95 = 1.959964
 #: Normal quantile of a 97.5 % interval (two intervals that must both hold the truth: Bonferroni).
 Z975 = 2.241403
 #: Grid step of the posterior [m] (a tenth of a millimetre: the quantiles to well below the intervals' 1 mm).
@@ -108,7 +107,7 @@ class Combined:
         return (self.ci95_m[1] - self.ci95_m[0]) / (2 * Z95)
 
     def to_json(self) -> dict:
-        """The JSON's ``h_combined``: both measurements, the check and the combination.
+        """The JSON's ``diagnostics.h_combined``: both measurements, the check and the combination.
 
         Returns
         -------
@@ -116,9 +115,7 @@ class Combined:
             ``h_m``, ``ci95_m``, ``h_from_data_m``, ``h_from_data_ci95_m``, ``h_geometric_m``, ``u_geometric_m``,
             ``z``, ``consistent``, ``weight_data`` and ``method`` (non-finite numbers None).
         """
-        def f(v):
-            return float(v) if v is not None and math.isfinite(float(v)) else None
-
+        f = json_float
         return {"h_m": f(self.h_m), "ci95_m": [f(v) for v in self.ci95_m], "h_from_data_m": f(self.h_data_m),
                 "h_from_data_ci95_m": [f(v) for v in self.h_data_ci95_m], "h_geometric_m": f(self.h_geometric_m),
                 "u_geometric_m": f(self.u_geometric_m), "z": f(self.z), "consistent": bool(self.consistent),
@@ -215,9 +212,7 @@ def combine(h_data: float, ci_data, h_geo: float, u_geo: float,
         d_lo95 = h_data - Z95 * s_lo if math.isfinite(s_lo) else lo_b
         d_hi95 = h_data + Z95 * s_hi if math.isfinite(s_hi) else hi_b
         ci = (max(lo_b, min(d_lo95, h_geo - Z95 * u_geo)), min(hi_b, max(d_hi95, h_geo + Z95 * u_geo)))
-    data_ci = tuple(float(v) if math.isfinite(s) else float("nan")
-                    for v, s in ((lo_end if lo_end is not None else math.nan, s_lo),
-                                 (hi_end if hi_end is not None else math.nan, s_hi)))
+    data_ci = (float(lo_end) if math.isfinite(s_lo) else math.nan, float(hi_end) if math.isfinite(s_hi) else math.nan)
     return Combined(h, ci, float(h_data), data_ci, float(h_geo), float(u_geo), float(z), bool(consistent),
                     float(weight))
 
