@@ -91,6 +91,12 @@ def headline_text(data: dict, json_path: str | None = None, session: str | None 
     h = data.get("h_after_m", data["h_m"])
     ci = data.get("h_after_ci95_m") or data.get("h_ci95_m")
     held = " (held at the segments' geometric h: the data do not bound it)" if data.get("h_held") else ""
+    comb = (data.get("diagnostics") or {}).get("h_after_combined")
+    if comb and not held:           # the final model's h from the data with the segments' geometric h
+        alone = ("" if data.get("h_after_identifiable") else
+                 f"; the data alone do not identify it: {data.get('h_after_identifiability_reason')}")
+        held = (f" (the final model's h from the data, {comb['h_from_data_m']:.3f} m, with the segments' geometric h "
+                f"{comb['h_geometric_m']:.3f} m; the data carry {100 * (comb['weight_data'] or 0.0):.0f} %{alone})")
     if not held and not data.get("h_after_identifiable", data.get("identifiable")):
         why = data.get("h_after_identifiability_reason", data.get("identifiability_reason"))
         return (f"h of the final model ({name}) is NOT identifiable from these recordings: {why} (best fit "

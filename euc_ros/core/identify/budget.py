@@ -39,9 +39,10 @@ from euc_ros.core.states.settings import FIXED_DEFAULT, ReconstructionSettings
 #: Default tolerances of the session's nominal values (half-widths; user-overridable). The segment values are
 #: of the order of the differences between anthropometric tables and of their subjects' scatter
 #: (de Leva 1996; Dumas, Cheze & Verriest 2007; Durkin & Dowling 2003): a segment CoM located to about 2-3 %
-#: of its length (1 cm on a 0.4 m thigh), and the share of the body mass in the legs to about 2 % of the
-#: body mass. Masses: a scale's tolerance with clothes and helmet; inertias: 10 % (a table or a pendulum
-#: test); the EUC's lengths: a tape measure's millimetres.
+#: of its length (1 cm on a 0.4 m thigh), the share of the body mass in the legs to about 2 % of the
+#: body mass, and each segment's fraction to about 10 % of itself (the tables differ by that per segment; as a
+#: rectangular half-width 0.17, relative). Masses: a scale's tolerance with clothes and helmet; inertias: 10 %
+#: (a table or a pendulum test); the EUC's lengths: a tape measure's millimetres.
 DEFAULT_TOLERANCES = {
     "rider.mass": 1.0,                 # kg
     "rider.inertia_pitch": "10%",
@@ -54,6 +55,7 @@ DEFAULT_TOLERANCES = {
     "euc.l0": 0.005,                   # m
     "rider.segments.com_offset": 0.01,  # m, every segment's CoM offset along its body z axis
     "rider.segments.mass_fraction": 0.02,  # share of the body mass moved between the legs and the upper body
+    "rider.segments.mass_fraction_each": 0.17,  # each segment's fraction, relative (rectangular: u = 10 %)
 }
 
 #: The lower limbs (thighs, shanks and feet) of the recording contract's rigid bodies; the rest with mass is
@@ -105,8 +107,9 @@ def parse_tolerances(items: Sequence[str] | None) -> dict:
             raise ConfigError(f"{key}: {v!r} is not a number (give e.g. {key}=0.01 or {key}=5%)",
                               key="--tolerance") from None
         if key.startswith("rider.segments.") and v.endswith("%"):
-            unit = "m" if "offset" in key else "share of the body mass"
-            raise ConfigError(f"{key}: give an absolute tolerance ({unit}), not {v}", key="--tolerance")
+            unit = ("m" if "offset" in key else "relative to each fraction, e.g. 0.17" if key.endswith("_each")
+                    else "share of the body mass")
+            raise ConfigError(f"{key}: give the tolerance as a number ({unit}), not {v}", key="--tolerance")
         if not num >= 0:
             raise ConfigError(f"{key}: a tolerance must be >= 0, got {v}", key="--tolerance")
         tol[key] = f"{num:g}%" if v.endswith("%") else num

@@ -46,7 +46,8 @@ from euc_ros.core.states.geometry import frame_geometry
 #: Normal quantile of the held h's 95 % interval.
 Z95 = 1.959964
 #: The tolerances (identify's budget keys) the geometric h rests on.
-GEOMETRIC_TOLERANCE_KEYS = ("rider.segments.com_offset", "euc.l0", "rider.segments.mass_fraction")
+GEOMETRIC_TOLERANCE_KEYS = ("rider.segments.com_offset", "euc.l0", "rider.segments.mass_fraction",
+                            "rider.segments.mass_fraction_each")
 #: Most frames per recording the mass-fraction sensitivity is taken over (evenly spaced).
 SENSITIVITY_FRAMES = 2000
 #: What the held value is, for the JSON and the console.
@@ -76,61 +77,113 @@ def geometric_h(states: Sequence, params) -> float:
     return float(np.median(v)) if v.size else float("nan")
 
 
-def geometric_mass_sensitivity(series_list: Sequence, session) -> float:
-    """dh_g / d(share of the body mass moved from the legs to the upper body) [m per unit of body mass].
+@dataclass(frozen=True)
+class MassSensitivity:
+    """How the geometric h moves with the session's mass fractions.
+
+    Parameters
+    ----------
+    share : float
+        dh_g / d(share of the body mass moved from the legs to the upper body) [m per unit of body mass]
+        (NaN: not known).
+    levers : dict
+        dh_g / d(relative change of one segment's fraction, the others rescaled to the same sum) by segment
+        name [m per unit relative change]: ``f_i (c_i - G) . e``.
+    """
+
+    share: float
+    levers: dict
+
+    @property
+    def known(self) -> bool:
+        """Whether the sensitivities were measured."""
+        return math.isfinite(self.share) or bool(self.levers)
+
+
+def geometric_mass_sensitivity(series_list: Sequence, session) -> MassSensitivity:
+    """How the geometric h moves with the mass fractions: a share moved legs -> upper body, and each segment's.
 
     The session's mass fractions come from anthropometric tables, which differ by about 10 % per segment
-    (de Leva 1996 against Dempster's and Zatsiorsky's data). Moving a share ``d`` of the body mass from the legs
-    (:data:`~euc_ros.core.identify.budget.LOWER_LIMBS`) to the upper body, each side's fractions scaled alike,
-    moves the rider CoG by ``d (G_upper - G_legs)`` (each side's fraction-weighted CoM); to first order the
-    geometric h moves by that along ``(G - A) / |G - A|``. The median over evenly spaced frames with every
-    weighted segment and the EUC (at most :data:`SENSITIVITY_FRAMES` per recording); G, A and each side's CoM
-    come from :func:`~euc_ros.core.states.geometry.frame_geometry`, the reconstruction's own geometry.
+    (de Leva 1996 against Dempster's and Zatsiorsky's data). Two ways they can be off:
+
+    * a share ``d`` of the body mass moved from the legs (:data:`~euc_ros.core.identify.budget.LOWER_LIMBS`) to
+      the upper body, each side's fractions scaled alike, moves the rider CoG by ``d (G_upper - G_legs)`` (each
+      side's fraction-weighted CoM);
+    * one segment's fraction ``f_i`` scaled by ``1 + e``, all rescaled to their former sum, moves G by
+      ``e f_i (c_i - G)`` to first order (``c_i`` the segment's CoM): its lever.
+
+    To first order the geometric h moves by these along ``(G - A) / |G - A|``. Each is the median over evenly
+    spaced frames with every weighted segment and the EUC (at most :data:`SENSITIVITY_FRAMES` per recording); G,
+    A and the CoMs come from :func:`~euc_ros.core.states.geometry.frame_geometry`, the reconstruction's own
+    geometry.
 
     Parameters
     ----------
     series_list : sequence of MocapSeries or None
-        The recordings (a None: not kept, the sensitivity is not known).
+        The recordings (a None: not kept, the sensitivities are not known).
     session : Session
         Mass fractions, CoM offsets, the EUC body and ``l0``.
 
     Returns
     -------
-    float
-        NaN when a recording is None, one side has no mass or no frame has every needed body.
+    MassSensitivity
+        ``share`` NaN when one side has no mass; nothing known when a recording is None or no frame has every
+        needed body.
     """
     segs = session.rider.segments
-    legs = {n for n, g in segs.items() if g.mass_fraction > 0 and n in LOWER_LIMBS}
-    upper = {n for n, g in segs.items() if g.mass_fraction > 0 and n not in LOWER_LIMBS}
-    if not legs or not upper or any(series is None for series in series_list):
-        return float("nan")
+    weighted = [n for n, g in segs.items() if g.mass_fraction > 0]
+    legs = {n for n in weighted if n in LOWER_LIMBS}
+    upper = set(weighted) - legs
+    if not weighted or any(series is None for series in series_list):
+        return MassSensitivity(float("nan"), {})
 
-    def only(names):         # the session with the other segments weightless: that side's CoM as G
+    def only(names):         # the session with the other segments weightless: their CoM as G
         moved = {n: g if n in names else dataclasses.replace(g, mass_fraction=0.0) for n, g in segs.items()}
         return dataclasses.replace(session, rider=dataclasses.replace(session.rider, segments=moved))
 
-    sides = (only(legs), only(upper))
-    vals = []
+    sides = (only(legs), only(upper)) if legs and upper else ()
+    alone = {n: only({n}) for n in weighted}
+    share, levers = [], {n: [] for n in weighted}
     for series in series_list:
         step = max(1, int(series.n_frames) // SENSITIVITY_FRAMES)
         pos, quat, trk = (a[:, ::step] for a in pose_block(series, 0, int(series.n_frames)))
         geo = frame_geometry(pos, quat, trk, session, series.bodies)
-        g_legs, g_upper = (frame_geometry(pos, quat, trk, side, series.bodies)["G"] for side in sides)
         d = geo["G"] - geo["A"]
-        vals.append(np.einsum("ij,ij->i", d / np.linalg.norm(d, axis=1, keepdims=True), g_upper - g_legs))
-    v = np.concatenate(vals) if vals else np.zeros(0)
-    v = v[np.isfinite(v)]                # frames without every weighted segment or the EUC are NaN
-    return float(np.median(v)) if v.size else float("nan")
+        e = d / np.linalg.norm(d, axis=1, keepdims=True)
+        if sides:
+            g_legs, g_upper = (frame_geometry(pos, quat, trk, side, series.bodies)["G"] for side in sides)
+            share.append(np.einsum("ij,ij->i", e, g_upper - g_legs))
+        for n, one in alone.items():
+            c = frame_geometry(pos, quat, trk, one, series.bodies)["G"]
+            levers[n].append(segs[n].mass_fraction * np.einsum("ij,ij->i", e, c - geo["G"]))
+
+    def median(parts):       # frames without every weighted segment or the EUC are NaN
+        v = np.concatenate(parts) if parts else np.zeros(0)
+        v = v[np.isfinite(v)]
+        return float(np.median(v)) if v.size else float("nan")
+
+    lv = {n: median(p) for n, p in levers.items()}
+    return MassSensitivity(median(share), {n: v for n, v in lv.items() if math.isfinite(v)})
 
 
-def _mass_term_m(tol: dict, mass_sensitivity: float | None) -> float:
-    """The mass fractions' tolerance as a move of the geometric h [m] (NaN when the sensitivity is not known)."""
-    if mass_sensitivity is None or not math.isfinite(mass_sensitivity):
+def _mass_term_m(tol: dict, mass_sensitivity: MassSensitivity | None) -> float:
+    """The mass fractions' tolerance as a move of the geometric h [m] (NaN when the sensitivities are not known).
+
+    ``sqrt(sum_i (lever_i a_each)^2)``: every segment's own relative error, independent. The legs' share of the
+    body mass then scatters by what its segments' errors give it (a standard deviation of about 0.015 of the body
+    mass at 10 % per segment, the order of the budget's 0.02), the one error of the tables counted once;
+    without the levers, the share moved legs -> upper body (``s a_share``) stands for it.
+    """
+    if mass_sensitivity is None or not mass_sensitivity.known:
         return float("nan")
-    return abs(mass_sensitivity) * absolute_tolerance(tol["rider.segments.mass_fraction"], 0.0)
+    if mass_sensitivity.levers:
+        each = np.asarray(list(mass_sensitivity.levers.values()), float)
+        return float(absolute_tolerance(tol["rider.segments.mass_fraction_each"], 0.0) * math.sqrt(np.sum(each ** 2)))
+    return abs(mass_sensitivity.share) * absolute_tolerance(tol["rider.segments.mass_fraction"], 0.0)
 
 
-def geometric_h_uncertainty(tolerances: dict | None, *, l0: float, mass_sensitivity: float | None = None) -> float:
+def geometric_h_uncertainty(tolerances: dict | None, *, l0: float,
+                            mass_sensitivity: MassSensitivity | None = None) -> float:
     """Standard uncertainty of the geometric h from the tolerances of the values it rests on [m] (Type B).
 
     Parameters
@@ -140,9 +193,10 @@ def geometric_h_uncertainty(tolerances: dict | None, *, l0: float, mass_sensitiv
         user's ``--tolerance``); the keys of :data:`GEOMETRIC_TOLERANCE_KEYS` are used.
     l0 : float
         The session's l0 [m] (a tolerance given in per cent is of it).
-    mass_sensitivity : float, optional
-        :func:`geometric_mass_sensitivity` [m per unit of body mass]; with it the mass fractions' tolerance
-        (``rider.segments.mass_fraction``) adds its term (None or NaN: not known, left out).
+    mass_sensitivity : MassSensitivity, optional
+        :func:`geometric_mass_sensitivity`; with it the mass fractions' tolerances
+        (``rider.segments.mass_fraction`` and ``rider.segments.mass_fraction_each``) add their term (None or
+        nothing known: left out).
 
     Returns
     -------
@@ -156,10 +210,11 @@ def geometric_h_uncertainty(tolerances: dict | None, *, l0: float, mass_sensitiv
     at most ``|d|``; changing l0 by ``e`` moves A by ``e |z_E| = |e|``. By the triangle inequality each
     sample's ``|G - A|`` moves by at most ``|d| + |e|``, and so does the median. For a rider standing on the
     pedals the bodies' z axes and z_E lie close to G - A, so the bound is nearly reached: both sensitivities
-    are taken as 1. A share ``a_f`` of the body mass moved between the legs and the upper body moves it by
-    ``s a_f`` (``s`` the measured :func:`geometric_mass_sensitivity`). Each tolerance ``+-a`` is read as a
+    are taken as 1. Each segment's fraction off by a relative ``a_e`` moves it by ``lever_i a_e`` (the levers
+    measured by :func:`geometric_mass_sensitivity`; without them, a share ``a_f`` of the body mass moved between
+    the legs and the upper body, ``s a_f``, stands for the mass fractions). Each tolerance ``+-a`` is read as a
     rectangular distribution (GUM 4.3.7: standard uncertainty ``a / sqrt(3)``), and they are independent:
-    ``u = sqrt(a_offset^2 + a_l0^2 + (s a_f)^2) / sqrt(3)``.
+    ``u = sqrt(a_offset^2 + a_l0^2 + sum_i (lever_i a_e)^2) / sqrt(3)``.
     """
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
@@ -258,7 +313,7 @@ class HeldH:
 
 def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | None = None,
            sharpness: float = float("nan"), accel_needed_mps2: float | None = None,
-           mass_sensitivity: float | None = None) -> HeldH | None:
+           mass_sensitivity: MassSensitivity | None = None) -> HeldH | None:
     """The held h when the data do not bound h (:func:`data_bound_h`), else None.
 
     Parameters
@@ -277,7 +332,7 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
         The pooled 3-DoF RMSE curve's relative rise at h* +- 0.1 m (NaN: not judged).
     accel_needed_mps2 : float, optional
         The RMS acceleration the sharpness criterion needs (:func:`data_bound_h`; None: not judged).
-    mass_sensitivity : float, optional
+    mass_sensitivity : MassSensitivity, optional
         :func:`geometric_mass_sensitivity` (None: the mass fractions' term left out).
 
     Returns
@@ -293,8 +348,8 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
         return None
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
-    used = {k: absolute_tolerance(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS}
-    used["rider.segments.mass_fraction"] = _mass_term_m(tol, mass_sensitivity)
+    used = {k: absolute_tolerance(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS[:2]}
+    used["rider.segments.mass_fraction"] = _mass_term_m(tol, mass_sensitivity)   # both mass keys, as a move of h
     lo, hi = (float("nan") if v is None else float(v) for v in ci95)
     ends = ", ".join("unbounded" if not math.isfinite(v) else f"{v:.3f}" for v in (lo, hi))
     why = (f"the RMSE curve rises only {100 * sharpness:.0f} % at h +- 0.1 m (at least {100 * MIN_SHARPNESS:.0f} % "

@@ -3,21 +3,22 @@
 ``identify`` measures h twice. The dynamics give it through the torque balance, with an interval from the
 data (pose noise, soft-tissue sliding, the filter) and from the session's values the dynamics use. The
 rider's segments give it without any dynamics: the median distance of the rider CoG G from the ankle hinge
-(:func:`~.held.geometric_h`), uncertain by the session's tolerances of the CoM offsets and l0 (Type B,
-:func:`~.held.geometric_h_uncertainty`). The headline h combines them as a posterior: the geometric h as a
-normal prior, the dynamics' interval as a split-normal likelihood (each side's standard deviation its
+(:func:`~.held.geometric_h`), uncertain by the session's tolerances of the CoM offsets, l0 and the mass
+fractions (Type B, :func:`~.held.geometric_h_uncertainty`). The headline h combines them as a posterior: the
+geometric h as a normal prior, the dynamics' interval as a split-normal likelihood (each side's standard deviation its
 half-width over 1.96; a side the data do not bound is flat), on a grid over the search range; h is the
-posterior median. Its interval is the intersection of both intervals, each taken at 97.5 % so that the truth
-lies in both with at least 95 % (Bonferroni), whatever their shapes: the dynamics' interval stacks bounds
-(the filter's distortion, the sliding) that are no normal spread, and a product of normals would narrow it
-below what those bounds allow.
+posterior median. Its interval is the intersection of both intervals, each taken at a level such that their
+misses sum to 5 % (Bonferroni: the truth lies in both with at least 95 %, whatever their shapes), the 5 % shared
+in proportion to their precisions (:func:`split_levels`; 97.5 % each for equal widths): the dynamics' interval
+stacks bounds (the filter's distortion, the sliding) that are no normal spread, and a product of normals would
+narrow it below what those bounds allow.
 
 Why both. A few millimetres of soft-tissue sliding that follows the rider's lean cannot be told from h by
 the dynamics (h's variance grows 4-14 times when such a mode is freed), so the dynamics' interval is wide;
 the same sliding moves the segments' CoG by a few millimetres, so the geometric h hardly moves. On such a
 ride the combination is the geometric h, checked by the data; on a clean ride the data sharpen it.
 
-The check. The two disagree when their 97.5 % intervals do not meet (the JSON also gives
+The check. The two disagree when those intervals do not meet (the JSON also gives
 ``z = (h_d - h_g) / sqrt(s^2 + u_g^2)``, ``s`` the data's side facing ``h_g``): a session whose offsets are off
 by more than their tolerance, or an effect the model lacks pulling the dynamics' h (``euc-ros residual`` looks
 for it). Then the interval is the hull of both 95 % intervals and a warning says why.
@@ -27,8 +28,8 @@ Examples
 >>> c = combine(0.60, (0.58, 0.62), 0.61, 0.005)
 >>> round(c.h_m, 3), c.consistent
 (0.608, True)
->>> [round(v, 4) for v in c.ci95_m]                   # the geometric h's 97.5 % interval, inside the data's
-[0.5988, 0.6212]
+>>> [round(v, 4) for v in c.ci95_m]                   # the geometric h's interval, inside the data's
+[0.5997, 0.6203]
 >>> c = combine(0.60, (0.58, 0.62), 0.70, 0.005)       # they disagree: the hull of both intervals
 >>> c.consistent, [round(v, 3) for v in c.ci95_m]
 (False, [0.58, 0.71])
@@ -40,6 +41,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from statistics import NormalDist
 
 import numpy as np
 
@@ -49,6 +51,10 @@ from euc_ros.core.identify.options import H_BOUNDS
 
 #: Normal quantile of a 97.5 % interval (two intervals that must both hold the truth: Bonferroni).
 Z975 = 2.241403
+#: What the combined interval may miss (a 95 % interval).
+MISS = 0.05
+#: Least and largest share of :data:`MISS` either interval gets (neither is ever dropped).
+SHARE_RANGE = (0.05, 0.95)
 #: Grid step of the posterior [m] (a tenth of a millimetre: the quantiles to well below the intervals' 1 mm).
 GRID_STEP_M = 1e-4
 
@@ -72,7 +78,8 @@ class Combined:
     h_m : float
         The headline h [m]: the posterior median.
     ci95_m : tuple of float
-        Its 95 % interval [m]: both intervals at 97.5 % intersected; the hull of both 95 % intervals when they
+        Its 95 % interval [m]: both intervals intersected at levels whose misses sum to 5 %; the hull of both
+        95 % intervals when they
         disagree.
     h_data_m : float
         The dynamics' h [m].
@@ -85,7 +92,7 @@ class Combined:
     z : float
         The disagreement in combined standard deviations (0 where the data do not bound the side).
     consistent : bool
-        Whether the two 97.5 % intervals meet.
+        Whether the two intervals (at their levels) meet.
     weight_data : float
         The data's share of the posterior's precision (0: the geometric h alone; 1: the data alone), from the
         side of the data facing the posterior median.
@@ -121,8 +128,10 @@ class Combined:
                 "u_geometric_m": f(self.u_geometric_m), "z": f(self.z), "consistent": bool(self.consistent),
                 "weight_data": f(self.weight_data),
                 "method": "h: posterior median of the geometric h (normal prior, the session's Type B uncertainty) "
-                          "and the data's interval (split-normal likelihood); interval: both at 97.5 % "
-                          "intersected (Bonferroni), the hull of both 95 % intervals when they disagree"}
+                          "and the data's interval (split-normal likelihood); interval: both intersected at levels "
+                          "whose "
+                          "misses sum to 5 %, shared by precision (Bonferroni), the hull of both 95 % intervals "
+                          "when they disagree"}
 
     def console_line(self) -> str:
         """One line: the combined h, where it comes from, and whether the two agree.
@@ -152,6 +161,41 @@ class Combined:
                 f"disagree ({abs(self.z):.1f} combined standard deviations): the session's CoM offsets or l0 may be "
                 "off by more than their tolerance, or an effect the model lacks pulls the data's h (euc-ros "
                 "residual looks for it); the interval spans both")
+
+
+def split_levels(s_data: float, u_geo: float) -> tuple[float, float]:
+    """The normal quantiles of the data's and the geometric interval whose misses sum to 5 % (Bonferroni).
+
+    The 5 % is shared in proportion to the two precisions (``1 / s^2``), so that the narrower interval, the one
+    that sets the intersection, gets the larger share; each share is kept within :data:`SHARE_RANGE` of the 5 %,
+    so neither interval is ever dropped. The split depends on the two widths only, never on where the two
+    measurements lie, so the intersection holds the truth with at least 95 % whatever the widths are. Two
+    equally precise measurements get 2.5 % each (97.5 % intervals, :data:`Z975`).
+
+    Parameters
+    ----------
+    s_data : float
+        The data's standard deviation [m] (infinite: the data bound neither side).
+    u_geo : float
+        The geometric h's standard uncertainty [m].
+
+    Returns
+    -------
+    tuple of float
+        ``(z_data, z_geometric)``.
+
+    Examples
+    --------
+    >>> [round(v, 4) for v in split_levels(0.01, 0.01)]
+    [2.2414, 2.2414]
+    >>> [round(v, 3) for v in split_levels(0.03, 0.01)]      # the geometric h is 9 times as precise
+    [2.807, 2.005]
+    """
+    p_d = 0.0 if not math.isfinite(s_data) else 1.0 / s_data ** 2
+    p_g = 1.0 / u_geo ** 2
+    share_d = min(max(p_d / (p_d + p_g), SHARE_RANGE[0]), SHARE_RANGE[1])
+    ppf = NormalDist().inv_cdf
+    return ppf(1.0 - MISS * share_d / 2.0), ppf(1.0 - MISS * (1.0 - share_d) / 2.0)
 
 
 def combine(h_data: float, ci_data, h_geo: float, u_geo: float,
@@ -200,10 +244,12 @@ def combine(h_data: float, ci_data, h_geo: float, u_geo: float,
     z = 0.0 if not math.isfinite(s_toward) else (h_data - h_geo) / math.hypot(s_toward, u_geo)
     s_at = s_lo if h < h_data else s_hi
     weight = 0.0 if not math.isfinite(s_at) else (1 / s_at ** 2) / (1 / s_at ** 2 + 1 / u_geo ** 2)
-    # each interval at 97.5 % (Bonferroni): the truth is in both with at least 95 %
-    d_lo = h_data - Z975 * s_lo if math.isfinite(s_lo) else lo_b
-    d_hi = h_data + Z975 * s_hi if math.isfinite(s_hi) else hi_b
-    lo, hi = max(d_lo, h_geo - Z975 * u_geo, lo_b), min(d_hi, h_geo + Z975 * u_geo, hi_b)
+    # each interval at its own level, the two misses summing to 5 % (Bonferroni): the truth is in both with at
+    # least 95 %
+    z_d, z_g = split_levels(max((v for v in (s_lo, s_hi) if math.isfinite(v)), default=math.inf), u_geo)
+    d_lo = h_data - z_d * s_lo if math.isfinite(s_lo) else lo_b
+    d_hi = h_data + z_d * s_hi if math.isfinite(s_hi) else hi_b
+    lo, hi = max(d_lo, h_geo - z_g * u_geo, lo_b), min(d_hi, h_geo + z_g * u_geo, hi_b)
     consistent = lo <= hi
     if consistent:
         h = min(max(h, lo), hi)
@@ -218,7 +264,7 @@ def combine(h_data: float, ci_data, h_geo: float, u_geo: float,
 
 
 def with_geometric(states, params, h_data: float, ci_data, *, tolerances: dict | None = None,
-                   mass_sensitivity: float | None = None, bounds: tuple[float, float] = H_BOUNDS,
+                   mass_sensitivity=None, bounds: tuple[float, float] = H_BOUNDS,
                    admissible=None) -> Combined | None:
     """:func:`combine` the data's h with the recordings' geometric h and its Type B uncertainty.
 
@@ -234,8 +280,8 @@ def with_geometric(states, params, h_data: float, ci_data, *, tolerances: dict |
         Its 95 % interval [m].
     tolerances : dict, optional
         identify's budget tolerances (:func:`~.held.geometric_h_uncertainty`).
-    mass_sensitivity : float, optional
-        :func:`~.held.geometric_mass_sensitivity` (None: the mass fractions' term left out).
+    mass_sensitivity : MassSensitivity, optional
+        :func:`~.held.geometric_mass_sensitivity` (None: the mass fractions' terms left out).
     bounds : tuple of float
         The search range [m].
     admissible : pair of float, optional
@@ -247,10 +293,63 @@ def with_geometric(states, params, h_data: float, ci_data, *, tolerances: dict |
     Combined or None
         None when the geometric h or the data's h is not finite, or the two ranges do not meet.
     """
-    if admissible is not None:
-        bounds = (max(float(admissible[0]), bounds[0]), min(float(admissible[1]), bounds[1]))
+    bounds = admissible_bounds(bounds, admissible)
     h_g = geometric_h(states, params)
     if not (math.isfinite(h_g) and math.isfinite(h_data)) or not bounds[0] < bounds[1]:
         return None
     u_g = geometric_h_uncertainty(tolerances, l0=params.l0, mass_sensitivity=mass_sensitivity)
     return combine(h_data, ci_data, h_g, u_g, bounds=bounds)
+
+
+def admissible_bounds(bounds: tuple[float, float] = H_BOUNDS, admissible=None) -> tuple[float, float]:
+    """The search range cut at the admissible range of h (identify's ``uncertainty.h_admissible_m``) [m].
+
+    Parameters
+    ----------
+    bounds : tuple of float
+        The search range [m].
+    admissible : pair of float, optional
+        The range the rider's recorded joints allow [m].
+
+    Returns
+    -------
+    tuple of float
+    """
+    if admissible is None:
+        return float(bounds[0]), float(bounds[1])
+    return max(float(admissible[0]), float(bounds[0])), min(float(admissible[1]), float(bounds[1]))
+
+
+def recombine(geometric: Combined, h_data: float, ci_data, *,
+              bounds: tuple[float, float] = H_BOUNDS) -> Combined | None:
+    """Another model's h from the data, combined with the geometric h of an earlier combination.
+
+    The residual's final model (the base model with the selected and discovered effects) gives its own h and
+    interval from the data; the rider's geometric h and its Type B uncertainty are the ones identify's
+    combination used (:func:`with_geometric`).
+
+    Parameters
+    ----------
+    geometric : Combined
+        The combination whose geometric h and uncertainty are used.
+    h_data : float
+        The other model's h from the data [m].
+    ci_data : pair of float or None
+        Its 95 % interval [m].
+    bounds : tuple of float
+        The search range, cut at the admissible range (:func:`admissible_bounds`) [m].
+
+    Returns
+    -------
+    Combined or None
+        None when ``h_data`` is not finite or the range is empty.
+
+    Examples
+    --------
+    >>> first = combine(0.60, (0.58, 0.62), 0.61, 0.005)
+    >>> round(recombine(first, 0.63, (0.60, 0.66)).h_m, 3)
+    0.612
+    """
+    if h_data is None or not math.isfinite(float(h_data)) or not bounds[0] < bounds[1]:
+        return None
+    return combine(float(h_data), ci_data, geometric.h_geometric_m, geometric.u_geometric_m, bounds=bounds)

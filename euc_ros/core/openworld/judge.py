@@ -19,11 +19,16 @@ from euc_ros.core.worldsim.open_world_seeds import FAMILIES
 
 #: Rides with less sliding than this are "clean" in the table [mm].
 CLEAN_MM = 1.0
+#: Rides with at most this much sliding are a lab's usual rides: their median width has its own goal [mm].
+USUAL_MM = 5.0
+#: Rides with less sliding than this have their own explained goal [mm].
+LOW_SLIDING_MM = 3.0
 #: Explained: the held-out RMSE after / before at most this, by a right library name or discovered terms.
 EXPLAINED_RATIO = 0.6
 #: Goals of the table.
 GOALS = {"false_name_pct_max": 5.0, "coverage_pct_min": 90.0, "width_clean_mm_max": 30.0,
-         "controls_no_name_pct_min": 95.0}
+         "width_usual_mm_max": 60.0, "controls_no_name_pct_min": 95.0, "controls_none_pct_min": 90.0,
+         "explained_pct_min": 60.0, "explained_low_sliding_pct_min": 80.0}
 #: Spellings a discovered row's ``family`` may use, mapped to the generator's families.
 FAMILY_ALIASES = {"lab": "lab_field", "lab_field": "lab_field", "lab field": "lab_field", "position": "lab_field",
                   "field": "lab_field", "wheel": "wheel", "wheel_angle": "wheel", "wheel angle": "wheel",
@@ -128,7 +133,8 @@ def judge(data: dict, family: str, law: F.ForceLaw | None) -> dict:
 def judge_interval(ci, h_true: float) -> dict:
     """Whether the analysis' interval of h (``h_after_ci95_m``) holds the true h (the row's interval columns).
 
-    An end the data do not bound (None) is open: it holds the truth on its side, and the width is infinite.
+    An end the data do not bound (None) is open: the interval does not inform on that side, so it counts as a
+    miss, and the width is infinite.
 
     Parameters
     ----------
@@ -146,7 +152,7 @@ def judge_interval(ci, h_true: float) -> dict:
     lo = -math.inf if ci[0] is None else float(ci[0])
     hi = math.inf if ci[1] is None else float(ci[1])
     return {"h_after_lo_m": ci[0], "h_after_hi_m": ci[1], "width_mm": 1e3 * (hi - lo),
-            "covered": bool(lo <= h_true <= hi)}
+            "covered": bool(math.isfinite(hi - lo) and lo <= h_true <= hi)}
 
 
 # --------------------------------------------------------------------------------------------------
@@ -201,14 +207,20 @@ def summarize(rows: list[dict]) -> dict:
             continue
         ok = [r for r in fr if r["status"] == "ok"]
         clean = [r for r in ok if r["artefact_mm"] is not None and r["artefact_mm"] < CLEAN_MM]
-        s = {"n": len(ok), "failed": len(fr) - len(ok), "n_clean": len(clean),
+        usual = [r for r in ok if r["artefact_mm"] is not None and r["artefact_mm"] <= USUAL_MM]
+        low = [r for r in ok if r["artefact_mm"] is not None and r["artefact_mm"] < LOW_SLIDING_MM]
+        s = {"n": len(ok), "failed": len(fr) - len(ok), "n_clean": len(clean), "n_usual": len(usual),
+             "n_low_sliding": len(low),
              "explained_pct": _pct(r["explained"] for r in ok) if fam != "none" else None,
+             "explained_low_sliding_pct": _pct(r["explained"] for r in low) if fam != "none" else None,
+             "none_pct": _pct(r["effect"] == "none" for r in ok) if fam == "none" else None,
              "false_name_pct": _pct(r["false_name"] for r in ok),
              "no_name_pct": _pct(not r["library_names"] for r in ok),
              "coverage_pct": _pct(r["covered"] for r in ok),
              "coverage_clean_pct": _pct(r["covered"] for r in clean),
              "width_median_mm": median(r["width_mm"] for r in ok),
              "width_clean_median_mm": median(r["width_mm"] for r in clean),
+             "width_usual_median_mm": median(r["width_mm"] for r in usual),
              "floor_median_nm": median(r["floor_nm"] if fam != "none" else r["rmse_before_nm"] for r in ok),
              "ratio_design_median": median(r["ratio_design"] for r in ok),
              "ratio_measured_median": median(r["ratio_measured"] for r in ok),
@@ -220,10 +232,17 @@ def summarize(rows: list[dict]) -> dict:
         g = {"false_name": s["false_name_pct"] is not None and s["false_name_pct"] <= GOALS["false_name_pct_max"],
              "coverage": s["coverage_pct"] is not None and s["coverage_pct"] >= GOALS["coverage_pct_min"],
              "width_clean": (s["width_clean_median_mm"] <= GOALS["width_clean_mm_max"]
-                             if s["width_clean_median_mm"] is not None else None)}
+                             if s["width_clean_median_mm"] is not None else None),
+             "width_usual": (s["width_usual_median_mm"] <= GOALS["width_usual_mm_max"]
+                             if s["width_usual_median_mm"] is not None else None)}
         if fam == "none":
             g["controls_no_name"] = (s["no_name_pct"] is not None
                                      and s["no_name_pct"] >= GOALS["controls_no_name_pct_min"])
+            g["controls_none"] = s["none_pct"] is not None and s["none_pct"] >= GOALS["controls_none_pct_min"]
+        else:
+            g["explained"] = s["explained_pct"] is not None and s["explained_pct"] >= GOALS["explained_pct_min"]
+            g["explained_low_sliding"] = (s["explained_low_sliding_pct"] >= GOALS["explained_low_sliding_pct_min"]
+                                          if s["explained_low_sliding_pct"] is not None else None)
         s["goals_met"] = g
         out["families"][fam] = s
     return out

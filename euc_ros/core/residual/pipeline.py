@@ -25,9 +25,10 @@ from typing import Callable, Iterable, Sequence
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.held import HeldH
-from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
-from euc_ros.core.identify.options import IntervalOptions, Measured
+from euc_ros.core.identify.interval import MAX_CI_WIDTH_M, json_float
+from euc_ros.core.identify.options import H_BOUNDS, IntervalOptions, Measured
 from euc_ros.core.identify.pipeline import AnalysisRun, sliding_prior
+from euc_ros.core.identify.session_prior import Combined, admissible_bounds, recombine
 from euc_ros.core.identify.simex import SimexShare
 from euc_ros.core.io.provenance import inputs_record
 from euc_ros.core.model.effects import make_candidates
@@ -190,6 +191,43 @@ def held_keys(held: HeldH, final: FinalInterval | None) -> dict:
     return out
 
 
+def with_geometric_after(data: dict, geometric: Combined | None, *, admissible=None) -> dict:
+    """The final model's h and interval combined with the segments' geometric h, as identify's headline is.
+
+    The final model's h from the data (``h_after_m``, ``h_after_ci95_m``) goes under
+    ``diagnostics.h_after_combined`` (:meth:`~euc_ros.core.identify.session_prior.Combined.to_json`); the keys
+    become the posterior median and interval (:func:`~euc_ros.core.identify.session_prior.recombine`), with the
+    geometric h and its Type B uncertainty identify's combination used. A held h is left as it is (it is the
+    geometric h).
+
+    Parameters
+    ----------
+    data : dict
+        The residual JSON so far.
+    geometric : Combined or None
+        identify's combination (None: nothing is combined).
+    admissible : pair of float, optional
+        The admissible range of h (identify's ``uncertainty.h_admissible_m``).
+
+    Returns
+    -------
+    dict
+        ``h_after_m``, ``h_after_ci95_m``, ``diagnostics`` and, when the two disagree, ``warnings``; empty when
+        nothing is combined.
+    """
+    ci, h = data.get("h_after_ci95_m"), data.get("h_after_m")
+    if geometric is None or data.get("h_held") or ci is None or h is None:
+        return {}
+    c = recombine(geometric, float(h), ci, bounds=admissible_bounds(H_BOUNDS, admissible))
+    if c is None:
+        return {}
+    out = {"h_after_m": json_float(c.h_m), "h_after_ci95_m": [json_float(v) for v in c.ci95_m],
+           "diagnostics": {**(data.get("diagnostics") or {}), "h_after_combined": c.to_json()}}
+    if not c.consistent:
+        out["warnings"] = list(data.get("warnings") or []) + [f"final model: {c.warning()}"]
+    return out
+
+
 def residual_filter(states: Sequence, settings: ReconstructionSettings) -> tuple:
     """The settings with the residual's filter fixed, and the choice behind it (None for a window in seconds).
 
@@ -338,6 +376,8 @@ def trace_residual(session_path, recordings: Sequence, settings: ReconstructionS
         data["settings"]["plausible"] = {k: list(v) for k, v in options.plausible.items()}
     data["time_offset_measured"] = offset
     data["cog"] = cog_faults(states)
-    data.update(final_identifiability(data))
+    data.update(final_identifiability(data))        # the data's verdict, before the geometric h joins
+    data.update(with_geometric_after(data, ident.combined, admissible=(base.get("uncertainty") or {}).get(
+        "h_admissible_m")))
     data["inputs"] = inputs_record(session_path, recordings)
     return ResidualRun(data=data, states=states, params=params, result=result)

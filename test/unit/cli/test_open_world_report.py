@@ -23,8 +23,11 @@ def _rows():
 
 def test_table_marks_the_goals_and_unbounded_widths():
     lines = report.table_lines(summarize(_rows()))
-    assert lines[2].startswith("| none | 1 (0) | - | 0 % ✓ | 100 % ✓ | 100 % ✓ | unbounded |")
-    assert lines[3].startswith("| drift | 1 (1) | 100 % | 0 % ✓ | 0 % | 100 % ✓ | 12.0 | 12.0 ✓ (1) |")
+    # the control's unbounded interval: a miss, and the widths' goals missed
+    assert lines[2].startswith("| none | 1 (0) | - | - | 0 % ✓ | 100 % ✓ | 100 % ✓ | 100 % ✓ | unbounded | "
+                               "unbounded ✗ (1) | unbounded ✗ (1) |")
+    assert lines[3].startswith("| drift | 1 (1) | 100 % ✓ | 100 % ✓ (1) | 0 % ✓ | 0 % | - | 100 % ✓ | 12.0 | "
+                               "12.0 ✓ (1) | 12.0 ✓ (1) |")
 
 
 def test_markdown_holds_the_run_the_failures_and_every_ride(tmp_path):

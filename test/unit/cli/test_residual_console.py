@@ -61,3 +61,15 @@ def test_a_held_h_is_the_one_to_use_and_says_so_once_with_its_number():
     assert text.startswith("h to use: 0.712 m (held at the segments' geometric h") and "NOT identifiable" not in text
     lines = [line for line in format_summary(data).splitlines() if "held at the segments' geometric h" in line]
     assert len(lines) == 1 and "use h = 0.712 m" in lines[0] and "do not bound h" in lines[0]
+
+
+def test_a_combined_final_h_is_the_one_to_use_and_says_what_it_rests_on():
+    comb = {"h_m": 0.61, "ci95_m": [0.59, 0.63], "h_from_data_m": 0.55, "h_from_data_ci95_m": [0.3, None],
+            "h_geometric_m": 0.612, "u_geometric_m": 0.008, "weight_data": 0.0}
+    data = _data(h_after_m=0.61, h_after_ci95_m=[0.59, 0.63], h_after_identifiable=False,
+                 h_after_identifiability_reason="its 95 % interval is not bounded",
+                 diagnostics={"h_after_combined": comb})
+    text = headline_text(data)
+    assert text.startswith("h to use: 0.610 m (the final model's h from the data, 0.550 m, with the segments' "
+                           "geometric h 0.612 m; the data carry 0 %; the data alone do not identify it: its 95 %")
+    assert "[0.59, 0.63]" in text and "NOT identifiable" not in text

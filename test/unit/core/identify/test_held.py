@@ -116,12 +116,22 @@ def test_held_h_holds_only_what_the_data_do_not_bound():
     assert "do not bound h" in doc["reason"] and f"{held.h_m:.3f}" in held.console_line()
 
 
-def test_the_mass_fractions_term_adds_in_quadrature():
-    tol = {"rider.segments.com_offset": 0.01, "euc.l0": 0.005, "rider.segments.mass_fraction": 0.02}
+def test_the_mass_fractions_terms_add_in_quadrature():
+    from euc_ros.core.identify.held import MassSensitivity
+
+    tol = {"rider.segments.com_offset": 0.01, "euc.l0": 0.005, "rider.segments.mass_fraction": 0.02,
+           "rider.segments.mass_fraction_each": 0.1}
     u0 = geometric_h_uncertainty(tol, l0=0.05)
-    u = geometric_h_uncertainty(tol, l0=0.05, mass_sensitivity=-0.5)
+    u = geometric_h_uncertainty(tol, l0=0.05, mass_sensitivity=MassSensitivity(-0.5, {}))
     assert u == pytest.approx(math.sqrt(u0 ** 2 + (0.5 * 0.02) ** 2 / 3.0), rel=1e-12)
-    assert geometric_h_uncertainty(tol, l0=0.05, mass_sensitivity=float("nan")) == u0
+    # with the per-segment levers, their term stands for the mass fractions (the share is one of their
+    # consequences, not counted twice)
+    both = MassSensitivity(-0.5, {"BA": 0.03, "TR": -0.04})
+    u2 = geometric_h_uncertainty(tol, l0=0.05, mass_sensitivity=both)
+    assert u2 == pytest.approx(math.sqrt(u0 ** 2 + ((0.03 * 0.1) ** 2 + (0.04 * 0.1) ** 2) / 3.0), rel=1e-12)
+    assert geometric_h_uncertainty(tol, l0=0.05, mass_sensitivity=MassSensitivity(float("nan"), {})) == u0
+    u3 = geometric_h_uncertainty(tol, l0=0.05, mass_sensitivity=MassSensitivity(float("nan"), {"BA": 0.05}))
+    assert u3 == pytest.approx(math.sqrt(u0 ** 2 + (0.05 * 0.1) ** 2 / 3.0), rel=1e-12)
 
 
 def test_the_mass_sensitivity_is_the_geometric_h_of_moved_fractions(tmp_path):
@@ -153,6 +163,26 @@ def test_the_mass_sensitivity_is_the_geometric_h_of_moved_fractions(tmp_path):
         return geometric_h(load_states(sess, [str(paths["csv"])]), EucParams.from_session(sess))
 
     fd = (h_moved(0.01) - h_moved(-0.01)) / 0.02
-    assert 0.2 < s < 1.2, s                       # the upper body's CoM lies above the legs'
-    print(f"sensitivity {s:.4f}, central difference {fd:.4f} m per unit of body mass")
-    assert abs(fd - s) <= 0.01 * abs(s) + 0.02, (fd, s)
+    assert 0.2 < s.share < 1.2, s                 # the upper body's CoM lies above the legs'
+    print(f"sensitivity {s.share:.4f}, central difference {fd:.4f} m per unit of body mass")
+    assert abs(fd - s.share) <= 0.01 * abs(s.share) + 0.02, (fd, s.share)
+
+    def h_scaled(name, e):          # one segment's fraction scaled by 1 + e, all rescaled to their former sum
+        total = sum(g.mass_fraction for g in segs.values())
+        scaled = {n: g.mass_fraction * (1.0 + e if n == name else 1.0) for n, g in segs.items()}
+        k = total / sum(scaled.values())
+        moved = {n: dataclasses.replace(g, mass_fraction=scaled[n] * k) for n, g in segs.items()}
+        sess = dataclasses.replace(session, rider=dataclasses.replace(session.rider, segments=moved))
+        return geometric_h(load_states(sess, [str(paths["csv"])]), EucParams.from_session(sess))
+
+    weighted = {n for n, g in segs.items() if g.mass_fraction > 0}
+    assert set(s.levers) == weighted
+    # the heaviest upper-body segment's CoM lies above G, the heaviest leg segment's below it: the levers'
+    # signs, and each lever against the reconstruction
+    heaviest_upper = max((n for n in weighted if n not in LOWER_LIMBS), key=lambda n: segs[n].mass_fraction)
+    lowest = max((n for n in weighted if n in LOWER_LIMBS), key=lambda n: segs[n].mass_fraction)
+    assert s.levers[heaviest_upper] > 0 > s.levers[lowest], s.levers
+    for name in (heaviest_upper, lowest):
+        fd = (h_scaled(name, 0.05) - h_scaled(name, -0.05)) / 0.1
+        print(f"{name}: lever {s.levers[name]:.5f}, central difference {fd:.5f} m per unit relative change")
+        assert abs(fd - s.levers[name]) <= 0.02 * abs(s.levers[name]) + 2e-3, (name, fd, s.levers[name])

@@ -11,9 +11,9 @@ import math
 
 import numpy as np
 import pytest
-from scipy import integrate, optimize
+from scipy import integrate, optimize, stats
 
-from euc_ros.core.identify.session_prior import GRID_STEP_M, Z95, Z975, combine
+from euc_ros.core.identify.session_prior import GRID_STEP_M, Z95, Z975, combine, split_levels
 
 #: The grid's resolution of a quantile (the interpolation between two grid points is linear) [m].
 GRID_TOL = GRID_STEP_M
@@ -26,9 +26,14 @@ def test_normal_data_give_the_product_of_normals(h_d, s_d, h_g, u_g):
     w = (1 / s_d ** 2) / (1 / s_d ** 2 + 1 / u_g ** 2)
     assert c.h_m == pytest.approx(w * h_d + (1 - w) * h_g, abs=GRID_TOL)
     assert c.weight_data == pytest.approx(w, rel=1e-9)
-    # the interval: both at 97.5 % intersected
-    lo = max(h_d - Z975 * s_d, h_g - Z975 * u_g)
-    hi = min(h_d + Z975 * s_d, h_g + Z975 * u_g)
+    # the interval: both intersected at levels whose misses sum to 5 % (Bonferroni), the narrower one's at least
+    # 97.5 % (the larger share of the 5 %); equal widths: 97.5 % each
+    z_d, z_g = split_levels(s_d, u_g)
+    assert 2 * (stats.norm.sf(z_d) + stats.norm.sf(z_g)) == pytest.approx(0.05, rel=1e-9)
+    assert (z_d if s_d < u_g else z_g) <= Z975 + 1e-9
+    assert split_levels(u_g, u_g) == pytest.approx((Z975, Z975), abs=1e-6)
+    lo = max(h_d - z_d * s_d, h_g - z_g * u_g)
+    hi = min(h_d + z_d * s_d, h_g + z_g * u_g)
     assert c.consistent and c.ci95_m == pytest.approx((lo, hi), abs=1e-12)
     assert c.z == pytest.approx((h_d - h_g) / math.hypot(s_d, u_g))
 
@@ -48,7 +53,8 @@ def test_one_sided_data_give_the_quadrature_median():
     c = combine(h_d, (lo_d, None), h_g, u_g)
     assert c.h_m == pytest.approx(median, abs=GRID_TOL)
     assert math.isnan(c.h_data_ci95_m[1])
-    assert c.ci95_m == pytest.approx((max(h_d - Z975 * s_lo, h_g - Z975 * u_g), h_g + Z975 * u_g), abs=1e-12)
+    z_d, z_g = split_levels(s_lo, u_g)          # the data's one bounded side sets its precision
+    assert c.ci95_m == pytest.approx((max(h_d - z_d * s_lo, h_g - z_g * u_g), h_g + z_g * u_g), abs=1e-12)
 
 
 def test_an_end_at_the_search_range_bounds_nothing():

@@ -69,9 +69,9 @@ def test_a_right_name_that_cuts_too_little_is_not_explained():
     ([0.60, 0.64], 0.61, True, 40.0),
     ([0.62, 0.64], 0.61, False, 20.0),          # misses below
     ([0.55, 0.60], 0.61, False, 50.0),          # misses above
-    ([None, 0.64], 0.61, True, math.inf),       # an open end holds the truth on its side
+    ([None, 0.64], 0.61, False, math.inf),      # an open end informs of nothing on its side: a miss
     ([None, 0.60], 0.61, False, math.inf),
-    (None, 0.61, True, math.inf),               # no interval at all: unbounded
+    (None, 0.61, False, math.inf),              # no interval at all: unbounded, a miss
 ])
 def test_judge_interval_counts_a_miss_as_a_miss(ci, h, covered, width_mm):
     v = J.judge_interval(ci, h)
@@ -103,12 +103,15 @@ def test_summarize_counts_against_the_goals():
     assert none["coverage_pct"] == 50.0 and none["coverage_clean_pct"] == 100.0
     assert none["no_name_pct"] == 100.0 and none["explained_pct"] is None
     assert none["width_median_mm"] == math.inf                  # an unbounded interval counts as the largest
-    assert none["goals_met"] == {"false_name": True, "coverage": False, "width_clean": True,
-                                 "controls_no_name": True}
+    assert none["goals_met"] == {"false_name": True, "coverage": False, "width_clean": True, "width_usual": False,
+                                 "controls_no_name": True, "controls_none": True}
+    assert none["none_pct"] == 100.0 and none["width_usual_median_mm"] == math.inf and none["n_usual"] == 2
     assert (drift["n"], drift["failed"]) == (2, 1)
     assert drift["false_name_pct"] == 50.0 and drift["explained_pct"] == 50.0
     assert drift["width_clean_median_mm"] == 35.0 and drift["effects"] == {"ground_slope": 1, "aero_drag": 1}
-    assert drift["goals_met"] == {"false_name": False, "coverage": True, "width_clean": False}
+    assert drift["goals_met"] == {"false_name": False, "coverage": True, "width_clean": False, "width_usual": True,
+                                  "explained": False, "explained_low_sliding": False}
+    assert drift["explained_low_sliding_pct"] == 50.0 and drift["n_low_sliding"] == 2
     assert s["family_key"] is None and s["goals"] == J.GOALS
 
 
