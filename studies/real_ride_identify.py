@@ -46,9 +46,13 @@ SESSION_ERROR_M = (0.01, 0.02)
 #: Second key of a ride's random stream (first: the seed).
 STREAM = 777
 #: Seeds developed on (tuning) and the held-out report seeds, fixed before the report's one run (``--seeds
-#: tuning`` / ``--seeds report``). Nothing is chosen on the report seeds' numbers.
+#: tuning`` / ``--seeds report``). Nothing is chosen on the report seeds' numbers. ``report`` was run once with
+#: the mass fractions' legs-to-upper-body term; ``report-segments`` is for one run of the per-segment term and
+#: the precision-shared levels.
 TUNING_SEEDS = range(100, 124)
 REPORT_SEEDS = range(30000, 30050)
+REPORT_SEGMENTS_SEEDS = range(31000, 31050)
+SEED_SETS = {"tuning": TUNING_SEEDS, "report": REPORT_SEEDS, "report-segments": REPORT_SEGMENTS_SEEDS}
 #: The interval's terms recorded per ride (identify's ``uncertainty``).
 TERMS = ("eiv_bias_m", "sliding_bias_m", "sliding_bias_err_m", "filter_floor_m", "sliding_prior_range_m",
          "sliding_rms_max_m", "bootstrap_ci95_m", "distortion_correction_m")
@@ -141,9 +145,9 @@ def markdown(rows: list[dict]) -> str:
 
 
 def seed_range(text: str) -> list[int]:
-    """``"100:118"``, ``"100,105"``, ``tuning`` or ``report``."""
-    if text in ("tuning", "report"):
-        return list(TUNING_SEEDS if text == "tuning" else REPORT_SEEDS)
+    """``"100:118"``, ``"100,105"``, or a set of :data:`SEED_SETS`."""
+    if text in SEED_SETS:
+        return list(SEED_SETS[text])
     if ":" in text:
         a, b = text.split(":")
         return list(range(int(a), int(b)))
@@ -154,8 +158,8 @@ def main(argv=None) -> int:
     """Run the rides and write the rows and the summary."""
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--seeds", type=seed_range, default=seed_range("100:118"),
-                   help="worldsim seeds: A:B, a comma list, 'tuning' (100-123) or 'report' (30000-30049, held out: "
-                        "run once) [100:118]")
+                   help="worldsim seeds: A:B, a comma list, 'tuning' (100-123), 'report' (30000-30049) or "
+                        "'report-segments' (31000-31049); the report sets are held out: each run once [100:118]")
     p.add_argument("--out", type=Path, required=True, help="folder for the rides and rows.jsonl")
     p.add_argument("--fraction-sd", type=float, default=0.0,
                    help="also scale each mass fraction of the perturbed session by 1 + N(0, this) (tables differ "
