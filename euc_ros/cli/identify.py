@@ -82,7 +82,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--tolerance", action="append", default=[], metavar="KEY=VALUE",
                         help="tolerance of a nominal session value for the h range, e.g. rider.mass=2 or "
                              "euc.body_inertia=20%% (repeatable; defaults: 1 kg for masses, 10 %% for inertias, "
-                             "5 mm for h0 and l0, 2 mm for the wheel radius, 1 cm for the segment CoM offsets)")
+                             "5 mm for h0 and l0, 2 mm for the wheel radius, 1 cm for the segment CoM offsets, "
+                             "rider.segments.mass_fraction_each=0.17: each segment's mass fraction, relative)")
     parser.add_argument("--no-uncertainty", action="store_true",
                         help="skip the confidence interval, the errors-in-variables bias and the budget (faster)")
 
