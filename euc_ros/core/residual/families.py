@@ -20,7 +20,9 @@ family              argument                        columns (level = complexity)
                                                     ``sign(x_dot)`` (odd: viscous, quadratic, Coulomb-like)
                                                     or not (even)
 ``drift``           time t, per recording           Legendre polynomials of degree 0..L (L = 0, 1, 2) over
-                                                    each recording's own time range, zero on the others
+                                                    each recording's own time range, zero on the others;
+                    or since each recording's       or one such polynomial of the time since each
+                    start, shared                   recording's start, shared by the recordings
 ``dynamics``        x_dot, |x_dot|, phi_dot,        the state through causal first-order low-passes
                     gamma_dot                       ``1 / (tau s + 1)``, tau in :data:`TIME_CONSTANTS_S`
                                                     (level 1), and their squares (critically damped second
@@ -203,6 +205,8 @@ def _family_list() -> list[Family]:
                       "f(s/R + delta_run)"))
     out.append(Family("speed", ("odd",), "speed", "speed |x_dot|", "m/s", "f(|x_dot|) sign(x_dot)"))
     out.append(Family("speed", ("even",), "speed", "speed |x_dot|", "m/s", "f(|x_dot|)"))
+    # the shared drift first: it lies in the span of the per-recording ones, which would prune it
+    out.append(Family("drift", ("shared",), "drift", "time t since the recording's start", "s", "f(t)"))
     out.append(Family("drift", (), "drift", "time t per recording", "s", "f_run(t)"))
     for state, unit in (("x_dot", "m/s"), ("|x_dot|", "m/s"), ("phi_dot", "rad/s"), ("gamma_dot", "rad/s")):
         out.append(Family("dyn", (state,), "dynamics", f"time after a unit step of {state}", "s",
@@ -468,7 +472,7 @@ class Families:
         if kind == "wheel":
             return 2 * (level + 1) * (len(self.run_names) if self.families[f].option else 1)
         if kind == "drift":
-            return len(self.run_names) * (level + 1)
+            return (level + 1) * (1 if self.families[f].option else len(self.run_names))
         if kind == "osc":
             return 4
         return len(TIME_CONSTANTS_S) * (level + 1)
@@ -519,6 +523,13 @@ class Families:
         if fam.kind == "speed":
             B = self._spline("speed", np.abs(v), level)
             return B * np.tanh(v / SIGN_SPEED)[:, None] if fam.option[0] == "odd" else B
+        if fam.kind == "drift" and fam.option:
+            # one function of the time since each recording's start, shared by the recordings (what every run
+            # goes through again: a warm-up, a controller's or a battery's state after each start)
+            lo = self.runs[sig["name"]][0] if sig["name"] in self.runs else float(sig["t"][0])
+            span = max(max(hi - a for a, hi in self.runs.values()), 1e-9)
+            u = np.clip(2.0 * (sig["t"] - lo) / span - 1.0, -1.0, 1.0)
+            return legendre.legvander(u, level)
         if fam.kind == "drift":
             out = np.zeros((v.size, len(self.run_names) * (level + 1)))
             if sig["name"] in self.runs:
@@ -654,6 +665,10 @@ class Families:
             lo, hi, _ = self.ranges["speed"]
             grid = np.linspace(lo, hi, g)
             return grid, self._spline("speed", grid, level)[None], [""]
+        if fam.kind == "drift" and fam.option:
+            span = max(hi - lo for lo, hi in self.runs.values())
+            grid = np.linspace(0.0, span, g)
+            return grid, legendre.legvander(2.0 * grid / max(span, 1e-9) - 1.0, level)[None], [""]
         if fam.kind == "drift":
             grid = np.linspace(0.0, max(hi - lo for lo, hi in self.runs.values()), g)
             rows = []

@@ -365,7 +365,7 @@ WARMUP_S = 3.0
 
 
 def integrate(spec: RideSpec, t_eval, *, rtol: float = 1e-9, y0=None, method: str = "DOP853",
-              warmup: float = WARMUP_S):
+              warmup: float = WARMUP_S, stop_on_fall: bool = False):
     """Integrate a ride and return the ``solve_ivp`` result on ``t_eval``.
 
     Parameters
@@ -383,6 +383,10 @@ def integrate(spec: RideSpec, t_eval, *, rtol: float = 1e-9, y0=None, method: st
     warmup : float
         Time integrated before ``t_eval[0]`` and not recorded [s] (the profile holds its first
         speed there; the disturbances are periodic).
+    stop_on_fall : bool
+        Stop where the pitch or the lean passes :data:`FALL_GAMMA` or :data:`FALL_PHI`, the warm-up included
+        (``status`` 1, ``y`` up to there): a fallen ride's states grow without bound, and integrating them to
+        the end takes the whole evaluation budget.
 
     Returns
     -------
@@ -417,8 +421,12 @@ def integrate(spec: RideSpec, t_eval, *, rtol: float = 1e-9, y0=None, method: st
                                f"{float(t_eval[-1]) - t_start:.0f} s (a ride takes some {MAX_RHS_PER_S // 50} per s)")
         return spec.rhs(t, y)
 
+    def fallen(t, y):           # crosses zero where the ride falls (the warm-up included: no ride gets up again)
+        return min(FALL_GAMMA - abs(y[1]), FALL_PHI - abs(y[2]))
+
+    fallen.terminal = True
     sol = solve_ivp(rhs, (t_start, float(t_eval[-1])), y0, method=method, t_eval=t_eval,
-                    rtol=rtol, atol=rtol * spec.atol_scale())
+                    rtol=rtol, atol=rtol * spec.atol_scale(), events=fallen if stop_on_fall else None)
     if not sol.success:
         raise RuntimeError(f"integration failed: {sol.message}")
     return sol
@@ -459,7 +467,11 @@ def simulate(spec: RideSpec, rate_hz: float = 120.0, *, rtol: float = 1e-9) -> R
     """
     n = int(np.floor(spec.duration * rate_hz + 1e-9)) + 1
     t = np.arange(n) / rate_hz
-    sol = integrate(spec, t, rtol=rtol)
+    sol = integrate(spec, t, rtol=rtol, stop_on_fall=True)
+    if sol.status == 1:
+        ye = sol.y_events[0][-1]
+        raise ConfigError(f"seed {spec.info.get('seed')}: the ride falls at t = {sol.t_events[0][-1]:.2f} s (|gamma| "
+                          f"{np.degrees(abs(ye[1])):.1f} deg, |phi| {np.degrees(abs(ye[2])):.1f} deg)", key="seed")
     y = sol.y.T
     if np.max(np.abs(y[:, 1])) > FALL_GAMMA or np.max(np.abs(y[:, 2])) > FALL_PHI:
         raise ConfigError(f"seed {spec.info.get('seed')}: the ride falls (max |gamma| "

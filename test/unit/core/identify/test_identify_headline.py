@@ -17,7 +17,7 @@ from euc_ros.core.identify import cog_height
 from euc_ros.core.identify.cog_height import identify_h
 from euc_ros.core.identify.interval import MAX_CI_WIDTH_M
 from euc_ros.core.identify.options import IntervalOptions
-from euc_ros.core.identify.session_prior import Z975
+from euc_ros.core.identify.session_prior import Z95, split_levels
 from euc_ros.core.ridesim.simulate import RideConfig, simulate_ride
 from euc_ros.core.ridesim.writers import write_ride
 from euc_ros.core.states.filter_choice import choose_filter
@@ -195,5 +195,7 @@ def test_an_unbounded_headline_interval_is_not_identifiable(ride, monkeypatch):
     data = ident.to_dict()
     comb = data["diagnostics"]["h_combined"]
     assert comb["h_from_data_ci95_m"][1] is None       # the data bound h below only ...
-    lo, hi = data["h_ci95_m"]                           # ... the geometric h bounds it above
-    assert hi == pytest.approx(comb["h_geometric_m"] + Z975 * comb["u_geometric_m"])
+    lo, hi = data["h_ci95_m"]                           # ... the geometric h bounds it above, at its level
+    s_lo = (comb["h_from_data_m"] - comb["h_from_data_ci95_m"][0]) / Z95
+    z_g = split_levels(s_lo, comb["u_geometric_m"])[1]
+    assert Z95 < z_g and hi == pytest.approx(comb["h_geometric_m"] + z_g * comb["u_geometric_m"])

@@ -251,13 +251,49 @@ def test_duplicate_families_are_dropped_when_the_speed_keeps_its_sign():
     assert len(FAMILIES) > len(kinds)
 
 
+def per_run_drift(basis: Families) -> int:
+    return next(i for i, f in enumerate(basis.families) if f.kind == "drift" and not f.option)
+
+
 def test_drift_is_per_recording():
     rng = np.random.default_rng(3)
     ctxs = [fake_ctx(rng, f"r{i}") for i in range(3)]
     basis = Families(ctxs)
-    f = family_index(basis, "drift")
+    f = per_run_drift(basis)
     cols = basis.columns(ctxs[1])[(f, 1)]
     assert np.all(cols[:, [0, 1, 4, 5]] == 0) and np.any(cols[:, 2:4] != 0)
+
+
+def test_a_drift_every_run_goes_through_again_is_one_shared_function():
+    """Three recordings of different lengths starting at different clock times, each with the same function of
+    the time since its start (a quadratic: 2 - 0.1 t + 0.004 t^2). The shared drift family holds it exactly with
+    3 coefficients on all three, and predicts the third recording from a fit on the other two; the per-recording
+    family (9 columns) cannot predict a recording it was not fitted on. Both are kept: the shared one lies in the
+    per-recording span and comes first so that it is not pruned."""
+    rng = np.random.default_rng(4)
+    ctxs = [fake_ctx(rng, f"r{i}", duration=d) for i, d in enumerate((30.0, 24.0, 27.0))]
+    for c, start in zip(ctxs, (0.0, 100.0, 250.0)):
+        c.t = c.t + start
+    basis = Families(ctxs)
+    kinds = [(f.kind, f.option) for f in basis.families]
+    assert ("drift", ("shared",)) in kinds and ("drift", ()) in kinds
+    shared = family_index(basis, "drift", ("shared",))
+    assert basis.width(shared, 2) == 3 and basis.width(per_run_drift(basis), 2) == 9
+
+    def law(c):
+        tau = c.t - c.t[0]
+        return 2.0 - 0.1 * tau + 0.004 * tau ** 2
+
+    B = [np.asarray(basis.columns(c)[(shared, 2)]) for c in ctxs]
+    coef, *_ = np.linalg.lstsq(np.vstack(B[:2]), np.concatenate([law(c) for c in ctxs[:2]]), rcond=None)
+    assert np.max(np.abs(B[2] @ coef - law(ctxs[2]))) < 1e-9
+    assert fit_rel_error(np.vstack(B), np.concatenate([law(c) for c in ctxs])) < 1e-12
+    grid, Phi, curves = basis.curve(shared, 2)
+    assert curves == [""] and grid[0] == 0.0 and grid[-1] == pytest.approx(29.9)
+    assert np.allclose(Phi[0] @ coef, 2.0 - 0.1 * grid + 0.004 * grid ** 2, atol=1e-9)
+    P = [np.asarray(basis.columns(c)[(per_run_drift(basis), 2)]) for c in ctxs]
+    c2, *_ = np.linalg.lstsq(np.vstack(P[:2]), np.concatenate([law(c) for c in ctxs[:2]]), rcond=None)
+    assert np.allclose(P[2] @ c2, 0.0)            # zero on a recording it was not fitted on
 
 
 @pytest.mark.slow
@@ -298,7 +334,7 @@ def test_discovered_rows_carry_the_function_with_its_band_and_draw(tmp_path):
     rng = np.random.default_rng(5)
     ctxs = [fake_ctx(rng, f"r{i}") for i in range(3)]
     basis = Families(ctxs)
-    groups = [Group(family_index(basis, "lab", ("X", "1")), 1, 1), Group(family_index(basis, "drift"), 1, 0),
+    groups = [Group(family_index(basis, "lab", ("X", "1")), 1, 1), Group(per_run_drift(basis), 1, 0),
               Group(family_index(basis, "dyn", ("x_dot",)), 0, 3)]
     eff = DiscoveredEffect(basis, groups, np.ones(60))
     theta = rng.normal(size=eff.n_params)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import csv
 import dataclasses
 import json
+import math
+import re
 
 import numpy as np
 import pytest
@@ -278,3 +280,22 @@ def test_campaign_open_world_runs_end_to_end(tmp_path):
     rows2 = list(csv.DictReader(open(more / "results.csv", encoding="utf-8")))
     assert code == 0 and [r["task"] for r in rows2] == ["none_000000", "none_000001"]
     assert rows2[0] == rows[1]                         # reused as it was, seconds included
+
+
+def test_a_ride_that_falls_stops_where_it_falls():
+    """A pitch torque far beyond what the rider's controller holds (a constant 3 kN m drift on the rider's
+    pitch) tips the ride over: the integration stops at the fall, and the error says when, with the angle that
+    crossed its limit at the limit (an explosion integrated to the end would report angles of thousands of
+    degrees, after the whole evaluation budget)."""
+    from euc_ros.core.errors import ConfigError
+    from euc_ros.core.worldsim.simulate import FALL_GAMMA, FALL_PHI
+
+    spec = draw_spec(5000, duration=3.0)
+    law = F.ForceLaw("drift", F.Point("pitch"), 3000.0, {"kind": "ramp", "duration_s": 3.0, "ramp": 1.0,
+                                                        "weights": [], "periods_s": [], "phases": []})
+    with pytest.raises(ConfigError, match=r"the ride falls at t = ") as err:
+        simulate(dataclasses.replace(spec, force=law), 120.0, rtol=1e-6)
+    gamma, phi = (float(v) for v in re.findall(r"\|(?:gamma|phi)\| ([0-9.]+) deg", str(err.value)))
+    assert math.isclose(gamma, np.degrees(FALL_GAMMA), abs_tol=0.05) or math.isclose(phi, np.degrees(FALL_PHI),
+                                                                                      abs_tol=0.05)
+    assert gamma <= np.degrees(FALL_GAMMA) + 0.05 and phi <= np.degrees(FALL_PHI) + 0.05
