@@ -21,8 +21,8 @@ family              argument                        columns (level = complexity)
                                                     or not (even)
 ``drift``           time t, per recording           Legendre polynomials of degree 0..L (L = 0, 1, 2) over
                                                     each recording's own time range, zero on the others;
-                    or since each recording's       or one such polynomial of the time since each
-                    start, shared                   recording's start, shared by the recordings
+                    or since each recording's       or one such polynomial (degree 1..L) of the time since
+                    start, shared                   each recording's start, shared by the recordings
 ``dynamics``        x_dot, |x_dot|, phi_dot,        the state through causal first-order low-passes
                     gamma_dot                       ``1 / (tau s + 1)``, tau in :data:`TIME_CONSTANTS_S`
                                                     (level 1), and their squares (critically damped second
@@ -253,8 +253,30 @@ def n_levels(fam: Family) -> int:
     """
     if fam.kind == "custom":
         return fam.levels
+    if fam.kind == "drift" and fam.option:     # the shared drift starts at degree 1 (:func:`drift_degree`)
+        return MAX_DRIFT_DEGREE
     return {"lab": len(LAB_LEVELS), "speed": len(SPLINE_LEVELS), "wheel": MAX_HARMONICS,
             "drift": MAX_DRIFT_DEGREE + 1, "dyn": 2, "osc": len(RESONANCE_HZ)}[fam.kind]
+
+
+def drift_degree(fam: Family, level: int) -> int:
+    """The polynomial degree of a drift family at ``level``.
+
+    A per-recording drift starts at degree 0 (a constant per recording); the shared one at degree 1: one constant
+    shared by every recording is no drift but a constant force, which the library names (a slope, a rider mass
+    error, rolling resistance) and which would tie with them.
+
+    Parameters
+    ----------
+    fam : Family
+        A ``drift`` family.
+    level : int
+
+    Returns
+    -------
+    int
+    """
+    return level + 1 if fam.option else level
 
 
 def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np.ndarray) -> np.ndarray:
@@ -472,7 +494,8 @@ class Families:
         if kind == "wheel":
             return 2 * (level + 1) * (len(self.run_names) if self.families[f].option else 1)
         if kind == "drift":
-            return (level + 1) * (1 if self.families[f].option else len(self.run_names))
+            degree = drift_degree(self.families[f], level)
+            return (degree + 1) * (1 if self.families[f].option else len(self.run_names))
         if kind == "osc":
             return 4
         return len(TIME_CONSTANTS_S) * (level + 1)
@@ -529,7 +552,7 @@ class Families:
             lo = self.runs[sig["name"]][0] if sig["name"] in self.runs else float(sig["t"][0])
             span = max(max(hi - a for a, hi in self.runs.values()), 1e-9)
             u = np.clip(2.0 * (sig["t"] - lo) / span - 1.0, -1.0, 1.0)
-            return legendre.legvander(u, level)
+            return legendre.legvander(u, drift_degree(fam, level))
         if fam.kind == "drift":
             out = np.zeros((v.size, len(self.run_names) * (level + 1)))
             if sig["name"] in self.runs:
@@ -668,7 +691,7 @@ class Families:
         if fam.kind == "drift" and fam.option:
             span = max(hi - lo for lo, hi in self.runs.values())
             grid = np.linspace(0.0, span, g)
-            return grid, legendre.legvander(2.0 * grid / max(span, 1e-9) - 1.0, level)[None], [""]
+            return grid, legendre.legvander(2.0 * grid / max(span, 1e-9) - 1.0, drift_degree(fam, level))[None], [""]
         if fam.kind == "drift":
             grid = np.linspace(0.0, max(hi - lo for lo, hi in self.runs.values()), g)
             rows = []

@@ -278,17 +278,19 @@ def test_a_drift_every_run_goes_through_again_is_one_shared_function():
     kinds = [(f.kind, f.option) for f in basis.families]
     assert ("drift", ("shared",)) in kinds and ("drift", ()) in kinds
     shared = family_index(basis, "drift", ("shared",))
-    assert basis.width(shared, 2) == 3 and basis.width(per_run_drift(basis), 2) == 9
+    # degree 2: the shared drift's second level (it starts at degree 1: a shared constant is the library's)
+    assert basis.width(shared, 1) == 3 and basis.width(per_run_drift(basis), 2) == 9
+    assert basis.width(shared, 0) == 2 and n_levels(basis.families[shared]) == 2
 
     def law(c):
         tau = c.t - c.t[0]
         return 2.0 - 0.1 * tau + 0.004 * tau ** 2
 
-    B = [np.asarray(basis.columns(c)[(shared, 2)]) for c in ctxs]
+    B = [np.asarray(basis.columns(c)[(shared, 1)]) for c in ctxs]
     coef, *_ = np.linalg.lstsq(np.vstack(B[:2]), np.concatenate([law(c) for c in ctxs[:2]]), rcond=None)
     assert np.max(np.abs(B[2] @ coef - law(ctxs[2]))) < 1e-9
     assert fit_rel_error(np.vstack(B), np.concatenate([law(c) for c in ctxs])) < 1e-12
-    grid, Phi, curves = basis.curve(shared, 2)
+    grid, Phi, curves = basis.curve(shared, 1)
     assert curves == [""] and grid[0] == 0.0 and grid[-1] == pytest.approx(29.9)
     assert np.allclose(Phi[0] @ coef, 2.0 - 0.1 * grid + 0.004 * grid ** 2, atol=1e-9)
     P = [np.asarray(basis.columns(c)[(per_run_drift(basis), 2)]) for c in ctxs]

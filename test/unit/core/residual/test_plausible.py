@@ -106,17 +106,22 @@ def test_a_rider_inertia_error_ties_with_a_mass_error_with_the_h_of_each():
     states, params = ride({"rider_inertia_error": {"delta_j_kgm2": 8.0}})
     out = analyze(states, params, candidates=make_candidates(["rider_mass_error", "rider_inertia_error"])).to_json()
     assert out["effect"] in ("rider_mass_error", "rider_inertia_error") and out["effect_is_tie"]
-    tie = next(t for t in out["ties"] if set(t["effects"]) == {"rider_mass_error", "rider_inertia_error"})
+    # the two named ones tie, each with its h (a discovered alternative may tie with them too: on these runs of one
+    # manoeuvre the time since the start stands in for the speed, and a shared drift of a vertical force with a
+    # speed term holds out as well)
+    both = {"rider_mass_error", "rider_inertia_error"}
+    tie = next(t for t in out["ties"] if both <= set(t["effects"]))
     tried = {t["effect"]: t["h_m"] for t in out["selection_steps"][0]["tried"]}
-    assert dict(zip(tie["effects"], tie["h_m"])) == pytest.approx(tried)
+    assert {e: h for e, h in zip(tie["effects"], tie["h_m"]) if e in both} == pytest.approx(tried)
     # the h range spans the tie (the two h differ: a mass error moves h, an inertia error does not)
     lo, hi = out["h_range_m"]
-    assert lo == pytest.approx(min(tried.values())) and hi == pytest.approx(max(tried.values()))
+    assert lo == pytest.approx(min(tie["h_m"])) and hi == pytest.approx(max(tie["h_m"]))
+    assert lo <= min(tried.values()) and hi >= max(tried.values())
     assert abs(tried["rider_inertia_error"] - H_TRUE) < 0.010 and hi - lo > 0.03
     # the final model's interval holds the h of every tied explanation
     ci = out["h_after_ci95_m"]
-    assert ci[0] < min(tried.values()) and ci[1] > max(tried.values()), (ci, tried)
-    assert set(out["ambiguous_with"]) == {"rider_mass_error", "rider_inertia_error"} - {out["effect"]}
+    assert ci[0] < min(tie["h_m"]) and ci[1] > max(tie["h_m"]), (ci, tie["h_m"])
+    assert both - {out["effect"]} <= set(out["ambiguous_with"])
     (line,) = verdict_lines(out)
     assert line.startswith("tie: ") and "rider_mass_error (h " in line and "rider_inertia_error (h " in line
 
