@@ -348,8 +348,9 @@ def held_h(states: Sequence, params, h_data: float, ci95, *, tolerances: dict | 
         return None
     tol = dict(DEFAULT_TOLERANCES)
     tol.update(tolerances or {})
-    used = {k: absolute_tolerance(tol[k], params.l0 if k == "euc.l0" else 0.0) for k in GEOMETRIC_TOLERANCE_KEYS[:2]}
-    used["rider.segments.mass_fraction"] = _mass_term_m(tol, mass_sensitivity)   # both mass keys, as a move of h
+    used = {"rider.segments.com_offset": absolute_tolerance(tol["rider.segments.com_offset"], 0.0),
+            "euc.l0": absolute_tolerance(tol["euc.l0"], params.l0),
+            "rider.segments.mass_fraction": _mass_term_m(tol, mass_sensitivity)}    # both mass keys, as a move of h
     lo, hi = (float("nan") if v is None else float(v) for v in ci95)
     ends = ", ".join("unbounded" if not math.isfinite(v) else f"{v:.3f}" for v in (lo, hi))
     why = (f"the RMSE curve rises only {100 * sharpness:.0f} % at h +- 0.1 m (at least {100 * MIN_SHARPNESS:.0f} % "

@@ -129,9 +129,8 @@ class Combined:
                 "weight_data": f(self.weight_data),
                 "method": "h: posterior median of the geometric h (normal prior, the session's Type B uncertainty) "
                           "and the data's interval (split-normal likelihood); interval: both intersected at levels "
-                          "whose "
-                          "misses sum to 5 %, shared by precision (Bonferroni), the hull of both 95 % intervals "
-                          "when they disagree"}
+                          "whose misses sum to 5 %, shared by precision (Bonferroni), the hull of both 95 % "
+                          "intervals when they disagree"}
 
     def console_line(self) -> str:
         """One line: the combined h, where it comes from, and whether the two agree.

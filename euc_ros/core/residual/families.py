@@ -688,12 +688,12 @@ class Families:
             lo, hi, _ = self.ranges["speed"]
             grid = np.linspace(lo, hi, g)
             return grid, self._spline("speed", grid, level)[None], [""]
-        if fam.kind == "drift" and fam.option:
-            span = max(hi - lo for lo, hi in self.runs.values())
-            grid = np.linspace(0.0, span, g)
-            return grid, legendre.legvander(2.0 * grid / max(span, 1e-9) - 1.0, drift_degree(fam, level))[None], [""]
         if fam.kind == "drift":
             grid = np.linspace(0.0, max(hi - lo for lo, hi in self.runs.values()), g)
+            if fam.option:          # shared: the columns of any recording, on the time since its start
+                name = self.run_names[0]
+                sig = {"v": np.zeros(g), "t": self.runs[name][0] + grid, "name": name}
+                return grid, self._columns(fam, level, sig)[None], [""]
             rows = []
             for name in self.run_names:
                 lo, hi = self.runs[name]
