@@ -179,13 +179,18 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
         forget_shift_caches(setup.recs)     # no time offset fitted from here on: its hook's geometry let go
     alternative = Alternative(stage, {})
     if finder is not None and any(not getattr(c, "geometric", False) for c in stage.model.effects):
-        alternative = discovery_alternative(setup, stage, finder, rules, journal)
+        # named and discovered alternatives compared on their own held-out residuals (neither with the session's
+        # tolerances free)
+        plain = selection.stand_in.get(id(stage), stage)
+        alternative = discovery_alternative(setup, plain, finder, rules, journal)
+        if alternative.stage is plain:
+            alternative = dataclasses.replace(alternative, stage=stage)
     found = DiscoveryOutcome(alternative.stage, alternative.stage, {"run": False}, [], 1.0)
     if finder is not None:
         say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, finder, rules, journal, say)
     # nothing beat a reference: the final model is the stage it judged (with h held where it is)
-    final = {**stand_in, **session_stand_in}
+    final = {**stand_in, **session_stand_in, **selection.stand_in}
     found = dataclasses.replace(found, stage=final.get(id(found.stage), found.stage),
                                 named=stand_in.get(id(found.named), found.named))
     return conclude(setup, base, found, geometry, noise_floor_of, rules, journal)

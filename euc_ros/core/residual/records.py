@@ -170,10 +170,14 @@ class Selection:
         The stage reached.
     last : LastStep or None
         The last step tried (None when no step was tried).
+    stand_in : dict
+        ``id`` of a stage judged against the session's tolerances -> the stage it stands in for (the model
+        reported, with its own held-out residual).
     """
 
     stage: Stage
     last: LastStep | None
+    stand_in: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

@@ -17,6 +17,7 @@ from typing import Callable, Sequence
 from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.residual.records import Journal, LastStep, Screening, Selection, Setup, Stage, Trial
 from euc_ros.core.residual.result import CandidateResult
+from euc_ros.core.residual.session_reference import session_reference
 from euc_ros.core.residual.selection import (
     HeldOut,
     Model,
@@ -143,16 +144,20 @@ class ForwardSelector(Selector):
         -------
         Selection
         """
-        last = None
+        last, stand_in = None, {}
         while remaining and len(stage.model.effects) < self.max_effects:
             trials = [try_candidate(c, stage, setup) for c in remaining]
             last = LastStep(stage.model, tuple(trials))
             best = selection_step(setup, stage, trials, screening, self, journal, say)
             if best is None:
                 break
-            stage = Stage(best.model, best.heldout, best.fit.x)
+            plain = Stage(best.model, best.heldout, best.fit.x)
+            # the next name must explain more than the session's tolerances can beside this one, as the first had to
+            stage = plain if self.session is None else session_reference(setup, plain, self.session, say)
+            if stage is not plain:
+                stand_in[id(stage)] = plain
             remaining = [c for c in remaining if c is not best.candidate]
-        return Selection(stage, last)
+        return Selection(stage, last, stand_in)
 
 
 def try_candidate(candidate: Candidate, stage: Stage, setup: Setup) -> Trial:

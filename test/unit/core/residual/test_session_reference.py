@@ -111,3 +111,27 @@ def test_the_library_pipeline_judges_against_the_session_reference(tmp_path):
     reference, base_true = data["selection_steps"][0]["rmse_nm"], true["selection_steps"][0]["rmse_nm"]
     excess = data["rmse_before_nm"] - base_true
     assert abs(reference - base_true) <= 0.1 * excess, (reference, base_true, data["rmse_before_nm"])
+
+
+@pytest.fixture(scope="module")
+def friction_ride():
+    from euc_ros.core.ridesim import make_effects
+
+    return simulate_ride(RideConfig(maneuver="deceleration", runs=3, seed=SEED,
+                                    effects=make_effects(["viscous_friction"], {"c_v": 10.0})))
+
+
+def test_every_step_judges_against_the_session_reference(friction_ride):
+    """A ride with a true viscous friction (10 N s/m) and a pitch offset of 0.3 deg, within the CoM tolerance: the
+    first name must beat the offset's reference, and so must the second. Without the reference a constant torque (a
+    rolling resistance on rides in one direction) takes up the offset's share of the residual and is named beside
+    the friction; judged against the friction with the offset free, only the friction is named."""
+    ride = friction_ride
+    p = EucParams.from_session(ride.session)
+    delta = np.deg2rad(0.3)
+    states = [dataclasses.replace(st, phi=st.phi + delta)
+              for st in (reconstruct_states(r.mocap, ride.session) for r in ride.runs)]
+    plain = analyze(states, p, discovery=False)
+    judged = analyze(states, p, discovery=False, selector=ForwardSelector(session=session_tolerances(ride.config.h)))
+    assert plain.effect.startswith("viscous_friction+"), plain.effect
+    assert judged.effect == "viscous_friction", judged.effect
