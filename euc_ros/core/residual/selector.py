@@ -17,7 +17,6 @@ from typing import Callable, Sequence
 from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.residual.records import Journal, LastStep, Screening, Selection, Setup, Stage, Trial
 from euc_ros.core.residual.result import CandidateResult
-from euc_ros.core.residual.session_reference import session_reference
 from euc_ros.core.residual.selection import (
     HeldOut,
     Model,
@@ -29,6 +28,7 @@ from euc_ros.core.residual.selection import (
     plausibility,
     refusal,
 )
+from euc_ros.core.residual.session_reference import session_reference
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, max_t_adjusted, paired_block_test
 
 #: Significance level of the selection test (family-wise over the candidates of one step).
