@@ -21,6 +21,7 @@ from euc_ros.core.residual.selection import (
     HeldOut,
     Model,
     admissibility,
+    block_offsets,
     confounding,
     fit_model,
     held_out,
@@ -185,6 +186,37 @@ def try_candidate(candidate: Candidate, stage: Stage, setup: Setup) -> Trial:
                  admissibility(model, full.x, setup.h_geo), tuple(plausibility(model, full.x)))
 
 
+def holds_without_any_recording(setup: Setup, reference: HeldOut, heldout: HeldOut, rules: Selector) -> bool:
+    """Whether ``heldout`` cuts ``reference``'s held-out RMSE by the minimum gain with any one recording left out.
+
+    A name is stable when the recordings agree on it: a constant force that one run's offset calls for, or a fit
+    that one run's artefact carries, stops cutting the residual once that run is left out. With one recording there
+    is nothing to leave out (True).
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings (their blocks' numbering, :func:`~euc_ros.core.residual.selection.block_offsets`).
+    reference, heldout : HeldOut
+        The current model's and the candidate's held-out residuals.
+    rules : Selector
+        The minimum gain.
+
+    Returns
+    -------
+    bool
+    """
+    if len(setup.recs) < 2:
+        return True
+    edges = [*block_offsets(setup.recs), float("inf")]
+    for lo, hi in zip(edges[:-1], edges[1:]):
+        keep_ref = (reference.block < lo) | (reference.block >= hi)
+        keep = (heldout.block < lo) | (heldout.block >= hi)
+        if keep_ref.any() and keep.any() and not rules.cuts(heldout.restricted(keep), reference.restricted(keep_ref)):
+            return False
+    return True
+
+
 def selection_step(setup: Setup, stage: Stage, trials: list[Trial], screening: Screening, rules: Selector,
                    journal: Journal, say: Callable[[str], None]) -> Trial | None:
     """One step of :meth:`ForwardSelector.select`: the trial selected (None: nothing passes), reported in ``journal``.
@@ -230,7 +262,13 @@ def selection_step(setup: Setup, stage: Stage, trials: list[Trial], screening: S
                                                  t.model.report(t.fit.x), t.fit.h, t.inadmissible, p_adj[name],
                                                  None if t.inadmissible else refusal(list(t.refused)))
     threshold = rules.alpha
-    passing = [t for t in trials if p_adj[t.candidate.name] < threshold and rules.cuts(t.heldout, stage.heldout)]
+    significant = [t for t in trials if p_adj[t.candidate.name] < threshold and rules.cuts(t.heldout, stage.heldout)]
+    # a name must hold on every recording's company: with any one recording left out, it still cuts the rest
+    unstable = [t for t in significant if not holds_without_any_recording(setup, stage.heldout, t.heldout, rules)]
+    passing = [t for t in significant if t not in unstable]
+    for t in unstable:
+        say(f"  {t.candidate.name}: not stable (with one recording left out it no longer cuts the held-out RMSE by "
+            f"{rules.min_gain:.0%})")
     ok = [t for t in passing if t.usable]
     for t in passing:
         if t.inadmissible is not None:
@@ -248,6 +286,8 @@ def selection_step(setup: Setup, stage: Stage, trials: list[Trial], screening: S
                        **({"inadmissible": t.inadmissible} if t.inadmissible else {}),
                        **({"refused": refusal(list(t.refused))} if t.refused and not t.inadmissible else {})}
                       for t in trials]}
+    if unstable:
+        step["unstable"] = [t.candidate.name for t in unstable]
     refused_passing = [t.candidate.name for t in passing if t.inadmissible is None and t.refused]
     if refused_passing:
         step["refused"] = refused_passing
