@@ -74,7 +74,7 @@ from euc_ros.core.residual.selection import (
     h_freed,
     held_out,
 )
-from euc_ros.core.residual.selector import ForwardSelector, Selector
+from euc_ros.core.residual.selector import ForwardSelector, Selector, holds_without_any_recording
 from euc_ros.core.residual.session_reference import session_reference
 from euc_ros.core.residual.significance import AMBIGUITY_ALPHA, paired_block_test
 from euc_ros.core.states.contexts import ANALYSIS_RATE_HZ, DEFAULT_BLOCK_S, forget_shift_caches, prepare
@@ -522,17 +522,20 @@ def discovery_alternative(setup: Setup, stage: Stage, finder: Discovery, rules: 
     return Alternative(stage, record)
 
 
-def named_equal_to_discovery(stage: Stage, last: LastStep | None, sel_ho: HeldOut, rules: Selector
+def named_equal_to_discovery(setup: Setup, stage: Stage, last: LastStep | None, sel_ho: HeldOut, rules: Selector
                              ) -> tuple[Trial, float, list[Trial]] | None:
     """A named effect of the last selection step that explains the discovered structure as well as the terms.
 
     The discovery showed structure at alpha (one test: the terms were chosen within the folds); a named
     effect that cuts the residual as much (its own test at alpha now that structure is shown, not
-    Bonferroni over the library) and that the discovered terms do not beat significantly is the physical
-    explanation of it.
+    Bonferroni over the library), that holds with any one recording left out
+    (:func:`~.selector.holds_without_any_recording`) and that the discovered terms do not beat significantly is
+    the physical explanation of it.
 
     Parameters
     ----------
+    setup : Setup
+        The prepared recordings.
     stage : Stage
         The model the discovery started from.
     last : LastStep or None
@@ -552,7 +555,8 @@ def named_equal_to_discovery(stage: Stage, last: LastStep | None, sel_ho: HeldOu
     equal = []
     for t in last.trials:
         pair = common_samples(t.heldout, sel_ho)
-        if t.usable and t.p_value < rules.alpha and rules.cuts(t.heldout, stage.heldout) and pair is not None:
+        if (t.usable and t.p_value < rules.alpha and rules.cuts(t.heldout, stage.heldout) and pair is not None
+                and holds_without_any_recording(setup, stage.heldout, t.heldout, rules)):
             p_better = paired_block_test(*pair)
             if p_better >= AMBIGUITY_ALPHA:
                 equal.append((t, p_better))
@@ -611,7 +615,7 @@ def discovery_step(setup: Setup, alternative: Alternative, last: LastStep | None
     equal = None
     if p_disc < rules.alpha and gain_ok:
         # (the structure test stands even when the discovered model itself is not admissible)
-        equal = named_equal_to_discovery(stage, last, sel if sel is not None else disc.heldout, rules)
+        equal = named_equal_to_discovery(setup, stage, last, sel if sel is not None else disc.heldout, rules)
     if equal is not None:
         t, p_better, tied = equal
         journal.steps.append({
