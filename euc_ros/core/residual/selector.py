@@ -5,9 +5,11 @@ A :class:`Selector` is what :func:`~euc_ros.core.residual.analysis.analyze` take
 step in the :class:`~.records.Journal`. :class:`ForwardSelector`, the default, is the greedy forward selection
 by held-out error: each detectable candidate's parameters are fitted jointly with h on training data and
 evaluated on held-out data; a step selects by a one-sided paired test over blocks (family-wise over the
-step's candidates: max-T) and a minimum relative gain, and the selection repeats until nothing significant
-remains. A fit outside its parameter's plausible range is refused as a name; candidates the data cannot tell
-from the selected one (held out, or confounded in shape) are its ties.
+step's candidates: max-T) and a minimum relative gain that holds with any one recording left out, and the
+selection repeats until nothing significant remains. With the session's tolerances (``session``) every step is
+judged against the current model with the rider's pitch offset free within them. A fit outside its parameter's
+plausible range is refused as a name; candidates the data cannot tell from the selected one (held out, or
+confounded in shape) are its ties.
 """
 from __future__ import annotations
 
