@@ -535,6 +535,35 @@ def preferred(a: Refit | None, b: Refit | None) -> Refit | None:
     return lo
 
 
+def preferred_admissible(tried: Sequence[Refit | None], best: Refit | None, h_geometric: float) -> Refit | None:
+    """``best`` when it is admissible; else the preferred admissible model of every linearisation tried, if any.
+
+    A re-linearisation can follow groups that trade with h out of the rider's geometric window (a force
+    proportional to the pitch acceleration acts like a change of inertia); a model whose h is not admissible
+    explains nothing about this rider, so an admissible one from another linearisation is kept before it.
+
+    Parameters
+    ----------
+    tried : sequence of Refit or None
+        The discovered model of each linearisation.
+    best : Refit or None
+        The preferred of them (:func:`preferred`).
+    h_geometric : float
+        The segments' geometric h [m] (NaN: h is not compared with it).
+
+    Returns
+    -------
+    Refit or None
+    """
+    if best is None or admissibility(best.model, best.x, h_geometric) is None:
+        return best
+    out = None
+    for r in tried:
+        if r is not None and admissibility(r.model, r.x, h_geometric) is None:
+            out = preferred(out, r)
+    return best if out is None else out
+
+
 def admissible_subset(problem: DiscoveryProblem, best: Refit | None, first: GroupChoice,
                       h_geometric: float) -> Refit | None:
     """``best``, or the largest of its search path's smaller sets whose joint fit is admissible.
@@ -620,11 +649,13 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
     h_cur = float(current_x[0])
     first = select(problem, None)
     best = refit(problem, first, h_cur)
+    tried = [best]
     h_path = [h_cur]
     if math.isfinite(h_geometric) and abs(h_geometric - h_cur) > DISCOVERY_H_STEP_M:
         h_g = float(np.clip(h_geometric, *H_BOUNDS))
         h_path.append(h_g)
-        best = preferred(best, refit(problem, select(problem, h_g), h_g))
+        tried.append(refit(problem, select(problem, h_g), h_g))
+        best = preferred(best, tried[-1])
     for _ in range(DISCOVERY_RELINEARISE):
         if best is None:
             break
@@ -632,10 +663,12 @@ def discover_terms(current: Model, current_x: np.ndarray, recs: Sequence[Recordi
         if abs(h_fit - best.h_lin) < DISCOVERY_H_STEP_M:
             break
         h_path.append(h_fit)
-        nxt = preferred(best, refit(problem, select(problem, h_fit), h_fit))
+        tried.append(refit(problem, select(problem, h_fit), h_fit))
+        nxt = preferred(best, tried[-1])
         if nxt is best:
             break
         best = nxt
+    best = preferred_admissible(tried, best, h_geometric)
     best = admissible_subset(problem, best, first, h_geometric)
     choice = first if best is None else best.choice
     record = dict(heldout_rmse_by_terms=[choice.rmse[k] for k in sorted(choice.rmse)], terms=choice.best_k,

@@ -9,11 +9,12 @@ context; SI units):
 ==================  ==============================  =========================================================
 family              argument                        columns (level = complexity)
 ==================  ==============================  =========================================================
-``lab field``       lab X (lab Y), alone, times     B-splines of the lab position over its observed range,
-                    x_dot or sign(x_dot)            times ``cos(psi)`` (``sin(psi)``): a lab-fixed
-                                                    horizontal force as the heading sees it; levels: linear
-                                                    (2 columns), cubic (4), cubic with 3 knots at the
-                                                    quartiles (7)
+``lab field``       lab X (lab Y), alone, times     B-splines of the lab position, times ``cos(psi)``
+                    x_dot or sign(x_dot)            (``sin(psi)``): a lab-fixed horizontal force as the
+                                                    heading sees it; levels: linear and cubic over the
+                                                    observed range, then cubic pieces of 4, 2 and 1 m over
+                                                    the span two passes meet (:func:`revisited_span`),
+                                                    zero beyond their support (:func:`local_bspline_basis`)
 ``wheel rotation``  wheel angle s/R                 Fourier series ``sin(k s/R), cos(k s/R)``, k = 1..K,
                                                     K = 1..4 (an out-of-round or unbalanced tyre)
 ``speed``           speed |x_dot|, odd or even      B-splines of ``|x_dot|`` (levels as the lab field), times
@@ -61,7 +62,6 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.polynomial import legendre
 from scipy import signal
-from scipy.interpolate import BSpline
 
 from euc_ros.core.errors import ConfigError
 from euc_ros.core.memory import release_free_memory
@@ -70,6 +70,10 @@ from euc_ros.core.residual.basis_filters import RESONANCE_STEP as RESONANCE_STEP
 from euc_ros.core.residual.basis_filters import low_pass, resonator_columns, savgol_kernel
 from euc_ros.core.residual.basis_filters import payload_band as payload_band
 from euc_ros.core.residual.basis_filters import resonate as resonate
+from euc_ros.core.residual.splines import bspline_basis as bspline_basis
+from euc_ros.core.residual.splines import local_bspline_basis as local_bspline_basis
+from euc_ros.core.residual.splines import revisited_span as revisited_span
+from euc_ros.core.residual.splines import uniform_knots as uniform_knots
 from euc_ros.core.residual.wheel_phase import PHASE_GRID as PHASE_GRID
 from euc_ros.core.residual.wheel_phase import PHASE_SWEEPS as PHASE_SWEEPS
 from euc_ros.core.residual.wheel_phase import align_wheel_phases as align_wheel_phases
@@ -95,9 +99,14 @@ MAX_HARMONICS = 4
 SPLINE_LEVELS = ((1, 0), (3, 0), (3, 3))
 #: Levels of a lab field: (degree, knot spacing [m]; None: no interior knot). A force fixed in the lab has
 #: features of its own size wherever they are (a mat, a door's draught, a ramp: about 1-5 m), so its finer
-#: levels space their knots evenly in metres over the lab range the recordings visit, not at quantiles
-#: of where the rider happened to be.
+#: levels space their knots evenly in metres, not at quantiles of where the rider happened to be, and only over
+#: the span two passes meet: a feature one pass crossed is fitted by its own columns, which no held-out pass
+#: can check, and costs the search their price (measured on the open-world pilot: a 31 m range with 8 m met
+#: twice had 34 columns at 1 m).
 LAB_LEVELS = ((1, None), (3, None), (3, 4.0), (3, 2.0), (3, 1.0))
+#: Return [m] from a pass's furthest point that starts the next pass (:func:`revisited_span`): the levels with knots
+#: fit a lab field only over the span two passes meet, where a held-out pass can check it.
+REVERSAL_M = 0.25
 #: Highest drift polynomial degree per recording.
 MAX_DRIFT_DEGREE = 2
 #: Columns with less than this relative residual outside another family's span duplicate it on these recordings
@@ -279,48 +288,6 @@ def drift_degree(fam: Family, level: int) -> int:
     return level + 1 if fam.option else level
 
 
-def bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, interior: np.ndarray) -> np.ndarray:
-    """B-spline basis on [lo, hi], ``x`` clipped to it (partition of unity).
-
-    Parameters
-    ----------
-    x : ndarray (n,)
-    lo, hi : float
-        The range (the outer knots, repeated), in ``x``'s unit.
-    degree : int
-    interior : array_like (k,)
-        Interior knots, ascending, inside the range.
-
-    Returns
-    -------
-    ndarray (n, k + degree + 1)
-    """
-    t = np.concatenate([np.full(degree + 1, lo), np.asarray(interior, float), np.full(degree + 1, hi)])
-    xc = np.clip(np.asarray(x, float), lo, hi)
-    return BSpline.design_matrix(xc, t, degree).toarray()
-
-
-def uniform_knots(lo: float, hi: float, spacing: float | None) -> np.ndarray:
-    """Interior knots about every ``spacing`` on [lo, hi]: the range in equal pieces no longer than it.
-
-    Parameters
-    ----------
-    lo, hi : float
-        The range.
-    spacing : float or None
-        Longest piece, in the range's unit.
-
-    Returns
-    -------
-    ndarray
-        The knots, ascending; none for ``spacing`` None or an empty range.
-    """
-    if spacing is None or not hi > lo:
-        return np.zeros(0)
-    pieces = max(int(np.ceil((hi - lo) / spacing)), 1)
-    return np.linspace(lo, hi, pieces + 1)[1:-1]
-
-
 def _signals(ctx) -> dict:
     full = ctx.extras.get("full")
     if full is not None and len(full["index"]) == np.shape(ctx.t)[0]:
@@ -423,6 +390,8 @@ class Families:
               for s in sigs]
         cat = {k: np.concatenate([s[k] for s in at]) for k in ("X", "Y", "v")}
         self.ranges: dict[str, tuple[float, float, list[np.ndarray]]] = {}
+        #: Per lab coordinate, the span two passes meet (:func:`revisited_span`): the knotted levels' range.
+        self.spans: dict[str, tuple[float, float] | None] = {}
         for name, x in (("X", cat["X"]), ("Y", cat["Y"]), ("speed", np.abs(cat["v"]))):
             lo, hi = (float(np.min(x)), float(np.max(x))) if x.size else (0.0, 0.0)
             if name == "speed":
@@ -430,6 +399,7 @@ class Families:
                          for _, k in SPLINE_LEVELS]
             else:
                 knots = [uniform_knots(lo, hi, sp) for _, sp in LAB_LEVELS]
+                self.spans[name] = revisited_span([s[name] for s in at], REVERSAL_M) if hi > lo else None
             self.ranges[name] = (lo, hi, knots)
         self.runs: dict[str, tuple[float, float]] = {}
         for s in sigs:
@@ -489,7 +459,10 @@ class Families:
             return int(np.shape(self.families[f].basis(np.linspace(-1.0, 1.0, 7), level))[1])
         if kind in ("lab", "speed"):
             name = self.families[f].option[0] if kind == "lab" else "speed"
-            degree = (LAB_LEVELS if kind == "lab" else SPLINE_LEVELS)[level][0]
+            degree, spacing = (LAB_LEVELS if kind == "lab" else SPLINE_LEVELS)[level]
+            span = self.spans.get(name) if kind == "lab" and spacing is not None else None
+            if span is not None:
+                return max(int(np.ceil((span[1] - span[0]) / spacing - 1e-9)), 1) + degree
             return degree + len(self.ranges[name][2][level]) + 1
         if kind == "wheel":
             return 2 * (level + 1) * (len(self.run_names) if self.families[f].option else 1)
@@ -507,7 +480,10 @@ class Families:
     # ------------------------------------------------------------------ columns
     def _spline(self, name: str, x: np.ndarray, level: int) -> np.ndarray:
         lo, hi, knots = self.ranges[name]
-        degree = (SPLINE_LEVELS if name == "speed" else LAB_LEVELS)[level][0]
+        degree, spacing = (SPLINE_LEVELS if name == "speed" else LAB_LEVELS)[level]
+        span = self.spans.get(name) if name != "speed" and spacing is not None else None
+        if span is not None:
+            return local_bspline_basis(x, span[0], span[1], degree, spacing)
         return bspline_basis(x, lo, hi, degree, knots[level])
 
     def _columns(self, fam: Family, level: int, sig: dict) -> np.ndarray:

@@ -82,3 +82,31 @@ def test_a_later_linearisation_is_searched_again_at_its_own_h(monkeypatch):
     best = _best(2, h_of_k[2], None)           # its choice is not the first linearisation's
     out = D.admissible_subset(None, best, SimpleNamespace(best_k=2), H_GEO)
     assert out.choice.best_k == 1 and asked == [(best.h_lin, 1)]
+
+
+def _refit(h: float, rmse: float, k: int = 2):
+    from euc_ros.core.model.extended import Model
+    from euc_ros.core.residual.discovery import Refit
+    from euc_ros.core.residual.selection import HeldOut
+
+    n = 40
+    res = np.full(n, rmse)
+    return Refit(Model(), np.array([h]), HeldOut(Model(), res, np.arange(n) // 4, []), None, h, k)
+
+
+def test_an_inadmissible_discovery_gives_way_to_an_admissible_one_of_another_linearisation():
+    """A re-linearisation that trades h out of the rider's window (h 0.11 m, geometric 0.83 m) fits best held out;
+    the admissible models of the other linearisations are compared among themselves and the better one kept."""
+    from euc_ros.core.model.extended import Model
+    from euc_ros.core.residual.discovery import preferred, preferred_admissible
+    from euc_ros.core.residual.selection import admissibility
+
+    far, near_worse, near_better = _refit(0.11, 1.0), _refit(0.99, 3.0), _refit(0.83, 2.0)
+    tried = [near_worse, near_better, far]
+    best = preferred(preferred(near_worse, near_better), far)
+    assert best is far and admissibility(Model(), far.x, 0.83) is not None
+    assert preferred_admissible(tried, best, 0.83) is near_better
+    # nothing admissible: the best stays (the smaller sets of its path are tried next)
+    assert preferred_admissible([far], far, 0.83) is far
+    # an admissible best is kept as it is
+    assert preferred_admissible(tried, near_better, 0.83) is near_better
