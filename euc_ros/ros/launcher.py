@@ -4,7 +4,8 @@ Each node runs its console script with ``--ros-args`` (params files, overrides, 
 namespace). Output lines are prefixed with the node name and streamed. SIGINT, SIGTERM and SIGHUP
 (a closed terminal, a lost SSH session) to the launcher stop every node; shutdown escalates SIGINT ->
 SIGTERM -> SIGKILL in reverse start order. When a ``required`` node exits, everything is shut down
-and the launcher returns non-zero if that exit was not clean.
+and the launcher returns non-zero if that exit was not clean; after a clean exit (a replay that has ended) the
+others are first left to finish what they have queued, until they are idle (:meth:`Launcher.settle`).
 
 Children never outlive the launcher: each is started with the Linux parent-death signal set to
 SIGTERM (``prctl(PR_SET_PDEATHSIG)``), so a launcher killed by SIGKILL or a crash still ends them, and
@@ -42,6 +43,43 @@ from euc_ros.core.errors import ConfigError
 #: Grace periods of the shutdown escalation [s].
 SIGINT_GRACE_S = 5.0
 SIGTERM_GRACE_S = 3.0
+#: When a required node finishes cleanly (a replay at its end), the others are stopped once each has used under
+#: :data:`IDLE_CPU_SHARE` of a core over :data:`IDLE_WINDOW_S` (a node still working through a backlog of messages
+#: uses a whole core), or after :data:`SETTLE_MAX_S`: what is still queued downstream is processed and recorded, not
+#: lost to the stop. An idle node (a 1 Hz diagnostics timer, DDS's own threads) uses a few per cent.
+IDLE_CPU_SHARE = 0.2
+IDLE_WINDOW_S = 0.3
+SETTLE_MAX_S = 20.0
+
+
+def group_cpu_seconds(pgid: int) -> float | None:
+    """CPU time [s] (user + system) used so far by the live processes of process group ``pgid``; None off Linux.
+
+    Parameters
+    ----------
+    pgid : int
+        The process group (a launched node's: its leader's pid).
+
+    Returns
+    -------
+    float or None
+    """
+    proc = Path("/proc")
+    if not proc.is_dir():
+        return None
+    tick = os.sysconf("SC_CLK_TCK")
+    total = 0
+    for d in proc.iterdir():
+        if not d.name.isdigit():
+            continue
+        try:
+            fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:       # ended while read
+            continue
+        # after the command's closing parenthesis: state, ppid, pgrp, ..., utime (12th), stime (13th)
+        if int(fields[2]) == pgid:
+            total += int(fields[11]) + int(fields[12])
+    return total / tick
 
 
 _PR_SET_PDEATHSIG = 1
@@ -380,6 +418,37 @@ class Launcher:
                 return False
             time.sleep(period)
 
+    def settle(self, max_s: float = SETTLE_MAX_S, window_s: float = IDLE_WINDOW_S,
+               share: float = IDLE_CPU_SHARE) -> float:
+        """Wait until every running node is idle (under ``share`` of a core over ``window_s``), at most ``max_s``.
+
+        Parameters
+        ----------
+        max_s : float
+            Longest wait [s].
+        window_s : float
+            Window of the CPU measurement [s].
+        share : float
+            CPU share of one core under which a node is idle.
+
+        Returns
+        -------
+        float
+            The time waited [s].
+        """
+        t0 = time.monotonic()
+        last = None
+        while time.monotonic() - t0 < max_s:
+            alive = [p.pid for p in self.procs.values() if p.poll() is None]
+            now = {pid: group_cpu_seconds(pid) for pid in alive}
+            if not alive or any(v is None for v in now.values()):
+                break
+            if last is not None and all(now[p] - last.get(p, 0.0) < share * window_s for p in alive):
+                break
+            last = now
+            time.sleep(window_s)
+        return time.monotonic() - t0
+
     def shutdown(self, sigint_grace_s: float = SIGINT_GRACE_S, sigterm_grace_s: float = SIGTERM_GRACE_S) -> None:
         """Stop children in reverse start order: SIGINT, then SIGTERM, then SIGKILL."""
         for sig, grace in ((signal.SIGINT, sigint_grace_s), (signal.SIGTERM, sigterm_grace_s),
@@ -424,7 +493,8 @@ def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[
     """Launch ``specs`` and run until done, ``duration`` or a stop signal; return the exit code.
 
     SIGINT, SIGTERM and SIGHUP stop every node in order (:data:`STOP_SIGNALS`); a required node that
-    ends stops the others, with one line saying which and its exit code.
+    ends stops the others, with one line saying which and its exit code; one that finishes cleanly stops them
+    once they are idle (:meth:`Launcher.settle`), so what they still had queued is not lost.
     """
     launcher = Launcher(specs, stream=stream)
     stop = threading.Event()
@@ -445,6 +515,9 @@ def run(specs: Iterable[NodeSpec], *, duration: float | None = None, stream: IO[
         if launcher.failed is not None and not received:
             code = launcher.exit_codes.get(launcher.failed)
             how = "finished" if code == 0 else f"exited with code {code}"
+            if code == 0:       # a clean end: what is queued downstream is processed before the stop
+                waited = launcher.settle()
+                launcher.say(f"launch: {launcher.failed} finished; the other nodes idle after {waited:.1f} s\n")
             launcher.say(f"launch: {launcher.failed} {how}: stopping the other nodes\n")
     finally:
         launcher.shutdown()

@@ -146,3 +146,24 @@ def test_required_node_death_gives_nonzero(ros_domain, tmp_path):
     code_specs = [NodeSpec("mocap_ingest", parameters={"source": "csv"})]
     from euc_ros.ros.launcher import run
     assert run(code_specs, duration=30, stream=io.StringIO()) == 1
+
+
+def test_a_clean_end_waits_for_the_others_to_finish_their_work(tmp_path):
+    """settle(): a node still busy (a backlog: a whole core) is waited for, an idle one is not; measured on real
+    processes by their CPU time (the busy one works 1.5 s of CPU, then sleeps)."""
+    launcher = Launcher([])
+    busy = "import time\nt = time.process_time()\nwhile time.process_time() - t < 1.5: pass\ntime.sleep(60)"
+    for label, code in (("busy", busy), ("idle", "import time; time.sleep(60)")):
+        launcher.procs[label] = subprocess.Popen([sys.executable, "-c", code], start_new_session=True)
+    try:
+        waited = launcher.settle(max_s=15.0)
+        # the busy one's 1.5 s of CPU (longer in wall time on a loaded machine) plus two windows at most
+        assert 1.2 <= waited < 14.0, waited
+        busy_cpu = psutil.Process(launcher.procs["busy"].pid).cpu_times()
+        assert busy_cpu.user + busy_cpu.system >= 1.4
+        t0 = time.monotonic()
+        assert launcher.settle(max_s=15.0) < 1.0          # both idle now: two windows
+        assert time.monotonic() - t0 < 1.5
+    finally:
+        launcher.shutdown(sigint_grace_s=1.0, sigterm_grace_s=1.0)
+    assert all(p.poll() is not None for p in launcher.procs.values())
