@@ -5,7 +5,8 @@ A :class:`Selector` is what :func:`~euc_ros.core.residual.analysis.analyze` take
 step in the :class:`~.records.Journal`. :class:`ForwardSelector`, the default, is the greedy forward selection
 by held-out error: each detectable candidate's parameters are fitted jointly with h on training data and
 evaluated on held-out data; a step selects by a one-sided paired test over blocks (family-wise over the
-step's candidates: max-T) and a minimum relative gain that holds with any one recording left out, and the
+step's candidates: max-T) and a minimum relative gain that holds with any one recording (with one recording:
+any one of its held-out segments) left out, and the
 selection repeats until nothing significant remains. With the session's tolerances (``session``) every step is
 judged against the current model with the rider's pitch offset free within them. A fit outside its parameter's
 plausible range is refused as a name; candidates the data cannot tell from the selected one (held out, or
@@ -15,6 +16,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from typing import Callable, Sequence
+
+import numpy as np
 
 from euc_ros.core.model.candidate import Candidate
 from euc_ros.core.residual.records import Journal, LastStep, Screening, Selection, Setup, Stage, Trial
@@ -192,13 +195,15 @@ def holds_without_any_recording(setup: Setup, reference: HeldOut, heldout: HeldO
     """Whether ``heldout`` cuts ``reference``'s held-out RMSE by the minimum gain with any one recording left out.
 
     A name is stable when the recordings agree on it: a constant force that one run's offset calls for, or a fit
-    that one run's artefact carries, stops cutting the residual once that run is left out. With one recording there
-    is nothing to leave out (True).
+    that one run's artefact carries, stops cutting the residual once that run is left out. With one recording its
+    held-out segments (the folds') are left out in turn instead; with one segment there is nothing to leave out
+    (True).
 
     Parameters
     ----------
     setup : Setup
-        The prepared recordings (their blocks' numbering, :func:`~euc_ros.core.residual.selection.block_offsets`).
+        The prepared recordings (their blocks' numbering, :func:`~euc_ros.core.residual.selection.block_offsets`)
+        and folds.
     reference, heldout : HeldOut
         The current model's and the candidate's held-out residuals.
     rules : Selector
@@ -208,15 +213,38 @@ def holds_without_any_recording(setup: Setup, reference: HeldOut, heldout: HeldO
     -------
     bool
     """
-    if len(setup.recs) < 2:
-        return True
-    edges = [*block_offsets(setup.recs), float("inf")]
-    for lo, hi in zip(edges[:-1], edges[1:]):
-        keep_ref = (reference.block < lo) | (reference.block >= hi)
-        keep = (heldout.block < lo) | (heldout.block >= hi)
+    for left_out in stability_units(setup):
+        keep_ref = ~np.isin(reference.block, left_out)
+        keep = ~np.isin(heldout.block, left_out)
         if keep_ref.any() and keep.any() and not rules.cuts(heldout.restricted(keep), reference.restricted(keep_ref)):
             return False
     return True
+
+
+def stability_units(setup: Setup) -> list[np.ndarray]:
+    """The parts a stable name must hold without, as their blocks (numbered across the recordings).
+
+    Every recording when there are two or more; with one, each fold's held-out segment of it; none with one
+    segment.
+
+    Parameters
+    ----------
+    setup : Setup
+        The prepared recordings (``recs``, their ``block``) and, for one recording, its ``folds``.
+
+    Returns
+    -------
+    list of ndarray of int
+    """
+    offsets = block_offsets(setup.recs)
+    if len(setup.recs) >= 2:
+        return [np.unique(rec.block) + off for rec, off in zip(setup.recs, offsets)]
+    if not setup.recs:
+        return []
+    rec = setup.recs[0]
+    units = [np.unique(rec.block[np.asarray(f.test[0], bool)]) + offsets[0] for f in getattr(setup, "folds", [])]
+    units = [u for u in units if u.size]
+    return units if len(units) >= 2 else []
 
 
 def selection_step(setup: Setup, stage: Stage, trials: list[Trial], screening: Screening, rules: Selector,

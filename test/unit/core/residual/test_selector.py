@@ -12,10 +12,13 @@ from euc_ros.core.residual.selector import ForwardSelector, holds_without_any_re
 BLOCKS, PER_BLOCK = 10, 12
 
 
-def setup_of(n_recordings: int):
-    """Recordings of 10 blocks of 12 samples each (their blocks numbered from 0 within each)."""
+def setup_of(n_recordings: int, segments: int = 1):
+    """Recordings of 10 blocks of 12 samples each (their blocks numbered from 0 within each); with one recording,
+    folds holding out ``segments`` contiguous segments of it."""
     recs = [SimpleNamespace(block=np.repeat(np.arange(BLOCKS), PER_BLOCK)) for _ in range(n_recordings)]
-    return SimpleNamespace(recs=recs)
+    parts = np.array_split(np.arange(BLOCKS), segments)
+    folds = [SimpleNamespace(test=[np.isin(recs[0].block, p)]) for p in parts] if n_recordings == 1 else []
+    return SimpleNamespace(recs=recs, folds=folds)
 
 
 def heldout(residual: np.ndarray, n_recordings: int) -> HeldOut:
@@ -39,8 +42,21 @@ def test_a_cut_every_recording_shares_holds_and_one_recordings_does_not():
     assert not holds_without_any_recording(setup_of(n), base, one, rules)
 
 
-def test_one_recording_has_nothing_to_leave_out():
+def test_one_recording_in_one_segment_has_nothing_to_leave_out():
     rng = np.random.default_rng(4)
     r0 = rng.normal(0.0, 1.0, BLOCKS * PER_BLOCK)
     rules = ForwardSelector(min_gain=0.1)
     assert holds_without_any_recording(setup_of(1), heldout(r0, 1), heldout(0.99 * r0, 1), rules)
+
+
+def test_one_recording_leaves_out_its_held_out_segments_in_turn():
+    """One recording held out in two segments: a cut in both halves holds, one that removes the first half's residual
+    only (29 % of the RMSE) does not once that half is left out."""
+    rng = np.random.default_rng(5)
+    r0 = rng.normal(0.0, 1.0, BLOCKS * PER_BLOCK)
+    first = np.arange(r0.size) < BLOCKS * PER_BLOCK // 2
+    rules = ForwardSelector(min_gain=0.1)
+    base, one = heldout(r0, 1), heldout(np.where(first, 0.0, r0), 1)
+    assert rules.cuts(one, base)
+    assert holds_without_any_recording(setup_of(1, 2), base, heldout(0.5 * r0, 1), rules)
+    assert not holds_without_any_recording(setup_of(1, 2), base, one, rules)
