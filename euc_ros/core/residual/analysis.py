@@ -51,6 +51,7 @@ from euc_ros.core.residual.folds import (
     with_blocks,
 )
 from euc_ros.core.residual.interval import final_interval, sandwich_covariance
+from euc_ros.core.residual.names_beside import names_beside_discovery
 from euc_ros.core.residual.records import (
     Alternative,
     DiscoveryOutcome,
@@ -189,6 +190,7 @@ def analyze(states: Sequence[RiderStates], params: EucParams, *, candidates: Seq
     if finder is not None:
         say("discovery: function families on what the named effects leave")
         found = discovery_step(setup, alternative, selection.last, finder, rules, journal, say)
+        found = names_beside_discovery(setup, found, {c.name for c in candidates}, rules, journal, say)
     # nothing beat a reference: the final model is the stage it judged (with h held where it is)
     final = {**stand_in, **session_stand_in, **selection.stand_in}
     found = dataclasses.replace(found, stage=final.get(id(found.stage), found.stage),
