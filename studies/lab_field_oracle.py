@@ -25,12 +25,12 @@ import pickle
 from pathlib import Path
 
 import numpy as np
-from scipy.interpolate import BSpline
 
 from euc_ros.core.model.extended import Model
 from euc_ros.core.openworld.study import make_ride, seen_effect
 from euc_ros.core.residual.analysis import prepare_setup
 from euc_ros.core.residual.pipeline import trace_residual
+from euc_ros.core.residual.splines import bspline_basis
 from euc_ros.core.states.contexts import analysis_rate
 from euc_ros.core.worldsim import forces as F
 from euc_ros.core.worldsim.dynamics import PlantParams
@@ -54,9 +54,9 @@ def ride(seed: int, cache: Path) -> dict:
 
 
 def splines(x: np.ndarray, lo: float, hi: float, step: float) -> np.ndarray:
+    """Cubic B-splines with knots every ``step`` from ``lo`` past ``hi`` (the analysis' clamped basis)."""
     inner = np.arange(lo, hi + step, step)
-    t = np.r_[[lo] * 3, inner, [inner[-1]] * 3]
-    return BSpline(t, np.eye(len(t) - 4), 3)(np.clip(x, lo, inner[-1]))
+    return bspline_basis(x, lo, float(inner[-1]), 3, inner[1:-1])
 
 
 def held_out_ratio(setup, rows, cols=None) -> float:

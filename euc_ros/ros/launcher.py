@@ -38,6 +38,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any, Iterable, Mapping, Sequence
 
+import psutil
+
 from euc_ros.core.errors import ConfigError
 
 #: Grace periods of the shutdown escalation [s].
@@ -52,34 +54,31 @@ IDLE_WINDOW_S = 0.3
 SETTLE_MAX_S = 20.0
 
 
-def group_cpu_seconds(pgid: int) -> float | None:
-    """CPU time [s] (user + system) used so far by the live processes of process group ``pgid``; None off Linux.
+def tree_cpu_seconds(pid: int) -> float | None:
+    """CPU time [s] (user + system) used so far by process ``pid`` and its live descendants; None once it is gone.
 
     Parameters
     ----------
-    pgid : int
-        The process group (a launched node's: its leader's pid).
+    pid : int
+        A launched node's process.
 
     Returns
     -------
     float or None
     """
-    proc = Path("/proc")
-    if not proc.is_dir():
+    try:
+        root = psutil.Process(pid)
+        procs = [root, *root.children(recursive=True)]
+    except psutil.Error:
         return None
-    tick = os.sysconf("SC_CLK_TCK")
-    total = 0
-    for d in proc.iterdir():
-        if not d.name.isdigit():
-            continue
+    total = 0.0
+    for proc in procs:
         try:
-            fields = (d / "stat").read_text().rsplit(")", 1)[1].split()
-        except OSError:       # ended while read
+            t = proc.cpu_times()
+        except psutil.Error:        # a descendant that ended while read
             continue
-        # after the command's closing parenthesis: state, ppid, pgrp, ..., utime (12th), stime (13th)
-        if int(fields[2]) == pgid:
-            total += int(fields[11]) + int(fields[12])
-    return total / tick
+        total += t.user + t.system
+    return total
 
 
 _PR_SET_PDEATHSIG = 1
@@ -440,7 +439,7 @@ class Launcher:
         last = None
         while time.monotonic() - t0 < max_s:
             alive = [p.pid for p in self.procs.values() if p.poll() is None]
-            now = {pid: group_cpu_seconds(pid) for pid in alive}
+            now = {pid: tree_cpu_seconds(pid) for pid in alive}
             if not alive or any(v is None for v in now.values()):
                 break
             if last is not None and all(now[p] - last.get(p, 0.0) < share * window_s for p in alive):

@@ -72,6 +72,7 @@ from euc_ros.core.residual.basis_filters import payload_band as payload_band
 from euc_ros.core.residual.basis_filters import resonate as resonate
 from euc_ros.core.residual.splines import bspline_basis as bspline_basis
 from euc_ros.core.residual.splines import local_bspline_basis as local_bspline_basis
+from euc_ros.core.residual.splines import local_pieces
 from euc_ros.core.residual.splines import revisited_span as revisited_span
 from euc_ros.core.residual.splines import uniform_knots as uniform_knots
 from euc_ros.core.residual.wheel_phase import PHASE_GRID as PHASE_GRID
@@ -462,7 +463,7 @@ class Families:
             degree, spacing = (LAB_LEVELS if kind == "lab" else SPLINE_LEVELS)[level]
             span = self.spans.get(name) if kind == "lab" and spacing is not None else None
             if span is not None:
-                return max(int(np.ceil((span[1] - span[0]) / spacing - 1e-9)), 1) + degree
+                return local_pieces(span[0], span[1], spacing) + degree
             return degree + len(self.ranges[name][2][level]) + 1
         if kind == "wheel":
             return 2 * (level + 1) * (len(self.run_names) if self.families[f].option else 1)

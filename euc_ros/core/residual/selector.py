@@ -6,11 +6,10 @@ step in the :class:`~.records.Journal`. :class:`ForwardSelector`, the default, i
 by held-out error: each detectable candidate's parameters are fitted jointly with h on training data and
 evaluated on held-out data; a step selects by a one-sided paired test over blocks (family-wise over the
 step's candidates: max-T) and a minimum relative gain that holds with any one recording (with one recording:
-any one of its held-out segments) left out, and the
-selection repeats until nothing significant remains. With the session's tolerances (``session``) every step is
-judged against the current model with the rider's pitch offset free within them. A fit outside its parameter's
-plausible range is refused as a name; candidates the data cannot tell from the selected one (held out, or
-confounded in shape) are its ties.
+any one of its held-out segments) left out, and the selection repeats until nothing significant remains. With
+the session's tolerances (``session``) every step is judged against the current model with the rider's pitch
+offset free within them. A fit outside its parameter's plausible range is refused as a name; candidates the data
+cannot tell from the selected one (held out, or confounded in shape) are its ties.
 """
 from __future__ import annotations
 
@@ -242,7 +241,7 @@ def stability_units(setup: Setup) -> list[np.ndarray]:
     if not setup.recs:
         return []
     rec = setup.recs[0]
-    units = [np.unique(rec.block[np.asarray(f.test[0], bool)]) + offsets[0] for f in getattr(setup, "folds", [])]
+    units = [np.unique(rec.block[np.asarray(f.test[0], bool)]) + offsets[0] for f in setup.folds]
     units = [u for u in units if u.size]
     return units if len(units) >= 2 else []
 

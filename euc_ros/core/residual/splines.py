@@ -2,7 +2,8 @@
 
 * :func:`bspline_basis`: B-splines clamped to a range, the argument clipped to it (constant beyond);
 * :func:`uniform_knots`: interior knots in equal pieces no longer than a spacing;
-* :func:`local_bspline_basis`: uniform B-splines whose support meets a span, zero beyond their support;
+* :func:`local_pieces`, :func:`local_bspline_basis`: uniform B-splines whose support meets a span, zero beyond
+  their support;
 * :func:`revisited_span`: the span of a lab coordinate two passes meet, where a lab field can be checked on a
   held-out pass.
 """
@@ -57,6 +58,30 @@ def uniform_knots(lo: float, hi: float, spacing: float | None) -> np.ndarray:
     return np.linspace(lo, hi, pieces + 1)[1:-1]
 
 
+def local_pieces(lo: float, hi: float, spacing: float) -> int:
+    """Equal pieces of [lo, hi] no longer than ``spacing``, at least one.
+
+    :func:`local_bspline_basis` has ``pieces + degree`` functions.
+
+    Parameters
+    ----------
+    lo, hi : float
+        The range.
+    spacing : float
+        Longest piece.
+
+    Returns
+    -------
+    int
+
+    Examples
+    --------
+    >>> local_pieces(0.0, 8.5, 1.0), local_pieces(0.0, 8.0, 1.0), local_pieces(0.0, 0.2, 1.0)
+    (9, 8, 1)
+    """
+    return max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
+
+
 def local_bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, spacing: float) -> np.ndarray:
     """Uniform B-splines whose support meets [lo, hi], zero outside their support (no clipping).
 
@@ -82,7 +107,7 @@ def local_bspline_basis(x: np.ndarray, lo: float, hi: float, degree: int, spacin
     >>> B.shape, bool(np.all(B[[0, -1]] == 0)), bool(np.allclose(B[1:4].sum(axis=1), 1.0))
     ((5, 5), True, True)
     """
-    pieces = max(int(np.ceil((hi - lo) / spacing - 1e-9)), 1)
+    pieces = local_pieces(lo, hi, spacing)
     step = (hi - lo) / pieces
     t = lo + step * np.arange(-2 * degree, pieces + 2 * degree + 1)
     x = np.asarray(x, float)
